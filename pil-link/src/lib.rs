@@ -3,13 +3,20 @@
 //! commands; frames are versioned and checksummed so a lost, corrupted or late frame is seen
 //! by both sides.
 //!
-//! Layers: [`crc`] (CRC-32 written here), [`frame`] (wire format and a byte-at-a-time
-//! decoder), [`wire`] (little-endian payload reader/writer).
-#![cfg_attr(not(test), no_std)]
+//! Layers, bottom up: [`crc`] (CRC-32 written here), [`frame`] (wire format and a
+//! byte-at-a-time decoder), [`wire`] (little-endian payload fields), [`message`] (session
+//! payloads), [`session`] (the firmware's state machine: sequence, watchdog, latched safe
+//! state) and, with the `std` feature, [`host`] (the harness's lock-step client with fault
+//! injection).
+#![cfg_attr(not(any(test, feature = "std")), no_std)]
 
 pub mod crc;
 mod error;
 pub mod frame;
+#[cfg(feature = "std")]
+pub mod host;
+pub mod message;
+pub mod session;
 pub mod wire;
 
 pub use crc::{crc32, Crc32};
@@ -18,3 +25,5 @@ pub use frame::{
     Decoder, Frame, FrameKind, SequenceCheck, CRC_LEN, HEADER_LEN, MAX_FRAME, MAX_PAYLOAD,
     PROTOCOL_VERSION, SYNC,
 };
+pub use message::{FaultCode, FaultReport, Hello, HelloAck};
+pub use session::{FirmwareSession, SessionState, Target};
