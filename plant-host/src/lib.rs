@@ -2,3 +2,34 @@
 //! motion reflected to the motor side, in per unit; the motor winding, computational delay
 //! and sensor quantization around it; and the linear analysis (nalgebra) that explains it.
 //! It knows nothing of the controller.
+//!
+//! - [`TwoInertiaPlant`]: the mechanics (torque in).
+//! - [`DrivePlant`]: winding + mechanics + encoder + current ADC (voltage in).
+//! - [`LoadTorque`]: load disturbances.
+//! - [`PlantConfig`]: the `[plant]`, `[electrics]`, `[sensors]`, `[lost_motion]` TOML tables.
+//! - [`replay()`]: a torque profile through the mechanics, CSV in and out.
+//! - [`analysis`]: modes, stiffness (Eq. 1), closed velocity loop response and margins.
+
+pub mod analysis;
+mod config;
+mod drive;
+mod error;
+mod expm;
+mod load;
+mod piecewise;
+mod replay;
+pub mod sensors;
+mod two_inertia;
+
+pub use config::{
+    BacklashModel, ElectricsConfig, MechanicsConfig, MechanicsDerived, PlantConfig, SensorsConfig,
+};
+pub use drive::DrivePlant;
+pub use error::{ConfigError, PlantError};
+pub use load::{LoadTorque, TimeSeries};
+pub use piecewise::Contact;
+pub use replay::{
+    parse_torque_csv, replay, simulate, write_atomically, ReplaySummary, StateRow, TorqueRow,
+    REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER,
+};
+pub use two_inertia::TwoInertiaPlant;

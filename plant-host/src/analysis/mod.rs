@@ -1,0 +1,1 @@
+//! Linear analysis (nalgebra).

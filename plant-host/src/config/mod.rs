@@ -1,0 +1,374 @@
+//! Plant configuration from TOML: the tables `[plant]` (mechanics, exactly the paper's
+//! parameters), `[electrics]`, `[sensors]` and `[lost_motion]`. Other top-level tables
+//! (`[drive]`, scenarios...) belong to other crates and are ignored here; unknown keys inside
+//! these four tables are errors.
+
+mod reader;
+
+use crate::error::{ConfigError, PlantError};
+use reader::{IntSpec, RealSpec, TableReader};
+use std::f64::consts::PI;
+use std::path::Path;
+
+/// The mechanical plant of the paper's Fig. 3 (the `[plant]` table), reflected to the motor side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MechanicsConfig {
+    /// Base speed in rpm; 1 pu speed.
+    pub base_speed_rpm: f64,
+    /// Motor inertia Jm in seconds (time for rated torque to reach base speed).
+    pub motor_inertia_s: f64,
+    /// Load inertia Jl reflected to the motor, in seconds.
+    pub load_inertia_s: f64,
+    /// Anti-resonance frequency f_ar in Hz (load resonating against a locked motor).
+    pub anti_resonance_hz: f64,
+    /// Shaft damping ratio ζ of the load-side mode (D = 2·ζ·Jl·ω_ar).
+    pub shaft_damping_ratio: f64,
+    /// Total lost motion at the motor side in degrees (the dead zone is ±backlash/2).
+    pub backlash_deg: f64,
+    /// Motor viscous friction Bm, pu torque per pu speed.
+    pub motor_viscous_pu: f64,
+    /// Load viscous friction Bl, pu torque per pu speed.
+    pub load_viscous_pu: f64,
+}
+
+/// Which lost-motion law transmits torque across the gap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BacklashModel {
+    /// The paper's Simulink "Dead Zone" on the twist: Ts = K·dz(δ) + D·(ωm − ωl) while
+    /// |δ| > g. The damping term can momentarily pull the gears apart.
+    #[default]
+    DeadZone,
+    /// As Modelica's ElastoBacklash: the same law, but the contact can only push
+    /// (the shaft torque never changes sign against the twist).
+    Clamped,
+}
+
+/// The motor winding and its drive (the `[electrics]` table). Voltage and current are in pu;
+/// back-EMF equals speed in pu and torque equals current in pu.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElectricsConfig {
+    /// Winding resistance R in pu (voltage per current).
+    pub winding_resistance_pu: f64,
+    /// Winding inductance L in pu·s (L/R is the electrical time constant in seconds).
+    pub winding_inductance_pu_s: f64,
+    /// Delay from sampling to applying the new voltage (PWM zero-order hold), seconds.
+    pub computational_delay_s: f64,
+    /// Current ADC resolution in bits.
+    pub current_adc_bits: u32,
+    /// Current ADC full scale: codes span ±full scale, in pu.
+    pub current_full_scale_pu: f64,
+}
+
+impl Default for ElectricsConfig {
+    /// The assumed winding: R = 0.05 pu, L/R = 10 ms, 0.18 ms computational delay (Table 1),
+    /// 12-bit current ADC over ±4 pu.
+    fn default() -> Self {
+        Self {
+            winding_resistance_pu: 0.05,
+            winding_inductance_pu_s: 5e-4,
+            computational_delay_s: 180e-6,
+            current_adc_bits: 12,
+            current_full_scale_pu: 4.0,
+        }
+    }
+}
+
+/// Position and current sensors (the `[sensors]` table, plus `plant.encoder_cpr`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorsConfig {
+    /// Motor encoder counts per motor revolution (from `plant.encoder_cpr`).
+    pub encoder_cpr: u32,
+    /// Optional load-side encoder, counts per revolution of the physical load shaft.
+    pub load_encoder_cpr: Option<u32>,
+    /// Motor revolutions per load revolution (only the load encoder uses it).
+    pub gear_ratio: f64,
+    /// Standard deviation of Gaussian noise added to the motor encoder, in counts.
+    pub encoder_noise_counts: f64,
+    /// Standard deviation of Gaussian noise added to the current before the ADC, in pu.
+    pub current_noise_pu: f64,
+    /// Seed of the (deterministic) noise.
+    pub noise_seed: u64,
+}
+
+impl SensorsConfig {
+    /// Noise-free sensors with a motor encoder of `encoder_cpr` counts and no load encoder.
+    pub fn with_cpr(encoder_cpr: u32) -> Self {
+        Self {
+            encoder_cpr,
+            load_encoder_cpr: None,
+            gear_ratio: 1.0,
+            encoder_noise_counts: 0.0,
+            current_noise_pu: 0.0,
+            noise_seed: 1,
+        }
+    }
+}
+
+/// Everything plant-host reads from a config file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlantConfig {
+    /// `[plant]`.
+    pub mechanics: MechanicsConfig,
+    /// `[electrics]` (optional table; defaults as documented).
+    pub electrics: ElectricsConfig,
+    /// `plant.encoder_cpr` and `[sensors]` (optional table).
+    pub sensors: SensorsConfig,
+    /// `lost_motion.model` (optional table; default dead zone as in the paper).
+    pub backlash: BacklashModel,
+}
+
+const PLANT_REAL: [RealSpec; 8] = [
+    RealSpec {
+        name: "base_speed_rpm",
+        min: 1.0,
+        max: 100_000.0,
+        unit: "rpm",
+    },
+    RealSpec {
+        name: "motor_inertia_s",
+        min: 1e-5,
+        max: 1e4,
+        unit: "s",
+    },
+    RealSpec {
+        name: "load_inertia_s",
+        min: 1e-5,
+        max: 1e4,
+        unit: "s",
+    },
+    RealSpec {
+        name: "anti_resonance_hz",
+        min: 0.1,
+        max: 5000.0,
+        unit: "Hz",
+    },
+    RealSpec {
+        name: "shaft_damping_ratio",
+        min: 0.0,
+        max: 2.0,
+        unit: "",
+    },
+    RealSpec {
+        name: "backlash_deg",
+        min: 0.0,
+        max: 45.0,
+        unit: "deg",
+    },
+    RealSpec {
+        name: "motor_viscous_pu",
+        min: 0.0,
+        max: 100.0,
+        unit: "pu torque/pu speed",
+    },
+    RealSpec {
+        name: "load_viscous_pu",
+        min: 0.0,
+        max: 100.0,
+        unit: "pu torque/pu speed",
+    },
+];
+const CPR_SPEC: IntSpec = IntSpec {
+    name: "encoder_cpr",
+    min: 4,
+    max: 1 << 31,
+    unit: "counts/rev",
+};
+
+const R_SPEC: RealSpec = RealSpec {
+    name: "winding_resistance_pu",
+    min: 1e-4,
+    max: 10.0,
+    unit: "pu",
+};
+const L_SPEC: RealSpec = RealSpec {
+    name: "winding_inductance_pu_s",
+    min: 1e-6,
+    max: 1.0,
+    unit: "pu*s",
+};
+const DELAY_SPEC: RealSpec = RealSpec {
+    name: "computational_delay_s",
+    min: 0.0,
+    max: 0.01,
+    unit: "s",
+};
+const ADC_BITS_SPEC: IntSpec = IntSpec {
+    name: "current_adc_bits",
+    min: 4,
+    max: 24,
+    unit: "bits",
+};
+const FS_SPEC: RealSpec = RealSpec {
+    name: "current_full_scale_pu",
+    min: 0.1,
+    max: 100.0,
+    unit: "pu",
+};
+
+const LOAD_CPR_SPEC: IntSpec = IntSpec {
+    name: "load_encoder_cpr",
+    min: 0,
+    max: 1 << 31,
+    unit: "counts/rev (0 = no load encoder)",
+};
+const GEAR_SPEC: RealSpec = RealSpec {
+    name: "gear_ratio",
+    min: 1e-3,
+    max: 1e4,
+    unit: "motor rev/load rev",
+};
+const ENC_NOISE_SPEC: RealSpec = RealSpec {
+    name: "encoder_noise_counts",
+    min: 0.0,
+    max: 1e6,
+    unit: "counts rms",
+};
+const CUR_NOISE_SPEC: RealSpec = RealSpec {
+    name: "current_noise_pu",
+    min: 0.0,
+    max: 10.0,
+    unit: "pu rms",
+};
+const SEED_SPEC: IntSpec = IntSpec {
+    name: "noise_seed",
+    min: 0,
+    max: i64::MAX,
+    unit: "",
+};
+
+impl PlantConfig {
+    /// The paper's Table 1 plant (dead zone, default electrics, noise-free 4096-count encoder).
+    pub fn table1() -> Self {
+        Self {
+            mechanics: MechanicsConfig {
+                base_speed_rpm: 1000.0,
+                motor_inertia_s: 0.117,
+                load_inertia_s: 0.863,
+                anti_resonance_hz: 22.5,
+                shaft_damping_ratio: 0.05,
+                backlash_deg: 0.5,
+                motor_viscous_pu: 0.0,
+                load_viscous_pu: 0.0,
+            },
+            electrics: ElectricsConfig::default(),
+            sensors: SensorsConfig::with_cpr(4096),
+            backlash: BacklashModel::DeadZone,
+        }
+    }
+
+    /// Parses the plant-host tables of a TOML document; other top-level tables are ignored.
+    pub fn from_toml_str(text: &str) -> Result<Self, ConfigError> {
+        let doc: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| ConfigError::Syntax {
+                message: e.message().to_string(),
+            })?;
+
+        let mut plant = TableReader::open(&doc, "plant", true)?;
+        let [base, jm, jl, far, zeta, backlash, bm, bl] = PLANT_REAL;
+        let mechanics = MechanicsConfig {
+            base_speed_rpm: plant.real(base)?,
+            motor_inertia_s: plant.real(jm)?,
+            load_inertia_s: plant.real(jl)?,
+            anti_resonance_hz: plant.real(far)?,
+            shaft_damping_ratio: plant.real(zeta)?,
+            backlash_deg: plant.real(backlash)?,
+            motor_viscous_pu: plant.real(bm)?,
+            load_viscous_pu: plant.real(bl)?,
+        };
+        let encoder_cpr = to_u32(plant.int(CPR_SPEC)?);
+        plant.finish()?;
+
+        let d = ElectricsConfig::default();
+        let mut el = TableReader::open(&doc, "electrics", false)?;
+        let electrics = ElectricsConfig {
+            winding_resistance_pu: el.real_or(R_SPEC, d.winding_resistance_pu)?,
+            winding_inductance_pu_s: el.real_or(L_SPEC, d.winding_inductance_pu_s)?,
+            computational_delay_s: el.real_or(DELAY_SPEC, d.computational_delay_s)?,
+            current_adc_bits: to_u32(el.int_or(ADC_BITS_SPEC, i64::from(d.current_adc_bits))?),
+            current_full_scale_pu: el.real_or(FS_SPEC, d.current_full_scale_pu)?,
+        };
+        el.finish()?;
+
+        let s0 = SensorsConfig::with_cpr(encoder_cpr);
+        let mut se = TableReader::open(&doc, "sensors", false)?;
+        let load_cpr = se.int_or(LOAD_CPR_SPEC, 0)?;
+        if (1..4).contains(&load_cpr) {
+            return Err(ConfigError::OutOfRange {
+                key: "sensors.load_encoder_cpr".into(),
+                value: load_cpr.to_string(),
+                allowed: "0 (no load encoder) or an integer in 4..=2147483648 counts/rev".into(),
+            });
+        }
+        let sensors = SensorsConfig {
+            encoder_cpr,
+            load_encoder_cpr: (load_cpr > 0).then(|| to_u32(load_cpr)),
+            gear_ratio: se.real_or(GEAR_SPEC, s0.gear_ratio)?,
+            encoder_noise_counts: se.real_or(ENC_NOISE_SPEC, 0.0)?,
+            current_noise_pu: se.real_or(CUR_NOISE_SPEC, 0.0)?,
+            noise_seed: se.int_or(SEED_SPEC, 1)?.unsigned_abs(),
+        };
+        se.finish()?;
+
+        let mut lm = TableReader::open(&doc, "lost_motion", false)?;
+        let backlash = match lm.choice_or("model", &["dead_zone", "clamped"], "dead_zone")? {
+            "clamped" => BacklashModel::Clamped,
+            _ => BacklashModel::DeadZone,
+        };
+        lm.finish()?;
+
+        Ok(Self {
+            mechanics,
+            electrics,
+            sensors,
+            backlash,
+        })
+    }
+
+    /// Reads and parses a config file.
+    pub fn from_file(path: &Path) -> Result<Self, PlantError> {
+        let text = std::fs::read_to_string(path).map_err(|e| PlantError::Io {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        Ok(Self::from_toml_str(&text)?)
+    }
+}
+
+/// Values already range-checked to fit; saturate rather than panic all the same.
+fn to_u32(v: i64) -> u32 {
+    u32::try_from(v).unwrap_or(u32::MAX)
+}
+
+/// Constants derived once from [`MechanicsConfig`] (the design notes' formulas).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MechanicsDerived {
+    /// ω_b = 2π·base_speed_rpm/60, rad/s per pu speed.
+    pub base_speed_rad_s: f64,
+    /// ω_ar = 2π·f_ar, rad/s.
+    pub anti_resonance_rad_s: f64,
+    /// ω_r = ω_ar·√(1 + Jl/Jm), rad/s: the engaged resonance.
+    pub resonance_rad_s: f64,
+    /// K = Jl·ω_ar²/ω_b, pu torque per rad of motor-side twist.
+    pub stiffness_pu_per_rad: f64,
+    /// D = 2·ζ·Jl·ω_ar / ω_b·ω_b... in pu torque per pu speed difference: 2·ζ·Jl·ω_ar.
+    pub damping_pu: f64,
+    /// g = backlash/2 in rad at the motor side.
+    pub half_gap_rad: f64,
+}
+
+impl MechanicsConfig {
+    /// K, D, g, ω_b, ω_ar, ω_r.
+    pub fn derived(&self) -> MechanicsDerived {
+        let wb = 2.0 * PI * self.base_speed_rpm / 60.0;
+        let war = 2.0 * PI * self.anti_resonance_hz;
+        MechanicsDerived {
+            base_speed_rad_s: wb,
+            anti_resonance_rad_s: war,
+            resonance_rad_s: war * (1.0 + self.load_inertia_s / self.motor_inertia_s).sqrt(),
+            stiffness_pu_per_rad: self.load_inertia_s * war * war / wb,
+            damping_pu: 2.0 * self.shaft_damping_ratio * self.load_inertia_s * war,
+            half_gap_rad: 0.5 * self.backlash_deg.to_radians(),
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! The motor as the current loop sees it: a per-unit winding driving the two-inertia plant,
+//! with its encoder(s) and current ADC.
+//!
+//! L·di/dt = v − R·i − ωm (back-EMF = speed in pu), Tm = i (torque = current in pu).
+//! The voltage is the PWM average, held (zero-order hold) between calls to [`DrivePlant::advance`];
+//! the harness applies each new command `computational_delay_s` after its sampling instant.
+
+use crate::config::{MechanicsDerived, PlantConfig};
+use crate::error::PlantError;
+use crate::piecewise::{Contact, Piecewise, Vec3, Vec5, Winding};
+use crate::sensors::Sensors;
+use crate::two_inertia::check_step;
+
+/// Winding + mechanics + sensors. Starts at rest, zero twist, zero current.
+///
+/// ```
+/// use plant_host::{DrivePlant, PlantConfig};
+/// let mut drive = DrivePlant::new(&PlantConfig::table1());
+/// // 0.05 pu volts into R = 0.05 pu: the current rises with L/R = 10 ms while the
+/// // motor's back-EMF (= its speed) pushes back.
+/// drive.advance(10e-3, 0.05, 0.0);
+/// assert!(drive.current_pu() > 0.1 && drive.current_pu() < 1.0);
+/// assert!(drive.motor_vel_pu() > 0.0);
+/// assert!((drive.current_sample() - drive.current_pu()).abs() < 1e-3);
+/// ```
+#[derive(Debug, Clone)]
+pub struct DrivePlant {
+    core: Piecewise,
+    sensors: Sensors,
+    config: PlantConfig,
+    derived: MechanicsDerived,
+    time_s: f64,
+}
+
+impl DrivePlant {
+    /// A drive at rest.
+    pub fn new(config: &PlantConfig) -> Self {
+        let e = &config.electrics;
+        let winding = Winding {
+            r_pu: e.winding_resistance_pu,
+            l_pu_s: e.winding_inductance_pu_s,
+        };
+        Self {
+            core: Piecewise::new(&config.mechanics, config.backlash, Some(winding)),
+            sensors: Sensors::new(&config.sensors, e),
+            config: *config,
+            derived: config.mechanics.derived(),
+            time_s: 0.0,
+        }
+    }
+
+    /// Advances `dt_s` seconds with the winding voltage and load torque held (pu). Invalid
+    /// input leaves the plant unchanged; see [`Self::try_advance`].
+    pub fn advance(&mut self, dt_s: f64, voltage_pu: f64, load_torque_pu: f64) {
+        // The error is the caller's contract violation; the plant stays as it was.
+        let _ = self.try_advance(dt_s, voltage_pu, load_torque_pu);
+    }
+
+    /// As [`Self::advance`], reporting invalid input.
+    pub fn try_advance(
+        &mut self,
+        dt_s: f64,
+        voltage_pu: f64,
+        load_torque_pu: f64,
+    ) -> Result<(), PlantError> {
+        check_step(dt_s, &[voltage_pu, load_torque_pu])?;
+        self.core
+            .advance(dt_s, &Vec3::new(voltage_pu, load_torque_pu, 1.0));
+        self.time_s += dt_s;
+        Ok(())
+    }
+
+    /// The config this drive was built from.
+    pub fn config(&self) -> &PlantConfig {
+        &self.config
+    }
+    /// K, D, g, ω_b...
+    pub fn derived(&self) -> &MechanicsDerived {
+        &self.derived
+    }
+    /// Simulated time since construction, s.
+    pub fn time_s(&self) -> f64 {
+        self.time_s
+    }
+    /// The configured computational delay (sample → new voltage applied), s.
+    pub fn computational_delay_s(&self) -> f64 {
+        self.config.electrics.computational_delay_s
+    }
+
+    /// Motor encoder: floor(θm·cpr/2π) (+ noise if configured). The harness wraps it to the
+    /// controller's counter width.
+    pub fn encoder_count(&self) -> i64 {
+        self.sensors.motor_count(self.motor_pos_rad(), self.time_s)
+    }
+    /// Load encoder count, if one is configured.
+    pub fn load_encoder_count(&self) -> Option<i64> {
+        self.sensors.load_count(self.load_pos_rad())
+    }
+    /// Winding current (= motor torque), pu, exact.
+    pub fn current_pu(&self) -> f64 {
+        self.core.state().a
+    }
+    /// Winding current as the ADC reports it (noise, quantization, clamping), pu.
+    pub fn current_sample(&self) -> f64 {
+        self.sensors.current(self.current_pu(), self.time_s)
+    }
+    /// Sensor models (ADC LSB etc.).
+    pub fn sensors(&self) -> &Sensors {
+        &self.sensors
+    }
+    /// Motor angle θm, rad.
+    pub fn motor_pos_rad(&self) -> f64 {
+        let x = self.core.state();
+        x.y + x.x
+    }
+    /// Load angle θl reflected to the motor side, rad.
+    pub fn load_pos_rad(&self) -> f64 {
+        self.core.state().y
+    }
+    /// Motor speed ωm, pu.
+    pub fn motor_vel_pu(&self) -> f64 {
+        self.core.state().z
+    }
+    /// Load speed ωl, pu.
+    pub fn load_vel_pu(&self) -> f64 {
+        self.core.state().w
+    }
+    /// Twist δ = θm − θl, rad.
+    pub fn twist_rad(&self) -> f64 {
+        self.core.state().x
+    }
+    /// Shaft torque Ts, pu.
+    pub fn shaft_torque_pu(&self) -> f64 {
+        self.core.shaft_torque_pu()
+    }
+    /// Which side of the lost motion the gears are on.
+    pub fn contact(&self) -> Contact {
+        self.core.contact()
+    }
+    /// Number of contact changes located so far.
+    pub fn mode_changes(&self) -> u64 {
+        self.core.mode_changes()
+    }
+
+    /// Puts the drive in a given state (positions rad, speeds pu, current pu).
+    pub fn set_state(
+        &mut self,
+        motor_pos_rad: f64,
+        load_pos_rad: f64,
+        motor_vel_pu: f64,
+        load_vel_pu: f64,
+        current_pu: f64,
+    ) {
+        self.core.set_state(Vec5::new(
+            motor_pos_rad - load_pos_rad,
+            load_pos_rad,
+            motor_vel_pu,
+            load_vel_pu,
+            current_pu,
+        ));
+    }
+}

@@ -1,0 +1,169 @@
+//! Sensors: the motor (and optional load) encoder, the current ADC, and their optional noise.
+//! Noise is a pure function of (seed, channel, sample time), so sampling needs no `&mut` and a
+//! run is reproducible.
+
+use crate::config::{ElectricsConfig, SensorsConfig};
+use std::f64::consts::PI;
+
+/// Encoder count of an angle: floor(θ·cpr/2π), saturating at the i64 range.
+pub fn encoder_count(angle_rad: f64, cpr: u32) -> i64 {
+    // `as` saturates for out-of-range floats (and maps NaN to 0): no panic path.
+    (angle_rad * f64::from(cpr) / (2.0 * PI)).floor() as i64
+}
+
+/// The current ADC: round to the nearest code over ±full scale, clamped to the code range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurrentAdc {
+    lsb_pu: f64,
+    min_code: i32,
+    max_code: i32,
+}
+
+impl CurrentAdc {
+    /// From the electrics config (bits, full scale).
+    pub fn new(e: &ElectricsConfig) -> Self {
+        let bits = e.current_adc_bits.clamp(2, 30);
+        let half = 1_i32 << (bits - 1);
+        Self {
+            lsb_pu: 2.0 * e.current_full_scale_pu / f64::from(half) / 2.0,
+            min_code: -half,
+            max_code: half - 1,
+        }
+    }
+    /// One code in pu.
+    pub fn lsb_pu(&self) -> f64 {
+        self.lsb_pu
+    }
+    /// The code for a current.
+    pub fn code(&self, current_pu: f64) -> i32 {
+        let c = (current_pu / self.lsb_pu).round();
+        (c as i32).clamp(self.min_code, self.max_code)
+    }
+    /// The quantized current, pu.
+    pub fn sample(&self, current_pu: f64) -> f64 {
+        f64::from(self.code(current_pu)) * self.lsb_pu
+    }
+}
+
+/// Which noise stream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Channel {
+    MotorEncoder = 1,
+    Current = 2,
+}
+
+/// Deterministic Gaussian noise N(0, 1) for (seed, channel, time).
+pub(crate) fn gaussian(seed: u64, channel: Channel, time_s: f64) -> f64 {
+    // Sample index: time in ns (sampling instants are distinct to far better than 1 ns).
+    let index = (time_s * 1e9).round() as i64 as u64;
+    let mut s = seed ^ (channel as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.rotate_left(17);
+    let u1 = unit(splitmix(&mut s));
+    let u2 = unit(splitmix(&mut s));
+    // Box–Muller; u1 in (0, 1] so ln is finite.
+    (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
+}
+
+fn splitmix(s: &mut u64) -> u64 {
+    *s = s.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *s;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// (0, 1] from 53 random bits.
+fn unit(z: u64) -> f64 {
+    ((z >> 11) as f64 + 1.0) / (1_u64 << 53) as f64
+}
+
+/// Sensor models bound to a config.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sensors {
+    /// The sensor config.
+    pub config: SensorsConfig,
+    /// The current ADC.
+    pub adc: CurrentAdc,
+}
+
+impl Sensors {
+    /// From the sensor and electrics configs.
+    pub fn new(s: &SensorsConfig, e: &ElectricsConfig) -> Self {
+        Self {
+            config: *s,
+            adc: CurrentAdc::new(e),
+        }
+    }
+
+    /// Motor encoder count at `time_s` (noise, if any, is added before the floor).
+    pub fn motor_count(&self, motor_pos_rad: f64, time_s: f64) -> i64 {
+        let c = &self.config;
+        if c.encoder_noise_counts > 0.0 {
+            let noise_rad = c.encoder_noise_counts
+                * gaussian(c.noise_seed, Channel::MotorEncoder, time_s)
+                * 2.0
+                * PI
+                / f64::from(c.encoder_cpr);
+            encoder_count(motor_pos_rad + noise_rad, c.encoder_cpr)
+        } else {
+            encoder_count(motor_pos_rad, c.encoder_cpr)
+        }
+    }
+
+    /// Load encoder count (physical load shaft = reflected angle / gear ratio), if fitted.
+    pub fn load_count(&self, load_pos_rad: f64) -> Option<i64> {
+        let c = &self.config;
+        c.load_encoder_cpr
+            .map(|cpr| encoder_count(load_pos_rad / c.gear_ratio, cpr))
+    }
+
+    /// ADC-quantized current (with noise, if any) at `time_s`, pu.
+    pub fn current(&self, current_pu: f64, time_s: f64) -> f64 {
+        let c = &self.config;
+        let noisy = if c.current_noise_pu > 0.0 {
+            current_pu + c.current_noise_pu * gaussian(c.noise_seed, Channel::Current, time_s)
+        } else {
+            current_pu
+        };
+        self.adc.sample(noisy)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+
+    #[test]
+    fn counts_floor_towards_minus_infinity() {
+        let one = 2.0 * PI / 4096.0;
+        assert_eq!(encoder_count(0.0, 4096), 0);
+        assert_eq!(encoder_count(0.999 * one, 4096), 0);
+        assert_eq!(encoder_count(1.001 * one, 4096), 1);
+        assert_eq!(encoder_count(-0.001 * one, 4096), -1);
+        assert_eq!(encoder_count(2.0 * PI, 1_000_000), 1_000_000);
+    }
+
+    #[test]
+    fn adc_quantizes_and_clamps() {
+        let adc = CurrentAdc::new(&ElectricsConfig::default());
+        assert!((adc.lsb_pu() - 8.0 / 4096.0).abs() < 1e-15);
+        assert_eq!(adc.code(10.0), 2047);
+        assert_eq!(adc.code(-10.0), -2048);
+        let x = 0.123_456;
+        assert!((adc.sample(x) - x).abs() <= 0.5 * adc.lsb_pu() + 1e-15);
+    }
+
+    #[test]
+    fn noise_is_reproducible_and_unit_variance() {
+        let n = 20_000;
+        let v: Vec<f64> = (0..n)
+            .map(|k| gaussian(7, Channel::Current, k as f64 * 250e-6))
+            .collect();
+        let mean = v.iter().sum::<f64>() / n as f64;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64;
+        assert!(mean.abs() < 0.03, "mean {mean}");
+        assert!((var - 1.0).abs() < 0.05, "var {var}");
+        assert_eq!(v[5], gaussian(7, Channel::Current, 5.0 * 250e-6));
+        assert_ne!(v[5], gaussian(8, Channel::Current, 5.0 * 250e-6));
+    }
+}
