@@ -2,4 +2,35 @@
 //! fixed-point crate. Cascaded position P, velocity PI and current PI regulators, the
 //! acceleration-feedback path with its filters and a state observer, profiles and faults.
 //! The same code runs, bit for bit, in the firmware's interrupts and in the host harness.
+//!
+//! Configuration ([`DriveConfig`] → [`design`] → [`Gains`]) uses `f32` once; the ticks
+//! ([`Controller::current_tick`], [`Controller::velocity_tick`], [`Profile::next`]) use
+//! only fixed-point integer arithmetic, saturate instead of wrapping, and cannot panic.
 #![cfg_attr(not(test), no_std)]
+
+pub mod accel_feedback;
+mod cfgmath;
+pub mod config;
+pub mod controller;
+pub mod design;
+pub mod differentiator;
+pub mod error;
+pub mod fault;
+pub mod filter;
+pub mod observer;
+pub mod per_unit;
+pub mod pi;
+pub mod profile;
+
+pub use config::{
+    AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
+    ObserverConfig, ObserverInertia,
+};
+pub use controller::{
+    Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs,
+};
+pub use design::{design, Gains};
+pub use error::ConfigError;
+pub use fault::Fault;
+pub use per_unit::{Counts, CountsErr, Pu, PuPerS};
+pub use profile::{Profile, ProfileConfig, ProfileKind};

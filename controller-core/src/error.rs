@@ -1,0 +1,128 @@
+//! Typed configuration errors. Each names the offending parameter (its `DriveConfig` or
+//! `ProfileConfig` field path) and the allowed range.
+
+use core::fmt;
+
+/// A bad setting found by [`crate::design`], [`crate::Controller::new`] or
+/// [`crate::Profile::new`]. Never a panic and never a silent clamp.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ConfigError {
+    /// The value is NaN or infinite.
+    NotFinite {
+        /// Field path, e.g. `"motor_inertia_s"`.
+        param: &'static str,
+    },
+    /// The value lies outside its allowed range `[min, max]` (`min_exclusive`: `(min, max]`).
+    OutOfRange {
+        /// Field path.
+        param: &'static str,
+        /// The value given.
+        value: f32,
+        /// Smallest allowed value.
+        min: f32,
+        /// Largest allowed value.
+        max: f32,
+        /// Whether `min` itself is excluded (e.g. strictly positive quantities).
+        min_exclusive: bool,
+    },
+    /// A frequency at or above its loop's Nyquist limit.
+    AboveNyquist {
+        /// Field path.
+        param: &'static str,
+        /// The value given, in the field's unit (rad/s or Hz).
+        value: f32,
+        /// The (exclusive) limit in the same unit.
+        nyquist: f32,
+    },
+    /// A derived gain or coefficient does not fit its fixed-point format.
+    CoefficientOverflow {
+        /// Name of the derived coefficient (see `Gains`) and the settings it comes from.
+        param: &'static str,
+        /// The computed value.
+        value: f32,
+        /// The Q-format it must fit.
+        q_format: &'static str,
+    },
+    /// A non-zero derived gain or coefficient is too small for its fixed-point format
+    /// (it would be quantized with more than 1 % error).
+    CoefficientUnderflow {
+        /// Name of the derived coefficient and the settings it comes from.
+        param: &'static str,
+        /// The computed value.
+        value: f32,
+        /// The Q-format it must fit.
+        q_format: &'static str,
+    },
+    /// `current_rate_hz` is not an integer multiple of `velocity_rate_hz`.
+    RateRatio {
+        /// Current tick rate [Hz].
+        current_rate_hz: u32,
+        /// Velocity tick rate [Hz].
+        velocity_rate_hz: u32,
+    },
+}
+
+impl ConfigError {
+    /// The name of the offending parameter.
+    #[must_use]
+    pub fn param(&self) -> &'static str {
+        match self {
+            Self::NotFinite { param }
+            | Self::OutOfRange { param, .. }
+            | Self::AboveNyquist { param, .. }
+            | Self::CoefficientOverflow { param, .. }
+            | Self::CoefficientUnderflow { param, .. } => param,
+            Self::RateRatio { .. } => "velocity_rate_hz",
+        }
+    }
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::NotFinite { param } => write!(f, "{param}: must be a finite number"),
+            Self::OutOfRange {
+                param,
+                value,
+                min,
+                max,
+                min_exclusive,
+            } => {
+                let open = if min_exclusive { '(' } else { '[' };
+                write!(f, "{param} = {value}: allowed range is {open}{min}, {max}]")
+            }
+            Self::AboveNyquist {
+                param,
+                value,
+                nyquist,
+            } => write!(
+                f,
+                "{param} = {value}: must be below the loop's Nyquist limit {nyquist}"
+            ),
+            Self::CoefficientOverflow {
+                param,
+                value,
+                q_format,
+            } => write!(
+                f,
+                "{param} = {value}: does not fit its fixed-point format {q_format}"
+            ),
+            Self::CoefficientUnderflow {
+                param,
+                value,
+                q_format,
+            } => write!(
+                f,
+                "{param} = {value}: too small for its fixed-point format {q_format} (more than 1 % quantization error)"
+            ),
+            Self::RateRatio {
+                current_rate_hz,
+                velocity_rate_hz,
+            } => write!(
+                f,
+                "velocity_rate_hz = {velocity_rate_hz}: must divide current_rate_hz = {current_rate_hz} \
+                 (allowed: current_rate_hz / n, n = 1..=16)"
+            ),
+        }
+    }
+}

@@ -1,0 +1,197 @@
+//! Low-pass filters on Q16.16 signals: first order (matched pole) and second order
+//! (bilinear biquad, Direct Form I). Coefficients are Q2.30; the first-order state is
+//! Q32.32 and the biquad keeps its rounding residual (error feedback), so neither has a
+//! dead band at low corners.
+
+use crate::config::FilterConfig;
+use crate::error::ConfigError;
+use crate::per_unit::{checked_q, sat_i32, Coef, Pu};
+
+/// Coefficients of a low-pass filter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LowPass {
+    /// Pass-through.
+    None,
+    /// y ← y + α·(x − y).
+    FirstOrder {
+        /// α = 1 − e^(−ω_c·Ts), Q2.30.
+        alpha: Coef,
+    },
+    /// y = b0·x0 + b1·x1 + b2·x2 − a1·y1 − a2·y2 (low-pass: b1 = 2·b0, b2 = b0).
+    SecondOrder {
+        /// b0 (= b2, b1 = 2·b0), Q2.30.
+        b0: Coef,
+        /// a1, Q2.30.
+        a1: Coef,
+        /// a2, Q2.30.
+        a2: Coef,
+    },
+}
+
+/// Filter state (plain data, loggable, reset = default).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LowPassState {
+    /// First order: output in Q32.32. Biquad: unused.
+    pub y_q32: i64,
+    /// Biquad inputs x[n−1], x[n−2] (Q16.16 bits).
+    pub x: [i32; 2],
+    /// Biquad outputs y[n−1], y[n−2] (Q16.16 bits).
+    pub y: [i32; 2],
+    /// Biquad rounding residual (Q.46 bits below the output LSB).
+    pub residual: i64,
+}
+
+/// The f32 design of a filter, before quantization (for references and logging).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LowPassDesign {
+    /// Pass-through.
+    None,
+    /// First order with α.
+    FirstOrder {
+        /// α.
+        alpha: f32,
+    },
+    /// Biquad.
+    SecondOrder {
+        /// b0 = b2 (b1 = 2·b0).
+        b0: f32,
+        /// a1.
+        a1: f32,
+        /// a2.
+        a2: f32,
+    },
+}
+
+/// Design a low-pass filter for a tick rate. `param` names the `FilterConfig` field for
+/// errors (e.g. `"accel_feedback.filter"`).
+pub fn design_low_pass(
+    cfg: &FilterConfig,
+    rate_hz: f32,
+    param_corner: &'static str,
+    param_q: &'static str,
+) -> Result<LowPassDesign, ConfigError> {
+    match *cfg {
+        FilterConfig::None => Ok(LowPassDesign::None),
+        FilterConfig::FirstOrder { corner_hz } => {
+            check_corner(corner_hz, rate_hz, param_corner)?;
+            let alpha = (1.0
+                - crate::cfgmath::exp(
+                    -core::f64::consts::TAU * f64::from(corner_hz) / f64::from(rate_hz),
+                )) as f32;
+            Ok(LowPassDesign::FirstOrder { alpha })
+        }
+        FilterConfig::SecondOrder { corner_hz, q } => {
+            check_corner(corner_hz, rate_hz, param_corner)?;
+            if !q.is_finite() {
+                return Err(ConfigError::NotFinite { param: param_q });
+            }
+            if !(0.1..=10.0).contains(&q) {
+                return Err(ConfigError::OutOfRange {
+                    param: param_q,
+                    value: q,
+                    min: 0.1,
+                    max: 10.0,
+                    min_exclusive: false,
+                });
+            }
+            // Bilinear transform with the corner pre-warped: K = tan(π·f_c/f_s).
+            let k = crate::cfgmath::tan(
+                core::f64::consts::PI * f64::from(corner_hz) / f64::from(rate_hz),
+            );
+            let q = f64::from(q);
+            let norm = 1.0 / (1.0 + k / q + k * k);
+            Ok(LowPassDesign::SecondOrder {
+                b0: (k * k * norm) as f32,
+                a1: (2.0 * (k * k - 1.0) * norm) as f32,
+                a2: ((1.0 - k / q + k * k) * norm) as f32,
+            })
+        }
+    }
+}
+
+fn check_corner(corner_hz: f32, rate_hz: f32, param: &'static str) -> Result<(), ConfigError> {
+    if !corner_hz.is_finite() {
+        return Err(ConfigError::NotFinite { param });
+    }
+    if corner_hz <= 0.0 {
+        return Err(ConfigError::OutOfRange {
+            param,
+            value: corner_hz,
+            min: 0.0,
+            max: rate_hz / 2.0,
+            min_exclusive: true,
+        });
+    }
+    if corner_hz >= rate_hz / 2.0 {
+        return Err(ConfigError::AboveNyquist {
+            param,
+            value: corner_hz,
+            nyquist: rate_hz / 2.0,
+        });
+    }
+    Ok(())
+}
+
+impl LowPass {
+    /// Quantize a design to Q2.30; `param` names the coefficient set in an overflow error.
+    pub fn quantize(d: &LowPassDesign, param: &'static str) -> Result<Self, ConfigError> {
+        let q = |v: f32| {
+            checked_q::<Coef>(v).ok_or(ConfigError::CoefficientOverflow {
+                param,
+                value: v,
+                q_format: "Q2.30",
+            })
+        };
+        Ok(match *d {
+            LowPassDesign::None => Self::None,
+            LowPassDesign::FirstOrder { alpha } => Self::FirstOrder { alpha: q(alpha)? },
+            LowPassDesign::SecondOrder { b0, a1, a2 } => Self::SecondOrder {
+                b0: q(b0)?,
+                a1: q(a1)?,
+                a2: q(a2)?,
+            },
+        })
+    }
+
+    /// Filter one sample.
+    ///
+    /// ```
+    /// use controller_core::filter::{LowPass, LowPassState};
+    /// use controller_core::per_unit::{Coef, Pu};
+    /// let f = LowPass::FirstOrder { alpha: Coef::from_num(0.5) };
+    /// let mut s = LowPassState::default();
+    /// assert_eq!(f.process(&mut s, Pu::from_num(1)), Pu::from_num(0.5));
+    /// assert_eq!(f.process(&mut s, Pu::from_num(1)), Pu::from_num(0.75));
+    /// ```
+    #[inline]
+    pub fn process(&self, s: &mut LowPassState, x: Pu) -> Pu {
+        match *self {
+            Self::None => x,
+            Self::FirstOrder { alpha } => {
+                // y ← y + α·(x − y); (x − y) Q16.16 · α Q2.30 = Q.46 → Q.32.
+                let y16 = sat_i32(s.y_q32 >> 16);
+                let e = i64::from(x.to_bits()) - i64::from(y16);
+                let inc = e.saturating_mul(i64::from(alpha.to_bits())) >> 14;
+                s.y_q32 = s.y_q32.saturating_add(inc);
+                Pu::from_bits(sat_i32((s.y_q32 + (1 << 15)) >> 16))
+            }
+            Self::SecondOrder { b0, a1, a2 } => {
+                // DF1 in Q.46 with error feedback of the truncated bits.
+                let [x1, x2] = s.x;
+                let [y1, y2] = s.y;
+                let x0 = x.to_bits();
+                let xs = i64::from(x0) + 2 * i64::from(x1) + i64::from(x2);
+                let acc = i64::from(b0.to_bits())
+                    .saturating_mul(xs)
+                    .saturating_sub(i64::from(a1.to_bits()) * i64::from(y1))
+                    .saturating_sub(i64::from(a2.to_bits()) * i64::from(y2))
+                    .saturating_add(s.residual);
+                let y0 = sat_i32(acc >> 30);
+                s.residual = acc & ((1 << 30) - 1);
+                s.x = [x0, x1];
+                s.y = [y0, y1];
+                Pu::from_bits(y0)
+            }
+        }
+    }
+}

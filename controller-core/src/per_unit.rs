@@ -1,0 +1,158 @@
+//! Per-unit conventions and the Q-format of every signal.
+//!
+//! * Speed in pu of base speed: ω_pu = ω / ω_b, ω_b = 2π·base_speed_rpm/60 rad/s.
+//! * Torque and current in pu of rated; torque = current (k_t = 1 pu).
+//! * Inertia in seconds: J·dω_pu/dt = T_pu.
+//! * Acceleration in pu/s (pu of base speed per second).
+//! * Positions as integer encoder counts; the hardware counter wraps at `counter_bits` and
+//!   [`count_diff`] gives the wrap-safe signed difference of two raw readings.
+//!
+//! | Signal / coefficient                       | Type        | Range            | Resolution |
+//! |--------------------------------------------|-------------|------------------|------------|
+//! | speed, current, voltage, torque [pu]       | [`Pu`]      | ±32768           | 1.5e-5     |
+//! | acceleration [pu/s]                        | [`PuPerS`]  | ±32768           | 1.5e-5     |
+//! | commanded position [counts, unwrapped]     | [`Counts`]  | ±1.4e14          | 1/65536    |
+//! | position error [counts]                    | [`CountsErr`] | ±8.4e6         | 1/256      |
+//! | large gains (Kp_vel, Ka, Kp_cur, J)        | [`Gain`]    | ±32768           | 1.5e-5     |
+//! | per-tick gains (Ki·Ts, count→pu scales)    | [`TickGain`]| ±128             | 6.0e-8     |
+//! | position gain [pu per count]               | [`PosGain`] | ±1               | 4.7e-10    |
+//! | filter / observer coefficients             | [`Coef`]    | ±2               | 9.3e-10    |
+//!
+//! Products are formed in 64 bits, rounded to nearest and saturated to the 32-bit result
+//! type, so no tick can overflow: a saturated signal is the worst case, never a wrap.
+
+use fixed::types::{I16F16, I1F31, I24F8, I2F30, I48F16, I8F24};
+
+/// Per-unit signal: speed, current, torque, voltage (Q16.16).
+pub type Pu = I16F16;
+/// Acceleration in pu of base speed per second (Q16.16).
+pub type PuPerS = I16F16;
+/// Unwrapped encoder position in counts with a fraction (Q48.16), for commanded positions.
+pub type Counts = I48F16;
+/// Position error in counts (Q24.8): ±8.4 million counts, 1/256 count resolution.
+pub type CountsErr = I24F8;
+/// Large gain (Q16.16): velocity Kp [pu torque per pu speed], Ka and inertias [s],
+/// current Kp [pu voltage per pu current].
+pub type Gain = I16F16;
+/// Per-tick gain (Q8.24): Ki·Ts, counts-per-tick to pu scale factors.
+pub type TickGain = I8F24;
+/// Position gain (Q1.31): velocity command in pu per count of position error.
+pub type PosGain = I1F31;
+/// Filter and observer coefficient (Q2.30).
+pub type Coef = I2F30;
+
+/// Base angular speed in rad/s for a base speed in rpm: ω_b = 2π·rpm/60.
+///
+/// ```
+/// let wb = controller_core::per_unit::base_speed_rad_s(1000.0);
+/// assert!((wb - 104.719_76).abs() < 1e-3);
+/// ```
+#[must_use]
+pub fn base_speed_rad_s(base_speed_rpm: f32) -> f32 {
+    base_speed_rpm * core::f32::consts::TAU / 60.0
+}
+
+/// Encoder counts per pu·s of position (one pu·s is the angle turned in one second at base
+/// speed): cpr·ω_b/(2π).
+///
+/// ```
+/// let c = controller_core::per_unit::counts_per_pu_s(4096, 1000.0);
+/// assert!((c - 68_266.67).abs() < 0.1);
+/// ```
+#[must_use]
+pub fn counts_per_pu_s(encoder_cpr: u32, base_speed_rpm: f32) -> f32 {
+    encoder_cpr as f32 * base_speed_rpm / 60.0
+}
+
+/// Wrap-safe signed difference `now − before` of two raw readings of a counter that is
+/// `counter_bits` wide (16..=32). The result is correct while the true motion between the
+/// readings is below half the counter range.
+///
+/// ```
+/// use controller_core::per_unit::count_diff;
+/// assert_eq!(count_diff(2, 0xFFFE, 16), 4);
+/// assert_eq!(count_diff(0xFFFE, 2, 16), -4);
+/// assert_eq!(count_diff(1, u32::MAX, 32), 2);
+/// ```
+#[must_use]
+#[inline]
+pub fn count_diff(now: u32, before: u32, counter_bits: u8) -> i32 {
+    // Shift the counter's MSB to bit 31, subtract with wrap, shift back arithmetically.
+    let shift = 32u32.saturating_sub(u32::from(counter_bits)).min(16);
+    let d = (now << shift).wrapping_sub(before << shift) as i32;
+    d >> shift
+}
+
+/// Raw reading of a `counter_bits`-wide counter interpreted as a signed position, so a
+/// counter that starts at zero and moves backwards reads as small negative counts.
+///
+/// ```
+/// use controller_core::per_unit::count_signed;
+/// assert_eq!(count_signed(0xFFFF, 16), -1);
+/// assert_eq!(count_signed(5, 16), 5);
+/// ```
+#[must_use]
+#[inline]
+pub fn count_signed(raw: u32, counter_bits: u8) -> i32 {
+    let shift = 32u32.saturating_sub(u32::from(counter_bits)).min(16);
+    ((raw << shift) as i32) >> shift
+}
+
+/// Saturate an `i64` to `i32`.
+#[inline]
+pub(crate) fn sat_i32(x: i64) -> i32 {
+    if x > i64::from(i32::MAX) {
+        i32::MAX
+    } else if x < i64::from(i32::MIN) {
+        i32::MIN
+    } else {
+        x as i32
+    }
+}
+
+/// `x·c` with `x` and the result as raw Q16.16 bits and `c` as raw bits with `F`
+/// fractional bits: 64-bit product, rounded to nearest, saturated.
+#[inline]
+pub(crate) fn mul_bits<const F: u32>(x: i32, c: i32) -> i32 {
+    let p = i64::from(x) * i64::from(c);
+    sat_i32((p + (1i64 << (F - 1))) >> F)
+}
+
+/// `x·k` for a Q16.16 signal and a Q16.16 gain, rounded, saturated.
+#[inline]
+#[must_use]
+pub fn mul_gain(x: Pu, k: Gain) -> Pu {
+    Pu::from_bits(mul_bits::<16>(x.to_bits(), k.to_bits()))
+}
+
+/// `x·k` for a Q16.16 signal and a Q8.24 per-tick gain, rounded, saturated.
+#[inline]
+#[must_use]
+pub fn mul_tick(x: Pu, k: TickGain) -> Pu {
+    Pu::from_bits(mul_bits::<24>(x.to_bits(), k.to_bits()))
+}
+
+/// `x·c` for a Q16.16 signal and a Q2.30 coefficient, rounded, saturated.
+#[inline]
+#[must_use]
+pub fn mul_coef(x: Pu, c: Coef) -> Pu {
+    Pu::from_bits(mul_bits::<30>(x.to_bits(), c.to_bits()))
+}
+
+/// Integer counts times a Q8.24 scale (e.g. pu per count-per-tick), rounded, saturated.
+#[inline]
+#[must_use]
+pub fn counts_to_pu(counts: i32, k: TickGain) -> Pu {
+    // counts (Q32.0) · k (Q8.24) = Q.24; to Q16.16: shift right by 8.
+    Pu::from_bits(mul_bits::<8>(counts, k.to_bits()))
+}
+
+/// Saturating conversion of an `f32` to a fixed-point type, for configuration code only.
+#[must_use]
+pub fn checked_q<T: fixed::traits::Fixed>(value: f32) -> Option<T> {
+    if value.is_finite() {
+        T::checked_from_num(value)
+    } else {
+        None
+    }
+}

@@ -1,0 +1,336 @@
+//! Motion profiles in fixed point: trapezoidal and S-curve velocity profiles with
+//! position, velocity and acceleration outputs (the commands of the paper's Fig. 4 and 6).
+//!
+//! Durations are rounded to whole velocity ticks at construction and the peak acceleration
+//! and jerk recomputed so the velocity lands exactly on the peak. Internally the profile
+//! integrates in counts and ticks with constant jerk per segment:
+//! ```text
+//! p ← p + v + a/2 + j/6,   v ← v + a + j/2,   a ← a + j        (exact for constant jerk)
+//! ```
+//! p is Q64.64 counts, v Q32.32 counts/tick, a Q32.32 counts/tick², j Q32.32 counts/tick³.
+//! Each segment restarts from exact start values computed once (f64), so rounding never
+//! accumulates across segments.
+
+use crate::config::DriveConfig;
+use crate::controller::Setpoint;
+use crate::error::ConfigError;
+use crate::per_unit::{counts_per_pu_s, mul_bits, sat_i32, Counts, Gain, Pu, TickGain};
+
+/// Shape of the acceleration phases.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ProfileKind {
+    /// Constant acceleration (trapezoidal velocity).
+    Trapezoid,
+    /// Jerk-limited (S-curve velocity): each acceleration change takes `jerk_time_s`.
+    SCurve {
+        /// Duration of each jerk ramp [s], 0 < t_j ≤ half of the accel and decel times.
+        jerk_time_s: f32,
+    },
+}
+
+/// Profile settings (validated once by [`Profile::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProfileConfig {
+    /// Acceleration shape.
+    pub kind: ProfileKind,
+    /// Peak (cruise) velocity [pu], signed, |v| ≤ 10.
+    pub peak_velocity_pu: f32,
+    /// Time from standstill to the peak velocity [s], 0 < t ≤ 10,000.
+    pub accel_time_s: f32,
+    /// Time at the peak velocity [s], ≥ 0; `f32::INFINITY` = never decelerate.
+    pub hold_time_s: f32,
+    /// Time from the peak velocity back to standstill [s], 0 < t ≤ 10,000.
+    pub decel_time_s: f32,
+    /// Standstill before the acceleration starts [s], 0..=10,000.
+    pub start_delay_s: f32,
+}
+
+impl ProfileConfig {
+    /// The paper's Fig. 6 command: standstill, ramp to 1 pu in 1 s, then hold.
+    #[must_use]
+    pub const fn fig6() -> Self {
+        Self {
+            kind: ProfileKind::Trapezoid,
+            peak_velocity_pu: 1.0,
+            accel_time_s: 1.0,
+            hold_time_s: f32::INFINITY,
+            decel_time_s: 1.0,
+            start_delay_s: 0.0,
+        }
+    }
+}
+
+const MAX_SEGMENTS: usize = 8;
+
+/// One constant-jerk segment with its exact start state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Segment {
+    ticks: u32,
+    p0: i128,
+    v0: i64,
+    a0: i64,
+    jerk: i64,
+    /// j/6 in Q64.64 (precomputed: no division on the tick path).
+    jerk_over_6: i128,
+}
+
+/// A running profile: call [`Profile::next`] once per velocity tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Profile {
+    segments: [Segment; MAX_SEGMENTS],
+    count: usize,
+    k_vel: TickGain,
+    k_acc: Gain,
+    index: usize,
+    tick_in_segment: u32,
+    p: i128,
+    v: i64,
+    a: i64,
+}
+
+const Q32: f64 = 4_294_967_296.0;
+
+fn to_q32(x: f64) -> i64 {
+    (x * Q32) as i64
+}
+
+fn check(
+    v: f32,
+    param: &'static str,
+    min: f32,
+    max: f32,
+    min_exclusive: bool,
+) -> Result<f32, ConfigError> {
+    if !v.is_finite() {
+        return Err(ConfigError::NotFinite { param });
+    }
+    let ok_low = if min_exclusive { v > min } else { v >= min };
+    if ok_low && v <= max {
+        Ok(v)
+    } else {
+        Err(ConfigError::OutOfRange {
+            param,
+            value: v,
+            min,
+            max,
+            min_exclusive,
+        })
+    }
+}
+
+impl Profile {
+    /// Build a profile for a drive, starting at position 0 counts.
+    ///
+    /// ```
+    /// use controller_core::{DriveConfig, Profile, ProfileConfig};
+    /// let mut p = Profile::new(&ProfileConfig::fig6(), &DriveConfig::table1()).unwrap();
+    /// for _ in 0..2000 { p.next(); }          // 1 s at 2 kHz
+    /// let sp = p.next();
+    /// assert!((sp.velocity_pu.to_num::<f32>() - 1.0).abs() < 1e-3);
+    /// ```
+    pub fn new(cfg: &ProfileConfig, drive: &DriveConfig) -> Result<Self, ConfigError> {
+        let g = crate::design(drive)?;
+        let v_pu = check(
+            cfg.peak_velocity_pu,
+            "profile.peak_velocity_pu",
+            -10.0,
+            10.0,
+            false,
+        )?;
+        let ta = check(
+            cfg.accel_time_s,
+            "profile.accel_time_s",
+            0.0,
+            10_000.0,
+            true,
+        )?;
+        let td = check(
+            cfg.decel_time_s,
+            "profile.decel_time_s",
+            0.0,
+            10_000.0,
+            true,
+        )?;
+        let delay = check(
+            cfg.start_delay_s,
+            "profile.start_delay_s",
+            0.0,
+            10_000.0,
+            false,
+        )?;
+        let hold = if cfg.hold_time_s == f32::INFINITY {
+            None
+        } else {
+            Some(check(
+                cfg.hold_time_s,
+                "profile.hold_time_s",
+                0.0,
+                10_000.0,
+                false,
+            )?)
+        };
+        let tj = match cfg.kind {
+            ProfileKind::Trapezoid => 0.0,
+            ProfileKind::SCurve { jerk_time_s } => check(
+                jerk_time_s,
+                "profile.kind.jerk_time_s",
+                0.0,
+                ta.min(td) / 2.0,
+                true,
+            )?,
+        };
+        let f = f64::from(drive.velocity_rate_hz);
+        let ticks = |t: f32| (f64::from(t) * f + 0.5) as u32;
+        let cpps = f64::from(counts_per_pu_s(drive.encoder_cpr, drive.base_speed_rpm));
+        let v_cpt = f64::from(v_pu) * cpps / f; // counts per tick at the peak
+
+        // Phase tick counts: the ramp of a phase of n ticks with n_j jerk ticks at each end.
+        let nj = ticks(tj);
+        let ramp = |t: f32| -> (u32, u32) {
+            let n = ticks(t).max(1);
+            let nj = nj.min(n / 2);
+            (nj, n - 2 * nj)
+        };
+        let (nja, nca) = ramp(ta);
+        let (njd, ncd) = ramp(td);
+        let mut segs = [Segment::default(); MAX_SEGMENTS];
+        let mut count = 0usize;
+        let (mut p, mut v, mut a) = (0.0f64, 0.0f64, 0.0f64);
+        let mut push = |n: u32, a_start: f64, j: f64, p: &mut f64, v: &mut f64, a: &mut f64| {
+            if n == 0 {
+                return;
+            }
+            *a = a_start;
+            if let Some(s) = segs.get_mut(count) {
+                *s = Segment {
+                    ticks: n,
+                    p0: (*p * Q32 * Q32) as i128,
+                    v0: to_q32(*v),
+                    a0: to_q32(*a),
+                    jerk: to_q32(j),
+                    jerk_over_6: (j / 6.0 * Q32 * Q32) as i128,
+                };
+                count += 1;
+            }
+            let nf = f64::from(n);
+            *p += *v * nf + *a * nf * nf / 2.0 + j * nf * nf * nf / 6.0;
+            *v += *a * nf + j * nf * nf / 2.0;
+            *a += j * nf;
+        };
+        let ndelay = ticks(delay);
+        push(ndelay, 0.0, 0.0, &mut p, &mut v, &mut a);
+        // Acceleration: peak acceleration so that v reaches v_cpt exactly after nca + 2·nja ticks.
+        let acc = v_cpt / f64::from(nca + nja);
+        let jerk_a = if nja > 0 { acc / f64::from(nja) } else { 0.0 };
+        if nja > 0 {
+            push(nja, 0.0, jerk_a, &mut p, &mut v, &mut a);
+        }
+        push(nca, acc, 0.0, &mut p, &mut v, &mut a);
+        if nja > 0 {
+            push(nja, acc, -jerk_a, &mut p, &mut v, &mut a);
+        }
+        v = v_cpt;
+        let dec = v_cpt / f64::from(ncd + njd);
+        let jerk_d = if njd > 0 { dec / f64::from(njd) } else { 0.0 };
+        match hold {
+            None => push(u32::MAX, 0.0, 0.0, &mut p, &mut v, &mut a),
+            Some(h) => {
+                push(ticks(h), 0.0, 0.0, &mut p, &mut v, &mut a);
+                if njd > 0 {
+                    push(njd, 0.0, -jerk_d, &mut p, &mut v, &mut a);
+                }
+                push(ncd, -dec, 0.0, &mut p, &mut v, &mut a);
+                if njd > 0 {
+                    push(njd, -dec, jerk_d, &mut p, &mut v, &mut a);
+                }
+                v = 0.0;
+                push(u32::MAX, 0.0, 0.0, &mut p, &mut v, &mut a);
+            }
+        }
+        let k_vel = crate::per_unit::checked_q::<TickGain>(g.vel_tick_pu_per_count).ok_or(
+            ConfigError::CoefficientOverflow {
+                param: "pu per count per velocity tick",
+                value: g.vel_tick_pu_per_count,
+                q_format: "Q8.24",
+            },
+        )?;
+        let k_acc = crate::per_unit::checked_q::<Gain>(g.vel_tick_pu_s_per_count).ok_or(
+            ConfigError::CoefficientOverflow {
+                param: "pu/s per count per velocity tick²",
+                value: g.vel_tick_pu_s_per_count,
+                q_format: "Q16.16",
+            },
+        )?;
+        let first = segs.first().copied().unwrap_or_default();
+        Ok(Self {
+            segments: segs,
+            count,
+            k_vel,
+            k_acc,
+            index: 0,
+            tick_in_segment: 0,
+            p: first.p0,
+            v: first.v0,
+            a: first.a0,
+        })
+    }
+
+    /// Shift the whole profile by a start position [counts].
+    #[must_use]
+    pub fn with_start_position(mut self, start: Counts) -> Self {
+        let offset = i128::from(start.to_bits()) << 48;
+        for s in &mut self.segments {
+            s.p0 = s.p0.saturating_add(offset);
+        }
+        self.p = self.p.saturating_add(offset);
+        self
+    }
+
+    /// Whether the profile has reached its final standstill (or endless hold).
+    #[must_use]
+    pub fn is_done(&self) -> bool {
+        self.index + 1 >= self.count
+    }
+
+    /// The setpoint for this velocity tick; advances the profile by one tick.
+    /// Fixed point only, no division.
+    #[allow(clippy::should_implement_trait)] // never ends, so not an `Iterator`
+    pub fn next(&mut self) -> Setpoint {
+        let sp = Setpoint {
+            position_counts: Counts::from_bits(sat_i64(self.p >> 48)),
+            velocity_pu: Pu::from_bits(mul_bits::<24>(sat_i32(self.v >> 16), self.k_vel.to_bits())),
+            acceleration_pu_s: Pu::from_bits(mul_bits::<20>(
+                sat_i32(self.a >> 12),
+                self.k_acc.to_bits(),
+            )),
+        };
+        let seg = self.segments.get(self.index).copied().unwrap_or_default();
+        let j = seg.jerk;
+        // p += v + a/2 + j/6 ; v += a + j/2 ; a += j   (Q64.64 / Q32.32)
+        let dp = (i128::from(self.v) << 32) + (i128::from(self.a) << 31) + seg.jerk_over_6;
+        self.p = self.p.saturating_add(dp);
+        self.v = self.v.saturating_add(self.a).saturating_add(j >> 1);
+        self.a = self.a.saturating_add(j);
+        self.tick_in_segment = self.tick_in_segment.saturating_add(1);
+        if self.tick_in_segment >= seg.ticks && self.index + 1 < self.count {
+            self.index += 1;
+            self.tick_in_segment = 0;
+            if let Some(s) = self.segments.get(self.index) {
+                self.p = s.p0;
+                self.v = s.v0;
+                self.a = s.a0;
+            }
+        }
+        sp
+    }
+}
+
+fn sat_i64(x: i128) -> i64 {
+    if x > i128::from(i64::MAX) {
+        i64::MAX
+    } else if x < i128::from(i64::MIN) {
+        i64::MIN
+    } else {
+        x as i64
+    }
+}
