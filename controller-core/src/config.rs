@@ -151,8 +151,10 @@ impl DriveConfig {
     /// The paper's Table 1 drive: 1000 rpm, 4096 CPR, 4 kHz current / 2 kHz velocity ticks,
     /// Jm = 0.117 s, Jl = 0.863 s, bandwidths 3 Hz (position), 15 Hz (velocity),
     /// 318 Hz (current), with acceleration feedback on in the default design of
-    /// `controller-core/README.md`: error form, Ka = 1·J_total, observer source,
-    /// second-order filter at 100 Hz, run every current tick.
+    /// `controller-core/README.md` (chosen by the closed-loop sweep in
+    /// `tests/afb_design.rs`): error form, Ka = 0.5·J_total, acceleration from the observer
+    /// (motor-inertia model, 75 Hz), first-order filter at 100 Hz, run every current tick;
+    /// velocity feedback from the observer.
     ///
     /// ```
     /// let cfg = controller_core::DriveConfig::table1();
@@ -182,16 +184,13 @@ impl DriveConfig {
             velocity_estimator: Estimator::Observer,
             accel_feedback: AccelFeedbackConfig {
                 mode: AfbMode::Error,
-                gain_fraction: 1.0,
-                filter: FilterConfig::SecondOrder {
-                    corner_hz: 100.0,
-                    q: 0.707,
-                },
+                gain_fraction: 0.5,
+                filter: FilterConfig::FirstOrder { corner_hz: 100.0 },
                 rate: AfbRate::Current,
                 source: Estimator::Observer,
             },
             observer: ObserverConfig {
-                bandwidth_hz: 150.0,
+                bandwidth_hz: 75.0,
                 model_inertia: ObserverInertia::Motor,
             },
             faults: FaultLimits {

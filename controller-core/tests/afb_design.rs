@@ -1,0 +1,136 @@
+//! Trap 1: the acceleration-feedback path is a loop of its own. These tests close the real
+//! fixed-point controller around a two-inertia plant with lost motion, an RL winding and
+//! the 0.18 ms computational delay, and sweep the AFB design space to choose the defaults.
+//! `cargo test -p controller-core --release --test afb_design -- --nocapture` prints the table.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+mod sim;
+
+use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, ObserverInertia};
+use sim::{run_fig6, PlantParams};
+
+fn describe(cfg: &DriveConfig) -> String {
+    let a = &cfg.accel_feedback;
+    let f = match a.filter {
+        FilterConfig::None => "none".to_string(),
+        FilterConfig::FirstOrder { corner_hz } => format!("1st {corner_hz:.0} Hz"),
+        FilterConfig::SecondOrder { corner_hz, q } => format!("2nd {corner_hz:.0} Hz q{q:.2}"),
+    };
+    format!(
+        "{:?}/{:?} Ka={:.2}·J {:>16} {:?} src={:?} obs={:?}@{:.0}Hz vel={:?}",
+        a.mode,
+        a.rate,
+        a.gain_fraction,
+        f,
+        a.rate,
+        a.source,
+        cfg.observer.model_inertia,
+        cfg.observer.bandwidth_hz,
+        cfg.velocity_estimator
+    )
+}
+
+/// The default design, and the same design with Ka halved and doubled, stay stable in
+/// both scenarios (a factor-2 gain margin on the acceleration loop).
+#[test]
+fn default_table1_design_and_its_ka_neighbours_are_stable() {
+    let plant = PlantParams::table1();
+    for frac_scale in [0.5f32, 1.0, 2.0] {
+        let mut cfg = DriveConfig::table1();
+        cfg.accel_feedback.gain_fraction *= frac_scale;
+        let r6 = run_fig6(&cfg, &plant, 2.5);
+        let mut ctl = controller_core::Controller::new(&cfg).unwrap();
+        let r4 = sim::run_scenario(&mut ctl, &cfg, &plant, &sim::Scenario::fig4());
+        println!("Ka scale {frac_scale}: fig6 {r6:?}\n              fig4 {r4:?}");
+        assert!(r6.stable(), "Ka scale {frac_scale}: {r6:?}");
+        assert!(r4.stable(), "Ka scale {frac_scale}: {r4:?}");
+    }
+}
+
+/// Trap 2 in numbers: with raw differentiation as the velocity feedback at 4096 CPR the
+/// Table 1 velocity loop (one count = 2.7 pu of torque) cannot hold the Fig. 6 command
+/// without riding the torque limit, with or without acceleration feedback.
+#[test]
+fn raw_differentiated_velocity_feedback_is_unusable_at_4096_cpr() {
+    let plant = PlantParams::table1();
+    for mode in [AfbMode::Off, AfbMode::Error] {
+        let mut cfg = DriveConfig::table1();
+        cfg.velocity_estimator = Estimator::Differentiation;
+        cfg.accel_feedback.mode = mode;
+        let r = run_fig6(&cfg, &plant, 2.0);
+        println!("{mode:?}: {r:?}");
+        assert!(!r.stable(), "{r:?}");
+    }
+}
+
+#[test]
+fn afb_design_sweep() {
+    let plant = PlantParams::table1();
+    let mut rows = Vec::new();
+    let mut push = |cfg: DriveConfig| {
+        let r = run_fig6(&cfg, &plant, 2.0);
+        let mut ctl = controller_core::Controller::new(&cfg).unwrap();
+        let r4 = sim::run_scenario(&mut ctl, &cfg, &plant, &sim::Scenario::fig4());
+        rows.push((describe(&cfg), r, r4));
+    };
+    for obs_j in [ObserverInertia::Motor, ObserverInertia::Total] {
+        for f_obs in [75.0f32, 150.0, 300.0] {
+            let mut cfg = DriveConfig::table1();
+            cfg.accel_feedback.mode = AfbMode::Off;
+            cfg.observer.model_inertia = obs_j;
+            cfg.observer.bandwidth_hz = f_obs;
+            push(cfg);
+        }
+    }
+    for source in [Estimator::Differentiation, Estimator::Observer] {
+        for rate in [AfbRate::Velocity, AfbRate::Current] {
+            for mode in [AfbMode::Plain, AfbMode::Error] {
+                for frac in [0.25f32, 0.5, 1.0] {
+                    for filter in [
+                        FilterConfig::FirstOrder { corner_hz: 25.0 },
+                        FilterConfig::FirstOrder { corner_hz: 50.0 },
+                        FilterConfig::FirstOrder { corner_hz: 100.0 },
+                        FilterConfig::SecondOrder {
+                            corner_hz: 50.0,
+                            q: 0.707,
+                        },
+                        FilterConfig::SecondOrder {
+                            corner_hz: 100.0,
+                            q: 0.707,
+                        },
+                    ] {
+                        for f_obs in [75.0f32, 150.0] {
+                            let mut cfg = DriveConfig::table1();
+                            cfg.accel_feedback.mode = mode;
+                            cfg.accel_feedback.rate = rate;
+                            cfg.accel_feedback.source = source;
+                            cfg.accel_feedback.gain_fraction = frac;
+                            cfg.accel_feedback.filter = filter;
+                            cfg.observer.bandwidth_hz = f_obs;
+                            push(cfg);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for (d, r, r4) in &rows {
+        println!(
+            "{d:<104} fig4: stable={:<5} ripple={:.3} speed_err={:.4} | fig6: stable={:<5} speed_err_rms={:.4} load_err_rms={:.4} ripple_rms={:.3} at_limit={:.2}",
+            r4.stable(),
+            r4.torque_ripple_rms_pu,
+            r4.speed_err_rms_pu,
+            r.stable(),
+            r.speed_err_rms_pu,
+            r.load_speed_err_rms_pu,
+            r.torque_ripple_rms_pu,
+            r.limit_fraction
+        );
+    }
+    assert!(rows.iter().any(|(_, r, r4)| r.stable() && r4.stable()));
+}
