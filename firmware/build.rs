@@ -1,17 +1,108 @@
-//! Puts the root `memory.x` on the linker search path for embedded builds.
+//! Build script of the firmware.
+//!
+//! 1. Linker scripts for embedded builds: the QEMU board uses the root `memory.x`
+//!    (mps2-an386) and `link/device-qemu.x`; the STM32F4 board uses
+//!    `link/memory-stm32f407.x` (its `device.x` comes from the `stm32f4` PAC).
+//! 2. The loop-in-the-loop expectation: the recorded input sequence `lil/inputs.csv` is run
+//!    through the HOST build of controller-core (this script is compiled for the host), and
+//!    the inputs plus the expected output words are written to `$OUT_DIR/lil_data.rs` for the
+//!    `fw-lil` image, which runs the same sequence on the target and compares bit for bit.
 use std::{env, fs, path::PathBuf};
 
+#[path = "src/lil/words.rs"]
+#[allow(dead_code)]
+mod words;
+
 fn main() {
-    let target = env::var("TARGET").unwrap_or_default();
-    println!("cargo:rerun-if-changed=../memory.x");
+    let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
+    let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
     println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-changed=../memory.x");
+    println!("cargo:rerun-if-changed=link");
+    println!("cargo:rerun-if-changed=lil/inputs.csv");
+    println!("cargo:rerun-if-changed=src/lil/words.rs");
+
+    if let Err(e) = write_lil_data(&manifest.join("lil/inputs.csv"), &out) {
+        // A broken recording must fail the build, not produce an empty test.
+        eprintln!("loop-in-the-loop data: {e}");
+        std::process::exit(1);
+    }
+
+    let target = env::var("TARGET").unwrap_or_default();
     if !target.starts_with("thumb") {
         return;
     }
-    let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
-    let src = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default()).join("../memory.x");
-    if let Err(e) = fs::copy(&src, out.join("memory.x")) {
-        println!("cargo:warning=cannot copy {}: {e}", src.display());
+    let stm32 = env::var_os("CARGO_FEATURE_BOARD_STM32F4").is_some();
+    let copies: &[(&str, &str)] = if stm32 {
+        &[("link/memory-stm32f407.x", "memory.x")]
+    } else {
+        &[
+            ("../memory.x", "memory.x"),
+            ("link/device-qemu.x", "device.x"),
+        ]
+    };
+    for (from, to) in copies {
+        if let Err(e) = fs::copy(manifest.join(from), out.join(to)) {
+            eprintln!("cannot copy {from}: {e}");
+            std::process::exit(1);
+        }
     }
     println!("cargo:rustc-link-search={}", out.display());
+}
+
+/// Parse the recording, run the host core on it, write `lil_inputs.bin` and
+/// `lil_expected.bin`. A missing recording gives empty files (the replay then fails loudly
+/// for having no periods); a malformed one is an error.
+fn write_lil_data(csv: &std::path::Path, out: &std::path::Path) -> Result<(), String> {
+    let text = match fs::read_to_string(csv) {
+        Ok(t) => t,
+        Err(_) => {
+            println!(
+                "cargo:warning=no {}: loop-in-the-loop data empty",
+                csv.display()
+            );
+            String::new()
+        }
+    };
+    let mut inputs = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') || line.starts_with("period") {
+            continue;
+        }
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let [_, enc, cur, flt] = f.as_slice() else {
+            return Err(format!(
+                "line {}: expected 4 fields, got {}",
+                n + 1,
+                f.len()
+            ));
+        };
+        let bad = |what: &str| format!("line {}: bad {what}", n + 1);
+        inputs.push(words::LilInput {
+            encoder_count: enc.parse().map_err(|_| bad("encoder_count"))?,
+            current_pu: controller_core::Pu::from_bits(
+                cur.parse().map_err(|_| bad("current_pu_bits"))?,
+            ),
+            fault_input: match *flt {
+                "0" => false,
+                "1" => true,
+                _ => return Err(bad("fault_input")),
+            },
+        });
+    }
+    let mut input_bytes = Vec::with_capacity(inputs.len() * words::INPUT_RECORD_BYTES);
+    for rec in &inputs {
+        input_bytes.extend_from_slice(&rec.to_bytes());
+    }
+    let mut expected = Vec::new();
+    words::reference_run(inputs.iter().copied(), |w| {
+        for x in w {
+            expected.extend_from_slice(&x.to_le_bytes());
+        }
+    })
+    .map_err(|e| format!("host controller-core rejected the run's settings: {e}"))?;
+    fs::write(out.join("lil_inputs.bin"), input_bytes).map_err(|e| e.to_string())?;
+    fs::write(out.join("lil_expected.bin"), expected).map_err(|e| e.to_string())?;
+    Ok(())
 }

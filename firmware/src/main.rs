@@ -1,47 +1,178 @@
-//! stiffdrive firmware: binds controller-core to a drive board's timer interrupts
-//! (4 kHz current loop, 2 kHz velocity loop). On the host this binary is an empty `main`
-//! so that `cargo test` and `cargo clippy --workspace` work without the ARM target.
+//! stiffdrive firmware: controller-core in a 4 kHz current-loop interrupt and a 2 kHz
+//! velocity-loop interrupt, driven by hardware timers, the current loop at the higher
+//! priority. Thread mode serves dump requests: a `d` on the console UART (or a fault)
+//! triggers the trend buffer, and once it has frozen its samples go out on the UART as CSV.
+//!
+//! Under QEMU (`cargo fw-run`) the drive runs the Table 1 controller on the virtual motor
+//! for a 1 s move, asks for one dump itself, checks the loops ran at their rates without
+//! a fault, and exits 0 (1 on any failure, panic or HardFault). On the STM32F4 board it runs
+//! until reset. On the host this binary is an empty `main` (so `cargo test` and
+//! `cargo clippy --workspace` work without the ARM target).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
 mod target {
-    use cortex_m_rt::{entry, exception, ExceptionFrame};
-    use cortex_m_semihosting::debug;
-    // The defmt global logger: frames go out over semihosting (decoded by defmt-print).
-    use defmt_semihosting as _;
+    use core::fmt::Write;
+    use core::sync::atomic::{AtomicBool, Ordering};
+
+    use controller_core::{DriveConfig, Profile, ProfileConfig, ProfileKind};
+    use cortex_m_rt::entry;
+    use firmware::app::{App, DEFAULT_TRACE};
+    use firmware::board::EncoderCounter;
+    use firmware::boards::active as board;
+    use firmware::isr::Loops;
+    use firmware::rt::exit;
+    use firmware::trace::{TraceSample, TraceState};
+
+    static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, Profile> = Loops::new();
+    static DUMP_REQUESTED: AtomicBool = AtomicBool::new(false);
+
+    fn current_loop() {
+        let _ = LOOPS.current_isr();
+    }
+
+    fn velocity_loop() {
+        let _ = LOOPS.velocity_isr();
+    }
+
+    fn command() {
+        if board::read_command() == Some(b'd') {
+            DUMP_REQUESTED.store(true, Ordering::Relaxed);
+        }
+    }
+
+    firmware::bind_interrupts!(current: current_loop, velocity: velocity_loop, command: command);
+
+    /// The demo move: 0.5 pu in 0.4 s (1.2 pu of torque on J_total = 0.98 s, inside the
+    /// 2 pu limit), 0.2 s at speed, back to rest in 0.4 s.
+    const MOVE: ProfileConfig = ProfileConfig {
+        kind: ProfileKind::Trapezoid,
+        peak_velocity_pu: 0.5,
+        accel_time_s: 0.4,
+        hold_time_s: 0.2,
+        decel_time_s: 0.4,
+        start_delay_s: 0.01,
+    };
+    /// QEMU run length [current ticks]: 1.2 s at 4 kHz.
+    #[cfg(not(feature = "board-stm32f4"))]
+    const RUN_TICKS: u32 = 4800;
+    /// Tick at which the QEMU run asks for a dump itself (0.5 s, at speed).
+    #[cfg(not(feature = "board-stm32f4"))]
+    const SELF_DUMP_TICK: u32 = 2000;
 
     #[entry]
     fn main() -> ! {
-        defmt::info!("stiffdrive firmware {=str} up", env!("CARGO_PKG_VERSION"));
-        debug::exit(debug::EXIT_SUCCESS);
+        let Some(mut core) = cortex_m::Peripherals::take() else {
+            exit(false)
+        };
+        let cfg = DriveConfig::table1();
+        let mut b = board::init(&mut core, &cfg);
+        defmt::info!(
+            "stiffdrive firmware {=str} on {=str}: current loop {=u32} Hz, velocity loop {=u32} Hz",
+            env!("CARGO_PKG_VERSION"),
+            board::NAME,
+            cfg.current_rate_hz,
+            cfg.velocity_rate_hz
+        );
+        let app = match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+            Ok(app) => app,
+            Err(e) => {
+                defmt::error!("bad settings: {}", defmt::Debug2Format(&e));
+                exit(false)
+            }
+        };
+        let profile = match Profile::new(&MOVE, &cfg) {
+            Ok(p) => p,
+            Err(e) => {
+                defmt::error!("bad profile: {}", defmt::Display2Format(&e));
+                exit(false)
+            }
+        };
+        LOOPS.install(app, b.current_io, b.velocity_io, profile);
+        LOOPS.with_app(|app| app.set_enable_request(true));
+        board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+
+        let mut dumps = 0_u32;
         loop {
-            cortex_m::asm::bkpt();
+            cortex_m::asm::wfi();
+            let ticks = LOOPS.with_app(|app| app.ticks()).unwrap_or(0);
+            #[cfg(not(feature = "board-stm32f4"))]
+            if ticks == SELF_DUMP_TICK {
+                DUMP_REQUESTED.store(true, Ordering::Relaxed);
+            }
+            if DUMP_REQUESTED.swap(false, Ordering::Relaxed) {
+                defmt::info!("dump requested at tick {=u32}", ticks);
+                LOOPS.with_app(|app| app.request_dump());
+            }
+            if let Some(n) = dump(&mut b.console) {
+                dumps += 1;
+                defmt::info!("trace dumped: {=usize} samples on the console", n);
+            }
+            #[cfg(not(feature = "board-stm32f4"))]
+            if ticks >= RUN_TICKS {
+                board::stop();
+                finish(dumps);
+            }
         }
     }
 
-    // SAFETY: cortex-m-rt requires the HardFault handler to be declared `unsafe fn`; it
-    // only reads the stacked frame it is handed.
-    #[allow(unsafe_code)]
-    #[exception]
-    unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-        defmt::error!("HardFault at pc={=u32:#x}", frame.pc());
-        debug::exit(debug::EXIT_FAILURE);
-        loop {
-            cortex_m::asm::bkpt();
+    /// Write a frozen trend buffer to the console as CSV; `None` if none is frozen.
+    fn dump(console: &mut board::Console) -> Option<usize> {
+        let channels = LOOPS.with_app(|app| app.trace().config().channels)?;
+        let mut count = 0;
+        let state = LOOPS.dump_trace(|index, sample: &TraceSample| {
+            if index == 0 {
+                let _ = write!(console, "tick");
+                for c in channels {
+                    let _ = write!(console, ",{}", c.name());
+                }
+                let _ = writeln!(console);
+            }
+            let _ = write!(console, "{}", sample.tick);
+            for v in sample.values {
+                let _ = write!(console, ",{v}");
+            }
+            let _ = writeln!(console);
+            count = index + 1;
+        })?;
+        if let TraceState::Frozen {
+            cause,
+            trigger_tick,
+        } = state
+        {
+            let _ = writeln!(
+                console,
+                "# end of trace: {count} samples, trigger {cause:?} at tick {trigger_tick}, \
+                 per-unit columns are Q16.16 bits"
+            );
         }
+        Some(count)
     }
 
-    #[panic_handler]
-    fn panic(info: &core::panic::PanicInfo) -> ! {
-        defmt::error!("panic: {}", defmt::Display2Format(info));
-        debug::exit(debug::EXIT_FAILURE);
-        loop {
-            cortex_m::asm::bkpt();
-        }
+    /// QEMU: check the run and exit with its status.
+    #[cfg(not(feature = "board-stm32f4"))]
+    fn finish(dumps: u32) -> ! {
+        let status = LOOPS.with_app(|app| (app.ticks(), app.fault(), *app.last_current()));
+        let Some((ticks, fault, last)) = status else {
+            exit(false)
+        };
+        let overruns = LOOPS.overruns();
+        defmt::info!(
+            "run done: {=u32} current ticks, {=u32} velocity overruns, {=u32} dumps, fault {}, \
+             last current ref {=i32} (Q16.16)",
+            ticks,
+            overruns,
+            dumps,
+            defmt::Debug2Format(&fault),
+            last.current_ref_pu.to_bits()
+        );
+        exit(fault.is_none() && overruns == 0 && dumps == 1 && ticks >= RUN_TICKS)
     }
 }
 
 #[cfg(not(target_os = "none"))]
 fn main() {
-    println!("firmware: build for thumbv7em-none-eabihf (cargo fw-build); nothing to run on the host");
+    println!(
+        "firmware: build for thumbv7em-none-eabihf (cargo fw-build); nothing to run on the host"
+    );
 }

@@ -1,0 +1,249 @@
+//! The application: controller-core bound to the board layer. [`App`] holds the controller
+//! and the trend buffer; [`App::on_current_tick`] is the body of the 4 kHz current-loop
+//! interrupt and [`App::on_velocity_tick`] the controller part of the 2 kHz velocity-loop
+//! interrupt. The velocity interrupt prepares its inputs (encoder, fault input, profile
+//! setpoint: [`velocity_inputs`]) before it takes the controller, so only the core's
+//! `velocity_tick` itself runs with the current loop held off (see `shared.rs`).
+//!
+//! The same functions serve the benchmark, the loop-in-the-loop replay and the
+//! processor-in-the-loop image ([`App::step_current`], [`App::step_velocity`]): there is
+//! one control path, whatever feeds it.
+
+use controller_core::per_unit::Pu;
+use controller_core::{
+    ConfigError, Controller, CurrentInputs, CurrentOutputs, DriveConfig, Fault, Setpoint,
+    VelocityInputs, VelocityOutputs,
+};
+
+use crate::board::{CurrentLoopIo, VelocityLoopIo};
+use crate::trace::{
+    SignalSnapshot, TraceBuffer, TraceConfig, TraceConfigError, TraceSignal, TriggerCause,
+};
+
+/// Samples in the trend buffer: 512 × (4 + 1) words = 10 KiB of RAM.
+pub const TRACE_LEN: usize = 512;
+
+/// The trend buffer the app keeps.
+pub type AppTrace = TraceBuffer<TRACE_LEN>;
+
+/// Default trend setup: encoder, current, current reference and voltage command every
+/// 4th current tick (1 ms), 128 samples after the trigger.
+pub const DEFAULT_TRACE: TraceConfig = TraceConfig {
+    channels: [
+        TraceSignal::EncoderCounts,
+        TraceSignal::CurrentPu,
+        TraceSignal::CurrentRefPu,
+        TraceSignal::VoltageCmdPu,
+    ],
+    decimation: 4,
+    post_trigger: 128,
+};
+
+/// Why the app could not be built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AppError {
+    /// The drive settings are invalid (the core names the parameter and its range).
+    Config(ConfigError),
+    /// The trend-buffer settings are invalid.
+    Trace(TraceConfigError),
+    /// The board's encoder counter width differs from `DriveConfig::counter_bits`.
+    CounterBits {
+        /// Width the board delivers [bits].
+        board: u8,
+        /// Width the settings declare [bits].
+        config: u8,
+    },
+}
+
+/// A source of motion setpoints, one per velocity tick (controller-core's `Profile`).
+pub trait SetpointSource {
+    /// The setpoint for the next velocity tick.
+    fn next_setpoint(&mut self) -> Setpoint;
+}
+
+impl SetpointSource for controller_core::Profile {
+    fn next_setpoint(&mut self) -> Setpoint {
+        self.next()
+    }
+}
+
+/// A fixed setpoint (hold position / constant velocity).
+impl SetpointSource for Setpoint {
+    fn next_setpoint(&mut self) -> Setpoint {
+        *self
+    }
+}
+
+pub use crate::lil::words::fault_code;
+
+/// Gather the velocity tick's inputs: encoder and fault input from the board, the next
+/// setpoint from the profile. Runs before the controller is taken.
+pub fn velocity_inputs<I: VelocityLoopIo, S: SetpointSource>(
+    io: &mut I,
+    profile: &mut S,
+) -> VelocityInputs {
+    VelocityInputs {
+        encoder_count: io.encoder_count(),
+        setpoint: profile.next_setpoint(),
+        fault_input: io.fault_input(),
+    }
+}
+
+/// The controller, the trend buffer and the bookkeeping the two ticks share.
+pub struct App {
+    controller: Controller,
+    trace: AppTrace,
+    /// Current-loop ticks since start (wraps after 12 days at 4 kHz).
+    tick: u32,
+    /// The power stage may be switched on (operator enable).
+    enable_request: bool,
+    /// A sensor read failed since the last reset: forces the external fault.
+    sensor_fault: bool,
+    /// Last velocity-tick setpoint, for the trace.
+    last_setpoint: Setpoint,
+    /// Last current-tick outputs (for the trace and status).
+    last_current: CurrentOutputs,
+}
+
+impl App {
+    /// Build the app for a drive and a board whose encoder counter is `counter_bits` wide.
+    ///
+    /// # Errors
+    /// [`AppError`] naming the bad setting.
+    pub fn new(cfg: &DriveConfig, counter_bits: u8, trace: TraceConfig) -> Result<Self, AppError> {
+        if counter_bits != cfg.counter_bits {
+            return Err(AppError::CounterBits {
+                board: counter_bits,
+                config: cfg.counter_bits,
+            });
+        }
+        Ok(Self {
+            controller: Controller::new(cfg).map_err(AppError::Config)?,
+            trace: TraceBuffer::new(trace).map_err(AppError::Trace)?,
+            tick: 0,
+            enable_request: false,
+            sensor_fault: false,
+            last_setpoint: Setpoint::default(),
+            last_current: CurrentOutputs::default(),
+        })
+    }
+
+    /// Allow (or forbid) the power stage to switch on; it stays off while faulted.
+    pub fn set_enable_request(&mut self, enable: bool) {
+        self.enable_request = enable;
+    }
+
+    /// Clear a latched fault and the regulators' state (the operator's fault reset).
+    pub fn reset(&mut self) {
+        self.controller.reset();
+        self.sensor_fault = false;
+    }
+
+    /// The latched fault, if any.
+    #[must_use]
+    pub fn fault(&self) -> Option<Fault> {
+        self.controller.fault()
+    }
+
+    /// Current-loop ticks run so far.
+    #[must_use]
+    pub const fn ticks(&self) -> u32 {
+        self.tick
+    }
+
+    /// The trend buffer (to dump it once frozen).
+    #[must_use]
+    pub const fn trace(&self) -> &AppTrace {
+        &self.trace
+    }
+
+    /// The trend buffer, mutable (to re-arm it after a dump).
+    pub fn trace_mut(&mut self) -> &mut AppTrace {
+        &mut self.trace
+    }
+
+    /// Ask for a trace dump: the trend buffer triggers now and freezes after its
+    /// post-trigger samples.
+    pub fn request_dump(&mut self) {
+        self.trace.trigger(self.tick, TriggerCause::Request);
+    }
+
+    /// The body of the current-loop interrupt: sample, run the core's current tick, drive
+    /// the PWM and the enable output, record the trend buffer.
+    pub fn on_current_tick<I: CurrentLoopIo>(&mut self, io: &mut I) -> CurrentOutputs {
+        let encoder_count = io.encoder_count();
+        let current_pu = match io.current_pu() {
+            Some(i) => i,
+            None => {
+                // No valid sample: run the tick on zero current, latch a sensor fault that
+                // the next velocity tick turns into the core's external fault.
+                self.sensor_fault = true;
+                Pu::ZERO
+            }
+        };
+        let out = self.step_current(CurrentInputs {
+            encoder_count,
+            current_pu,
+        });
+        let run = out.fault.is_none() && !self.sensor_fault && self.enable_request;
+        let applied = io.set_voltage_pu(if run { out.voltage_cmd_pu } else { Pu::ZERO });
+        let enabled = io.set_enable(run);
+        if !(applied && enabled) {
+            self.sensor_fault = true;
+        }
+        out
+    }
+
+    /// The controller part of the velocity-loop interrupt: run the core's velocity tick on
+    /// inputs gathered by [`velocity_inputs`]. A latched sensor fault forces the fault input.
+    pub fn on_velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
+        self.step_velocity(VelocityInputs {
+            fault_input: inputs.fault_input || self.sensor_fault,
+            ..inputs
+        })
+    }
+
+    /// One current tick from sensor values, without a board: the code the current-loop
+    /// interrupt runs between its board reads and writes (used by `on_current_tick`, the
+    /// loop-in-the-loop replay and the PIL image). Returns the commands.
+    pub fn step_current(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
+        let out = self.controller.current_tick(inputs);
+        if out.fault.is_some() {
+            self.trace.trigger(self.tick, TriggerCause::Fault);
+        }
+        self.trace.record(
+            self.tick,
+            &SignalSnapshot {
+                encoder_counts: inputs.encoder_count,
+                current_pu: inputs.current_pu.to_bits(),
+                current_ref_pu: out.current_ref_pu.to_bits(),
+                voltage_cmd_pu: out.voltage_cmd_pu.to_bits(),
+                accel_fb_pu: out.accel_fb_pu.to_bits(),
+                velocity_setpoint_pu: self.last_setpoint.velocity_pu.to_bits(),
+                // Whole counts of the commanded position (saturated to i32 for the trace).
+                position_setpoint_counts: saturate_counts(self.last_setpoint),
+                fault_code: i32::from(fault_code(out.fault)),
+            },
+        );
+        self.last_current = out;
+        self.tick = self.tick.wrapping_add(1);
+        out
+    }
+
+    /// One velocity tick from its inputs, without a board (see [`App::step_current`]).
+    pub fn step_velocity(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
+        self.last_setpoint = inputs.setpoint;
+        self.controller.velocity_tick(inputs)
+    }
+
+    /// The last current-tick outputs.
+    #[must_use]
+    pub const fn last_current(&self) -> &CurrentOutputs {
+        &self.last_current
+    }
+}
+
+fn saturate_counts(sp: Setpoint) -> i32 {
+    let whole = sp.position_counts.to_bits() >> 16;
+    i32::try_from(whole).unwrap_or(if whole < 0 { i32::MIN } else { i32::MAX })
+}

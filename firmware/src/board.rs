@@ -1,0 +1,165 @@
+//! The board layer: the five pieces of drive hardware the control path touches, each behind
+//! a trait, so the same tick code runs on the QEMU board, the STM32F4 board, the benchmark's
+//! synthetic sensors and the loop-in-the-loop replay.
+//!
+//! | signal            | trait                                     | unit            |
+//! |-------------------|-------------------------------------------|-----------------|
+//! | PWM duty          | `embedded_hal::pwm::SetDutyCycle`         | 0..=max_duty    |
+//! | enable output     | `embedded_hal::digital::OutputPin`        | high = enabled  |
+//! | fault input       | `embedded_hal::digital::InputPin`         | high = fault    |
+//! | current samples   | [`CurrentSense`] (embedded-hal 1 has no ADC trait) | pu     |
+//! | encoder counter   | [`EncoderCounter`] (no QEI trait either)  | raw counts      |
+//!
+//! A read error on a sensor is a fault: the tick reports it and the power stage is disabled.
+//! The voltage command maps to the duty of a bipolar bridge: 0 pu → 50 %, ±1 pu → 100 %/0 %.
+
+use controller_core::per_unit::Pu;
+use embedded_hal::digital::{InputPin, OutputPin};
+use embedded_hal::pwm::SetDutyCycle;
+
+/// A phase-current measurement, already scaled to per unit by the board (ADC counts ×
+/// the shunt/amplifier gain, offset removed).
+pub trait CurrentSense {
+    /// The board's error type.
+    type Error: core::fmt::Debug;
+    /// The current sampled for this PWM period [pu].
+    ///
+    /// # Errors
+    /// A conversion that did not complete or overran.
+    fn sample_current(&mut self) -> Result<Pu, Self::Error>;
+}
+
+/// A quadrature encoder counter.
+pub trait EncoderCounter {
+    /// Width of the hardware counter in bits (16 or 32); the core differences wrap-safely.
+    const COUNTER_BITS: u8;
+    /// The raw counter value [counts, wraps at `COUNTER_BITS`].
+    fn count(&mut self) -> u32;
+}
+
+/// What a current-loop interrupt needs: sample the current and the encoder, drive the PWM.
+pub trait CurrentLoopIo {
+    /// Raw encoder count [counts].
+    fn encoder_count(&mut self) -> u32;
+    /// Measured current [pu]; `None` on a sensor error (treated as a fault).
+    fn current_pu(&mut self) -> Option<Pu>;
+    /// Apply the voltage command [pu] to the PWM; returns false if the PWM refused it.
+    fn set_voltage_pu(&mut self, voltage_pu: Pu) -> bool;
+    /// Switch the power stage on or off; returns false if the output refused it.
+    fn set_enable(&mut self, enabled: bool) -> bool;
+}
+
+/// What a velocity-loop interrupt needs: the encoder and the external fault input.
+pub trait VelocityLoopIo {
+    /// Raw encoder count [counts].
+    fn encoder_count(&mut self) -> u32;
+    /// True while the external fault input is active (or unreadable: fail safe).
+    fn fault_input(&mut self) -> bool;
+}
+
+/// Duty for a voltage command on a bipolar bridge: `max·(1 + v)/2`, `v` clamped to ±1 pu.
+/// Pure integer arithmetic on the Q16.16 bits, so it is exact and cannot overflow.
+///
+/// ```
+/// use controller_core::per_unit::Pu;
+/// use firmware::board::duty_for_voltage;
+/// assert_eq!(duty_for_voltage(Pu::ZERO, 1000), 500);
+/// assert_eq!(duty_for_voltage(Pu::from_num(1), 1000), 1000);
+/// assert_eq!(duty_for_voltage(Pu::from_num(-3), 1000), 0);
+/// ```
+#[must_use]
+pub fn duty_for_voltage(voltage_pu: Pu, max_duty: u16) -> u16 {
+    let one = Pu::ONE.to_bits();
+    let v = voltage_pu.to_bits().clamp(-one, one);
+    // (v + one) ∈ [0, 2·one]; times max ≤ 2^17·2^16 = 2^33: use u64.
+    let num = u64::from((v + one).unsigned_abs()) * u64::from(max_duty);
+    let duty = num / (2 * u64::from(one.unsigned_abs()));
+    u16::try_from(duty).unwrap_or(max_duty)
+}
+
+/// The current-loop half of one axis's drive hardware, generic over the embedded-hal PWM
+/// channel and enable pin and the board's current and encoder readers. It is owned by the
+/// current-loop interrupt.
+pub struct CurrentIo<P, C, E, N> {
+    /// PWM channel of the bridge.
+    pub pwm: P,
+    /// Current measurement.
+    pub current: C,
+    /// Encoder counter (a read-only handle; the velocity half holds another).
+    pub encoder: E,
+    /// Power-stage enable output (high = enabled).
+    pub enable: N,
+}
+
+impl<P, C, E, N> CurrentLoopIo for CurrentIo<P, C, E, N>
+where
+    P: SetDutyCycle,
+    C: CurrentSense,
+    E: EncoderCounter,
+    N: OutputPin,
+{
+    fn encoder_count(&mut self) -> u32 {
+        self.encoder.count()
+    }
+
+    fn current_pu(&mut self) -> Option<Pu> {
+        self.current.sample_current().ok()
+    }
+
+    fn set_voltage_pu(&mut self, voltage_pu: Pu) -> bool {
+        let duty = duty_for_voltage(voltage_pu, self.pwm.max_duty_cycle());
+        self.pwm.set_duty_cycle(duty).is_ok()
+    }
+
+    fn set_enable(&mut self, enabled: bool) -> bool {
+        if enabled {
+            self.enable.set_high().is_ok()
+        } else {
+            self.enable.set_low().is_ok()
+        }
+    }
+}
+
+/// The velocity-loop half: an encoder handle and the external fault input (high = fault).
+/// It is owned by the velocity-loop interrupt.
+pub struct VelocityIo<E, F> {
+    /// Encoder counter (read-only handle).
+    pub encoder: E,
+    /// External fault input (high = fault).
+    pub fault: F,
+}
+
+impl<E, F> VelocityLoopIo for VelocityIo<E, F>
+where
+    E: EncoderCounter,
+    F: InputPin,
+{
+    fn encoder_count(&mut self) -> u32 {
+        self.encoder.count()
+    }
+
+    fn fault_input(&mut self) -> bool {
+        // An unreadable fault input counts as a fault.
+        self.fault.is_high().unwrap_or(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn duty_is_monotonic_and_bounded() {
+        let mut last = 0;
+        for k in -70_000..=70_000 {
+            let v = Pu::from_bits(k);
+            let d = duty_for_voltage(v, 8400);
+            assert!(d >= last && d <= 8400);
+            last = d;
+        }
+        assert_eq!(duty_for_voltage(Pu::MAX, 8400), 8400);
+        assert_eq!(duty_for_voltage(Pu::MIN, 8400), 0);
+        assert_eq!(duty_for_voltage(Pu::from_num(0.5), 8400), 6300);
+    }
+}

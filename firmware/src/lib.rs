@@ -1,0 +1,32 @@
+//! stiffdrive firmware library: everything the firmware images share, so the main firmware
+//! (timer interrupts), the instruction benchmark `fw-bench`, the loop-in-the-loop image
+//! `fw-lil` and the processor-in-the-loop image `pil` run the exact same tick code.
+//!
+//! * [`board`]: the board layer (embedded-hal PWM, enable, fault pins; current and encoder
+//!   readers) and the per-loop I/O traits the ticks use.
+//! * [`app`]: [`app::App`] holds the controller and the trend buffer; its
+//!   `on_current_tick` / `on_velocity_tick` are what the 4 kHz and 2 kHz interrupts call.
+//! * [`trace`]: the trend buffer (fixed-size capture of chosen signals, dumped on request).
+//! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU).
+//! * [`lil`]: the loop-in-the-loop record format and its bit-exact output words.
+//! * `boards::qemu` / `boards::stm32f4`, `rt`: the hardware edge, target builds only.
+//!
+//! The library builds on the host too (`cargo test -p firmware`), where the hardware
+//! modules are left out.
+#![cfg_attr(not(test), no_std)]
+
+pub mod app;
+pub mod board;
+pub mod lil;
+pub mod trace;
+pub mod virtual_motor;
+
+#[cfg(target_os = "none")]
+pub mod boards;
+#[cfg(target_os = "none")]
+pub mod rt;
+#[cfg(target_os = "none")]
+pub mod isr;
+
+#[cfg(target_os = "none")]
+pub use defmt;

@@ -1,0 +1,167 @@
+//! Loop-in-the-loop: the run's settings, the record layout and the reference run.
+//!
+//! This file depends on controller-core and `core` only, because it is compiled twice: into
+//! the firmware library (target and host) and into `build.rs` (host), where
+//! [`reference_run`] computes the expected outputs with the HOST build of the core.
+//!
+//! A run is a sequence of 4 kHz periods. In period `k` the current tick runs on record `k`;
+//! when `k % ratio == ratio − 1` (every 2nd period at 4 kHz / 2 kHz) the velocity tick runs
+//! after it, on the same record's encoder count and fault input and the next profile
+//! setpoint: the order the aligned timer interrupts give on the target.
+
+use controller_core::{
+    CurrentInputs, CurrentOutputs, DriveConfig, Fault, Profile, ProfileConfig, ProfileKind, Pu,
+    VelocityInputs, VelocityOutputs,
+};
+
+/// Bytes per input record: encoder count (u32 LE), current (Q16.16 bits, i32 LE), fault
+/// input (u32 LE, 0 or 1).
+pub const INPUT_RECORD_BYTES: usize = 12;
+/// Output words per current tick.
+pub const CURRENT_WORDS: usize = 4;
+/// Output words per velocity tick.
+pub const VELOCITY_WORDS: usize = 8;
+
+/// One recorded 4 kHz period of sensor inputs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LilInput {
+    /// Raw encoder counter [counts].
+    pub encoder_count: u32,
+    /// Measured current [pu].
+    pub current_pu: Pu,
+    /// External fault input.
+    pub fault_input: bool,
+}
+
+impl LilInput {
+    /// The record as bytes.
+    #[must_use]
+    pub fn to_bytes(self) -> [u8; INPUT_RECORD_BYTES] {
+        let mut b = [0_u8; INPUT_RECORD_BYTES];
+        let (enc, rest) = b.split_at_mut(4);
+        let (cur, flt) = rest.split_at_mut(4);
+        enc.copy_from_slice(&self.encoder_count.to_le_bytes());
+        cur.copy_from_slice(&self.current_pu.to_bits().to_le_bytes());
+        flt.copy_from_slice(&u32::from(self.fault_input).to_le_bytes());
+        b
+    }
+
+    /// A record from bytes.
+    #[must_use]
+    pub fn from_bytes(b: &[u8; INPUT_RECORD_BYTES]) -> Self {
+        let [e0, e1, e2, e3, c0, c1, c2, c3, f0, f1, f2, f3] = *b;
+        Self {
+            encoder_count: u32::from_le_bytes([e0, e1, e2, e3]),
+            current_pu: Pu::from_bits(i32::from_le_bytes([c0, c1, c2, c3])),
+            fault_input: u32::from_le_bytes([f0, f1, f2, f3]) != 0,
+        }
+    }
+}
+
+/// Small integer code of a fault (0 = none), for output words, traces and logs.
+#[must_use]
+pub const fn fault_code(fault: Option<Fault>) -> u8 {
+    match fault {
+        None => 0,
+        Some(Fault::Overspeed) => 1,
+        Some(Fault::FollowingError) => 2,
+        Some(Fault::EncoderJump) => 3,
+        Some(Fault::External) => 4,
+    }
+}
+
+/// The bit patterns of a current tick's outputs.
+#[must_use]
+pub fn current_words(o: &CurrentOutputs) -> [u32; CURRENT_WORDS] {
+    [
+        o.voltage_cmd_pu.to_bits() as u32,
+        o.current_ref_pu.to_bits() as u32,
+        o.accel_fb_pu.to_bits() as u32,
+        u32::from(fault_code(o.fault)),
+    ]
+}
+
+/// The bit patterns of a velocity tick's outputs.
+#[must_use]
+pub fn velocity_words(o: &VelocityOutputs) -> [u32; VELOCITY_WORDS] {
+    [
+        o.current_ref_pu.to_bits() as u32,
+        o.accel_fb_pu.to_bits() as u32,
+        o.velocity_cmd_pu.to_bits() as u32,
+        o.velocity_est_pu.to_bits() as u32,
+        o.acceleration_est_pu_s.to_bits() as u32,
+        o.position_error_counts.to_bits() as u32,
+        o.disturbance_est_pu.to_bits() as u32,
+        u32::from(fault_code(o.fault)),
+    ]
+}
+
+/// The drive of the run: the paper's Table 1 drive with its default acceleration feedback.
+#[must_use]
+pub const fn drive_config() -> DriveConfig {
+    DriveConfig::table1()
+}
+
+/// The motion of the run: after 25 ms at rest, a trapezoid to 0.5 pu in 0.25 s, 0.25 s at
+/// speed, down in 0.25 s.
+#[must_use]
+pub const fn profile_config() -> ProfileConfig {
+    ProfileConfig {
+        kind: ProfileKind::Trapezoid,
+        peak_velocity_pu: 0.5,
+        accel_time_s: 0.25,
+        hold_time_s: 0.25,
+        decel_time_s: 0.25,
+        start_delay_s: 0.025,
+    }
+}
+
+/// Current ticks per velocity tick of a drive (≥ 1).
+#[must_use]
+pub fn tick_ratio(cfg: &DriveConfig) -> u32 {
+    (cfg.current_rate_hz / cfg.velocity_rate_hz.max(1)).max(1)
+}
+
+/// Whether the velocity tick runs after the current tick of period `k`.
+#[must_use]
+pub fn velocity_after(k: u32, ratio: u32) -> bool {
+    k % ratio == ratio - 1
+}
+
+/// The core's inputs for period `k`'s ticks.
+#[must_use]
+pub fn current_inputs(rec: &LilInput) -> CurrentInputs {
+    CurrentInputs {
+        encoder_count: rec.encoder_count,
+        current_pu: rec.current_pu,
+    }
+}
+
+/// Run the bare controller-core over `inputs` and hand every tick's output words to
+/// `emit`, in run order. This is the reference the firmware's App path must match.
+///
+/// # Errors
+/// The core's configuration error for the run's settings.
+pub fn reference_run(
+    inputs: impl IntoIterator<Item = LilInput>,
+    mut emit: impl FnMut(&[u32]),
+) -> Result<(), controller_core::ConfigError> {
+    let cfg = drive_config();
+    let mut controller = controller_core::Controller::new(&cfg)?;
+    let mut profile = Profile::new(&profile_config(), &cfg)?;
+    let ratio = tick_ratio(&cfg);
+    for (k, rec) in (0_u32..).zip(inputs) {
+        emit(&current_words(
+            &controller.current_tick(current_inputs(&rec)),
+        ));
+        if velocity_after(k, ratio) {
+            let out = controller.velocity_tick(VelocityInputs {
+                encoder_count: rec.encoder_count,
+                setpoint: profile.next(),
+                fault_input: rec.fault_input,
+            });
+            emit(&velocity_words(&out));
+        }
+    }
+    Ok(())
+}
