@@ -1,0 +1,321 @@
+//! The closed velocity loop around the engaged plant, with and without acceleration feedback.
+//!
+//! Controller (sampled at T = `velocity_period_s`, all signals pu):
+//!   ω̂[k] = (θm[k] − θm[k−1]) / (ω_b·T)            backward difference of the encoder angle
+//!   â[k] = LPF( (ω̂[k] − ω̂[k−1]) / T )              first-order filter, corner `accel_filter_hz`
+//!   T*[k] = PI(ω_ref − ω̂)[k] − ka·â[k]              PI: kp·e + ki·T·Σe
+//! T*[k] is applied `delay_s` after the sample and held (ZOH); the current loop is a
+//! first-order lag at `current_bandwidth_hz` (None: ideal).
+//!
+//! Frequency responses use the usual continuous approximations of the sampled elements
+//! (valid below the Nyquist frequency π/T): difference (1 − e^{−sT})/T, hold (1 − e^{−sT})/(sT),
+//! delay e^{−s·delay}. The loop is broken at the torque command (every feedback path goes
+//! through it), so L(s) = Hold·Delay·Current·P(s)·[PI(s)·Dv(s) + ka·s·Dv(s)²·F(s)] with
+//! Dv = (1 − e^{−sT})/(sT). Stability is ALSO decided exactly, without approximation, from the
+//! eigenvalues of the sampled-data closed loop (`sampled_spectral_radius`).
+
+use super::engaged::EngagedPlant;
+use crate::expm::expm;
+use nalgebra::{Complex, SMatrix, SVector};
+use std::f64::consts::PI;
+
+/// Velocity loop parameters (plain numbers, so this crate needs no controller).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VelocityLoop {
+    /// The engaged plant.
+    pub plant: EngagedPlant,
+    /// Proportional gain, pu torque per pu speed.
+    pub kp: f64,
+    /// Integral gain, pu torque per pu speed per second.
+    pub ki: f64,
+    /// Acceleration feedback gain, s (pu torque per pu/s of acceleration); 0 = off.
+    pub ka: f64,
+    /// First-order filter corner on the acceleration estimate, Hz.
+    pub accel_filter_hz: f64,
+    /// Velocity loop sample period, s.
+    pub velocity_period_s: f64,
+    /// Computational delay from sample to applied torque command, s (< the period).
+    pub delay_s: f64,
+    /// Closed current loop as a first-order lag at this bandwidth (Hz); None = ideal.
+    pub current_bandwidth_hz: Option<f64>,
+}
+
+/// The loop at one frequency.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopPoint {
+    /// Frequency, rad/s.
+    pub omega_rad_s: f64,
+    /// Loop gain broken at the torque command.
+    pub loop_gain: Complex<f64>,
+    /// Inner acceleration loop alone (ka path), broken at the same point.
+    pub accel_loop_gain: Complex<f64>,
+    /// Closed loop ωm/ω_ref.
+    pub reference_to_speed: Complex<f64>,
+    /// Closed loop ωm/TL, pu speed per pu torque.
+    pub load_to_speed: Complex<f64>,
+    /// Dynamic stiffness at the motor, −TL/θm with θm in pu·s (rad/ω_b), as in Eq. 1.
+    pub motor_stiffness: Complex<f64>,
+    /// Dynamic stiffness at the load, −TL/θl (pu·s).
+    pub load_stiffness: Complex<f64>,
+}
+
+/// Classical margins of a loop gain over (0.01 rad/s, Nyquist). With a resonance |L| may
+/// cross 1 several times; all crossings are listed, and stability is decided by the exact
+/// sampled-data eigenvalues ([`VelocityLoop::is_stable`]), not by these numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Margins {
+    /// Phase margin at the lowest gain crossover (the bandwidth), degrees in (−180, 180]
+    /// (∞ if |L| never crosses 1).
+    pub phase_margin_deg: f64,
+    /// The lowest gain crossover, rad/s.
+    pub gain_crossover_rad_s: f64,
+    /// Smallest gain margin over the phase crossovers (−180°) above the lowest gain
+    /// crossover, dB; negative when a resonance peak exceeds 1 at −180° (∞ if none).
+    pub gain_margin_db: f64,
+    /// That phase crossover, rad/s.
+    pub phase_crossover_rad_s: f64,
+    /// Every gain crossover: (rad/s, phase margin in degrees).
+    pub crossovers: Vec<(f64, f64)>,
+}
+
+impl VelocityLoop {
+    /// A copy with the acceleration feedback removed (ka = 0).
+    pub fn without_acceleration_feedback(&self) -> Self {
+        Self { ka: 0.0, ..*self }
+    }
+
+    /// π/T, rad/s: the approximations hold below it.
+    pub fn nyquist_rad_s(&self) -> f64 {
+        PI / self.velocity_period_s
+    }
+
+    fn elements(&self, omega: f64) -> Option<Elements> {
+        let t = self.velocity_period_s;
+        let s = Complex::new(0.0, omega);
+        let e = (-s * t).exp();
+        let dv = (Complex::new(1.0, 0.0) - e) / (s * t);
+        let hold = dv;
+        let delay = (-s * self.delay_s).exp();
+        let current = match self.current_bandwidth_hz {
+            Some(f) => Complex::new(1.0, 0.0) / (Complex::new(1.0, 0.0) + s / (2.0 * PI * f)),
+            None => Complex::new(1.0, 0.0),
+        };
+        let filter = Complex::new(1.0, 0.0)
+            / (Complex::new(1.0, 0.0) + s / (2.0 * PI * self.accel_filter_hz));
+        let pi = Complex::new(self.kp, 0.0) + self.ki * t / (Complex::new(1.0, 0.0) - e);
+        let p = self.plant.response(omega)?;
+        let out = hold * delay * current;
+        Some(Elements {
+            s,
+            out,
+            pi,
+            vel_path: pi * dv,
+            acc_path: s * dv * dv * filter * self.ka,
+            p,
+        })
+    }
+
+    /// The loop at `omega_rad_s` (None only exactly at a plant pole on the axis, e.g. ω = 0).
+    pub fn point(&self, omega_rad_s: f64) -> Option<LoopPoint> {
+        let el = self.elements(omega_rad_s)?;
+        let pm = el.p.motor_speed_per_motor_torque;
+        let loop_gain = el.out * pm * (el.vel_path + el.acc_path);
+        let one = Complex::new(1.0, 0.0);
+        let wm_per_tl = el.p.motor_speed_per_load_torque / (one + loop_gain);
+        // Torque actually applied per unit ωm: −out·(vel_path + acc_path).
+        let tm_per_tl = -el.out * (el.vel_path + el.acc_path) * wm_per_tl;
+        let wl_per_tl =
+            el.p.load_speed_per_motor_torque * tm_per_tl + el.p.load_speed_per_load_torque;
+        // θ (pu·s) = ω/s.
+        Some(LoopPoint {
+            omega_rad_s,
+            loop_gain,
+            accel_loop_gain: el.out * pm * el.acc_path,
+            reference_to_speed: el.out * pm * el.pi / (one + loop_gain),
+            load_to_speed: wm_per_tl,
+            motor_stiffness: -el.s / wm_per_tl,
+            load_stiffness: -el.s / wl_per_tl,
+        })
+    }
+
+    /// Margins of the full loop gain.
+    pub fn margins(&self) -> Margins {
+        margins(
+            |w| self.point(w).map(|p| p.loop_gain),
+            0.01,
+            self.nyquist_rad_s(),
+        )
+    }
+
+    /// Margins of the acceleration loop alone (the design notes' trap 1).
+    pub fn accel_margins(&self) -> Margins {
+        margins(
+            |w| self.point(w).map(|p| p.accel_loop_gain),
+            0.01,
+            self.nyquist_rad_s(),
+        )
+    }
+
+    /// Largest |eigenvalue| of the exact sampled-data closed loop, excluding the free
+    /// position mode (eigenvalue 1: a velocity loop does not hold position). Stable iff < 1.
+    pub fn sampled_spectral_radius(&self) -> f64 {
+        let m = self.sampled_closed_loop();
+        let mut eig: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
+        // Remove the eigenvalue nearest 1 (the rigid position mode).
+        if let Some((i, _)) = eig.iter().enumerate().min_by(|a, b| {
+            let da = (a.1 - Complex::new(1.0, 0.0)).norm();
+            let db = (b.1 - Complex::new(1.0, 0.0)).norm();
+            da.total_cmp(&db)
+        }) {
+            eig.remove(i);
+        }
+        eig.iter().map(|l| l.norm()).fold(0.0, f64::max)
+    }
+
+    /// Whether the sampled-data closed loop is asymptotically stable.
+    pub fn is_stable(&self) -> bool {
+        self.sampled_spectral_radius() < 1.0
+    }
+
+    /// X[k+1] = M·X[k], X = [θm, θl, ωm, ωl, Ta, u[k−1], θm[k−1], ω̂[k−1], â[k−1], I[k−1]].
+    fn sampled_closed_loop(&self) -> SMatrix<f64, 10, 10> {
+        let t = self.velocity_period_s;
+        let td = self.delay_s.clamp(0.0, t);
+        let wb = self.plant.base_speed_rad_s;
+        // Continuous plant + current lag: z = [θm, θl, ωm, ωl, Ta], input = torque command.
+        let mut ac = SMatrix::<f64, 6, 6>::zeros();
+        ac.fixed_view_mut::<4, 4>(0, 0).copy_from(&self.plant.a);
+        let b_tm = self.plant.b.column(0).into_owned();
+        match self.current_bandwidth_hz {
+            Some(f) => {
+                let wc = 2.0 * PI * f;
+                ac.fixed_view_mut::<4, 1>(0, 4).copy_from(&b_tm);
+                ac[(4, 4)] = -wc;
+                ac[(4, 5)] = wc;
+            }
+            None => {
+                ac.fixed_view_mut::<4, 1>(0, 5).copy_from(&b_tm);
+                // Ta is unused: make it a fast decaying, decoupled state so it adds no
+                // eigenvalue at 1.
+                ac[(4, 4)] = -1.0 / self.velocity_period_s.max(1e-9);
+            }
+        }
+        let disc = |h: f64| {
+            let e = expm(&(ac * h));
+            (
+                e.fixed_view::<5, 5>(0, 0).into_owned(),
+                e.fixed_view::<5, 1>(0, 5).into_owned(),
+            )
+        };
+        let (phi1, gam1) = disc(td);
+        let (phi2, gam2) = disc(t - td);
+
+        // Controller rows as linear functions of X (10-vectors).
+        let unit = |i: usize| {
+            let mut v = SVector::<f64, 10>::zeros();
+            if let Some(x) = v.get_mut(i) {
+                *x = 1.0;
+            }
+            v
+        };
+        let w_hat = (unit(0) - unit(6)) / (wb * t);
+        let a_raw = (w_hat - unit(7)) / t;
+        let alpha = (-2.0 * PI * self.accel_filter_hz * t).exp();
+        let a_f = unit(8) * alpha + a_raw * (1.0 - alpha);
+        let integ = unit(9) - w_hat * (self.ki * t);
+        let u = -w_hat * self.kp + integ - a_f * self.ka;
+
+        let mut m = SMatrix::<f64, 10, 10>::zeros();
+        let zz = phi2 * phi1;
+        let zu_prev = phi2 * gam1;
+        m.fixed_view_mut::<5, 5>(0, 0).copy_from(&zz);
+        m.fixed_view_mut::<5, 1>(0, 5).copy_from(&zu_prev);
+        // z[k+1] += Γ2·u[k]
+        m.fixed_view_mut::<5, 10>(0, 0)
+            .iter_mut()
+            .zip((gam2 * u.transpose()).iter())
+            .for_each(|(a, b)| *a += b);
+        m.set_row(5, &u.transpose());
+        m.set_row(6, &unit(0).transpose());
+        m.set_row(7, &w_hat.transpose());
+        m.set_row(8, &a_f.transpose());
+        m.set_row(9, &integ.transpose());
+        m
+    }
+}
+
+struct Elements {
+    s: Complex<f64>,
+    out: Complex<f64>,
+    pi: Complex<f64>,
+    vel_path: Complex<f64>,
+    acc_path: Complex<f64>,
+    p: super::PlantResponse,
+}
+
+/// Gain and phase margins of `l` on a log grid between `lo` and `hi`, crossings refined by
+/// bisection in log frequency.
+fn margins(l: impl Fn(f64) -> Option<Complex<f64>>, lo: f64, hi: f64) -> Margins {
+    let grid = super::log_space(lo, hi * 0.999, 4000);
+    let mag = |w: f64| l(w).map_or(f64::NAN, |z| z.norm().ln());
+    let im_neg = |w: f64| l(w).map_or(f64::NAN, |z| z.im);
+    let refine = |f: &dyn Fn(f64) -> f64, mut a: f64, mut b: f64| {
+        let fa = f(a);
+        for _ in 0..60 {
+            let m = (a * b).sqrt();
+            if (f(m) > 0.0) == (fa > 0.0) {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        (a * b).sqrt()
+    };
+    let mut out = Margins {
+        phase_margin_deg: f64::INFINITY,
+        gain_crossover_rad_s: f64::NAN,
+        gain_margin_db: f64::INFINITY,
+        phase_crossover_rad_s: f64::NAN,
+        crossovers: Vec::new(),
+    };
+    for pair in grid.windows(2) {
+        let [a, b] = [pair.first().copied(), pair.get(1).copied()].map(|v| v.unwrap_or(lo));
+        let (ma, mb) = (mag(a), mag(b));
+        if ma.is_finite() && mb.is_finite() && (ma > 0.0) != (mb > 0.0) {
+            let w = refine(&mag, a, b);
+            // Distance in phase from −180°, wrapped to (−180°, 180°].
+            let pm = l(w).map_or(f64::NAN, |z| {
+                let p = 180.0 + z.arg().to_degrees();
+                if p > 180.0 {
+                    p - 360.0
+                } else {
+                    p
+                }
+            });
+            out.crossovers.push((w, pm));
+        }
+    }
+    let first_gc = out.crossovers.first().map_or(lo, |c| c.0);
+    if let Some(&(w, pm)) = out.crossovers.first() {
+        out.phase_margin_deg = pm;
+        out.gain_crossover_rad_s = w;
+    }
+    for pair in grid.windows(2) {
+        let [a, b] = [pair.first().copied(), pair.get(1).copied()].map(|v| v.unwrap_or(lo));
+        if a < first_gc {
+            continue;
+        }
+        let (ia, ib) = (im_neg(a), im_neg(b));
+        if ia.is_finite() && ib.is_finite() && (ia > 0.0) != (ib > 0.0) {
+            let w = refine(&im_neg, a, b);
+            if let Some(z) = l(w) {
+                let gm = -20.0 * z.norm().log10();
+                if z.re < 0.0 && gm < out.gain_margin_db {
+                    out.gain_margin_db = gm;
+                    out.phase_crossover_rad_s = w;
+                }
+            }
+        }
+    }
+    out
+}
