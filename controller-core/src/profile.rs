@@ -60,7 +60,8 @@ impl ProfileConfig {
     }
 }
 
-const MAX_SEGMENTS: usize = 8;
+// delay, 3 accel, hold, 3 decel, final standstill = 9.
+const MAX_SEGMENTS: usize = 9;
 
 /// One constant-jerk segment with its exact start state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
