@@ -121,7 +121,7 @@ fn run_filter(d: &LowPassDesign, inputs: &[f64]) -> (Vec<f64>, Vec<f64>) {
 fn filters_match_f64_reference() {
     let mut rng = Lcg(7);
     let mut inputs: Vec<f64> = (0..4000).map(|_| rng.next()).collect();
-    inputs.extend(std::iter::repeat(0.75).take(4000));
+    inputs.extend(std::iter::repeat_n(0.75, 4000));
     for (cfg, tol) in [
         (FilterConfig::FirstOrder { corner_hz: 5.0 }, 5e-5),
         (FilterConfig::FirstOrder { corner_hz: 100.0 }, 5e-5),
