@@ -92,7 +92,7 @@ impl EngagedPlant {
                 keep.get(i).copied().unwrap_or(0),
                 keep.get(j).copied().unwrap_or(0),
             );
-            n[(r, s)]
+            n.get((r, s)).copied().unwrap_or(0.0)
         });
         let zeros: Vec<Complex<f64>> = z.complex_eigenvalues().iter().copied().collect();
         let (rf, rz) = oscillatory(&poles);
@@ -112,12 +112,13 @@ impl EngagedPlant {
         let s = Complex::new(0.0, omega_rad_s);
         let m = Matrix4::<Complex<f64>>::identity() * s - self.a.map(Complex::from);
         let x = m.lu().solve(&self.b.map(Complex::from))?;
-        let t = Matrix2::new(x[(2, 0)], x[(2, 1)], x[(3, 0)], x[(3, 1)]);
+        // Rows 2, 3 of (sI − A)⁻¹B are the speeds; columns the two inputs.
+        let t: Matrix2<Complex<f64>> = x.fixed_view::<2, 2>(2, 0).into_owned();
         Some(PlantResponse {
-            motor_speed_per_motor_torque: t[(0, 0)],
-            motor_speed_per_load_torque: t[(0, 1)],
-            load_speed_per_motor_torque: t[(1, 0)],
-            load_speed_per_load_torque: t[(1, 1)],
+            motor_speed_per_motor_torque: t.m11,
+            motor_speed_per_load_torque: t.m12,
+            load_speed_per_motor_torque: t.m21,
+            load_speed_per_load_torque: t.m22,
         })
     }
 }

@@ -190,14 +190,14 @@ impl VelocityLoop {
             Some(f) => {
                 let wc = 2.0 * PI * f;
                 ac.fixed_view_mut::<4, 1>(0, 4).copy_from(&b_tm);
-                ac[(4, 4)] = -wc;
-                ac[(4, 5)] = wc;
+                set(&mut ac, 4, 4, -wc);
+                set(&mut ac, 4, 5, wc);
             }
             None => {
                 ac.fixed_view_mut::<4, 1>(0, 5).copy_from(&b_tm);
                 // Ta is unused: make it a fast decaying, decoupled state so it adds no
                 // eigenvalue at 1.
-                ac[(4, 4)] = -1.0 / self.velocity_period_s.max(1e-9);
+                set(&mut ac, 4, 4, -1.0 / self.velocity_period_s.max(1e-9));
             }
         }
         let disc = |h: f64| {
@@ -241,6 +241,12 @@ impl VelocityLoop {
         m.set_row(8, &a_f.transpose());
         m.set_row(9, &integ.transpose());
         m
+    }
+}
+
+fn set(m: &mut SMatrix<f64, 6, 6>, r: usize, c: usize, v: f64) {
+    if let Some(x) = m.get_mut((r, c)) {
+        *x = v;
     }
 }
 
