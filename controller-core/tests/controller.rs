@@ -1,0 +1,264 @@
+//! Controller-level behaviour: counter wrap, saturation, faults and reset.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use controller_core::per_unit::count_diff;
+use controller_core::{
+    Controller, Counts, CurrentInputs, DriveConfig, Fault, Pu, Setpoint, VelocityInputs,
+};
+
+fn mask(bits: u8) -> u64 {
+    if bits >= 32 {
+        u64::from(u32::MAX)
+    } else {
+        (1u64 << bits) - 1
+    }
+}
+
+/// Move the encoder at `step` counts per current tick through the counter's wrap, with a
+/// setpoint that follows exactly: the position error stays zero and no fault trips.
+fn run_through_wrap(bits: u8, start_raw: u64) {
+    let mut cfg = DriveConfig::table1();
+    cfg.counter_bits = bits;
+    let mut c = Controller::new(&cfg).unwrap();
+    let step = 7i64;
+    let m = mask(bits);
+    let start_signed = {
+        let shift = 64 - u32::from(bits);
+        ((start_raw << shift) as i64) >> shift
+    };
+    for k in 0..4000i64 {
+        let true_pos = start_signed + k * step;
+        let raw = (true_pos as u64 & m) as u32;
+        c.current_tick(CurrentInputs {
+            encoder_count: raw,
+            current_pu: Pu::ZERO,
+        });
+        if k % 2 == 0 {
+            let out = c.velocity_tick(VelocityInputs {
+                encoder_count: raw,
+                setpoint: Setpoint {
+                    position_counts: Counts::from_num(true_pos),
+                    velocity_pu: Pu::ZERO,
+                    acceleration_pu_s: Pu::ZERO,
+                },
+                fault_input: false,
+            });
+            assert_eq!(out.position_error_counts, 0, "bits {bits} k {k}");
+            assert_eq!(out.fault, None, "bits {bits} k {k}");
+        }
+    }
+}
+
+#[test]
+fn counter_wraps_at_its_width() {
+    run_through_wrap(16, 0xFFFF - 3000);
+    run_through_wrap(24, 0xFF_FFFF - 3000);
+    run_through_wrap(32, u64::from(u32::MAX) - 3000);
+    // Backwards through zero.
+    assert_eq!(count_diff(0xFFF0, 0x0010, 16), -0x20);
+    assert_eq!(count_diff(0x10, 0xFFFF_FFF0, 32), 0x20);
+}
+
+#[test]
+fn torque_and_voltage_saturate_at_their_limits() {
+    let cfg = DriveConfig::table1();
+    let mut c = Controller::new(&cfg).unwrap();
+    for k in 0..2000 {
+        let out = c.current_tick(CurrentInputs {
+            encoder_count: 0,
+            current_pu: Pu::ZERO,
+        });
+        if k % 2 == 0 {
+            c.velocity_tick(VelocityInputs {
+                encoder_count: 0,
+                setpoint: Setpoint {
+                    position_counts: Counts::from_num(500),
+                    velocity_pu: Pu::from_num(1),
+                    acceleration_pu_s: Pu::ZERO,
+                },
+                fault_input: false,
+            });
+        }
+        assert!(out.current_ref_pu.abs() <= Pu::from_num(cfg.torque_limit_pu));
+        assert!(out.voltage_cmd_pu.abs() <= Pu::from_num(cfg.voltage_limit_pu));
+    }
+    let out = c.current_tick(CurrentInputs {
+        encoder_count: 0,
+        current_pu: Pu::ZERO,
+    });
+    assert_eq!(out.current_ref_pu, Pu::from_num(cfg.torque_limit_pu));
+    assert_eq!(out.voltage_cmd_pu, Pu::from_num(cfg.voltage_limit_pu));
+    // Anti-windup: once the error reverses the torque reference leaves the limit at once.
+    let out = c.velocity_tick(VelocityInputs {
+        encoder_count: 0,
+        setpoint: Setpoint {
+            position_counts: Counts::from_num(0),
+            velocity_pu: Pu::from_num(-0.05),
+            acceleration_pu_s: Pu::ZERO,
+        },
+        fault_input: false,
+    });
+    assert!(
+        out.current_ref_pu < Pu::from_num(cfg.torque_limit_pu),
+        "{:?}",
+        out.current_ref_pu
+    );
+}
+
+fn vel_in(raw: u32, sp_counts: i64, fault_input: bool) -> VelocityInputs {
+    VelocityInputs {
+        encoder_count: raw,
+        setpoint: Setpoint {
+            position_counts: Counts::from_num(sp_counts),
+            velocity_pu: Pu::ZERO,
+            acceleration_pu_s: Pu::ZERO,
+        },
+        fault_input,
+    }
+}
+
+/// A faulted drive commands zero torque and stays faulted until reset.
+fn assert_latched(c: &mut Controller, fault: Fault) {
+    for _ in 0..50 {
+        let o = c.current_tick(CurrentInputs {
+            encoder_count: 0,
+            current_pu: Pu::ZERO,
+        });
+        assert_eq!(o.fault, Some(fault));
+        assert_eq!(o.current_ref_pu, Pu::ZERO);
+        assert_eq!(o.accel_fb_pu, Pu::ZERO);
+        let v = c.velocity_tick(vel_in(0, 0, false));
+        assert_eq!(v.fault, Some(fault));
+        assert_eq!(v.current_ref_pu, Pu::ZERO);
+    }
+    c.reset();
+    assert_eq!(c.fault(), None);
+    let o = c.current_tick(CurrentInputs {
+        encoder_count: 0,
+        current_pu: Pu::ZERO,
+    });
+    assert_eq!(o.fault, None);
+}
+
+#[test]
+fn encoder_jump_trips_and_latches() {
+    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    c.current_tick(CurrentInputs {
+        encoder_count: 100,
+        current_pu: Pu::ZERO,
+    });
+    // 1.5 pu overspeed × 2 margin at 4 kHz and 4096 CPR is 53 counts per tick: 60 trips.
+    let max_step = c.gains().max_count_step;
+    assert!((max_step - 53.2).abs() < 0.1, "{max_step}");
+    let o = c.current_tick(CurrentInputs {
+        encoder_count: 150,
+        current_pu: Pu::ZERO,
+    });
+    assert_eq!(o.fault, None);
+    let o = c.current_tick(CurrentInputs {
+        encoder_count: 210,
+        current_pu: Pu::ZERO,
+    });
+    assert_eq!(o.fault, Some(Fault::EncoderJump));
+    assert_latched(&mut c, Fault::EncoderJump);
+}
+
+#[test]
+fn overspeed_trips_and_latches() {
+    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    // 30 counts per 0.25 ms = 1.76 pu, above the 1.5 pu trip, below the jump limit.
+    let mut tripped = None;
+    for k in 0..400u32 {
+        let raw = (k * 30) & 0xFFFF;
+        c.current_tick(CurrentInputs {
+            encoder_count: raw,
+            current_pu: Pu::ZERO,
+        });
+        if k % 2 == 0 {
+            let v = c.velocity_tick(VelocityInputs {
+                encoder_count: raw,
+                setpoint: Setpoint::default(),
+                fault_input: false,
+            });
+            if v.fault.is_some() {
+                tripped = v.fault;
+                break;
+            }
+        }
+    }
+    assert_eq!(tripped, Some(Fault::Overspeed));
+    assert_latched(&mut c, Fault::Overspeed);
+}
+
+#[test]
+fn following_error_trips_and_latches() {
+    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    let v = c.velocity_tick(vel_in(0, 4000, false));
+    assert_eq!(v.fault, None);
+    assert_eq!(v.position_error_counts, 4000);
+    let v = c.velocity_tick(vel_in(0, 4097, false));
+    assert_eq!(v.fault, Some(Fault::FollowingError));
+    assert_latched(&mut c, Fault::FollowingError);
+    // In velocity mode there is no following-error check.
+    let mut cfg = DriveConfig::table1();
+    cfg.position_bandwidth_rad_s = 0.0;
+    let mut c = Controller::new(&cfg).unwrap();
+    let v = c.velocity_tick(vel_in(0, 1_000_000, false));
+    assert_eq!(v.fault, None);
+    assert_eq!(v.position_error_counts, 0);
+}
+
+#[test]
+fn external_fault_trips_and_latches() {
+    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    let v = c.velocity_tick(vel_in(0, 0, true));
+    assert_eq!(v.fault, Some(Fault::External));
+    assert_eq!(Fault::External.to_string(), "external fault input");
+    assert_latched(&mut c, Fault::External);
+}
+
+#[test]
+fn afb_output_is_a_named_signal_and_follows_the_mode() {
+    // Error form: with the motor still (differentiated acceleration 0) and a commanded
+    // acceleration the AFB term pushes forwards (Ka·LPF(a_cmd − 0) > 0); plain form gives
+    // zero for a still motor. (The observer would see the torque and predict motion.)
+    for (mode, positive) in [
+        (controller_core::AfbMode::Error, true),
+        (controller_core::AfbMode::Plain, false),
+    ] {
+        let mut cfg = DriveConfig::table1();
+        cfg.accel_feedback.mode = mode;
+        cfg.accel_feedback.source = controller_core::Estimator::Differentiation;
+        let mut c = Controller::new(&cfg).unwrap();
+        let mut last = Pu::ZERO;
+        for k in 0..40 {
+            if k % 2 == 0 {
+                c.velocity_tick(VelocityInputs {
+                    encoder_count: 0,
+                    setpoint: Setpoint {
+                        position_counts: Counts::ZERO,
+                        velocity_pu: Pu::ZERO,
+                        acceleration_pu_s: Pu::from_num(1),
+                    },
+                    fault_input: false,
+                });
+            }
+            last = c
+                .current_tick(CurrentInputs {
+                    encoder_count: 0,
+                    current_pu: Pu::ZERO,
+                })
+                .accel_fb_pu;
+        }
+        if positive {
+            assert!(last > Pu::ZERO, "{mode:?}: {last}");
+        } else {
+            assert!(last <= Pu::ZERO, "{mode:?}: {last}");
+        }
+    }
+}
