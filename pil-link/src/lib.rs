@@ -5,7 +5,8 @@
 //!
 //! Layers, bottom up: [`crc`] (CRC-32 written here), [`frame`] (wire format and a
 //! byte-at-a-time decoder), [`wire`] (little-endian payload fields), [`message`] (session
-//! payloads), [`session`] (the firmware's state machine: sequence, watchdog, latched safe
+//! payloads), [`tick`] and [`settings`] (controller-core's inputs, outputs and
+//! `DriveConfig` as raw bits), [`session`] (the firmware's state machine: sequence, watchdog, latched safe
 //! state) and, with the `std` feature, [`host`] (the harness's lock-step client with fault
 //! injection).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -17,6 +18,8 @@ pub mod frame;
 pub mod host;
 pub mod message;
 pub mod session;
+pub mod settings;
+pub mod tick;
 pub mod wire;
 
 pub use crc::{crc32, Crc32};

@@ -141,7 +141,12 @@ impl FirmwareSession {
 
     fn on_frame<T: Target>(&mut self, frame: &Frame, target: &mut T) -> Option<Frame> {
         if self.seq.accept(frame.seq).is_err() {
-            return self.latch(FaultCode::OutOfSequence, target);
+            let reply = self.latch(FaultCode::OutOfSequence, target);
+            if frame.kind == FrameKind::Stop {
+                // The harness wants the run over: end it, still latched and reported.
+                self.state = SessionState::Stopped { faulted: true };
+            }
+            return reply;
         }
         match frame.kind {
             FrameKind::Config => match target.configure(frame.payload()) {

@@ -219,3 +219,114 @@ proptest! {
         prop_assert!(out.is_empty());
     }
 }
+
+mod payloads {
+    use controller_core::per_unit::{Counts, CountsErr, Pu, PuPerS};
+    use controller_core::{
+        CurrentInputs, CurrentOutputs, DriveConfig, Fault, FilterConfig, Setpoint, VelocityInputs,
+        VelocityOutputs,
+    };
+    use pil_link::tick::{Applied, Commands, Sensors};
+    use pil_link::wire::Writer;
+    use pil_link::{settings, LinkError, MAX_PAYLOAD};
+    use proptest::prelude::*;
+
+    fn fault(k: u8) -> Option<Fault> {
+        [
+            None,
+            Some(Fault::Overspeed),
+            Some(Fault::FollowingError),
+            Some(Fault::EncoderJump),
+            Some(Fault::External),
+        ][usize::from(k % 5)]
+    }
+
+    proptest! {
+        #[test]
+        fn sensors_round_trip(enc in any::<u32>(), i in any::<i32>(), pos in any::<i64>(),
+                              v in any::<i32>(), a in any::<i32>(), fi in any::<bool>()) {
+            for s in [
+                Sensors::Current(CurrentInputs { encoder_count: enc, current_pu: Pu::from_bits(i) }),
+                Sensors::Velocity(VelocityInputs {
+                    encoder_count: enc,
+                    setpoint: Setpoint {
+                        position_counts: Counts::from_bits(pos),
+                        velocity_pu: Pu::from_bits(v),
+                        acceleration_pu_s: PuPerS::from_bits(a),
+                    },
+                    fault_input: fi,
+                }),
+            ] {
+                let mut w = Writer::new();
+                s.encode(&mut w).unwrap();
+                prop_assert_eq!(Sensors::decode(w.as_slice()), Ok(s));
+                // Any truncation is refused, never misread.
+                for n in 0..w.as_slice().len() {
+                    prop_assert!(Sensors::decode(&w.as_slice()[..n]).is_err());
+                }
+            }
+        }
+
+        #[test]
+        fn commands_round_trip(x in proptest::array::uniform8(any::<i32>()), k in any::<u8>(),
+                               en in any::<bool>(), t in any::<u32>()) {
+            for c in [
+                Commands::Current(
+                    CurrentOutputs {
+                        voltage_cmd_pu: Pu::from_bits(x[0]),
+                        current_ref_pu: Pu::from_bits(x[1]),
+                        accel_fb_pu: Pu::from_bits(x[2]),
+                        fault: fault(k),
+                    },
+                    Applied { voltage_bits: x[3], enabled: en, isr_ticks: t },
+                ),
+                Commands::Velocity(VelocityOutputs {
+                    current_ref_pu: Pu::from_bits(x[0]),
+                    accel_fb_pu: Pu::from_bits(x[1]),
+                    velocity_cmd_pu: Pu::from_bits(x[2]),
+                    velocity_est_pu: Pu::from_bits(x[3]),
+                    acceleration_est_pu_s: PuPerS::from_bits(x[4]),
+                    position_error_counts: CountsErr::from_bits(x[5]),
+                    disturbance_est_pu: Pu::from_bits(x[6]),
+                    fault: fault(k),
+                }),
+            ] {
+                let mut w = Writer::new();
+                c.encode(&mut w).unwrap();
+                prop_assert!(w.as_slice().len() <= MAX_PAYLOAD);
+                prop_assert_eq!(Commands::decode(w.as_slice()), Ok(c));
+            }
+        }
+
+        #[test]
+        fn drive_config_round_trips_bit_for_bit(bits in proptest::array::uniform12(any::<u32>())) {
+            let mut cfg = DriveConfig::table1();
+            cfg.motor_inertia_s = f32::from_bits(bits[0]);
+            cfg.velocity_bandwidth_rad_s = f32::from_bits(bits[1]);
+            cfg.velocity_filter = FilterConfig::FirstOrder { corner_hz: f32::from_bits(bits[2]) };
+            cfg.accel_feedback.gain_fraction = f32::from_bits(bits[3]);
+            cfg.faults.encoder_jump_margin = f32::from_bits(bits[4]);
+            let mut w = Writer::new();
+            settings::encode(&cfg, &mut w).unwrap();
+            prop_assert_eq!(w.as_slice().len(), settings::LEN);
+            let back = settings::decode(w.as_slice()).unwrap();
+            // Compare as bytes: NaN payloads must survive too.
+            let mut w2 = Writer::new();
+            settings::encode(&back, &mut w2).unwrap();
+            prop_assert_eq!(w.as_slice(), w2.as_slice());
+        }
+    }
+
+    #[test]
+    fn bad_tags_are_refused() {
+        assert!(matches!(
+            Sensors::decode(&[9, 0, 0, 0, 0, 0, 0, 0, 0]),
+            Err(LinkError::BadPayload { .. })
+        ));
+        let mut w = Writer::new();
+        settings::encode(&DriveConfig::table1(), &mut w).unwrap();
+        let mut bytes = w.as_slice().to_vec();
+        bytes[65] = 7; // velocity filter tag
+        assert!(settings::decode(&bytes).is_err());
+    }
+}
