@@ -1,14 +1,83 @@
 //! hil-harness: wires controller-core to plant-host with the real timing (current tick
 //! every 250 µs, velocity tick every 500 µs, computational delay, zero-order hold) and
 //! turns the paper's figures and claims into runs, plots and a report.
+//!
+//! Library entry points: [`runner::run_scenario`] (host controller) and
+//! [`runner::run_with_backend`] with any [`runner::ControlBackend`] (e.g. the firmware
+//! through the PIL link), on a [`config::RunConfig`] from [`config::resolve`].
 
+pub mod cli;
+pub mod commands;
+pub mod config;
+pub mod drive;
+pub mod error;
+pub mod metrics;
+pub mod output;
+pub mod overrides;
+pub mod plant;
+pub mod plot;
+pub mod progress;
+pub mod replay;
+pub mod report;
+pub mod runner;
+pub mod scenario;
+pub mod stiffness;
+pub mod sweep;
+pub mod trace;
+
+pub use config::{resolve, RunConfig};
+pub use error::{HarnessError, Result};
+pub use runner::{run_scenario, run_with_backend, ControlBackend, RunOutput};
+
+use clap::Parser;
 use std::process::ExitCode;
 
 /// Entry point shared by the `hil-harness` binary and the root `stiffdrive` binary.
 /// `default_command` is used when no subcommand is given (the root binary passes
 /// `"reproduce"`).
 pub fn main_with_default(default_command: &str) -> ExitCode {
-    let _ = default_command;
-    println!("hil-harness: not implemented yet");
-    ExitCode::SUCCESS
+    let mut args: Vec<String> = std::env::args().collect();
+    if args.len() <= 1 {
+        args.push(default_command.to_string());
+    }
+    let cli = match cli::Cli::try_parse_from(&args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Help and version are not errors.
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    match dispatch(cli.command) {
+        Ok(message) => {
+            println!("{message}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs one parsed command; returns the text to print.
+pub fn dispatch(command: cli::Command) -> Result<String> {
+    use cli::Command;
+    match command {
+        Command::Run {
+            scenario,
+            config,
+            set,
+            out,
+        } => commands::run(&scenario, config.as_deref(), &set, &out),
+        Command::Sweep { out } => sweep::sweep(&out),
+        Command::Stiffness { out } => stiffness::stiffness(&out),
+        Command::Reproduce { out } => report::reproduce(&out),
+        Command::Replay {
+            config,
+            torque,
+            out,
+        } => replay::replay(&config, &torque, &out),
+    }
 }

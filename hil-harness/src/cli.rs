@@ -1,0 +1,63 @@
+//! The command line: `run`, `sweep`, `stiffness`, `reproduce`, `replay`.
+
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+
+/// Runs controller-core against plant-host with the real timing and reproduces the paper.
+#[derive(Debug, Parser)]
+#[command(name = "hil-harness", version, about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Run one scenario: writes DIR/trace.csv, DIR/summary.json and plots.
+    Run {
+        /// Scenario name (a file under configs/scenarios/).
+        #[arg(long)]
+        scenario: String,
+        /// Configuration (path, or name under configs/); default: the scenario's.
+        #[arg(long)]
+        config: Option<String>,
+        /// Override `section.key=value` (repeatable), e.g. drive.velocity_bandwidth_rad_s=50.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Largest stable velocity bandwidth with and without acceleration feedback.
+    Sweep {
+        /// Output directory.
+        #[arg(long, default_value = "out/sweep")]
+        out: PathBuf,
+    },
+    /// Dynamic stiffness over frequency: Eq. 1 and measured in the loop.
+    Stiffness {
+        /// Output directory.
+        #[arg(long, default_value = "out/stiffness")]
+        out: PathBuf,
+    },
+    /// Everything above, and out/REPORT.md (what `cargo run --release` does).
+    Reproduce {
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+    /// Drive the plant open-loop with a torque CSV (plant-host's replay).
+    Replay {
+        /// Configuration (path, or name under configs/).
+        #[arg(long)]
+        config: String,
+        /// Input CSV of load/motor torque over time.
+        #[arg(long)]
+        torque: PathBuf,
+        /// Output CSV.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}

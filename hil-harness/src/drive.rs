@@ -1,0 +1,357 @@
+//! The `[drive]` table of a configuration file, mapped onto
+//! `controller_core::DriveConfig`. Every key is checked: unknown keys and out-of-range
+//! values are errors naming `drive.key` and the allowed range. Keys that describe the
+//! machine (inertias, encoder, base speed, winding) default to the plant's values so
+//! there is one source of truth; set them here only to model a mis-tuned drive.
+
+use crate::error::{HarnessError, Result};
+use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, ObserverInertia};
+use toml::{Table, Value};
+
+/// What the plant tells the drive by default.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MachineDefaults {
+    /// Base speed (rpm).
+    pub base_speed_rpm: f32,
+    /// Encoder counts per revolution.
+    pub encoder_cpr: u32,
+    /// Motor inertia (s).
+    pub motor_inertia_s: f32,
+    /// Load inertia reflected to the motor (s).
+    pub load_inertia_s: f32,
+    /// Winding resistance (pu).
+    pub winding_resistance_pu: f32,
+    /// Winding inductance (pu·s).
+    pub winding_inductance_pu_s: f32,
+}
+
+struct Real {
+    key: &'static str,
+    min: f64,
+    max: f64,
+    set: fn(&mut DriveConfig, f64),
+}
+
+const fn real(key: &'static str, min: f64, max: f64, set: fn(&mut DriveConfig, f64)) -> Real {
+    Real { key, min, max, set }
+}
+
+/// Real-valued keys of `[drive]` with their allowed ranges (units in the names).
+const REALS: &[Real] = &[
+    real("base_speed_rpm", 1.0, 100_000.0, |c, v| {
+        c.base_speed_rpm = v as f32
+    }),
+    real("encoder_cpr", 4.0, 4_294_967_295.0, |c, v| {
+        c.encoder_cpr = v as u32
+    }),
+    real("counter_bits", 16.0, 32.0, |c, v| c.counter_bits = v as u8),
+    real("current_rate_hz", 100.0, 100_000.0, |c, v| {
+        c.current_rate_hz = v as u32
+    }),
+    real("velocity_rate_hz", 10.0, 100_000.0, |c, v| {
+        c.velocity_rate_hz = v as u32
+    }),
+    real("motor_inertia_s", 1e-6, 1000.0, |c, v| {
+        c.motor_inertia_s = v as f32
+    }),
+    real("load_inertia_s", 0.0, 1000.0, |c, v| {
+        c.load_inertia_s = v as f32
+    }),
+    real("position_bandwidth_rad_s", 0.0, 10_000.0, |c, v| {
+        c.position_bandwidth_rad_s = v as f32
+    }),
+    real("velocity_bandwidth_rad_s", 0.01, 100_000.0, |c, v| {
+        c.velocity_bandwidth_rad_s = v as f32
+    }),
+    real("velocity_damping", 0.1, 10.0, |c, v| {
+        c.velocity_damping = v as f32
+    }),
+    real("current_bandwidth_rad_s", 1.0, 1_000_000.0, |c, v| {
+        c.current_bandwidth_rad_s = v as f32
+    }),
+    real("winding_resistance_pu", 1e-6, 100.0, |c, v| {
+        c.winding_resistance_pu = v as f32
+    }),
+    real("winding_inductance_pu_s", 1e-9, 100.0, |c, v| {
+        c.winding_inductance_pu_s = v as f32
+    }),
+    real("torque_limit_pu", 0.01, 100.0, |c, v| {
+        c.torque_limit_pu = v as f32
+    }),
+    real("voltage_limit_pu", 0.01, 100.0, |c, v| {
+        c.voltage_limit_pu = v as f32
+    }),
+    real("velocity_ff_gain", 0.0, 1.0, |c, v| {
+        c.velocity_ff_gain = v as f32
+    }),
+    real("accel_ff_gain", 0.0, 1.0, |c, v| c.accel_ff_gain = v as f32),
+    real("velocity_filter_corner_hz", 0.01, 50_000.0, |c, v| {
+        c.velocity_filter = with_corner(c.velocity_filter, v as f32)
+    }),
+    real("velocity_filter_q", 0.1, 10.0, |c, v| {
+        c.velocity_filter = with_q(c.velocity_filter, v as f32)
+    }),
+];
+
+/// Real-valued keys of `[drive.accel_feedback]`, `[drive.observer]`, `[drive.faults]`.
+const AFB_REALS: &[Real] = &[
+    real("gain_fraction", 0.0, 20.0, |c, v| {
+        c.accel_feedback.gain_fraction = v as f32
+    }),
+    real("filter_corner_hz", 0.01, 50_000.0, |c, v| {
+        c.accel_feedback.filter = with_corner(c.accel_feedback.filter, v as f32)
+    }),
+    real("filter_q", 0.1, 10.0, |c, v| {
+        c.accel_feedback.filter = with_q(c.accel_feedback.filter, v as f32)
+    }),
+];
+const OBSERVER_REALS: &[Real] = &[real("bandwidth_hz", 0.01, 50_000.0, |c, v| {
+    c.observer.bandwidth_hz = v as f32
+})];
+const FAULT_REALS: &[Real] = &[
+    real("overspeed_pu", 0.01, 100.0, |c, v| {
+        c.faults.overspeed_pu = v as f32
+    }),
+    real("following_error_counts", 1.0, 8_000_000.0, |c, v| {
+        c.faults.following_error_counts = v as f32
+    }),
+    real("encoder_jump_margin", 1.0, 1000.0, |c, v| {
+        c.faults.encoder_jump_margin = v as f32
+    }),
+];
+
+fn corner_of(f: FilterConfig) -> f32 {
+    match f {
+        FilterConfig::None => 100.0,
+        FilterConfig::FirstOrder { corner_hz } | FilterConfig::SecondOrder { corner_hz, .. } => {
+            corner_hz
+        }
+    }
+}
+
+fn with_corner(f: FilterConfig, corner_hz: f32) -> FilterConfig {
+    match f {
+        FilterConfig::None => FilterConfig::None,
+        FilterConfig::FirstOrder { .. } => FilterConfig::FirstOrder { corner_hz },
+        FilterConfig::SecondOrder { q, .. } => FilterConfig::SecondOrder { corner_hz, q },
+    }
+}
+
+fn with_q(f: FilterConfig, q: f32) -> FilterConfig {
+    match f {
+        FilterConfig::SecondOrder { corner_hz, .. } => FilterConfig::SecondOrder { corner_hz, q },
+        other => other,
+    }
+}
+
+fn filter_kind(f: FilterConfig, kind: &str) -> Option<FilterConfig> {
+    let corner_hz = corner_of(f);
+    let q = match f {
+        FilterConfig::SecondOrder { q, .. } => q,
+        _ => core::f32::consts::FRAC_1_SQRT_2,
+    };
+    match kind {
+        "none" => Some(FilterConfig::None),
+        "first_order" => Some(FilterConfig::FirstOrder { corner_hz }),
+        "second_order" => Some(FilterConfig::SecondOrder { corner_hz, q }),
+        _ => None,
+    }
+}
+
+fn estimator(s: &str) -> Option<Estimator> {
+    match s {
+        "differentiation" => Some(Estimator::Differentiation),
+        "observer" => Some(Estimator::Observer),
+        _ => None,
+    }
+}
+
+fn number(key: &str, v: &Value, min: f64, max: f64) -> Result<f64> {
+    let x = match v {
+        Value::Integer(i) => *i as f64,
+        Value::Float(f) => *f,
+        _ => {
+            return Err(HarnessError::config(
+                key,
+                format!("must be a number in {min}..={max}"),
+            ));
+        }
+    };
+    if !x.is_finite() || x < min || x > max {
+        return Err(HarnessError::config(
+            key,
+            format!("{x} is outside the allowed range {min}..={max}"),
+        ));
+    }
+    Ok(x)
+}
+
+fn word<'a>(key: &str, v: &'a Value, allowed: &[&str]) -> Result<&'a str> {
+    match v.as_str() {
+        Some(s) if allowed.contains(&s) => Ok(s),
+        _ => Err(HarnessError::config(
+            key,
+            format!("must be one of {}", allowed.join(", ")),
+        )),
+    }
+}
+
+/// Applies one table of reals and words; `words` handles the non-numeric keys and
+/// returns false for a key it does not know.
+fn apply_table(
+    cfg: &mut DriveConfig,
+    prefix: &str,
+    table: &Table,
+    reals: &[Real],
+    words: &mut dyn FnMut(&mut DriveConfig, &str, &str, &Value) -> Result<bool>,
+    allowed_extra: &[&str],
+) -> Result<()> {
+    // Words first so that a filter kind is set before its corner and q.
+    for (k, v) in table {
+        let key = format!("{prefix}.{k}");
+        if reals.iter().any(|r| r.key == k) || matches!(v, Value::Table(_)) {
+            continue;
+        }
+        if !words(cfg, &key, k, v)? {
+            return Err(unknown(&key, reals, allowed_extra));
+        }
+    }
+    for (k, v) in table {
+        let key = format!("{prefix}.{k}");
+        if let Some(r) = reals.iter().find(|r| r.key == k) {
+            let x = number(&key, v, r.min, r.max)?;
+            (r.set)(cfg, x);
+        }
+    }
+    Ok(())
+}
+
+fn unknown(key: &str, reals: &[Real], extra: &[&str]) -> HarnessError {
+    let mut names: Vec<&str> = reals.iter().map(|r| r.key).collect();
+    names.extend_from_slice(extra);
+    HarnessError::config(
+        key,
+        format!("unknown key; allowed keys: {}", names.join(", ")),
+    )
+}
+
+/// Builds the drive configuration: Table 1 defaults, then the machine's values, then the
+/// `[drive]` table of `doc` (if any).
+pub fn drive_config(doc: &Table, machine: &MachineDefaults) -> Result<DriveConfig> {
+    let mut cfg = DriveConfig::table1();
+    cfg.base_speed_rpm = machine.base_speed_rpm;
+    cfg.encoder_cpr = machine.encoder_cpr;
+    cfg.motor_inertia_s = machine.motor_inertia_s;
+    cfg.load_inertia_s = machine.load_inertia_s;
+    cfg.winding_resistance_pu = machine.winding_resistance_pu;
+    cfg.winding_inductance_pu_s = machine.winding_inductance_pu_s;
+    let Some(drive) = doc.get("drive") else {
+        return Ok(cfg);
+    };
+    let Value::Table(drive) = drive else {
+        return Err(HarnessError::config("drive", "must be a table"));
+    };
+    apply_table(
+        &mut cfg,
+        "drive",
+        drive,
+        REALS,
+        &mut |c, key, k, v| match k {
+            "velocity_estimator" => {
+                let w = word(key, v, &["differentiation", "observer"])?;
+                c.velocity_estimator = estimator(w).unwrap_or(Estimator::Observer);
+                Ok(true)
+            }
+            "velocity_filter" => {
+                let w = word(key, v, &["none", "first_order", "second_order"])?;
+                c.velocity_filter = filter_kind(c.velocity_filter, w).unwrap_or(FilterConfig::None);
+                Ok(true)
+            }
+            _ => Ok(false),
+        },
+        &[
+            "velocity_estimator",
+            "velocity_filter",
+            "[accel_feedback]",
+            "[observer]",
+            "[faults]",
+        ],
+    )?;
+    for (k, v) in drive {
+        let Value::Table(sub) = v else { continue };
+        let prefix = format!("drive.{k}");
+        match k.as_str() {
+            "accel_feedback" => apply_table(
+                &mut cfg,
+                &prefix,
+                sub,
+                AFB_REALS,
+                &mut |c, key, k, v| match k {
+                    "mode" => {
+                        c.accel_feedback.mode = match word(key, v, &["off", "plain", "error"])? {
+                            "plain" => AfbMode::Plain,
+                            "error" => AfbMode::Error,
+                            _ => AfbMode::Off,
+                        };
+                        Ok(true)
+                    }
+                    "filter" => {
+                        let w = word(key, v, &["none", "first_order", "second_order"])?;
+                        c.accel_feedback.filter =
+                            filter_kind(c.accel_feedback.filter, w).unwrap_or(FilterConfig::None);
+                        Ok(true)
+                    }
+                    "rate" => {
+                        c.accel_feedback.rate = match word(key, v, &["current", "velocity"])? {
+                            "velocity" => AfbRate::Velocity,
+                            _ => AfbRate::Current,
+                        };
+                        Ok(true)
+                    }
+                    "source" => {
+                        let w = word(key, v, &["differentiation", "observer"])?;
+                        c.accel_feedback.source = estimator(w).unwrap_or(Estimator::Observer);
+                        Ok(true)
+                    }
+                    _ => Ok(false),
+                },
+                &["mode", "filter", "rate", "source"],
+            )?,
+            "observer" => apply_table(
+                &mut cfg,
+                &prefix,
+                sub,
+                OBSERVER_REALS,
+                &mut |c, key, k, v| match k {
+                    "model_inertia" => {
+                        c.observer.model_inertia = match word(key, v, &["total", "motor"])? {
+                            "total" => ObserverInertia::Total,
+                            _ => ObserverInertia::Motor,
+                        };
+                        Ok(true)
+                    }
+                    _ => Ok(false),
+                },
+                &["model_inertia"],
+            )?,
+            "faults" => apply_table(
+                &mut cfg,
+                &prefix,
+                sub,
+                FAULT_REALS,
+                &mut |_, _, _, _| Ok(false),
+                &[],
+            )?,
+            _ => {
+                return Err(HarnessError::config(
+                    prefix,
+                    "unknown table; allowed: drive.accel_feedback, drive.observer, drive.faults",
+                ))
+            }
+        }
+    }
+    // The controller checks the combination (rates dividing, bandwidths below Nyquist).
+    controller_core::design(&cfg)
+        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
+    Ok(cfg)
+}

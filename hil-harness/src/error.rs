@@ -1,0 +1,82 @@
+//! One error type for the harness: every variant says what went wrong and where, so the
+//! command line can print a clear message and exit non-zero.
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// Everything that can stop a harness command.
+#[derive(Debug)]
+pub enum HarnessError {
+    /// A scenario name with no file under `configs/scenarios/`.
+    UnknownScenario {
+        /// The name asked for.
+        name: String,
+        /// The scenarios that do exist.
+        known: Vec<String>,
+    },
+    /// A configuration key that does not exist, or a value out of its range.
+    Config {
+        /// Dotted key, e.g. `drive.velocity_bandwidth_rad_s`.
+        key: String,
+        /// What is wrong and what is allowed.
+        reason: String,
+    },
+    /// A file or directory could not be read or written.
+    Io {
+        /// The path involved.
+        path: PathBuf,
+        /// The operating system's message.
+        reason: String,
+    },
+    /// A TOML file that does not parse.
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message.
+        reason: String,
+    },
+    /// A plot could not be drawn.
+    Plot(String),
+    /// Anything raised by a component crate (plant, controller, PIL link).
+    Backend(String),
+}
+
+impl fmt::Display for HarnessError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::UnknownScenario { name, known } => write!(
+                f,
+                "unknown scenario `{name}`; known scenarios: {}",
+                known.join(", ")
+            ),
+            Self::Config { key, reason } => write!(f, "bad configuration `{key}`: {reason}"),
+            Self::Io { path, reason } => write!(f, "{}: {reason}", path.display()),
+            Self::Parse { path, reason } => write!(f, "cannot parse {}: {reason}", path.display()),
+            Self::Plot(reason) => write!(f, "plot failed: {reason}"),
+            Self::Backend(reason) => write!(f, "{reason}"),
+        }
+    }
+}
+
+impl std::error::Error for HarnessError {}
+
+impl HarnessError {
+    /// An I/O error on `path`.
+    pub fn io(path: impl Into<PathBuf>, err: impl fmt::Display) -> Self {
+        Self::Io {
+            path: path.into(),
+            reason: err.to_string(),
+        }
+    }
+
+    /// A configuration error on `key`.
+    pub fn config(key: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self::Config {
+            key: key.into(),
+            reason: reason.into(),
+        }
+    }
+}
+
+/// Result alias for the harness.
+pub type Result<T> = std::result::Result<T, HarnessError>;

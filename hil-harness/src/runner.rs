@@ -1,0 +1,229 @@
+//! The closed loop with the real timing.
+//!
+//! Every current tick (Ts_c = 1/current_rate_hz, 250 µs for Table 1) the encoder and the
+//! current are sampled at the tick instant; on every `current_rate/velocity_rate`-th tick
+//! (500 µs) the velocity tick runs first, on the same samples, then the current tick. The
+//! new voltage reaches the winding after the computational delay (`electrics.
+//! computational_delay_s`, 180 µs) and is held until the next one arrives (zero-order
+//! hold). The plant is integrated exactly between those events: [t, t+delay) with the
+//! previous voltage, [t+delay, t+Ts_c) with the new one. The load torque is evaluated at
+//! the middle of each segment. Nothing depends on wall-clock time or threads, so a run is
+//! bit-for-bit repeatable.
+
+use crate::config::RunConfig;
+use crate::error::{HarnessError, Result};
+use crate::metrics::{compute, Metrics};
+use crate::trace::{Trace, TraceRow};
+use controller_core::{
+    per_unit::Counts, Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs,
+    VelocityOutputs,
+};
+use serde::Serialize;
+use std::time::Instant;
+
+/// A controller the harness can run: the fixed-point core on the host, or the firmware
+/// in QEMU through the PIL link.
+pub trait ControlBackend {
+    /// One current-loop tick (every 250 µs for Table 1).
+    fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs;
+    /// One velocity-loop tick (every 500 µs for Table 1), run before the current tick of
+    /// the same instant.
+    fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs;
+}
+
+impl ControlBackend for Controller {
+    fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
+        Controller::current_tick(self, inputs)
+    }
+
+    fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
+        Controller::velocity_tick(self, inputs)
+    }
+}
+
+/// The result of one run.
+#[derive(Clone, Debug)]
+pub struct RunOutput {
+    /// Recorded signals, one row per velocity tick.
+    pub trace: Trace,
+    /// Metrics of the trace.
+    pub metrics: Metrics,
+    /// Simulated time (s).
+    pub sim_time_s: f64,
+    /// Wall-clock time of the closed loop alone (s).
+    pub wall_time_s: f64,
+    /// Current ticks executed.
+    pub ticks: u64,
+}
+
+/// `summary.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    /// Scenario name.
+    pub scenario: String,
+    /// What it shows.
+    pub description: String,
+    /// Paper reference.
+    pub paper: String,
+    /// Config file used.
+    pub config: String,
+    /// The metrics.
+    #[serde(flatten)]
+    pub metrics: Metrics,
+    /// Simulated time (s).
+    pub sim_time_s: f64,
+    /// Wall-clock time of the loop (s).
+    pub wall_time_s: f64,
+    /// Current ticks executed.
+    pub ticks: u64,
+    /// Simulated seconds per wall-clock second.
+    pub realtime_factor: f64,
+    /// Velocity bandwidth used (rad/s).
+    pub velocity_bandwidth_rad_s: f64,
+    /// Acceleration feedback mode used.
+    pub accel_feedback: String,
+}
+
+impl RunOutput {
+    /// The summary of this run under `cfg`.
+    pub fn summary(&self, cfg: &RunConfig) -> Summary {
+        Summary {
+            scenario: cfg.name.clone(),
+            description: cfg.scenario.description.clone(),
+            paper: cfg.scenario.paper.clone(),
+            config: cfg.config_path.display().to_string(),
+            metrics: self.metrics.clone(),
+            sim_time_s: self.sim_time_s,
+            wall_time_s: self.wall_time_s,
+            ticks: self.ticks,
+            realtime_factor: if self.wall_time_s > 0.0 {
+                self.sim_time_s / self.wall_time_s
+            } else {
+                f64::INFINITY
+            },
+            velocity_bandwidth_rad_s: f64::from(cfg.drive.velocity_bandwidth_rad_s),
+            accel_feedback: format!("{:?}", cfg.drive.accel_feedback.mode),
+        }
+    }
+}
+
+/// Runs `cfg` with the host controller (`controller_core::Controller`).
+pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
+    let mut controller = Controller::new(&cfg.drive)
+        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
+    run_with_backend(cfg, &mut controller)
+}
+
+/// Runs `cfg` with any [`ControlBackend`].
+pub fn run_with_backend<B: ControlBackend + ?Sized>(
+    cfg: &RunConfig,
+    backend: &mut B,
+) -> Result<RunOutput> {
+    let mut plant = crate::plant::Plant::new(&cfg.plant)?;
+    let drive = &cfg.drive;
+    let scenario = &cfg.scenario;
+
+    let current_rate_hz = f64::from(drive.current_rate_hz);
+    let ratio = (drive.current_rate_hz / drive.velocity_rate_hz.max(1)).max(1);
+    let tc_s = 1.0 / current_rate_hz;
+    let delay_s = cfg.plant.electrics.computational_delay_s.clamp(0.0, tc_s);
+    let ticks = (scenario.duration_s * current_rate_hz).round() as u64;
+
+    // Position command: counts = pu·s · (base rpm / 60) · cpr.
+    let counts_per_pu_s =
+        cfg.plant.mechanics.base_speed_rpm / 60.0 * f64::from(cfg.plant.sensors.encoder_cpr);
+    let counts_per_rad = f64::from(cfg.plant.sensors.encoder_cpr) / std::f64::consts::TAU;
+    let mask: u64 = if drive.counter_bits >= 32 {
+        u64::from(u32::MAX)
+    } else {
+        (1u64 << drive.counter_bits) - 1
+    };
+    // The controller takes its first reading as the position origin; commands are
+    // unwrapped counts relative to the same origin.
+    let initial_count = plant.encoder_count();
+
+    let mut rows = Vec::with_capacity((ticks / u64::from(ratio) + 1) as usize);
+    let mut voltage_pu = 0.0;
+    let start = Instant::now();
+    for k in 0..ticks {
+        let t_s = k as f64 * tc_s;
+        // The hardware counter: the plant's unwrapped count modulo 2^counter_bits.
+        let encoder_count = ((plant.encoder_count() as u64) & mask) as u32;
+        let current_pu = plant.current_sample();
+        if k % u64::from(ratio) == 0 {
+            let cmd = scenario.profile.command(t_s);
+            let pos_counts = cmd.position_pu_s * counts_per_pu_s;
+            let setpoint = Setpoint {
+                position_counts: Counts::saturating_from_num(initial_count as f64 + pos_counts),
+                velocity_pu: crate::plant::pu(cmd.velocity_pu),
+                acceleration_pu_s: crate::plant::pu_s(cmd.acceleration_pu_s),
+            };
+            let last_vel = backend.velocity_tick(VelocityInputs {
+                encoder_count,
+                setpoint,
+                fault_input: false,
+            });
+            let s = plant.snapshot();
+            rows.push(TraceRow {
+                t_s,
+                pos_cmd_counts: pos_counts,
+                motor_pos_counts: s.motor_pos_rad * counts_per_rad,
+                load_pos_counts: s.load_pos_rad * counts_per_rad,
+                vel_cmd_pu: cmd.velocity_pu,
+                motor_vel_pu: s.motor_vel_pu,
+                load_vel_pu: s.load_vel_pu,
+                vel_est_pu: crate::plant::f(last_vel.velocity_est_pu),
+                torque_cmd_pu: crate::plant::f(last_vel.current_ref_pu),
+                current_pu: s.current_pu,
+                accel_fb_pu: crate::plant::f(last_vel.accel_fb_pu),
+                shaft_torque_pu: s.shaft_torque_pu,
+                load_torque_pu: scenario.load_torque_pu(t_s),
+                voltage_pu,
+                accel_est_pu_s: crate::plant::f(last_vel.acceleration_est_pu_s),
+                fault: if last_vel.fault.is_some() { 1.0 } else { 0.0 },
+            });
+        }
+        let out = backend.current_tick(CurrentInputs {
+            encoder_count,
+            current_pu: crate::plant::pu(current_pu),
+        });
+        if delay_s > 0.0 {
+            plant.advance(
+                delay_s,
+                voltage_pu,
+                scenario.load_torque_pu(t_s + 0.5 * delay_s),
+            )?;
+        }
+        voltage_pu = crate::plant::f(out.voltage_cmd_pu);
+        let rest_s = tc_s - delay_s;
+        if rest_s > 0.0 {
+            plant.advance(
+                rest_s,
+                voltage_pu,
+                scenario.load_torque_pu(t_s + delay_s + 0.5 * rest_s),
+            )?;
+        }
+        if k % u64::from(ratio) == 0 {
+            if let Some(row) = rows.last_mut() {
+                // Torque reference and AFB term as the current tick of this instant formed
+                // them (the velocity tick's output plus the AFB path at the current rate).
+                row.torque_cmd_pu = crate::plant::f(out.current_ref_pu);
+                row.accel_fb_pu = crate::plant::f(out.accel_fb_pu);
+                if out.fault.is_some() {
+                    row.fault = 1.0;
+                }
+            }
+        }
+    }
+    let wall_time_s = start.elapsed().as_secs_f64();
+    let trace = Trace { rows };
+    let windows = scenario.metric_windows(f64::from(drive.torque_limit_pu));
+    let metrics = compute(&trace, &windows);
+    Ok(RunOutput {
+        trace,
+        metrics,
+        sim_time_s: ticks as f64 * tc_s,
+        wall_time_s,
+        ticks,
+    })
+}

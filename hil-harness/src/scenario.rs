@@ -1,0 +1,366 @@
+//! Scenario files (`configs/scenarios/NAME.toml`): the velocity profile, the load torque,
+//! the run length, the metric windows, which drive/plant config is used by default and
+//! the overrides that make this scenario what it is.
+
+use crate::error::{HarnessError, Result};
+use crate::metrics::MetricWindows;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A scenario file: one `[scenario]` table.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioFile {
+    /// The scenario.
+    pub scenario: ScenarioSpec,
+}
+
+/// What to run.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioSpec {
+    /// One line saying what the run shows.
+    pub description: String,
+    /// The paper's figure or claim this run reproduces.
+    #[serde(default)]
+    pub paper: String,
+    /// Default configuration (name under `configs/` or a path).
+    pub config: String,
+    /// Simulated time (s).
+    pub duration_s: f64,
+    /// Velocity command.
+    pub profile: ProfileSpec,
+    /// Load torque steps on the load inertia, applied in time order.
+    #[serde(default)]
+    pub load: Vec<LoadStep>,
+    /// Optional sinusoidal load torque (stiffness measurement).
+    #[serde(default)]
+    pub sine_load: Option<SineLoad>,
+    /// Metric windows.
+    #[serde(default)]
+    pub metrics: MetricSpec,
+    /// Configuration overrides (`"drive.velocity_bandwidth_rad_s" = 50.0`), applied on top
+    /// of the config file and below the command line's `--set`.
+    #[serde(default)]
+    pub set: BTreeMap<String, toml::Value>,
+}
+
+/// A trapezoidal velocity command: 0 → `speed_pu` in `accel_s` from `start_s`, hold,
+/// then optionally back to 0 in `decel_s`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ProfileSpec {
+    /// Plateau speed (pu).
+    pub speed_pu: f64,
+    /// Ramp-up time (s); 0 means a step.
+    pub accel_s: f64,
+    /// Ramp start (s).
+    #[serde(default)]
+    pub start_s: f64,
+    /// Plateau length (s); absent means hold to the end.
+    #[serde(default)]
+    pub hold_s: Option<f64>,
+    /// Ramp-down time (s), used when `hold_s` is given.
+    #[serde(default)]
+    pub decel_s: Option<f64>,
+}
+
+/// The command at one instant, in per-unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Command {
+    /// Position as the integral of pu speed (pu·s).
+    pub position_pu_s: f64,
+    /// Speed (pu).
+    pub velocity_pu: f64,
+    /// Acceleration (pu/s).
+    pub acceleration_pu_s: f64,
+}
+
+impl ProfileSpec {
+    /// Time the ramp up ends (s).
+    pub fn ramp_end_s(&self) -> f64 {
+        self.start_s + self.accel_s
+    }
+
+    /// The exact command at `t_s` (closed form, so no drift over a long run).
+    pub fn command(&self, t_s: f64) -> Command {
+        let v = self.speed_pu;
+        let t0 = self.start_s;
+        let ta = self.accel_s.max(0.0);
+        let t1 = t0 + ta;
+        if t_s <= t0 {
+            return Command::default();
+        }
+        let acc = if ta > 0.0 { v / ta } else { 0.0 };
+        if t_s < t1 {
+            let tau = t_s - t0;
+            return Command {
+                position_pu_s: 0.5 * acc * tau * tau,
+                velocity_pu: acc * tau,
+                acceleration_pu_s: acc,
+            };
+        }
+        let ramp_pos = 0.5 * v * ta;
+        let Some(hold) = self.hold_s else {
+            return Command {
+                position_pu_s: ramp_pos + v * (t_s - t1),
+                velocity_pu: v,
+                acceleration_pu_s: 0.0,
+            };
+        };
+        let t2 = t1 + hold.max(0.0);
+        if t_s < t2 {
+            return Command {
+                position_pu_s: ramp_pos + v * (t_s - t1),
+                velocity_pu: v,
+                acceleration_pu_s: 0.0,
+            };
+        }
+        let td = self.decel_s.unwrap_or(ta).max(0.0);
+        let dec = if td > 0.0 { v / td } else { 0.0 };
+        let pos2 = ramp_pos + v * (t2 - t1);
+        let tau = (t_s - t2).min(td);
+        let pos = pos2 + v * tau - 0.5 * dec * tau * tau;
+        if t_s - t2 < td {
+            Command {
+                position_pu_s: pos,
+                velocity_pu: v - dec * tau,
+                acceleration_pu_s: -dec,
+            }
+        } else {
+            Command {
+                position_pu_s: pos,
+                velocity_pu: 0.0,
+                acceleration_pu_s: 0.0,
+            }
+        }
+    }
+}
+
+/// A load torque step.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LoadStep {
+    /// When (s).
+    pub t_s: f64,
+    /// New load torque from then on (pu, positive opposes forward motion).
+    pub torque_pu: f64,
+}
+
+/// Sinusoidal load torque `bias + amplitude·sin(ω·(t − start))` from `start_s`.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SineLoad {
+    /// Constant part that keeps the gears engaged (pu).
+    pub bias_pu: f64,
+    /// Amplitude (pu).
+    pub amplitude_pu: f64,
+    /// Frequency (rad/s).
+    pub freq_rad_s: f64,
+    /// Start (s).
+    #[serde(default)]
+    pub start_s: f64,
+}
+
+/// Metric windows and thresholds; absent values take the defaults documented in the README.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MetricSpec {
+    /// Ripple window (s); default: from 0.25 s after the first load step (or the ramp
+    /// end) to the end.
+    pub ripple_window_s: Option<[f64; 2]>,
+    /// Overshoot window (s); default: ramp end to the first load step (or the end).
+    pub overshoot_window_s: Option<[f64; 2]>,
+    /// Stability window (s); default: the last 0.5 s.
+    pub stable_window_s: Option<[f64; 2]>,
+    /// Length of the moving average removed before the ripple RMS (s); default 0.1.
+    pub ripple_average_s: Option<f64>,
+    /// Settling band on the speed error (pu); default 0.02.
+    pub settle_band_pu: Option<f64>,
+    /// Stability threshold on the speed-error standard deviation (pu); default 0.02.
+    pub stable_oscillation_pu: Option<f64>,
+    /// Largest saturated fraction of the stability window; default 0.2.
+    pub stable_saturation_fraction: Option<f64>,
+}
+
+impl ScenarioSpec {
+    /// Load torque at `t_s` (pu): the last step at or before `t_s` plus the sine.
+    pub fn load_torque_pu(&self, t_s: f64) -> f64 {
+        let step = self
+            .load
+            .iter()
+            .rev()
+            .find(|s| s.t_s <= t_s)
+            .map(|s| s.torque_pu)
+            .unwrap_or(0.0);
+        let sine = self.sine_load.map_or(0.0, |s| {
+            if t_s >= s.start_s {
+                s.bias_pu + s.amplitude_pu * (s.freq_rad_s * (t_s - s.start_s)).sin()
+            } else {
+                0.0
+            }
+        });
+        step + sine
+    }
+
+    /// Checks ranges; errors name the key.
+    pub fn validate(&self) -> Result<()> {
+        let bad =
+            |key: &str, reason: &str| Err(HarnessError::config(format!("scenario.{key}"), reason));
+        if !(self.duration_s > 0.0 && self.duration_s <= 1000.0) {
+            return bad("duration_s", "must be in (0, 1000] s");
+        }
+        if self.profile.speed_pu.is_nan() || self.profile.speed_pu.abs() > 3.0 {
+            return bad("profile.speed_pu", "must be in [-3, 3] pu");
+        }
+        if !(self.profile.accel_s >= 0.0 && self.profile.accel_s <= 100.0) {
+            return bad("profile.accel_s", "must be in [0, 100] s");
+        }
+        if self.profile.start_s.is_nan() || self.profile.start_s < 0.0 {
+            return bad("profile.start_s", "must be >= 0 s");
+        }
+        for (i, l) in self.load.iter().enumerate() {
+            if !(l.t_s >= 0.0 && l.torque_pu.abs() <= 10.0) {
+                return bad(
+                    &format!("load[{i}]"),
+                    "t_s must be >= 0 and |torque_pu| <= 10",
+                );
+            }
+        }
+        if let Some(s) = self.sine_load {
+            if !(s.freq_rad_s > 0.0 && s.freq_rad_s < 20_000.0 && s.amplitude_pu.abs() <= 10.0) {
+                return bad(
+                    "sine_load",
+                    "freq_rad_s must be in (0, 20000) and |amplitude_pu| <= 10",
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The metric windows resolved against this scenario.
+    pub fn metric_windows(&self, torque_limit_pu: f64) -> MetricWindows {
+        let end = self.duration_s;
+        let step = self.load.iter().find(|l| l.torque_pu != 0.0).map(|l| l.t_s);
+        let ramp_end = (self.profile.accel_s > 0.0 || self.profile.speed_pu != 0.0)
+            .then(|| self.profile.ramp_end_s());
+        let pair = |p: Option<[f64; 2]>| p.map(|[a, b]| (a, b));
+        let ripple_from = step.or(ramp_end).unwrap_or(0.0) + 0.25;
+        let m = &self.metrics;
+        MetricWindows {
+            step_time_s: step,
+            ramp_end_s: ramp_end,
+            ripple_window_s: pair(m.ripple_window_s).unwrap_or((ripple_from.min(end), end)),
+            overshoot_window_s: pair(m.overshoot_window_s)
+                .or_else(|| ramp_end.map(|r| (r, step.unwrap_or(end)))),
+            stable_window_s: pair(m.stable_window_s).unwrap_or(((end - 0.5).max(0.0), end)),
+            ripple_average_s: m.ripple_average_s.unwrap_or(0.1),
+            settle_band_pu: m.settle_band_pu.unwrap_or(0.02),
+            stable_oscillation_pu: m.stable_oscillation_pu.unwrap_or(0.02),
+            stable_saturation_fraction: m.stable_saturation_fraction.unwrap_or(0.2),
+            torque_limit_pu,
+        }
+    }
+}
+
+/// The `configs/` directory: `$STIFFDRIVE_CONFIGS`, else the first `configs/scenarios`
+/// found from the working directory upwards, else the one in this source tree.
+pub fn configs_dir() -> PathBuf {
+    if let Some(dir) = std::env::var_os("STIFFDRIVE_CONFIGS") {
+        return PathBuf::from(dir);
+    }
+    if let Ok(cwd) = std::env::current_dir() {
+        for dir in cwd.ancestors() {
+            let c = dir.join("configs");
+            if c.join("scenarios").is_dir() {
+                return c;
+            }
+        }
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("configs")
+}
+
+/// Names of the scenarios under `configs/scenarios/`, sorted.
+pub fn known_scenarios() -> Vec<String> {
+    let dir = configs_dir().join("scenarios");
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .map(|rd| {
+            rd.filter_map(|e| e.ok())
+                .filter_map(|e| {
+                    let p = e.path();
+                    (p.extension().is_some_and(|x| x == "toml"))
+                        .then(|| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
+                        .flatten()
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    names.sort();
+    names
+}
+
+/// Loads `configs/scenarios/NAME.toml`.
+pub fn load_scenario(name: &str) -> Result<ScenarioSpec> {
+    let valid = !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    let path = configs_dir().join("scenarios").join(format!("{name}.toml"));
+    if !valid || !path.is_file() {
+        return Err(HarnessError::UnknownScenario {
+            name: name.to_string(),
+            known: known_scenarios(),
+        });
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| HarnessError::io(&path, e))?;
+    let file: ScenarioFile = toml::from_str(&text).map_err(|e| HarnessError::Parse {
+        path: path.clone(),
+        reason: e.to_string(),
+    })?;
+    file.scenario.validate()?;
+    Ok(file.scenario)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn trapezoid_position_is_the_integral_of_velocity() {
+        let p = ProfileSpec {
+            speed_pu: 1.0,
+            accel_s: 0.5,
+            start_s: 0.1,
+            hold_s: Some(0.3),
+            decel_s: Some(0.4),
+        };
+        let dt = 1e-5;
+        let mut pos = 0.0;
+        let mut t = 0.0;
+        while t < 1.6 {
+            pos += p.command(t + dt / 2.0).velocity_pu * dt;
+            t += dt;
+        }
+        let c = p.command(t);
+        assert!(
+            (c.position_pu_s - pos).abs() < 1e-6,
+            "{} vs {pos}",
+            c.position_pu_s
+        );
+        // 0.25 ramp up + 0.3 hold + 0.2 ramp down.
+        assert!((c.position_pu_s - 0.75).abs() < 1e-9);
+        assert_eq!(c.velocity_pu, 0.0);
+    }
+
+    #[test]
+    fn unknown_scenario_lists_the_known_ones() {
+        let e = load_scenario("no-such-scenario").unwrap_err();
+        assert!(matches!(e, HarnessError::UnknownScenario { .. }));
+        let e = load_scenario("../etc/passwd").unwrap_err();
+        assert!(matches!(e, HarnessError::UnknownScenario { .. }));
+    }
+}

@@ -1,0 +1,356 @@
+//! `hil-harness sweep`: the largest stable velocity bandwidth of each plant, without
+//! acceleration feedback and with it. "With" is the best design found over a grid of
+//! gain fraction, filter corner and estimator (not a single hand-picked design). The
+//! probe run is `configs/scenarios/sweep.toml` in speed mode (position loop off), and
+//! "stable" is the run's `stable` metric. A bandwidth counts only if every grid point
+//! below it is stable too.
+
+use crate::config::resolve;
+use crate::error::{HarnessError, Result};
+use crate::output::Staging;
+use crate::plot::{save, Figure, Panel, Series};
+use crate::runner::run_scenario;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Plants swept.
+pub const PLANTS: [&str; 2] = ["table1", "printing-press"];
+
+/// Velocity bandwidths tried (rad/s).
+pub const BANDWIDTHS_RAD_S: [f64; 14] = [
+    1.5, 3.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0, 94.2, 120.0, 140.0, 190.0, 250.0, 350.0,
+];
+
+/// One acceleration-feedback design of the grid.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AfbDesign {
+    /// `off`, `plain` or `error`.
+    pub mode: &'static str,
+    /// Ka / J_total.
+    pub gain_fraction: f64,
+    /// Low-pass filter kind: `first_order` or `second_order` (Q = 0.707).
+    pub filter: &'static str,
+    /// Filter corner (Hz).
+    pub filter_corner_hz: f64,
+    /// `observer` or `differentiation`.
+    pub source: &'static str,
+}
+
+impl AfbDesign {
+    /// No acceleration feedback.
+    pub const OFF: Self = Self {
+        mode: "off",
+        gain_fraction: 0.0,
+        filter: "none",
+        filter_corner_hz: 0.0,
+        source: "observer",
+    };
+
+    /// Short label.
+    pub fn label(&self) -> String {
+        if self.mode == "off" {
+            "no AFB".into()
+        } else {
+            format!(
+                "{} Ka={}J {}-order {}Hz {}",
+                self.mode,
+                self.gain_fraction,
+                if self.filter == "first_order" {
+                    "1st"
+                } else {
+                    "2nd"
+                },
+                self.filter_corner_hz,
+                self.source
+            )
+        }
+    }
+
+    /// The `--set` overrides of this design.
+    pub fn sets(&self) -> Vec<String> {
+        let mut s = vec![format!("drive.accel_feedback.mode={}", self.mode)];
+        if self.mode != "off" {
+            s.push(format!(
+                "drive.accel_feedback.gain_fraction={}",
+                self.gain_fraction
+            ));
+            s.push(format!("drive.accel_feedback.filter={}", self.filter));
+            s.push(format!(
+                "drive.accel_feedback.filter_corner_hz={}",
+                self.filter_corner_hz
+            ));
+            s.push(format!("drive.accel_feedback.source={}", self.source));
+        }
+        s
+    }
+}
+
+/// Filters tried: (kind, corner Hz).
+pub const FILTERS: [(&str, f64); 4] = [
+    ("first_order", 50.0),
+    ("first_order", 100.0),
+    ("second_order", 100.0),
+    ("first_order", 250.0),
+];
+
+/// Gains tried (Ka / J_total).
+pub const GAINS: [f64; 3] = [0.5, 1.0, 2.0];
+
+/// The grid of designs: off, and error-form AFB over source × gain × filter.
+pub fn designs() -> Vec<AfbDesign> {
+    let mut v = vec![AfbDesign::OFF];
+    for source in ["observer", "differentiation"] {
+        for gain_fraction in GAINS {
+            for (filter, filter_corner_hz) in FILTERS {
+                v.push(AfbDesign {
+                    mode: "error",
+                    gain_fraction,
+                    filter,
+                    filter_corner_hz,
+                    source,
+                });
+            }
+        }
+    }
+    v
+}
+
+/// One sweep point.
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepPoint {
+    /// Plant config name.
+    pub plant: String,
+    /// Design label.
+    pub design: String,
+    /// The design.
+    #[serde(flatten)]
+    pub afb: AfbDesign,
+    /// Velocity bandwidth (rad/s).
+    pub bandwidth_rad_s: f64,
+    /// The run's `stable` metric.
+    pub stable: bool,
+    /// Standard deviation of speed error in the stability window (pu).
+    pub oscillation_pu: f64,
+    /// Torque ripple RMS in the loaded window (pu).
+    pub torque_ripple_rms_pu: f64,
+    /// The controller faulted.
+    pub faulted: bool,
+    /// Error text if the configuration was rejected (e.g. a gain does not fit).
+    pub error: String,
+}
+
+/// The best result per plant.
+#[derive(Clone, Debug, Serialize)]
+pub struct SweepResult {
+    /// Plant.
+    pub plant: String,
+    /// Largest stable bandwidth without acceleration feedback (rad/s); 0 if none.
+    pub without_afb_rad_s: f64,
+    /// Largest stable bandwidth over all AFB designs (rad/s).
+    pub with_afb_rad_s: f64,
+    /// The design that achieved it.
+    pub best_design: String,
+}
+
+/// Largest bandwidth with every grid point up to it stable.
+pub fn largest_stable(points: &[&SweepPoint]) -> f64 {
+    let mut sorted: Vec<&&SweepPoint> = points.iter().collect();
+    sorted.sort_by(|a, b| a.bandwidth_rad_s.total_cmp(&b.bandwidth_rad_s));
+    let mut best = 0.0;
+    for p in sorted {
+        if !p.stable {
+            break;
+        }
+        best = p.bandwidth_rad_s;
+    }
+    best
+}
+
+fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> SweepPoint {
+    let mut sets = base_sets.to_vec();
+    sets.push("drive.position_bandwidth_rad_s=0".into());
+    sets.push(format!("drive.velocity_bandwidth_rad_s={bw}"));
+    sets.extend(design.sets());
+    let mut point = SweepPoint {
+        plant: plant.into(),
+        design: design.label(),
+        afb: design.clone(),
+        bandwidth_rad_s: bw,
+        stable: false,
+        oscillation_pu: f64::NAN,
+        torque_ripple_rms_pu: f64::NAN,
+        faulted: false,
+        error: String::new(),
+    };
+    match resolve("sweep", Some(plant), &sets).and_then(|cfg| run_scenario(&cfg)) {
+        Ok(out) => {
+            point.stable = out.metrics.stable;
+            point.oscillation_pu = out.metrics.oscillation_pu;
+            point.torque_ripple_rms_pu = out.metrics.torque_ripple_rms_pu;
+            point.faulted = out.metrics.faulted;
+        }
+        Err(e) => point.error = e.to_string(),
+    }
+    point
+}
+
+/// Runs the whole grid in parallel; `base_sets` are applied to every run.
+pub fn sweep_points(
+    plants: &[&str],
+    bandwidths: &[f64],
+    designs: &[AfbDesign],
+    base_sets: &[String],
+) -> Vec<SweepPoint> {
+    let jobs: Vec<(&str, &AfbDesign, f64)> = plants
+        .iter()
+        .flat_map(|p| {
+            designs
+                .iter()
+                .flat_map(move |d| bandwidths.iter().map(move |b| (*p, d, *b)))
+        })
+        .collect();
+    let pb = crate::progress::bar(jobs.len() as u64, "sweep");
+    let points: Vec<SweepPoint> = jobs
+        .par_iter()
+        .map(|(p, d, b)| {
+            let r = run_point(p, d, *b, base_sets);
+            pb.inc(1);
+            r
+        })
+        .collect();
+    pb.finish_and_clear();
+    points
+}
+
+/// Reduces the grid to one result per plant.
+pub fn results(points: &[SweepPoint], plants: &[&str], designs: &[AfbDesign]) -> Vec<SweepResult> {
+    plants
+        .iter()
+        .map(|plant| {
+            let of = |d: &AfbDesign| -> Vec<&SweepPoint> {
+                points
+                    .iter()
+                    .filter(|p| p.plant == *plant && p.afb == *d)
+                    .collect()
+            };
+            let without = largest_stable(&of(&AfbDesign::OFF));
+            let mut best = (0.0, String::from("none"));
+            for d in designs.iter().filter(|d| d.mode != "off") {
+                let bw = largest_stable(&of(d));
+                if bw > best.0 {
+                    best = (bw, d.label());
+                }
+            }
+            SweepResult {
+                plant: (*plant).into(),
+                without_afb_rad_s: without,
+                with_afb_rad_s: best.0,
+                best_design: best.1,
+            }
+        })
+        .collect()
+}
+
+fn write_csv(points: &[SweepPoint], path: &Path) -> Result<()> {
+    let mut w = csv::Writer::from_path(path).map_err(|e| HarnessError::io(path, e))?;
+    for p in points {
+        w.serialize(p).map_err(|e| HarnessError::io(path, e))?;
+    }
+    w.flush().map_err(|e| HarnessError::io(path, e))
+}
+
+/// The sweep figure: speed-error oscillation against bandwidth, no AFB vs the best design.
+pub fn figure(
+    points: &[SweepPoint],
+    results: &[SweepResult],
+    designs: &[AfbDesign],
+    threshold_pu: f64,
+) -> Figure {
+    let panels = results
+        .iter()
+        .map(|r| {
+            let curve = |label: &str| -> Vec<(f64, f64)> {
+                points
+                    .iter()
+                    .filter(|p| p.plant == r.plant && p.design == label)
+                    .map(|p| (p.bandwidth_rad_s, p.oscillation_pu.max(1e-6)))
+                    .collect()
+            };
+            let best = designs
+                .iter()
+                .find(|d| d.label() == r.best_design)
+                .map(AfbDesign::label)
+                .unwrap_or_default();
+            let xs: Vec<f64> = points.iter().map(|p| p.bandwidth_rad_s).collect();
+            let (lo, hi) = xs
+                .iter()
+                .fold((f64::MAX, 0.0f64), |a, x| (a.0.min(*x), a.1.max(*x)));
+            Panel {
+                title: format!(
+                    "{}: largest stable bandwidth {} rad/s without AFB, {} rad/s with ({})",
+                    r.plant, r.without_afb_rad_s, r.with_afb_rad_s, r.best_design
+                ),
+                y_label: "speed error std (pu)".into(),
+                series: vec![
+                    Series::markers("no AFB", curve("no AFB")),
+                    Series::markers(format!("best AFB: {best}"), curve(&best)),
+                    Series::line(
+                        "stability threshold",
+                        vec![(lo, threshold_pu), (hi, threshold_pu)],
+                    ),
+                ],
+                log_x: true,
+                log_y: true,
+            }
+        })
+        .collect();
+    Figure {
+        x_label: "velocity bandwidth (rad/s)".into(),
+        panels,
+    }
+}
+
+/// `hil-harness sweep` into a staging directory; returns the results and a text summary.
+pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepResult>, String)> {
+    let designs = designs();
+    let points = sweep_points(&PLANTS, &BANDWIDTHS_RAD_S, &designs, &[]);
+    let results = results(&points, &PLANTS, &designs);
+    write_csv(&points, &dir.join("sweep.csv"))?;
+    let mut w = csv::Writer::from_path(dir.join("sweep_summary.csv"))
+        .map_err(|e| HarnessError::io(dir, e))?;
+    for r in &results {
+        w.serialize(r).map_err(|e| HarnessError::io(dir, e))?;
+    }
+    w.flush().map_err(|e| HarnessError::io(dir, e))?;
+    let threshold = resolve("sweep", None, &[])?
+        .scenario
+        .metric_windows(2.0)
+        .stable_oscillation_pu;
+    save(
+        &figure(&points, &results, &designs, threshold),
+        &dir.join("sweep"),
+    )?;
+    let mut text = String::new();
+    for r in &results {
+        let _ = writeln!(
+            text,
+            "{}: largest stable velocity bandwidth {} rad/s without AFB, {} rad/s with ({})",
+            r.plant, r.without_afb_rad_s, r.with_afb_rad_s, r.best_design
+        );
+    }
+    let errors = points.iter().filter(|p| !p.error.is_empty()).count();
+    if errors > 0 {
+        let _ = writeln!(text, "{errors} grid points were rejected by the configuration checks (see sweep.csv `error`)");
+    }
+    Ok((results, text))
+}
+
+/// `hil-harness sweep`.
+pub fn sweep(out: &Path) -> Result<String> {
+    let staging = Staging::new(out)?;
+    let (_, text) = sweep_into(staging.dir())?;
+    staging.commit()?;
+    Ok(text)
+}
