@@ -45,6 +45,7 @@ impl AccelerationFeedback {
             AfbMode::Error => a_cmd.saturating_sub(a_meas),
         };
         let filtered = self.filter.process(s, x);
-        mul_gain(filtered, self.ka).clamp(-self.limit, self.limit)
+        let lim = self.limit.saturating_abs();
+        mul_gain(filtered, self.ka).max(-lim).min(lim)
     }
 }

@@ -388,7 +388,8 @@ impl Controller {
             self.state
                 .i_vel
                 .saturating_add(self.state.afb)
-                .clamp(-lim, lim)
+                .max(-lim)
+                .min(lim)
         }
     }
 

@@ -173,7 +173,7 @@ impl LowPass {
                 let e = i64::from(x.to_bits()) - i64::from(y16);
                 let inc = e.saturating_mul(i64::from(alpha.to_bits())) >> 14;
                 s.y_q32 = s.y_q32.saturating_add(inc);
-                Pu::from_bits(sat_i32((s.y_q32 + (1 << 15)) >> 16))
+                Pu::from_bits(sat_i32(s.y_q32.saturating_add(1 << 15) >> 16))
             }
             Self::SecondOrder { b0, a1, a2 } => {
                 // DF1 in Q.46 with error feedback of the truncated bits.

@@ -98,10 +98,12 @@ impl Observer {
         let u = (i64::from(torque_pu.to_bits()) * i64::from(self.k_u.to_bits())) >> 8;
         let acc = u.saturating_add(s.d);
         // Predict.
-        let p_pred = s.p + i128::from(s.v) + i128::from(acc >> 1);
+        let p_pred =
+            s.p.saturating_add(i128::from(s.v))
+                .saturating_add(i128::from(acc >> 1));
         let v_pred = s.v.saturating_add(acc);
         // Innovation in counts, Q16.16 (saturating: a huge error means a fault elsewhere).
-        let e128 = (i128::from(position_counts) << 32) - p_pred;
+        let e128 = (i128::from(position_counts) << 32).saturating_sub(p_pred);
         let e = if e128 > i128::from(i64::MAX) {
             i32::MAX
         } else if e128 < i128::from(i64::MIN) {
@@ -111,7 +113,7 @@ impl Observer {
         };
         // Corrections: e (Q16.16) · l (Q2.30) = Q.46 → Q.32.
         let corr = |l: Coef| (i64::from(e) * i64::from(l.to_bits())) >> 14;
-        s.p = p_pred + i128::from(corr(self.l1));
+        s.p = p_pred.saturating_add(i128::from(corr(self.l1)));
         s.v = v_pred.saturating_add(corr(self.l2));
         s.d = s.d.saturating_add(corr(self.l3));
         // Outputs.

@@ -47,7 +47,8 @@ impl PiCoefficients {
     /// ```
     #[inline]
     pub fn update(&self, state: &mut PiState, e: Pu, ff: Pu) -> Pu {
-        let limit = self.limit.to_bits();
+        // |limit| so a negative limit in hand-made coefficients cannot invert the clamp.
+        let limit = self.limit.to_bits().saturating_abs();
         let lim64 = i64::from(limit) << 16;
         // Integral increment in Q.40 (Q16.16 · Q8.24) → Q.32.
         let inc = (i64::from(e.to_bits()) * i64::from(self.ki_ts.to_bits()) + (1 << 7)) >> 8;
@@ -59,11 +60,12 @@ impl PiCoefficients {
         let i_next = if pushing_out {
             i_now
         } else {
-            i_now.saturating_add(inc).clamp(-lim64, lim64)
+            i_now.saturating_add(inc).max(-lim64).min(lim64)
         };
         state.integral = I32F32::from_bits(i_next);
         let u = i64::from(p) + i64::from(ff.to_bits()) + (i_next >> 16);
-        let u_clamped = u.clamp(-i64::from(limit), i64::from(limit));
+        // max/min rather than clamp: clamp carries a (never taken) panic branch.
+        let u_clamped = u.max(-i64::from(limit)).min(i64::from(limit));
         state.saturated = u_clamped != u;
         Pu::from_bits(sat_i32(u_clamped))
     }

@@ -83,6 +83,39 @@ proptest! {
     }
 
     #[test]
+    fn blocks_never_panic_on_extreme_inputs(
+        xs in proptest::collection::vec((any::<i32>(), any::<i64>(), any::<i32>()), 1..200),
+    ) {
+        use controller_core::filter::{design_low_pass, LowPass, LowPassState};
+        use controller_core::observer::{Observer, ObserverState};
+        use controller_core::differentiator::{Differentiator, DifferentiatorState};
+        use controller_core::pi::{PiCoefficients, PiState};
+        use controller_core::per_unit::{Coef, Gain, TickGain};
+        let filters: Vec<LowPass> = [
+            FilterConfig::FirstOrder { corner_hz: 1.0 },
+            FilterConfig::SecondOrder { corner_hz: 5.0, q: 10.0 },
+            FilterConfig::SecondOrder { corner_hz: 1900.0, q: 0.1 },
+        ].iter().map(|f| LowPass::quantize(&design_low_pass(f, 4000.0, "c", "q").unwrap(), "t").unwrap()).collect();
+        let mut fs = [LowPassState::default(); 3];
+        let obs = Observer { l1: Coef::from_num(1.9), l2: Coef::from_num(1.9), l3: Coef::from_num(1.9),
+            k_u: TickGain::MAX, k_vel: TickGain::MAX, k_acc: Gain::MAX, k_load: Gain::MIN };
+        let mut os = ObserverState::default();
+        let diff = Differentiator { k_vel: TickGain::MAX, k_acc: Gain::MAX };
+        let mut ds = DifferentiatorState::default();
+        let pi = PiCoefficients { kp: Gain::MAX, ki_ts: TickGain::MAX, limit: Pu::MAX };
+        let mut ps = PiState::default();
+        for (x, p, t) in xs {
+            for (f, s) in filters.iter().zip(fs.iter_mut()) {
+                let _ = f.process(s, Pu::from_bits(x));
+            }
+            let _ = obs.update(&mut os, p, Pu::from_bits(t));
+            let _ = diff.update(&mut ds, p);
+            let u = pi.update(&mut ps, Pu::from_bits(x), Pu::from_bits(t));
+            prop_assert!(u.abs() <= Pu::MAX);
+        }
+    }
+
+    #[test]
     fn count_diff_recovers_any_motion_below_half_range(
         bits in 16u8..=32, start: u32, delta in any::<i32>(),
     ) {
