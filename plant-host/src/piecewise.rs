@@ -86,11 +86,20 @@ impl Guard {
 
 const CACHE_SLOTS: usize = 6;
 
+/// The exact discretisation for one step length, as rows of [Φ | Γ] acting on [x; u]
+/// (plain arrays: eight-wide dot products the compiler vectorises).
 #[derive(Debug, Clone, Copy)]
 struct Discrete {
-    h_bits: u64,
-    phi: Mat5,
-    gamma: Mat53,
+    rows: [[f64; 8]; 5],
+}
+
+impl Discrete {
+    fn apply(&self, x: &Vec5, u: &Vec3) -> Vec5 {
+        let z = [x.x, x.y, x.z, x.w, x.a, u.x, u.y, u.z];
+        let dot = |r: &[f64; 8]| r.iter().zip(z.iter()).map(|(a, b)| a * b).sum::<f64>();
+        let [r0, r1, r2, r3, r4] = &self.rows;
+        Vec5::new(dot(r0), dot(r1), dot(r2), dot(r3), dot(r4))
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -98,30 +107,57 @@ struct Mode {
     a: Mat5,
     b: Mat53,
     guards: [Option<Guard>; 2],
-    cache: [Option<Discrete>; CACHE_SLOTS],
+    /// Step lengths (as bits) of the cached discretisations; 0 = empty slot.
+    cache_keys: [u64; CACHE_SLOTS],
+    cache: [Discrete; CACHE_SLOTS],
     next_slot: usize,
 }
 
 impl Mode {
-    fn discrete(&mut self, h: f64) -> (Mat5, Mat53) {
-        let bits = h.to_bits();
-        if let Some(d) = self.cache.iter().flatten().find(|d| d.h_bits == bits) {
-            return (d.phi, d.gamma);
+    fn new(a: Mat5, b: Mat53, guards: [Option<Guard>; 2]) -> Self {
+        Self {
+            a,
+            b,
+            guards,
+            cache_keys: [0; CACHE_SLOTS],
+            cache: [Discrete {
+                rows: [[0.0; 8]; 5],
+            }; CACHE_SLOTS],
+            next_slot: 0,
+        }
+    }
+
+    /// x(t+h) = Φ(h)·x + Γ(h)·u, Φ and Γ cached per step length (bit-exact key): a harness
+    /// that repeats the same few step lengths pays one matrix exponential per length.
+    fn step(&mut self, h: f64, x: &Vec5, u: &Vec3) -> Vec5 {
+        let key = h.to_bits();
+        if let Some(d) = self
+            .cache_keys
+            .iter()
+            .position(|k| *k == key)
+            .and_then(|i| self.cache.get(i))
+        {
+            return d.apply(x, u);
         }
         let mut m = SMatrix::<f64, 8, 8>::zeros();
         m.fixed_view_mut::<5, 5>(0, 0).copy_from(&(self.a * h));
         m.fixed_view_mut::<5, 3>(0, 5).copy_from(&(self.b * h));
         let e = expm(&m);
-        let d = Discrete {
-            h_bits: bits,
-            phi: e.fixed_view::<5, 5>(0, 0).into_owned(),
-            gamma: e.fixed_view::<5, 3>(0, 5).into_owned(),
+        let mut d = Discrete {
+            rows: [[0.0; 8]; 5],
         };
-        if let Some(slot) = self.cache.get_mut(self.next_slot) {
-            *slot = Some(d);
+        for (i, row) in d.rows.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = e.get((i, j)).copied().unwrap_or(0.0);
+            }
         }
-        self.next_slot = (self.next_slot + 1) % CACHE_SLOTS;
-        (d.phi, d.gamma)
+        let slot = self.next_slot;
+        if let (Some(k), Some(c)) = (self.cache_keys.get_mut(slot), self.cache.get_mut(slot)) {
+            *k = key;
+            *c = d;
+        }
+        self.next_slot = (slot + 1) % CACHE_SLOTS;
+        d.apply(x, u)
     }
 }
 
@@ -176,21 +212,6 @@ impl Taylor {
         }
         acc
     }
-
-    fn linear(&self, l: &Linear, tau: f64) -> f64 {
-        let mut acc = 0.0;
-        for (k, dk) in self.d.iter().take(self.n).enumerate().rev() {
-            acc = l.c.dot(dk) + acc * (tau / (k as f64 + 1.0));
-        }
-        acc + l.k
-    }
-
-    fn guard(&self, g: &Guard, tau: f64) -> f64 {
-        g.lins()
-            .iter()
-            .map(|l| self.linear(l, tau))
-            .fold(f64::INFINITY, f64::min)
-    }
 }
 
 /// Shaft law constants.
@@ -211,6 +232,7 @@ pub(crate) struct Piecewise {
     x: Vec5,
     contact: Contact,
     events: u64,
+    searches: u64,
 }
 
 impl Piecewise {
@@ -242,20 +264,14 @@ impl Piecewise {
                     .fold(0.0, f64::max)
             })
             .fold(0.0, f64::max);
-        // ‖A‖·h ≤ 0.5 keeps the Taylor series short and the tangent bound tight; 100 µs keeps the
-        // crossing search fine even for slow plants.
-        let h_max_s = (0.5 / norm.max(1e-9)).min(100e-6);
+        // ‖A‖·h ≤ 0.5 keeps the Taylor series short and the tangent bound tight; 250 µs keeps
+        // the crossing search (16 samples per step) fine even for slow plants.
+        let h_max_s = (0.5 / norm.max(1e-9)).min(250e-6);
         let contacts = [Contact::Free, Contact::Driving, Contact::Braking];
         let modes = core::array::from_fn(|i| {
             let c = contacts.get(i).copied().unwrap_or(Contact::Free);
             let (a, b) = mats.get(i).copied().unwrap_or_else(|| build(c));
-            Mode {
-                a,
-                b,
-                guards: guards(c, law, &shaft, &a, &b),
-                cache: [None; CACHE_SLOTS],
-                next_slot: 0,
-            }
+            Mode::new(a, b, guards(c, law, &shaft, &a, &b))
         });
         let mut p = Self {
             modes,
@@ -265,6 +281,7 @@ impl Piecewise {
             x: Vec5::zeros(),
             contact: Contact::Free,
             events: 0,
+            searches: 0,
         };
         p.contact = p.contact_for(&p.x);
         p
@@ -285,6 +302,11 @@ impl Piecewise {
 
     pub fn mode_changes(&self) -> u64 {
         self.events
+    }
+
+    /// Steps redone with the Taylor series to search for a crossing (cost diagnostics).
+    pub fn crossing_searches(&self) -> u64 {
+        self.searches
     }
 
     /// Sets the state; the contact mode follows from the twist (and, clamped, the force sign).
@@ -366,8 +388,7 @@ impl Piecewise {
         loop {
             let x0 = self.x;
             let x_end = if first {
-                let (phi, gamma) = self.mode_mut().discrete(h);
-                phi * x0 + gamma * u
+                self.mode_mut().step(h, &x0, u)
             } else {
                 let m = self.mode();
                 Taylor::new(&m.a, &m.b, &x0, u, remaining).state(remaining)
@@ -394,6 +415,7 @@ impl Piecewise {
                     }
                 }
             }
+            self.searches += 1;
             let Some((tau, target)) = best else {
                 self.x = x_end;
                 return;
@@ -413,20 +435,24 @@ impl Piecewise {
 /// Could the guard fire within the step? Yes if it is positive at the end, or if some linear
 /// part has an interior maximum whose tangent-line bound reaches zero.
 fn suspect(g: &Guard, x0: &Vec5, x1: &Vec5, u: &Vec3, h: f64) -> bool {
-    let end = g
-        .lins()
-        .iter()
-        .map(|l| l.value(x1))
-        .fold(f64::INFINITY, f64::min);
+    let mut end = f64::INFINITY;
+    for l in g.lins() {
+        end = end.min(l.value(x1));
+    }
     if end > 0.0 {
         return true;
     }
     g.lins().iter().any(|l| {
-        let (l0, l1) = (l.value(x0), l.value(x1));
-        let (d0, d1) = (l.rate(x0, u), l.rate(x1, u));
-        if !(d0 > 0.0 && d1 < 0.0) {
+        // An interior maximum needs the rate to point out at the start and back in at the end.
+        let d0 = l.rate(x0, u);
+        if d0 <= 0.0 {
             return false;
         }
+        let d1 = l.rate(x1, u);
+        if d1 >= 0.0 {
+            return false;
+        }
+        let (l0, l1) = (l.value(x0), l.value(x1));
         // Tangents at both ends meet above a concave arc: their intersection bounds the peak.
         let t = ((l1 - l0 - d1 * h) / (d0 - d1)).clamp(0.0, h);
         let peak = l0 + d0 * t;
@@ -435,30 +461,101 @@ fn suspect(g: &Guard, x0: &Vec5, x1: &Vec5, u: &Vec3, h: f64) -> bool {
     })
 }
 
+/// The guard's linear parts as power series in τ (p_k = c·d_k / k!), so the crossing search
+/// evaluates scalars only.
+struct GuardPoly {
+    coef: [[f64; MAX_TERMS]; 2],
+    parts: usize,
+    n: usize,
+}
+
+impl GuardPoly {
+    fn new(t: &Taylor, g: &Guard) -> Self {
+        let mut coef = [[0.0; MAX_TERMS]; 2];
+        for (row, l) in coef.iter_mut().zip(g.lins()) {
+            let mut inv_fact = 1.0;
+            for (k, (c, dk)) in row.iter_mut().zip(t.d.iter().take(t.n)).enumerate() {
+                if k > 0 {
+                    inv_fact /= k as f64;
+                }
+                *c = l.c.dot(dk) * inv_fact;
+            }
+            if let Some(c0) = row.first_mut() {
+                *c0 += l.k;
+            }
+        }
+        Self {
+            coef,
+            parts: g.lins().len(),
+            n: t.n,
+        }
+    }
+
+    /// (value, d/dτ) of the smallest part (the guard is the minimum of its parts).
+    fn eval(&self, tau: f64) -> (f64, f64) {
+        self.coef
+            .iter()
+            .take(self.parts)
+            .map(|row| {
+                // Horner for p and p' together.
+                let (mut p, mut dp) = (0.0, 0.0);
+                for c in row.iter().take(self.n).rev() {
+                    dp = dp * tau + p;
+                    p = p * tau + c;
+                }
+                (p, dp)
+            })
+            .fold(
+                (f64::INFINITY, 0.0),
+                |best, x| if x.0 < best.0 { x } else { best },
+            )
+    }
+}
+
 /// Earliest τ in (0, h] where the guard is positive, to within [`TIME_TOL_S`]; returns the
-/// right end of the final bracket so the state lands just past the edge.
+/// right end of the final bracket so the state lands just past the edge. The first sign change
+/// is bracketed on a grid of [`SEARCH_SAMPLES`], then closed by bracketed Newton steps.
 fn first_crossing(t: &Taylor, g: &Guard, h: f64) -> Option<f64> {
+    let poly = GuardPoly::new(t, g);
     let mut lo = 0.0;
     let mut hi = None;
     for j in 1..=SEARCH_SAMPLES {
         let tau = h * f64::from(j) / f64::from(SEARCH_SAMPLES);
-        if t.guard(g, tau) > 0.0 {
+        if poly.eval(tau).0 > 0.0 {
             hi = Some(tau);
             break;
         }
         lo = tau;
     }
     let mut hi = hi?;
-    while hi - lo > TIME_TOL_S {
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi {
+    let mut x = 0.5 * (lo + hi);
+    for _ in 0..100 {
+        if hi - lo <= TIME_TOL_S {
             break;
         }
-        if t.guard(g, mid) > 0.0 {
-            hi = mid;
+        let (f, df) = poly.eval(x);
+        if f > 0.0 {
+            hi = x;
         } else {
-            lo = mid;
+            lo = x;
         }
+        let mut next = if df != 0.0 {
+            x - f / df
+        } else {
+            0.5 * (lo + hi)
+        };
+        // Converged: step just across the root so the bracket closes.
+        if (next - x).abs() < 0.5 * TIME_TOL_S {
+            next = if f > 0.0 {
+                x - TIME_TOL_S
+            } else {
+                x + TIME_TOL_S
+            };
+        }
+        if !(next > lo && next < hi) {
+            next = 0.5 * (lo + hi);
+        }
+        x = next;
     }
     Some(hi)
 }

@@ -94,11 +94,15 @@ impl TwoInertiaPlant {
     pub fn mode_changes(&self) -> u64 {
         self.core.mode_changes()
     }
+    /// Steps redone to search for a crossing (suspected or real): a cost diagnostic.
+    pub fn crossing_searches(&self) -> u64 {
+        self.core.crossing_searches()
+    }
     /// K, D, g, ω_b... of this plant.
     pub fn derived(&self) -> &MechanicsDerived {
         &self.derived
     }
-    /// The longest internal sub-step, s (steps are split so that ‖A‖·h ≤ 0.5 and h ≤ 100 µs).
+    /// The longest internal sub-step, s (steps are split so that ‖A‖·h ≤ 0.5 and h ≤ 250 µs).
     pub fn max_substep_s(&self) -> f64 {
         self.core.max_step_s()
     }
