@@ -1,0 +1,119 @@
+//! Prints the linear-analysis figures quoted in plant-host/README.md:
+//! `cargo run --release -p plant-host --example analysis_report`.
+//! Acceleration here comes from differencing the encoder (no observer): the figures bound
+//! what the differentiation path allows; the controller's observer is analysed elsewhere.
+#![allow(missing_docs)]
+
+use plant_host::analysis::{log_space, EngagedPlant, PiStiffness, VelocityLoop};
+use plant_host::PlantConfig;
+use std::f64::consts::PI;
+use std::path::PathBuf;
+
+fn config(name: &str) -> Result<PlantConfig, plant_host::PlantError> {
+    PlantConfig::from_file(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../configs")
+            .join(name),
+    )
+}
+
+/// Kp = ω_bw·J_total, Ki = Kp·ω_bw/4 (ζ = 1), current loop 318 Hz, delay 0.18 ms.
+fn design(cfg: &PlantConfig, bw: f64, ka_frac: f64, fc_hz: f64, period_s: f64) -> VelocityLoop {
+    let j = cfg.mechanics.motor_inertia_s + cfg.mechanics.load_inertia_s;
+    VelocityLoop {
+        plant: EngagedPlant::new(&cfg.mechanics),
+        kp: bw * j,
+        ki: bw * j * bw / 4.0,
+        ka: ka_frac * j,
+        accel_filter_hz: fc_hz,
+        velocity_period_s: period_s,
+        delay_s: cfg.electrics.computational_delay_s,
+        current_bandwidth_hz: Some(318.0),
+    }
+}
+
+/// Largest bandwidth on a log grid below which every grid point is stable.
+fn max_stable_bw(cfg: &PlantConfig, ka_frac: f64, fc_hz: f64, period_s: f64) -> f64 {
+    let mut last = 0.0;
+    for bw in log_space(1.0, 3000.0, 400) {
+        if !design(cfg, bw, ka_frac, fc_hz, period_s).is_stable() {
+            break;
+        }
+        last = bw;
+    }
+    last
+}
+
+fn main() -> Result<(), plant_host::PlantError> {
+    for name in ["table1.toml", "printing-press.toml"] {
+        let cfg = config(name)?;
+        let d = cfg.mechanics.derived();
+        let m = EngagedPlant::new(&cfg.mechanics).modes();
+        println!("== {name}");
+        println!(
+            "  K = {:.2} pu/rad, D = {:.3} pu/pu, half gap g = {:.4e} rad ({:.2} counts)",
+            d.stiffness_pu_per_rad,
+            d.damping_pu,
+            d.half_gap_rad,
+            2.0 * d.half_gap_rad * f64::from(cfg.sensors.encoder_cpr) / (2.0 * PI)
+        );
+        println!(
+            "  resonance {:.2} Hz (damping {:.3}), anti-resonance {:.2} Hz (damping {:.3})",
+            m.resonance_hz, m.resonance_damping, m.anti_resonance_hz, m.anti_resonance_damping
+        );
+        for (label, ka, fc, t) in [
+            ("no AFB, 2 kHz", 0.0, 100.0, 500e-6),
+            ("no AFB, 4 kHz", 0.0, 100.0, 250e-6),
+            ("AFB Ka=0.5 J, 100 Hz filter, 2 kHz", 0.5, 100.0, 500e-6),
+            ("AFB Ka=0.5 J, 100 Hz filter, 4 kHz", 0.5, 100.0, 250e-6),
+            ("AFB Ka=1.0 J, 100 Hz filter, 2 kHz", 1.0, 100.0, 500e-6),
+            ("AFB Ka=1.0 J, 20 Hz filter, 2 kHz", 1.0, 20.0, 500e-6),
+            ("AFB Ka=1.0 J, 20 Hz filter, 4 kHz", 1.0, 20.0, 250e-6),
+        ] {
+            println!(
+                "  largest linearly stable velocity bandwidth, {label}: {:.0} rad/s",
+                max_stable_bw(&cfg, ka, fc, t)
+            );
+        }
+    }
+
+    let cfg = config("table1.toml")?;
+    println!("== Table 1, velocity bandwidth 15 Hz (94.2 rad/s), 2 kHz, 0.18 ms delay, 318 Hz current loop");
+    for (label, ka, fc) in [
+        ("no AFB", 0.0, 100.0),
+        ("Ka=0.5 J, 100 Hz", 0.5, 100.0),
+        ("Ka=1.0 J, 20 Hz", 1.0, 20.0),
+    ] {
+        let lp = design(&cfg, 2.0 * PI * 15.0, ka, fc, 500e-6);
+        let mg = lp.margins();
+        let am = lp.accel_margins();
+        println!(
+            "  {label}: PM {:.1} deg at {:.1} rad/s, GM {:.1} dB at {:.0} rad/s, spectral radius {:.5}; accel loop alone GM {:.1} dB",
+            mg.phase_margin_deg,
+            mg.gain_crossover_rad_s,
+            mg.gain_margin_db,
+            mg.phase_crossover_rad_s,
+            lp.sampled_spectral_radius(),
+            am.gain_margin_db
+        );
+        for w in [1.0, 10.0, 100.0, 409.0] {
+            if let Some(p) = lp.point(w) {
+                println!(
+                    "    {w:6.0} rad/s: |load stiffness| {:.3e}, |motor stiffness| {:.3e} pu/pu·s",
+                    p.load_stiffness.norm(),
+                    p.motor_stiffness.norm()
+                );
+            }
+        }
+    }
+
+    println!("== Eq. 1 / Fig. 2 (Jp = 1 s, zeros at 1 and 10 rad/s)");
+    let st = PiStiffness::from_zeros(1.0, 1.0, 10.0);
+    for p in st.curve(&[0.1, 1.0, 3.162, 10.0, 100.0]) {
+        println!(
+            "  {:7.3} rad/s: |τL/θ| = {:9.3} ({:6.1} dB), phase {:6.1} deg",
+            p.omega_rad_s, p.magnitude, p.magnitude_db, p.phase_deg
+        );
+    }
+    Ok(())
+}
