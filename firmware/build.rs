@@ -2,7 +2,8 @@
 //!
 //! 1. Linker scripts for embedded builds: the QEMU board uses the root `memory.x`
 //!    (mps2-an386) and `link/device-qemu.x`; the STM32F4 board uses
-//!    `link/memory-stm32f407.x` (its `device.x` comes from the `stm32f4` PAC).
+//!    `link/memory-stm32f407.x` (its `device.x` comes from the `stm32f4` PAC). A
+//!    `board-check.x` assertion fails the link if the other board's layout got in.
 //! 2. The loop-in-the-loop expectation: the recorded input sequence `lil/inputs.csv` is run
 //!    through the HOST build of controller-core (this script is compiled for the host), and
 //!    the inputs plus the expected output words are written to `$OUT_DIR/lil_data.rs` for the
@@ -33,12 +34,19 @@ fn main() {
         return;
     }
     let stm32 = env::var_os("CARGO_FEATURE_BOARD_STM32F4").is_some();
+    // memory.x of the board (found through this -L path: link/lld.sh links from an empty
+    // directory so the root memory.x in the working directory cannot shadow it), and a
+    // check script that fails the link if the wrong layout got in anyway.
     let copies: &[(&str, &str)] = if stm32 {
-        &[("link/memory-stm32f407.x", "memory.x")]
+        &[
+            ("link/memory-stm32f407.x", "memory.x"),
+            ("link/check-stm32f407.x", "board-check.x"),
+        ]
     } else {
         &[
             ("../memory.x", "memory.x"),
             ("link/device-qemu.x", "device.x"),
+            ("link/check-qemu.x", "board-check.x"),
         ]
     };
     for (from, to) in copies {
@@ -48,6 +56,7 @@ fn main() {
         }
     }
     println!("cargo:rustc-link-search={}", out.display());
+    println!("cargo:rustc-link-arg=-Tboard-check.x");
 }
 
 /// Parse the recording, run the host core on it, write `lil_inputs.bin` and

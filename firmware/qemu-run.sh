@@ -14,6 +14,13 @@
 set -euo pipefail
 elf="$1"
 shift || true
+# `--plain-log` (first argument after the ELF): print only the log messages, no level
+# prefix, so result lines read `current_tick_instructions: N` (cargo fw-bench).
+log_format=()
+if [[ "${1:-}" == "--plain-log" ]]; then
+  log_format=(--log-format "{s}")
+  shift
+fi
 command -v qemu-system-arm >/dev/null || { echo "qemu-system-arm missing: apt-get install -y qemu-system-arm" >&2; exit 127; }
 command -v defmt-print >/dev/null || { echo "defmt-print missing: cargo install defmt-print --locked" >&2; exit 127; }
 if [[ -n "${UART_INPUT:-}" ]]; then
@@ -26,4 +33,4 @@ timeout "${QEMU_TIMEOUT:-120}" qemu-system-arm -machine mps2-an386 -cpu cortex-m
   -monitor none "${serial[@]}" \
   -semihosting-config enable=on,target=native -icount shift=0,sleep=off ${QEMU_EXTRA:-} \
   -kernel "$elf" "$@" \
-  | defmt-print -e "$elf"
+  | defmt-print -e "$elf" "${log_format[@]}"

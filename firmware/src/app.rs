@@ -211,20 +211,18 @@ impl App {
         if out.fault.is_some() {
             self.trace.trigger(self.tick, TriggerCause::Fault);
         }
-        self.trace.record(
-            self.tick,
-            &SignalSnapshot {
-                encoder_counts: inputs.encoder_count,
-                current_pu: inputs.current_pu.to_bits(),
-                current_ref_pu: out.current_ref_pu.to_bits(),
-                voltage_cmd_pu: out.voltage_cmd_pu.to_bits(),
-                accel_fb_pu: out.accel_fb_pu.to_bits(),
-                velocity_setpoint_pu: self.last_setpoint.velocity_pu.to_bits(),
-                // Whole counts of the commanded position (saturated to i32 for the trace).
-                position_setpoint_counts: saturate_counts(self.last_setpoint),
-                fault_code: i32::from(fault_code(out.fault)),
-            },
-        );
+        let setpoint = &self.last_setpoint;
+        self.trace.record_with(self.tick, || SignalSnapshot {
+            encoder_counts: inputs.encoder_count,
+            current_pu: inputs.current_pu.to_bits(),
+            current_ref_pu: out.current_ref_pu.to_bits(),
+            voltage_cmd_pu: out.voltage_cmd_pu.to_bits(),
+            accel_fb_pu: out.accel_fb_pu.to_bits(),
+            velocity_setpoint_pu: setpoint.velocity_pu.to_bits(),
+            // Whole counts of the commanded position (saturated to i32 for the trace).
+            position_setpoint_counts: saturate_counts(*setpoint),
+            fault_code: i32::from(fault_code(out.fault)),
+        });
         self.last_current = out;
         self.tick = self.tick.wrapping_add(1);
         out

@@ -94,8 +94,8 @@ pub struct VelocityTask<V, S> {
 /// source `S`. A binary declares one as a `static` and calls [`Loops::current_isr`] and
 /// [`Loops::velocity_isr`] from its handlers.
 pub struct Loops<C, V, S> {
-    app: Mutex<RefCell<Option<App>>>,
-    current_io: Mutex<RefCell<Option<C>>>,
+    /// The app and the current loop's I/O (one cell: one borrow per current tick).
+    app: Mutex<RefCell<Option<(App, C)>>>,
     velocity: TaskLocal<VelocityTask<V, S>>,
     /// Velocity ticks skipped because the task state was unavailable (should stay 0).
     overruns: AtomicU32,
@@ -111,7 +111,6 @@ where
     pub const fn new() -> Self {
         Self {
             app: Mutex::new(RefCell::new(None)),
-            current_io: Mutex::new(RefCell::new(None)),
             velocity: TaskLocal::new(),
             overruns: AtomicU32::new(0),
         }
@@ -121,8 +120,7 @@ where
     /// timers).
     pub fn install(&self, app: App, current_io: C, velocity_io: V, profile: S) {
         critical_section::with(|cs| {
-            self.app.borrow(cs).replace(Some(app));
-            self.current_io.borrow(cs).replace(Some(current_io));
+            self.app.borrow(cs).replace(Some((app, current_io)));
         });
         if !self.velocity.install(VelocityTask {
             io: velocity_io,
@@ -135,12 +133,10 @@ where
     /// Body of the current-loop interrupt (4 kHz).
     pub fn current_isr(&self) -> Option<CurrentOutputs> {
         critical_section::with(|cs| {
-            let mut app = self.app.borrow_ref_mut(cs);
-            let mut io = self.current_io.borrow_ref_mut(cs);
-            match (app.as_mut(), io.as_mut()) {
-                (Some(app), Some(io)) => Some(app.on_current_tick(io)),
-                _ => None,
-            }
+            self.app
+                .borrow_ref_mut(cs)
+                .as_mut()
+                .map(|(app, io)| app.on_current_tick(io))
         })
     }
 
@@ -159,14 +155,14 @@ where
             self.app
                 .borrow_ref_mut(cs)
                 .as_mut()
-                .map(|app| app.on_velocity_tick(inputs))
+                .map(|(app, _)| app.on_velocity_tick(inputs))
         })
     }
 
     /// Run `f` on the app (thread mode: status, enable, dump requests), under a critical
     /// section: keep it short.
     pub fn with_app<R>(&self, f: impl FnOnce(&mut App) -> R) -> Option<R> {
-        critical_section::with(|cs| self.app.borrow_ref_mut(cs).as_mut().map(f))
+        critical_section::with(|cs| self.app.borrow_ref_mut(cs).as_mut().map(|(app, _)| f(app)))
     }
 
     /// Velocity ticks skipped so far.

@@ -18,15 +18,16 @@
 pub mod app;
 pub mod board;
 pub mod lil;
+pub mod synthetic;
 pub mod trace;
 pub mod virtual_motor;
 
 #[cfg(target_os = "none")]
 pub mod boards;
 #[cfg(target_os = "none")]
-pub mod rt;
-#[cfg(target_os = "none")]
 pub mod isr;
+#[cfg(target_os = "none")]
+pub mod rt;
 
 #[cfg(target_os = "none")]
 pub use defmt;

@@ -106,7 +106,11 @@ mod target {
             }
             if let Some(n) = dump(&mut b.console) {
                 dumps += 1;
-                defmt::info!("trace dumped: {=usize} samples on the console", n);
+                defmt::info!(
+                    "trace dump {=u32}: {=usize} samples on the console",
+                    dumps,
+                    n
+                );
             }
             #[cfg(not(feature = "board-stm32f4"))]
             if ticks >= RUN_TICKS {

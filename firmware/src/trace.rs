@@ -189,6 +189,13 @@ impl<const N: usize> TraceBuffer<N> {
     /// Offer the signals of one current-loop tick. Stores every `decimation`-th tick while
     /// armed or post-trigger; does nothing once frozen. Constant time, no allocation.
     pub fn record(&mut self, tick: u32, signals: &SignalSnapshot) {
+        self.record_with(tick, || *signals);
+    }
+
+    /// As [`TraceBuffer::record`], building the snapshot only on the ticks that store one
+    /// (the interrupt saves the work on the other `decimation − 1` ticks).
+    #[inline]
+    pub fn record_with(&mut self, tick: u32, signals: impl FnOnce() -> SignalSnapshot) {
         if matches!(self.state, TraceState::Frozen { .. }) {
             return;
         }
@@ -197,6 +204,7 @@ impl<const N: usize> TraceBuffer<N> {
             return;
         }
         self.phase = 0;
+        let signals = signals();
         let mut values = [0_i32; TRACE_CHANNELS];
         for (value, signal) in values.iter_mut().zip(self.config.channels.iter()) {
             *value = signals.get(*signal);

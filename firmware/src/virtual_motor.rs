@@ -66,7 +66,8 @@ impl VirtualMotor {
     /// Advance one period with the winding voltage `voltage_pu` (0 with the stage disabled).
     pub fn step(&mut self, voltage_pu: f32) {
         let c = &self.config;
-        let di = (voltage_pu - c.resistance_pu * self.current_pu - self.speed_pu) / c.inductance_pu_s;
+        let di =
+            (voltage_pu - c.resistance_pu * self.current_pu - self.speed_pu) / c.inductance_pu_s;
         let dw = (self.current_pu - self.load_torque_pu) / c.inertia_s;
         self.current_pu += di * c.period_s;
         self.speed_pu += dw * c.period_s;

@@ -117,9 +117,11 @@ pub fn replay<S: SetpointSource>(
     inputs: &[u8],
     expected: &[u8],
 ) -> ReplayReport {
-    let mut expected_words = expected
-        .chunks_exact(4)
-        .map(|c| c.iter().rev().fold(0_u32, |acc, b| (acc << 8) | u32::from(*b)));
+    let mut expected_words = expected.chunks_exact(4).map(|c| {
+        c.iter()
+            .rev()
+            .fold(0_u32, |acc, b| (acc << 8) | u32::from(*b))
+    });
     let mut report = ReplayReport {
         periods: 0,
         words: 0,
@@ -180,5 +182,11 @@ pub fn replay_embedded() -> Result<ReplayReport, crate::app::AppError> {
     app.set_enable_request(true);
     let mut profile = controller_core::Profile::new(&words::profile_config(), &cfg)
         .map_err(crate::app::AppError::Config)?;
-    Ok(replay(&mut app, &mut profile, tick_ratio(&cfg), INPUTS, EXPECTED))
+    Ok(replay(
+        &mut app,
+        &mut profile,
+        tick_ratio(&cfg),
+        INPUTS,
+        EXPECTED,
+    ))
 }

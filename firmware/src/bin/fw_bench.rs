@@ -1,0 +1,339 @@
+//! Instruction budget of the control interrupts (`cargo fw-bench`, QEMU with
+//! `-icount shift=0,sleep=off`).
+//!
+//! The real interrupt code paths run from the real timer interrupts (TIMER0 at 4 kHz, TIMER1
+//! at 2 kHz, the current loop at the higher priority) through the same `Loops` glue and
+//! `App` as the firmware, on synthetic sensor inputs that follow the motion profile. Each
+//! handler reads SysTick (core clock) around the tick body. Under `-icount shift=0` QEMU
+//! executes one instruction per virtual nanosecond, so one SysTick count at 25 MHz is 40
+//! instructions; the windows start at a dithered phase (a varying spin before each one) so
+//! the ±1 count quantization averages out over the 2,000 current and 1,000 velocity ticks.
+//! The figures are INSTRUCTIONS executed, not cycles (QEMU has no cycle model and no DWT
+//! cycle counter), net of the measuring code (calibrated with empty windows).
+//!
+//! Prints `current_tick_instructions: N`, `velocity_tick_instructions: N`, the budget check,
+//! the image's flash and RAM use, and exits 1 if one 4 kHz period (current tick plus half a
+//! velocity tick) exceeds 1,000 instructions, if a fault latched (the fault path is shorter
+//! and would flatter the figures) or if any measurement was disturbed.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod target {
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    use controller_core::{
+        Controller, CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Setpoint,
+        VelocityInputs,
+    };
+    use cortex_m::peripheral::syst::SystClkSource;
+    use cortex_m::peripheral::SYST;
+    use cortex_m_rt::entry;
+    use firmware::app::{App, DEFAULT_TRACE};
+    use firmware::board::{CurrentLoopIo, VelocityLoopIo};
+    use firmware::boards::active as board;
+    use firmware::isr::{Loops, TaskLocal};
+    use firmware::rt::{exit, memory_use, paint_stack, stack_high_water_bytes};
+    use firmware::synthetic::{SyntheticCurrentIo, SyntheticSensors, SyntheticVelocityIo};
+
+    /// Instructions per SysTick count: 1 instruction = 1 ns (icount shift=0), 25 MHz clock.
+    const INSTRUCTIONS_PER_COUNT: u32 = 1_000_000_000 / board::CORE_CLOCK_HZ;
+    /// Budget of one 4 kHz period: current tick + half a velocity tick [instructions].
+    const PERIOD_BUDGET: u32 = 1000;
+    /// Current ticks before measuring (start-up: estimator priming).
+    const WARMUP_TICKS: u32 = 100;
+    /// Measured current ticks (and half as many velocity ticks).
+    const MEASURED_TICKS: u32 = 2000;
+
+    static LOOPS: Loops<SyntheticCurrentIo, SyntheticVelocityIo, Profile> = Loops::new();
+    /// The sensor generator and its own copy of the profile (the motion it follows).
+    static SENSORS: TaskLocal<(SyntheticSensors, Profile, Setpoint)> = TaskLocal::new();
+
+    static CURRENT_TICKS: AtomicU32 = AtomicU32::new(0);
+    static CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
+    static CURRENT_SAMPLES: AtomicU32 = AtomicU32::new(0);
+    static CURRENT_OVERHEAD: AtomicU32 = AtomicU32::new(0);
+    static VELOCITY_TICKS: AtomicU32 = AtomicU32::new(0);
+    static VELOCITY_COUNTS: AtomicU32 = AtomicU32::new(0);
+    static VELOCITY_SAMPLES: AtomicU32 = AtomicU32::new(0);
+    static VELOCITY_OVERHEAD: AtomicU32 = AtomicU32::new(0);
+    static DISTURBED: AtomicU32 = AtomicU32::new(0);
+    /// A second, bare controller fed the same inputs: the core's share of the figures.
+    static BARE: TaskLocal<(Controller, Profile)> = TaskLocal::new();
+    static BARE_CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
+    static BARE_VELOCITY_COUNTS: AtomicU32 = AtomicU32::new(0);
+    static BARE_PROFILE_COUNTS: AtomicU32 = AtomicU32::new(0);
+
+    /// Spin `n` short iterations: shifts the window's phase against the SysTick edges.
+    #[inline(never)]
+    fn dither(n: u32) {
+        for i in 0..n {
+            core::hint::black_box(i);
+        }
+    }
+
+    /// SysTick counts elapsed between two readings of the 24-bit down-counter.
+    fn elapsed(start: u32, end: u32) -> u32 {
+        start.wrapping_sub(end) & 0x00FF_FFFF
+    }
+
+    fn measuring(tick: u32) -> bool {
+        (WARMUP_TICKS..WARMUP_TICKS + MEASURED_TICKS).contains(&tick)
+    }
+
+    fn current_loop() {
+        let tick = CURRENT_TICKS.fetch_add(1, Ordering::Relaxed);
+        if measuring(tick) {
+            dither(tick % 23);
+            let t0 = SYST::get_current();
+            let t1 = SYST::get_current();
+            CURRENT_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            dither(tick % 17);
+            let t0 = SYST::get_current();
+            let _ = LOOPS.current_isr();
+            let t1 = SYST::get_current();
+            CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            CURRENT_SAMPLES.fetch_add(1, Ordering::Relaxed);
+            let mut io = SyntheticCurrentIo;
+            let inputs = CurrentInputs {
+                encoder_count: io.encoder_count(),
+                current_pu: io.current_pu().unwrap_or_default(),
+            };
+            dither(tick % 13);
+            let _ = BARE.with(|(c, _)| {
+                let t0 = SYST::get_current();
+                let _ = core::hint::black_box(c.current_tick(core::hint::black_box(inputs)));
+                let t1 = SYST::get_current();
+                BARE_CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            });
+        } else {
+            let _ = LOOPS.current_isr();
+            let mut io = SyntheticCurrentIo;
+            let inputs = CurrentInputs {
+                encoder_count: io.encoder_count(),
+                current_pu: io.current_pu().unwrap_or_default(),
+            };
+            let _ = BARE.with(|(c, _)| c.current_tick(inputs));
+        }
+        // Next sensor values: outside the measured window.
+        let _ = SENSORS.with(|(sensors, profile, setpoint)| {
+            if tick % 2 == 1 {
+                *setpoint = profile.next();
+            }
+            sensors.advance(setpoint);
+        });
+    }
+
+    fn velocity_loop() {
+        let tick = VELOCITY_TICKS.fetch_add(1, Ordering::Relaxed);
+        if measuring(tick * 2) {
+            dither(tick % 23);
+            let t0 = SYST::get_current();
+            let t1 = SYST::get_current();
+            VELOCITY_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            dither(tick % 17);
+            let before = CURRENT_TICKS.load(Ordering::Relaxed);
+            let t0 = SYST::get_current();
+            let out = LOOPS.velocity_isr();
+            let t1 = SYST::get_current();
+            let _ = out;
+            dither(tick % 13);
+            let _ = BARE.with(|(c, profile)| {
+                let t0 = SYST::get_current();
+                let setpoint = core::hint::black_box(profile.next());
+                let t1 = SYST::get_current();
+                BARE_PROFILE_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+                let inputs = VelocityInputs {
+                    encoder_count: SyntheticVelocityIo.encoder_count(),
+                    setpoint,
+                    fault_input: false,
+                };
+                let t0 = SYST::get_current();
+                let _ = core::hint::black_box(c.velocity_tick(core::hint::black_box(inputs)));
+                let t1 = SYST::get_current();
+                BARE_VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            });
+            if CURRENT_TICKS.load(Ordering::Relaxed) == before {
+                VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+                VELOCITY_SAMPLES.fetch_add(1, Ordering::Relaxed);
+            } else {
+                // Preempted by the current loop: the window holds both ticks.
+                DISTURBED.fetch_add(1, Ordering::Relaxed);
+            }
+        } else {
+            let _ = LOOPS.velocity_isr();
+            let _ = BARE.with(|(c, profile)| {
+                c.velocity_tick(VelocityInputs {
+                    encoder_count: SyntheticVelocityIo.encoder_count(),
+                    setpoint: profile.next(),
+                    fault_input: false,
+                })
+            });
+        }
+    }
+
+    fn command() {
+        let _ = board::read_command();
+    }
+
+    firmware::bind_interrupts!(current: current_loop, velocity: velocity_loop, command: command);
+
+    /// The motion the synthetic drive follows: 0.5 pu in 0.25 s, then at speed.
+    const MOVE: ProfileConfig = ProfileConfig {
+        kind: ProfileKind::Trapezoid,
+        peak_velocity_pu: 0.5,
+        accel_time_s: 0.25,
+        hold_time_s: f32::INFINITY,
+        decel_time_s: 0.25,
+        start_delay_s: 0.0,
+    };
+
+    /// Check the method on known code: 1,000 NOPs, timed like a tick (dithered windows net
+    /// of the empty-window overhead), 500 times. Returns instructions per block.
+    fn calibrate() -> u32 {
+        let (mut counts, mut overhead) = (0_u32, 0_u32);
+        for k in 0..500_u32 {
+            dither(k % 23);
+            let t0 = SYST::get_current();
+            let t1 = SYST::get_current();
+            overhead += elapsed(t0, t1);
+            dither(k % 17);
+            let t0 = SYST::get_current();
+            thousand_nops();
+            let t1 = SYST::get_current();
+            counts += elapsed(t0, t1);
+        }
+        (counts.saturating_sub(overhead) * INSTRUCTIONS_PER_COUNT + 250) / 500
+    }
+
+    /// Exactly 1,000 NOP instructions, plus the call and return.
+    #[inline(never)]
+    fn thousand_nops() {
+        // SAFETY: NOPs have no effect.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::arch::asm!(
+                ".rept 1000",
+                "nop",
+                ".endr",
+                options(nomem, nostack, preserves_flags)
+            );
+        }
+    }
+
+    /// Average net instructions per window.
+    fn per_call(counts: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32) -> u32 {
+        let n = samples.load(Ordering::Relaxed).max(1);
+        let net = counts
+            .load(Ordering::Relaxed)
+            .saturating_sub(overhead.load(Ordering::Relaxed));
+        // Rounded: (net · 40 + n/2) / n.
+        (net.saturating_mul(INSTRUCTIONS_PER_COUNT) + n / 2) / n
+    }
+
+    #[entry]
+    fn main() -> ! {
+        paint_stack();
+        let Some(mut core) = cortex_m::Peripherals::take() else {
+            exit(false)
+        };
+        let cfg = DriveConfig::table1();
+        // The board brings up its console and outputs; the drive I/O here is synthetic.
+        let _board = board::init(&mut core, &cfg);
+        let (app, profile, generator) = match (
+            App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE),
+            Profile::new(&MOVE, &cfg),
+        ) {
+            (Ok(app), Ok(profile)) => (app, profile, profile),
+            _ => {
+                defmt::error!("bad settings");
+                exit(false)
+            }
+        };
+        match Controller::new(&cfg) {
+            Ok(c) => {
+                let _ = BARE.install((c, profile));
+            }
+            Err(_) => exit(false),
+        }
+        let _ = SENSORS.install((
+            SyntheticSensors::new(cfg.counter_bits),
+            generator,
+            Setpoint::default(),
+        ));
+        LOOPS.install(app, SyntheticCurrentIo, SyntheticVelocityIo, profile);
+        LOOPS.with_app(|app| app.set_enable_request(true));
+
+        core.SYST.set_clock_source(SystClkSource::Core);
+        core.SYST.set_reload(0x00FF_FFFF);
+        core.SYST.clear_current();
+        core.SYST.enable_counter();
+        let calibration = calibrate();
+        board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+        while CURRENT_TICKS.load(Ordering::Relaxed) < WARMUP_TICKS + MEASURED_TICKS + 2 {
+            cortex_m::asm::wfi();
+        }
+        board::stop();
+
+        let current = per_call(&CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES);
+        let velocity = per_call(&VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES);
+        let period = current + velocity / 2;
+        let fault = LOOPS.with_app(|app| app.fault()).flatten();
+        let mem = memory_use();
+        let stack = stack_high_water_bytes();
+        defmt::info!("fw-bench: instruction counts (QEMU -icount shift=0: 1 instruction = 1 ns, SysTick at {=u32} Hz = {=u32} instructions per count); these are instructions, not cycles", board::CORE_CLOCK_HZ, INSTRUCTIONS_PER_COUNT);
+        defmt::info!(
+            "calibration: a block of 1000 NOPs (+ call/return) measures {=u32} instructions",
+            calibration
+        );
+        defmt::info!(
+            "measured: {=u32} current ticks, {=u32} velocity ticks ({=u32} disturbed), averaged",
+            CURRENT_SAMPLES.load(Ordering::Relaxed),
+            VELOCITY_SAMPLES.load(Ordering::Relaxed),
+            DISTURBED.load(Ordering::Relaxed)
+        );
+        defmt::info!("current_tick_instructions: {=u32}", current);
+        defmt::info!("velocity_tick_instructions: {=u32}", velocity);
+        defmt::info!(
+            "period_instructions: {=u32} (current + velocity/2; budget {=u32})",
+            period,
+            PERIOD_BUDGET
+        );
+        defmt::info!(
+            "of which controller-core alone: Controller::current_tick {=u32}, Controller::velocity_tick {=u32}, Profile::next {=u32} (the rest is the firmware's board I/O, locking and trend buffer)",
+            per_call(&BARE_CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
+            per_call(&BARE_VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
+            per_call(&BARE_PROFILE_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES)
+        );
+        defmt::info!("flash_bytes: {=u32}", mem.flash_bytes);
+        defmt::info!("static_ram_bytes: {=u32}", mem.static_ram_bytes);
+        defmt::info!("stack_high_water_bytes: {=u32}", stack);
+        let ok_samples = CURRENT_SAMPLES.load(Ordering::Relaxed) == MEASURED_TICKS
+            && VELOCITY_SAMPLES.load(Ordering::Relaxed) >= MEASURED_TICKS / 2 - 1;
+        if fault.is_some() {
+            defmt::error!(
+                "FAIL: the drive faulted ({}): the figures would not be the full path",
+                defmt::Debug2Format(&fault)
+            );
+            exit(false)
+        }
+        if !ok_samples || LOOPS.overruns() != 0 {
+            defmt::error!("FAIL: measurement incomplete or disturbed");
+            exit(false)
+        }
+        if period > PERIOD_BUDGET {
+            defmt::error!(
+                "FAIL: {=u32} instructions per 4 kHz period exceeds the budget of {=u32}",
+                period,
+                PERIOD_BUDGET
+            );
+            exit(false)
+        }
+        defmt::info!("PASS: within budget");
+        exit(true)
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    println!("fw-bench: runs in QEMU: cargo fw-bench");
+}

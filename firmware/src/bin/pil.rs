@@ -1,0 +1,239 @@
+//! Processor-in-the-loop image (`pil`, QEMU mps2-an386): the firmware's real interrupt code
+//! path, driven tick by tick by `hil-harness pil` over UART0 with the `pil-link` protocol.
+//!
+//! Per `Sensors` frame the link loop (thread mode) fills the link board's mailboxes, pends
+//! the TIMER0 (current loop) or TIMER1 (velocity loop) interrupt, and the very handlers the
+//! drive firmware binds run `Loops::current_isr` / `velocity_isr`; the outputs go back in a
+//! `Commands` frame. Lock step: nothing here depends on how fast QEMU runs.
+//!
+//! A bad, lost (sequence gap or silence) or late frame latches the safe state: the link
+//! board's fault input goes active, so the controller latches `Fault::External`, the enable
+//! output drops and the voltage is zero; every later frame is answered with a `Fault` frame.
+//! The harness's `Stop` ends the run: semihosting exit 0 after a clean run, 1 if faulted.
+//!
+//! Time base: SysTick every 10 ms of QEMU's virtual clock (which follows the host clock
+//! when `-icount` is not given), for the link watchdog only. A faster SysTick costs QEMU
+//! more than it buys here. The idle loop sleeps in WFI until a UART byte or SysTick.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(all(target_os = "none", feature = "board-qemu"))]
+#[path = "../pil_board.rs"]
+mod pil_board;
+
+#[cfg(all(target_os = "none", feature = "board-qemu"))]
+mod target {
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    use controller_core::{CurrentOutputs, VelocityOutputs};
+    use cortex_m::peripheral::syst::SystClkSource;
+    use cortex_m::peripheral::NVIC;
+    use cortex_m_rt::{entry, exception};
+    use firmware::app::{App, DEFAULT_TRACE};
+    use firmware::boards::qemu::{enable_interrupts, Irq, Uart0, SYSCLK_HZ};
+    use firmware::isr::Loops;
+    use firmware::rt::exit;
+    use pil_link::tick::{Commands, Sensors};
+    use pil_link::wire::Writer;
+    use pil_link::{settings, FaultCode, FirmwareSession, Frame, SessionState, Target, MAX_FRAME};
+
+    use super::pil_board::{
+        ByteRing, LinkCurrentIo, LinkSetpoint, LinkVelocityIo, APPLIED, CURRENT_IN,
+        CURRENT_ISR_TICKS, CURRENT_OUT, LINK_FAULT, VELOCITY_IN, VELOCITY_OUT,
+    };
+
+    static LOOPS: Loops<LinkCurrentIo, LinkVelocityIo, LinkSetpoint> = Loops::new();
+    static RX: ByteRing = ByteRing::new();
+    /// Milliseconds of virtual time since boot (advanced by SysTick in 10 ms steps).
+    static NOW_MS: AtomicU32 = AtomicU32::new(0);
+    const SYSTICK_MS: u32 = 10;
+
+    fn current_loop() {
+        let out = LOOPS.current_isr();
+        CURRENT_ISR_TICKS.fetch_add(1, Ordering::Relaxed);
+        critical_section::with(|cs| CURRENT_OUT.borrow(cs).set(out));
+    }
+
+    fn velocity_loop() {
+        let out = LOOPS.velocity_isr();
+        critical_section::with(|cs| VELOCITY_OUT.borrow(cs).set(out));
+    }
+
+    fn uart_rx() {
+        while let Some(b) = Uart0.read_byte() {
+            RX.push(b);
+        }
+    }
+
+    firmware::bind_interrupts!(current: current_loop, velocity: velocity_loop, command: uart_rx);
+
+    #[exception]
+    fn SysTick() {
+        NOW_MS.fetch_add(SYSTICK_MS, Ordering::Relaxed);
+    }
+
+    /// Pends a loop interrupt and returns what its handler left in `slot`. The pended
+    /// handler preempts thread mode at once (DSB/ISB make the pend take effect before we
+    /// look); a few retries cover a handler that is still being entered.
+    fn run_isr<T: Copy>(
+        irq: Irq,
+        slot: &'static critical_section::Mutex<core::cell::Cell<Option<T>>>,
+    ) -> Option<T> {
+        critical_section::with(|cs| slot.borrow(cs).set(None));
+        NVIC::pend(irq);
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        for _ in 0..16 {
+            if let Some(out) = critical_section::with(|cs| slot.borrow(cs).get()) {
+                return Some(out);
+            }
+            cortex_m::asm::nop();
+        }
+        None
+    }
+
+    /// The controller behind the link: the firmware's `App` in the `Loops` the interrupts
+    /// share, exactly as the drive image installs it.
+    struct PilTarget;
+
+    impl Target for PilTarget {
+        fn configure(&mut self, payload: &[u8]) -> Result<(), FaultCode> {
+            let cfg = settings::decode(payload).map_err(|_| FaultCode::BadPayload)?;
+            // The link board delivers counts already wrapped at the configured width.
+            let app = match App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE) {
+                Ok(app) => app,
+                Err(e) => {
+                    defmt::error!("pil: settings refused: {}", defmt::Debug2Format(&e));
+                    return Err(FaultCode::Config);
+                }
+            };
+            LOOPS.install(app, LinkCurrentIo, LinkVelocityIo, LinkSetpoint);
+            LOOPS.with_app(|app| app.set_enable_request(true));
+            defmt::info!(
+                "pil: configured, current loop {=u32} Hz, velocity loop {=u32} Hz",
+                cfg.current_rate_hz,
+                cfg.velocity_rate_hz
+            );
+            Ok(())
+        }
+
+        fn tick(&mut self, sensors: &[u8], commands: &mut Writer) -> Result<(), FaultCode> {
+            let reply = match Sensors::decode(sensors).map_err(|_| FaultCode::BadPayload)? {
+                Sensors::Current(inputs) => {
+                    critical_section::with(|cs| CURRENT_IN.borrow(cs).set(inputs));
+                    let out: CurrentOutputs =
+                        run_isr(Irq::Timer0, &CURRENT_OUT).ok_or(FaultCode::Protocol)?;
+                    let mut applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
+                    applied.isr_ticks = CURRENT_ISR_TICKS.load(Ordering::Relaxed);
+                    Commands::Current(out, applied)
+                }
+                Sensors::Velocity(inputs) => {
+                    critical_section::with(|cs| VELOCITY_IN.borrow(cs).set(Some(inputs)));
+                    let out: VelocityOutputs =
+                        run_isr(Irq::Timer1, &VELOCITY_OUT).ok_or(FaultCode::Protocol)?;
+                    Commands::Velocity(out)
+                }
+            };
+            reply.encode(commands).map_err(|_| FaultCode::BadPayload)
+        }
+
+        fn enter_safe_state(&mut self) -> (i32, i32) {
+            // Fault input active, operator enable off; one velocity tick latches the
+            // controller's fault, one current tick then commands and applies zero.
+            LINK_FAULT.store(true, Ordering::Relaxed);
+            LOOPS.with_app(|app| app.set_enable_request(false));
+            let _ = run_isr(Irq::Timer1, &VELOCITY_OUT);
+            let out = run_isr(Irq::Timer0, &CURRENT_OUT);
+            let applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
+            defmt::warn!(
+                "pil: safe state: fault {}, current ref {=i32}, voltage {=i32}, enabled {=bool}",
+                defmt::Debug2Format(&LOOPS.with_app(|app| app.fault())),
+                out.map_or(0, |o| o.current_ref_pu.to_bits()),
+                applied.voltage_bits,
+                applied.enabled
+            );
+            (
+                out.map_or(0, |o| o.current_ref_pu.to_bits()),
+                applied.voltage_bits,
+            )
+        }
+    }
+
+    fn send(frame: &Frame) {
+        let mut wire = [0_u8; MAX_FRAME];
+        if let Ok(n) = frame.encode(&mut wire) {
+            Uart0.write_bytes(wire.get(..n).unwrap_or(&[]));
+        }
+    }
+
+    /// `major << 16 | minor << 8 | patch` of this crate.
+    fn version() -> u32 {
+        let mut parts = env!("CARGO_PKG_VERSION")
+            .split('.')
+            .map(|p| p.parse::<u32>().unwrap_or(0));
+        let mut v = 0;
+        for _ in 0..3 {
+            v = (v << 8) | (parts.next().unwrap_or(0) & 0xFF);
+        }
+        v
+    }
+
+    #[entry]
+    fn main() -> ! {
+        let Some(mut core) = cortex_m::Peripherals::take() else {
+            exit(false)
+        };
+        core.SYST.set_clock_source(SystClkSource::Core);
+        core.SYST.set_reload(SYSCLK_HZ / 1000 * SYSTICK_MS - 1);
+        core.SYST.clear_current();
+        core.SYST.enable_interrupt();
+        core.SYST.enable_counter();
+        Uart0.init();
+        // The loop timers stay stopped: only the link pends their interrupts.
+        enable_interrupts(&mut core.NVIC);
+        defmt::info!(
+            "pil: stiffdrive firmware {=str}, pil-link protocol {=u8}, waiting for Hello on UART0",
+            env!("CARGO_PKG_VERSION"),
+            pil_link::PROTOCOL_VERSION
+        );
+
+        let mut session = FirmwareSession::new(version());
+        let mut target = PilTarget;
+        loop {
+            while let Some(byte) = RX.pop() {
+                let now = NOW_MS.load(Ordering::Relaxed);
+                if let Some(frame) = session.on_byte(byte, now, &mut target) {
+                    send(&frame);
+                }
+                if let SessionState::Stopped { faulted } = session.state() {
+                    defmt::info!(
+                        "pil: stopped after {=u32} ticks, faulted {=bool}, {=u32} bytes lost",
+                        session.ticks_done(),
+                        faulted,
+                        RX.overflows()
+                    );
+                    exit(!faulted);
+                }
+            }
+            if let Some(frame) = session.poll_watchdog(NOW_MS.load(Ordering::Relaxed), &mut target)
+            {
+                defmt::warn!("pil: watchdog expired");
+                send(&frame);
+            }
+            // Sleep until the next byte or SysTick; checked with interrupts masked so a byte
+            // arriving between the check and WFI still wakes us (WFI wakes on pending).
+            cortex_m::interrupt::free(|_| {
+                if RX.is_empty() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        }
+    }
+}
+
+#[cfg(not(all(target_os = "none", feature = "board-qemu")))]
+fn main() {
+    println!(
+        "pil: the processor-in-the-loop image runs in QEMU under `hil-harness pil`; \
+         build it with cargo build -p firmware --release --target thumbv7em-none-eabihf --bin pil"
+    );
+}

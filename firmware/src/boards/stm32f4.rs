@@ -1,0 +1,476 @@
+//! STM32F4-Discovery (STM32F407VGT6, 8 MHz crystal, run at 168 MHz): the real board.
+//! Flash with `cargo fw-flash` (`probe-rs run --chip STM32F407VGTx`, defmt over RTT).
+//!
+//! Register values follow RM0090 (STM32F405/407 reference manual); the PAC (`stm32f4`)
+//! gives the typed register blocks, the interrupt numbers and the vector table.
+//!
+//! | drive signal    | STM32F407 resource                                              |
+//! |-----------------|-----------------------------------------------------------------|
+//! | PWM duty        | TIM1 CH1 PE9 / CH1N PE8 (AF1), 20 kHz centre-aligned, 500 ns dead time |
+//! | current sample  | ADC1 IN1 PA1, injected conversion triggered by TIM1 TRGO (update) |
+//! | encoder counter | TIM3 encoder mode, CH1 PB4 / CH2 PB5 (AF2), 16 bits            |
+//! | fault input     | PE15, pull-down, high = fault                                   |
+//! | enable output   | PD12 (the green LED), high = power stage enabled                |
+//! | 4 kHz tick      | TIM6 update, IRQ 54, priority 0x20 (higher)                     |
+//! | 2 kHz tick      | TIM7 update, IRQ 55, priority 0x40                              |
+//! | console         | USART2 TX PA2 / RX PA3 (AF7), 115200 Bd, RX IRQ 38, priority 0x80 |
+//!
+//! The current scaling assumes a shunt amplifier centred at mid-scale with ±2 pu at the ADC
+//! rails (1024 LSB per pu); set [`ADC_LSB_PER_PU`] and [`ADC_OFFSET`] for the real stage.
+
+use core::convert::Infallible;
+
+use controller_core::per_unit::Pu;
+use cortex_m::peripheral::NVIC;
+use stm32f4::stm32f407::{self as pac, Interrupt};
+
+use crate::board::{CurrentIo, CurrentSense, EncoderCounter, VelocityIo};
+
+/// Core clock [Hz].
+pub const CORE_CLOCK_HZ: u32 = 168_000_000;
+/// Board name for logs.
+pub const NAME: &str = "stm32f4-discovery";
+/// APB1 timer clock (APB1 = 42 MHz, ×2 for timers) [Hz].
+const APB1_TIMER_HZ: u32 = 84_000_000;
+/// APB1 peripheral clock [Hz].
+const APB1_HZ: u32 = 42_000_000;
+/// TIM1 auto-reload for 20 kHz centre-aligned at 168 MHz: f = 168 MHz / (2·ARR).
+const PWM_ARR: u16 = 4200;
+/// ADC counts at zero current.
+pub const ADC_OFFSET: i32 = 2048;
+/// ADC counts per pu of current.
+pub const ADC_LSB_PER_PU: i32 = 1024;
+
+/// NVIC priority of the current loop (lower number = more urgent).
+pub const PRIO_CURRENT: u8 = 0x20;
+/// NVIC priority of the velocity loop.
+pub const PRIO_VELOCITY: u8 = 0x40;
+/// NVIC priority of the console receive interrupt.
+pub const PRIO_UART: u8 = 0x80;
+
+/// The current-loop I/O of this board.
+pub type CurrentIoImpl = CurrentIo<Tim1Pwm, AdcCurrent, Tim3Encoder, EnablePin>;
+/// The velocity-loop I/O of this board.
+pub type VelocityIoImpl = VelocityIo<Tim3Encoder, FaultPin>;
+/// Text console for trace dumps.
+pub type Console = Usart2;
+/// The encoder counter type.
+pub type Encoder = Tim3Encoder;
+
+/// Raw 32-bit register write through the PAC.
+macro_rules! wr {
+    ($reg:expr, $value:expr) => {
+        // SAFETY: the value is a documented RM0090 setting for this register (see the
+        // comment at each use); no reserved bit is set.
+        #[allow(unsafe_code)]
+        unsafe {
+            $reg.write(|w| w.bits($value))
+        }
+    };
+}
+
+/// Raw read-modify-write: clear `clear`, then set `set`.
+macro_rules! rmw {
+    ($reg:expr, $clear:expr, $set:expr) => {
+        // SAFETY: as for `wr!`: only the named, documented bits change.
+        #[allow(unsafe_code)]
+        unsafe {
+            $reg.modify(|r, w| w.bits((r.bits() & !($clear)) | ($set)))
+        }
+    };
+}
+
+/// Bounded wait for a hardware flag: false on timeout.
+fn wait(mut ready: impl FnMut() -> bool) -> bool {
+    for _ in 0..1_000_000 {
+        if ready() {
+            return true;
+        }
+    }
+    false
+}
+
+/// 168 MHz from the 8 MHz crystal: PLL M = 8, N = 336, P = 2 (Q = 7 for 48 MHz USB);
+/// AHB /1, APB1 /4 (42 MHz), APB2 /2 (84 MHz); flash 5 wait states with caches.
+fn clocks(rcc: &pac::RCC, flash: &pac::FLASH) -> bool {
+    rmw!(rcc.cr(), 0, 1 << 16); // HSEON
+    if !wait(|| rcc.cr().read().bits() & (1 << 17) != 0) {
+        return false; // HSERDY never came: no crystal?
+    }
+    // PLLCFGR: PLLM[5:0] = 8, PLLN[14:6] = 336, PLLP[17:16] = 0 (/2), PLLSRC[22] = HSE,
+    // PLLQ[27:24] = 7.
+    wr!(rcc.pllcfgr(), 8 | (336 << 6) | (1 << 22) | (7 << 24));
+    rmw!(rcc.cr(), 0, 1 << 24); // PLLON
+    if !wait(|| rcc.cr().read().bits() & (1 << 25) != 0) {
+        return false;
+    }
+    // ACR: LATENCY = 5 WS (168 MHz at 3.3 V), PRFTEN, ICEN, DCEN.
+    wr!(flash.acr(), 5 | (1 << 8) | (1 << 9) | (1 << 10));
+    // CFGR: PPRE1[12:10] = 101 (/4), PPRE2[15:13] = 100 (/2), SW[1:0] = 10 (PLL).
+    rmw!(rcc.cfgr(), 0xFCF3, (0b101 << 10) | (0b100 << 13) | 0b10);
+    wait(|| (rcc.cfgr().read().bits() >> 2) & 0b11 == 0b10)
+}
+
+/// Set a pin's mode (2 bits), alternate function (4 bits) and pull (2 bits). A macro: the
+/// PAC gives GPIOA, GPIOB and GPIOD/E different register-block types.
+macro_rules! pin {
+    ($gpio:expr, $n:expr, $mode:expr, $af:expr, $pull:expr) => {{
+        let (g, n): (_, u32) = (&$gpio, $n);
+        rmw!(g.moder(), 0b11 << (2 * n), $mode << (2 * n));
+        rmw!(g.pupdr(), 0b11 << (2 * n), $pull << (2 * n));
+        if n < 8 {
+            rmw!(g.afrl(), 0xF << (4 * n), $af << (4 * n));
+        } else {
+            rmw!(g.afrh(), 0xF << (4 * (n - 8)), $af << (4 * (n - 8)));
+        }
+    }};
+}
+
+const MODE_IN: u32 = 0b00;
+const MODE_OUT: u32 = 0b01;
+const MODE_AF: u32 = 0b10;
+const MODE_ANALOG: u32 = 0b11;
+const PULL_NONE: u32 = 0b00;
+const PULL_DOWN: u32 = 0b10;
+
+fn tim1() -> &'static pac::tim1::RegisterBlock {
+    // SAFETY: TIM1 is configured once in `init` and afterwards written only by the current
+    // loop's `Tim1Pwm` (CCR1): a shared reference to the MMIO block is sound (vcell).
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::TIM1::ptr()
+    }
+}
+
+fn tim3() -> &'static pac::tim3::RegisterBlock {
+    // SAFETY: after `init`, TIM3 (encoder) is only read (CNT).
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::TIM3::ptr()
+    }
+}
+
+fn adc1() -> &'static pac::adc1::RegisterBlock {
+    // SAFETY: after `init`, ADC1 is touched only by the current loop's `AdcCurrent`.
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::ADC1::ptr()
+    }
+}
+
+fn usart2() -> &'static pac::usart1::RegisterBlock {
+    // SAFETY: USART2 TX is used by thread mode only, RX by its interrupt only; SR/DR reads
+    // and DR writes do not race on shared bits.
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::USART2::ptr()
+    }
+}
+
+fn gpiod() -> &'static pac::gpioi::RegisterBlock {
+    // SAFETY: after `init`, GPIOD is written only through BSRR (atomic set/reset).
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::GPIOD::ptr()
+    }
+}
+
+fn gpioe() -> &'static pac::gpioi::RegisterBlock {
+    // SAFETY: after `init`, GPIOE is only read (IDR).
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::GPIOE::ptr()
+    }
+}
+
+fn tim6() -> &'static pac::tim6::RegisterBlock {
+    // SAFETY: after `init`, TIM6 SR is cleared only by its own interrupt.
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::TIM6::ptr()
+    }
+}
+
+fn tim7() -> &'static pac::tim6::RegisterBlock {
+    // SAFETY: after `init`, TIM7 SR is cleared only by its own interrupt.
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::TIM7::ptr()
+    }
+}
+
+/// TIM1 channel 1 (complementary) as the bridge PWM.
+pub struct Tim1Pwm;
+
+impl embedded_hal::pwm::ErrorType for Tim1Pwm {
+    type Error = Infallible;
+}
+
+impl embedded_hal::pwm::SetDutyCycle for Tim1Pwm {
+    fn max_duty_cycle(&self) -> u16 {
+        PWM_ARR
+    }
+
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+        // Preloaded (OC1PE): takes effect at the next update, glitch free.
+        wr!(tim1().ccr1(), u32::from(duty.min(PWM_ARR)));
+        Ok(())
+    }
+}
+
+/// ADC1 injected channel (IN1), converted at each TIM1 update.
+pub struct AdcCurrent;
+
+/// The ADC produced no conversion since the last read (trigger or ADC dead).
+#[derive(Debug, Clone, Copy)]
+pub struct NoConversion;
+
+impl CurrentSense for AdcCurrent {
+    type Error = NoConversion;
+
+    fn sample_current(&mut self) -> Result<Pu, NoConversion> {
+        let adc = adc1();
+        // SR.JEOC (bit 2): an injected conversion completed since we last cleared it.
+        if adc.sr().read().bits() & (1 << 2) == 0 {
+            return Err(NoConversion);
+        }
+        let raw = (adc.jdr1().read().bits() & 0x0FFF) as i32;
+        wr!(adc.sr(), !(1_u32 << 2) & 0x3F); // rc_w0: clear JEOC only
+                                             // pu = (raw − offset)/LSB_PER_PU, as Q16.16 bits: ×65536/1024 = ×64.
+        Ok(Pu::from_bits(
+            (raw - ADC_OFFSET) * (65_536 / ADC_LSB_PER_PU),
+        ))
+    }
+}
+
+/// TIM3 in encoder mode (16-bit counter).
+#[derive(Clone, Copy)]
+pub struct Tim3Encoder;
+
+impl EncoderCounter for Tim3Encoder {
+    const COUNTER_BITS: u8 = 16;
+    fn count(&mut self) -> u32 {
+        tim3().cnt().read().bits() & 0xFFFF
+    }
+}
+
+/// PD12: power-stage enable (green LED).
+pub struct EnablePin;
+
+impl embedded_hal::digital::ErrorType for EnablePin {
+    type Error = Infallible;
+}
+
+impl embedded_hal::digital::OutputPin for EnablePin {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        wr!(gpiod().bsrr(), 1 << (12 + 16));
+        Ok(())
+    }
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        wr!(gpiod().bsrr(), 1 << 12);
+        Ok(())
+    }
+}
+
+/// PE15: external fault input (high = fault).
+pub struct FaultPin;
+
+impl embedded_hal::digital::ErrorType for FaultPin {
+    type Error = Infallible;
+}
+
+impl embedded_hal::digital::InputPin for FaultPin {
+    fn is_high(&mut self) -> Result<bool, Infallible> {
+        Ok(gpioe().idr().read().bits() & (1 << 15) != 0)
+    }
+    fn is_low(&mut self) -> Result<bool, Infallible> {
+        Ok(gpioe().idr().read().bits() & (1 << 15) == 0)
+    }
+}
+
+/// USART2 console (dump text out, commands in).
+#[derive(Clone, Copy)]
+pub struct Usart2;
+
+impl core::fmt::Write for Usart2 {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        let u = usart2();
+        for b in s.bytes() {
+            // SR.TXE (bit 7): data register empty.
+            while u.sr().read().bits() & (1 << 7) == 0 {}
+            wr!(u.dr(), u16::from(b));
+        }
+        Ok(())
+    }
+}
+
+/// The board's drive I/O, split per interrupt, and its console.
+pub struct Board {
+    /// Owned by the current-loop interrupt.
+    pub current_io: CurrentIoImpl,
+    /// Owned by the velocity-loop interrupt.
+    pub velocity_io: VelocityIoImpl,
+    /// Dump output.
+    pub console: Console,
+}
+
+/// Clocks, pins, PWM, ADC, encoder, console; the power stage stays disabled and the loop
+/// timers stopped until [`start`].
+pub fn init(_core: &mut cortex_m::Peripherals, _cfg: &controller_core::DriveConfig) -> Board {
+    let Some(dp) = pac::Peripherals::take() else {
+        crate::rt::exit(false)
+    };
+    if !clocks(&dp.RCC, &dp.FLASH) {
+        defmt::error!("clock setup failed (HSE or PLL not ready)");
+        crate::rt::exit(false)
+    }
+    // AHB1ENR: GPIOA, GPIOB, GPIOD, GPIOE. APB1ENR: TIM3, TIM6, TIM7, USART2.
+    // APB2ENR: TIM1, ADC1.
+    rmw!(dp.RCC.ahb1enr(), 0, 0b1_1011);
+    rmw!(
+        dp.RCC.apb1enr(),
+        0,
+        (1 << 1) | (1 << 4) | (1 << 5) | (1 << 17)
+    );
+    rmw!(dp.RCC.apb2enr(), 0, 1 | (1 << 8));
+
+    // Enable output low first, then the pins.
+    wr!(dp.GPIOD.bsrr(), 1 << (12 + 16));
+    pin!(dp.GPIOD, 12, MODE_OUT, 0, PULL_NONE);
+    pin!(dp.GPIOE, 15, MODE_IN, 0, PULL_DOWN);
+    pin!(dp.GPIOE, 8, MODE_AF, 1, PULL_NONE); // TIM1_CH1N
+    pin!(dp.GPIOE, 9, MODE_AF, 1, PULL_NONE); // TIM1_CH1
+    pin!(dp.GPIOB, 4, MODE_AF, 2, PULL_NONE); // TIM3_CH1
+    pin!(dp.GPIOB, 5, MODE_AF, 2, PULL_NONE); // TIM3_CH2
+    pin!(dp.GPIOA, 1, MODE_ANALOG, 0, PULL_NONE); // ADC123_IN1
+    pin!(dp.GPIOA, 2, MODE_AF, 7, PULL_NONE); // USART2_TX
+    pin!(dp.GPIOA, 3, MODE_AF, 7, PULL_NONE); // USART2_RX
+
+    // TIM1: centre-aligned mode 1 (CMS = 01), ARPE; PWM mode 1 with preload on CH1;
+    // CH1 + CH1N on; dead time DTG = 84 × 5.95 ns = 500 ns; MOE; TRGO = update (MMS = 010).
+    let t1 = &dp.TIM1;
+    wr!(t1.psc(), 0);
+    wr!(t1.arr(), u32::from(PWM_ARR));
+    wr!(t1.rcr(), 1); // one update per PWM period (at the counter underflow: mid low-side)
+    wr!(t1.ccr1(), u32::from(PWM_ARR / 2)); // 0 V
+    wr!(t1.ccmr1_output(), (0b110 << 4) | (1 << 3));
+    wr!(t1.ccer(), 1 | (1 << 2));
+    wr!(t1.bdtr(), (1 << 15) | 84);
+    wr!(t1.cr2(), 0b010 << 4);
+    wr!(t1.egr(), 1);
+    wr!(t1.cr1(), (0b01 << 5) | (1 << 7) | 1);
+
+    // ADC1: clock /4 = 21 MHz; IN1 as the single injected conversion (JL = 0 → JSQ4),
+    // 56-cycle sampling, triggered on TIM1 TRGO rising (JEXTSEL = 0001, JEXTEN = 01).
+    wr!(dp.ADC_COMMON.ccr(), 0b01 << 16);
+    wr!(dp.ADC1.smpr2(), 0b011 << 3);
+    wr!(dp.ADC1.jsqr(), 1 << 15);
+    wr!(dp.ADC1.cr2(), 1 | (0b0001 << 16) | (0b01 << 20));
+
+    // TIM3: encoder mode 3 (SMS = 011), CC1S = CC2S = 01 (TI1, TI2), input filter 0011.
+    let t3 = &dp.TIM3;
+    wr!(t3.arr(), 0xFFFF);
+    wr!(
+        t3.ccmr1_input(),
+        0b01 | (0b0011 << 4) | (0b01 << 8) | (0b0011 << 12)
+    );
+    wr!(t3.smcr(), 0b011);
+    wr!(t3.cr1(), 1);
+
+    // USART2: 115200 Bd from 42 MHz (BRR = 42e6/115200 = 364.6 → 22 + 13/16), TE, RE,
+    // RXNEIE, UE.
+    let brr = ((APB1_HZ + 57_600) / 115_200) as u16;
+    wr!(dp.USART2.brr(), brr);
+    wr!(dp.USART2.cr1(), (1 << 13) | (1 << 5) | (1 << 3) | (1 << 2));
+
+    Board {
+        current_io: CurrentIo {
+            pwm: Tim1Pwm,
+            current: AdcCurrent,
+            encoder: Tim3Encoder,
+            enable: EnablePin,
+        },
+        velocity_io: VelocityIo {
+            encoder: Tim3Encoder,
+            fault: FaultPin,
+        },
+        console: Usart2,
+    }
+}
+
+/// Configure TIM6/TIM7 for the loop rates, set priorities, unmask, start (TIM6 first, so
+/// at every shared instant the current loop's update comes first).
+pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
+    for (tim, rate) in [(tim6(), current_rate_hz), (tim7(), velocity_rate_hz)] {
+        wr!(tim.psc(), 0);
+        wr!(tim.arr(), (APB1_TIMER_HZ / rate.max(1)).saturating_sub(1));
+        wr!(tim.egr(), 1); // load ARR
+        wr!(tim.sr(), 0);
+        wr!(tim.dier(), 1); // UIE
+    }
+    // SAFETY: priorities are set before unmasking; the handlers share data only through
+    // `critical_section::Mutex` cells, atomics and `TaskLocal`s.
+    #[allow(unsafe_code)]
+    unsafe {
+        nvic.set_priority(Interrupt::TIM6_DAC, PRIO_CURRENT);
+        nvic.set_priority(Interrupt::TIM7, PRIO_VELOCITY);
+        nvic.set_priority(Interrupt::USART2, PRIO_UART);
+        NVIC::unmask(Interrupt::TIM6_DAC);
+        NVIC::unmask(Interrupt::TIM7);
+        NVIC::unmask(Interrupt::USART2);
+    }
+    wr!(tim6().cr1(), 1);
+    wr!(tim7().cr1(), 1);
+}
+
+/// Stop the loop timers and switch the power stage off.
+pub fn stop() {
+    wr!(tim6().cr1(), 0);
+    wr!(tim7().cr1(), 0);
+    wr!(gpiod().bsrr(), 1 << (12 + 16));
+}
+
+/// Acknowledge the current-loop timer interrupt.
+pub fn ack_current() {
+    wr!(tim6().sr(), 0);
+}
+
+/// Acknowledge the velocity-loop timer interrupt.
+pub fn ack_velocity() {
+    wr!(tim7().sr(), 0);
+}
+
+/// A command byte from the console, if one arrived (SR.RXNE, bit 5).
+pub fn read_command() -> Option<u8> {
+    let u = usart2();
+    if u.sr().read().bits() & (1 << 5) != 0 {
+        Some((u.dr().read().bits() & 0xFF) as u8)
+    } else {
+        None
+    }
+}
+
+/// Bind the board's interrupt lines to the tick functions of a binary:
+/// `bind_interrupts!(current: path, velocity: path, command: path);`
+#[macro_export]
+macro_rules! bind_interrupts {
+    (current: $current:path, velocity: $velocity:path, command: $command:path $(,)?) => {
+        #[allow(unsafe_code, non_snake_case, missing_docs)]
+        #[no_mangle]
+        extern "C" fn TIM6_DAC() {
+            $crate::boards::stm32f4::ack_current();
+            $current();
+        }
+        #[allow(unsafe_code, non_snake_case, missing_docs)]
+        #[no_mangle]
+        extern "C" fn TIM7() {
+            $crate::boards::stm32f4::ack_velocity();
+            $velocity();
+        }
+        #[allow(unsafe_code, non_snake_case, missing_docs)]
+        #[no_mangle]
+        extern "C" fn USART2() {
+            $command();
+        }
+    };
+}

@@ -1,0 +1,172 @@
+//! The processor-in-the-loop board: the drive I/O of the `pil` image, fed by the link
+//! instead of hardware. The thread-mode link loop puts the sampled sensors of a frame into
+//! mailboxes, pends the loop's interrupt, and the real interrupt body (`Loops::current_isr`
+//! / `velocity_isr` → `App::on_current_tick` / `on_velocity_tick`) reads them through the
+//! board-layer traits and writes its commands back, exactly as it would drive a PWM.
+//!
+//! Sharing: the mailboxes are `critical_section::Mutex<Cell<_>>` of plain `Copy` data,
+//! written by thread mode only while the interrupt is not pending and read by the interrupt
+//! (single core, so a critical section is enough).
+
+use core::cell::Cell;
+use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
+
+use controller_core::per_unit::Pu;
+use controller_core::{CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs};
+use critical_section::Mutex;
+use firmware::app::SetpointSource;
+use firmware::board::{CurrentLoopIo, VelocityLoopIo};
+use pil_link::tick::Applied;
+
+/// Sensors of the current tick being run.
+pub static CURRENT_IN: Mutex<Cell<CurrentInputs>> = Mutex::new(Cell::new(CurrentInputs {
+    encoder_count: 0,
+    current_pu: Pu::ZERO,
+}));
+/// Sensors and setpoint of the velocity tick being run.
+pub static VELOCITY_IN: Mutex<Cell<Option<VelocityInputs>>> = Mutex::new(Cell::new(None));
+/// Outputs of the last current-loop interrupt (taken by thread mode).
+pub static CURRENT_OUT: Mutex<Cell<Option<CurrentOutputs>>> = Mutex::new(Cell::new(None));
+/// Outputs of the last velocity-loop interrupt (taken by thread mode).
+pub static VELOCITY_OUT: Mutex<Cell<Option<VelocityOutputs>>> = Mutex::new(Cell::new(None));
+/// What the current loop last applied to the (virtual) power stage.
+pub static APPLIED: Mutex<Cell<Applied>> = Mutex::new(Cell::new(Applied {
+    voltage_bits: 0,
+    enabled: false,
+    isr_ticks: 0,
+}));
+/// Set once the link is faulted: the velocity loop then sees its fault input active, so the
+/// controller latches `Fault::External` and commands zero torque.
+pub static LINK_FAULT: AtomicBool = AtomicBool::new(false);
+/// Current-loop interrupts run.
+pub static CURRENT_ISR_TICKS: AtomicU32 = AtomicU32::new(0);
+
+/// Current-loop I/O: sensors from the mailbox, commands into [`APPLIED`].
+#[derive(Debug, Default)]
+pub struct LinkCurrentIo;
+
+impl CurrentLoopIo for LinkCurrentIo {
+    fn encoder_count(&mut self) -> u32 {
+        critical_section::with(|cs| CURRENT_IN.borrow(cs).get().encoder_count)
+    }
+
+    fn current_pu(&mut self) -> Option<Pu> {
+        Some(critical_section::with(|cs| {
+            CURRENT_IN.borrow(cs).get().current_pu
+        }))
+    }
+
+    fn set_voltage_pu(&mut self, voltage_pu: Pu) -> bool {
+        critical_section::with(|cs| {
+            let cell = APPLIED.borrow(cs);
+            cell.set(Applied {
+                voltage_bits: voltage_pu.to_bits(),
+                ..cell.get()
+            });
+        });
+        true
+    }
+
+    fn set_enable(&mut self, enabled: bool) -> bool {
+        critical_section::with(|cs| {
+            let cell = APPLIED.borrow(cs);
+            cell.set(Applied {
+                enabled,
+                ..cell.get()
+            });
+        });
+        true
+    }
+}
+
+/// Velocity-loop I/O: encoder and fault input from the mailbox (fault also on a link fault).
+#[derive(Debug, Default)]
+pub struct LinkVelocityIo;
+
+impl VelocityLoopIo for LinkVelocityIo {
+    fn encoder_count(&mut self) -> u32 {
+        critical_section::with(|cs| VELOCITY_IN.borrow(cs).get()).map_or(0, |i| i.encoder_count)
+    }
+
+    fn fault_input(&mut self) -> bool {
+        // No inputs yet counts as a fault too (fail safe).
+        let input = critical_section::with(|cs| VELOCITY_IN.borrow(cs).get());
+        LINK_FAULT.load(Ordering::Relaxed) || input.is_none_or(|i| i.fault_input)
+    }
+}
+
+/// The harness's motion profile, one setpoint per velocity frame.
+#[derive(Debug, Default)]
+pub struct LinkSetpoint;
+
+impl SetpointSource for LinkSetpoint {
+    fn next_setpoint(&mut self) -> Setpoint {
+        critical_section::with(|cs| VELOCITY_IN.borrow(cs).get())
+            .map_or_else(Setpoint::default, |i| i.setpoint)
+    }
+}
+
+/// Bytes from the UART receive interrupt to thread mode: a single-producer single-consumer
+/// ring of atomics (the interrupt only pushes, thread mode only pops).
+pub struct ByteRing {
+    bytes: [AtomicU8; RING_LEN],
+    head: AtomicU32,
+    tail: AtomicU32,
+    overflows: AtomicU32,
+}
+
+/// Ring capacity in bytes (a power of two; more than one frame in flight never happens in
+/// lock step, so this is generous).
+pub const RING_LEN: usize = 512;
+
+impl ByteRing {
+    /// An empty ring.
+    pub const fn new() -> Self {
+        Self {
+            bytes: [const { AtomicU8::new(0) }; RING_LEN],
+            head: AtomicU32::new(0),
+            tail: AtomicU32::new(0),
+            overflows: AtomicU32::new(0),
+        }
+    }
+
+    /// Producer side (the receive interrupt). A full ring drops the byte and counts it: the
+    /// frame it belonged to then fails its CRC, which the session treats as a link fault.
+    pub fn push(&self, byte: u8) {
+        let head = self.head.load(Ordering::Relaxed);
+        let tail = self.tail.load(Ordering::Acquire);
+        if head.wrapping_sub(tail) as usize >= RING_LEN {
+            self.overflows.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        if let Some(slot) = self.bytes.get(head as usize % RING_LEN) {
+            slot.store(byte, Ordering::Relaxed);
+        }
+        self.head.store(head.wrapping_add(1), Ordering::Release);
+    }
+
+    /// Consumer side (thread mode).
+    pub fn pop(&self) -> Option<u8> {
+        let tail = self.tail.load(Ordering::Relaxed);
+        let head = self.head.load(Ordering::Acquire);
+        if head == tail {
+            return None;
+        }
+        let byte = self
+            .bytes
+            .get(tail as usize % RING_LEN)
+            .map_or(0, |slot| slot.load(Ordering::Relaxed));
+        self.tail.store(tail.wrapping_add(1), Ordering::Release);
+        Some(byte)
+    }
+
+    /// True when no byte is waiting.
+    pub fn is_empty(&self) -> bool {
+        self.head.load(Ordering::Acquire) == self.tail.load(Ordering::Relaxed)
+    }
+
+    /// Bytes dropped because the ring was full.
+    pub fn overflows(&self) -> u32 {
+        self.overflows.load(Ordering::Relaxed)
+    }
+}
