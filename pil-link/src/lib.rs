@@ -8,7 +8,7 @@
 //! payloads), [`tick`] and [`settings`] (controller-core's inputs, outputs and
 //! `DriveConfig` as raw bits), [`session`] (the firmware's state machine: sequence, watchdog, latched safe
 //! state) and, with the `std` feature, [`host`] (the harness's lock-step client with fault
-//! injection).
+//! injection) and [`qemu`] (starts the PIL image with UART0 on a Unix socket).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 
 pub mod crc;
@@ -17,6 +17,8 @@ pub mod frame;
 #[cfg(feature = "std")]
 pub mod host;
 pub mod message;
+#[cfg(feature = "std")]
+pub mod qemu;
 pub mod session;
 pub mod settings;
 pub mod tick;
