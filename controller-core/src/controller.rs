@@ -22,7 +22,7 @@ use crate::differentiator::{Differentiator, DifferentiatorState};
 use crate::error::ConfigError;
 use crate::fault::Fault;
 use crate::filter::{LowPass, LowPassState};
-use crate::observer::{Observer, ObserverEstimate, ObserverState};
+use crate::observer::{Observer, ObserverState};
 use crate::per_unit::{
     checked_q, count_diff, count_signed, mul_bits, mul_gain, sat_i32, Coef, Counts, CountsErr,
     Gain, PosGain, Pu, PuPerS, TickGain,
@@ -110,9 +110,16 @@ struct Coefficients {
     diff_current_rate: Differentiator,
     observer: Observer,
     afb: AccelerationFeedback,
-    afb_rate: AfbRate,
     afb_source: Estimator,
     velocity_source: Estimator,
+    /// AFB runs in the current tick (mode on and rate Current).
+    afb_in_current_tick: bool,
+    /// AFB runs in the velocity tick (mode on and rate Velocity).
+    afb_in_velocity_tick: bool,
+    /// The current-rate differentiator feeds the AFB.
+    diff_in_current_tick: bool,
+    /// The velocity-rate differentiator is used (velocity or acceleration source).
+    diff_in_velocity_tick: bool,
     torque_limit: Pu,
     overspeed: Pu,
     following_error: CountsErr,
@@ -132,7 +139,6 @@ struct State {
     diff_velocity_rate: DifferentiatorState,
     diff_current_rate: DifferentiatorState,
     observer: ObserverState,
-    estimate: ObserverEstimate,
     i_vel: Pu,
     afb: Pu,
     current_ref: Pu,
@@ -195,6 +201,7 @@ impl Coefficients {
                 k_acc: q(a, pa, "Q16.16")?,
             })
         };
+        let afb_on = cfg.accel_feedback.mode != AfbMode::Off;
         let [l1, l2, l3] = g.observer_l;
         let observer = Observer {
             l1: q::<Coef>(l1, "observer l1 (observer.bandwidth_hz)", "Q2.30")?,
@@ -276,9 +283,15 @@ impl Coefficients {
             )?,
             observer,
             afb,
-            afb_rate: cfg.accel_feedback.rate,
             afb_source: cfg.accel_feedback.source,
             velocity_source: cfg.velocity_estimator,
+            afb_in_current_tick: afb_on && cfg.accel_feedback.rate == AfbRate::Current,
+            afb_in_velocity_tick: afb_on && cfg.accel_feedback.rate == AfbRate::Velocity,
+            diff_in_current_tick: afb_on
+                && cfg.accel_feedback.rate == AfbRate::Current
+                && cfg.accel_feedback.source == Estimator::Differentiation,
+            diff_in_velocity_tick: cfg.velocity_estimator == Estimator::Differentiation
+                || cfg.accel_feedback.source == Estimator::Differentiation,
             torque_limit: lim,
             overspeed: q(cfg.faults.overspeed_pu, "faults.overspeed_pu", "Q16.16")?,
             following_error: q(
@@ -405,18 +418,17 @@ impl Controller {
         self.read_encoder(inp.encoder_count);
         let position = self.state.position;
         // The observer sees the torque command that acted over the last tick.
-        self.state.estimate =
-            self.coef
-                .observer
-                .update(&mut self.state.observer, position, self.state.current_ref);
-        let diff = self
-            .coef
-            .diff_current_rate
-            .update(&mut self.state.diff_current_rate, position);
-        if self.coef.afb.mode != AfbMode::Off && self.coef.afb_rate == AfbRate::Current {
-            let a_meas = match self.coef.afb_source {
-                Estimator::Differentiation => diff.1,
-                Estimator::Observer => self.state.estimate.acceleration_pu_s,
+        self.coef
+            .observer
+            .update(&mut self.state.observer, position, self.state.current_ref);
+        if self.coef.afb_in_current_tick {
+            let a_meas = if self.coef.diff_in_current_tick {
+                self.coef
+                    .diff_current_rate
+                    .update(&mut self.state.diff_current_rate, position)
+                    .1
+            } else {
+                self.coef.observer.acceleration_pu_s(&self.state.observer)
             };
             self.afb_step(a_meas);
         }
@@ -452,13 +464,18 @@ impl Controller {
         let sp = inp.setpoint;
         self.state.accel_cmd = sp.acceleration_pu_s;
 
-        let (v_diff, a_diff) = self
-            .coef
-            .diff_velocity_rate
-            .update(&mut self.state.diff_velocity_rate, position);
+        // Differentiate only when a loop uses it (its state is then updated every tick).
+        let (v_diff, a_diff) = if self.coef.diff_in_velocity_tick {
+            self.coef
+                .diff_velocity_rate
+                .update(&mut self.state.diff_velocity_rate, position)
+        } else {
+            (Pu::ZERO, Pu::ZERO)
+        };
+        let obs = &self.coef.observer;
         let v_raw = match self.coef.velocity_source {
             Estimator::Differentiation => v_diff,
-            Estimator::Observer => self.state.estimate.velocity_pu,
+            Estimator::Observer => obs.velocity_pu(&self.state.observer),
         };
         let v_fb = self
             .coef
@@ -466,8 +483,9 @@ impl Controller {
             .process(&mut self.state.velocity_filter, v_raw);
         let a_est = match self.coef.afb_source {
             Estimator::Differentiation => a_diff,
-            Estimator::Observer => self.state.estimate.acceleration_pu_s,
+            Estimator::Observer => obs.acceleration_pu_s(&self.state.observer),
         };
+        let disturbance = obs.load_torque_pu(&self.state.observer);
         if v_fb.unsigned_abs() > self.coef.overspeed.unsigned_abs() {
             self.trip(Fault::Overspeed);
         }
@@ -497,7 +515,7 @@ impl Controller {
                 self.coef
                     .velocity_regulator
                     .update(&mut self.state.velocity_regulator, e, ff);
-            if self.coef.afb.mode != AfbMode::Off && self.coef.afb_rate == AfbRate::Velocity {
+            if self.coef.afb_in_velocity_tick {
                 self.afb_step(a_est);
             }
         }
@@ -508,7 +526,7 @@ impl Controller {
             velocity_est_pu: v_fb,
             acceleration_est_pu_s: a_est,
             position_error_counts: pos_err,
-            disturbance_est_pu: self.state.estimate.load_torque_pu,
+            disturbance_est_pu: disturbance,
             fault: self.state.fault,
         }
     }

@@ -3,7 +3,7 @@
 //! position. States, in counts and ticks of the current loop (Ts):
 //!
 //! ```text
-//! p  position [counts]           Q96.32 (i128)
+//! p  position [counts]           Q32.32, modulo 2^32 counts (only p_meas − p matters)
 //! v  velocity [counts/tick]      Q32.32
 //! d  disturbance acceleration [counts/tick²] (the torque the model lacks, over J), Q32.32
 //! u  = T_cmd·k_u, k_u = Ts²·counts_per_pu_s / J_model   [counts/tick² per pu torque]
@@ -40,12 +40,15 @@ pub struct Observer {
 /// Observer state (plain data, reset = default).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ObserverState {
-    /// Position estimate [counts], Q96.32 bits.
-    pub p: i128,
+    /// Position estimate [counts], Q32.32 bits, wrapping modulo 2^32 counts: the observer
+    /// only uses the innovation p_meas − p, which wrapping arithmetic gives exactly.
+    pub p: i64,
     /// Velocity estimate [counts/tick], Q32.32 bits.
     pub v: i64,
     /// Disturbance acceleration estimate [counts/tick²], Q32.32 bits.
     pub d: i64,
+    /// Model plus disturbance acceleration over the last tick, u + d [counts/tick²], Q32.32.
+    pub acc: i64,
     /// Whether the position has been initialised from a measurement.
     pub primed: bool,
 }
@@ -69,7 +72,10 @@ fn q32_to_q20(x: i64) -> i32 {
 
 impl Observer {
     /// One observer step with the measured unwrapped position [counts] and the torque
-    /// command applied over the last tick [pu].
+    /// command applied over the last tick [pu]. Updates the state only; read the estimates
+    /// with [`Observer::velocity_pu`], [`Observer::acceleration_pu_s`],
+    /// [`Observer::load_torque_pu`] or [`Observer::estimate`] (each costs a multiply, so a
+    /// tick reads only what it uses).
     ///
     /// ```
     /// use controller_core::observer::{Observer, ObserverState};
@@ -78,57 +84,65 @@ impl Observer {
     ///     k_u: TickGain::from_num(0.01), k_vel: TickGain::from_num(0.0586), k_acc: Gain::from_num(234),
     ///     k_load: Gain::from_num(-1) };
     /// let mut s = ObserverState::default();
-    /// let est = o.update(&mut s, 0, Pu::ZERO);
-    /// assert_eq!(est.velocity_pu, Pu::ZERO);
+    /// o.update(&mut s, 0, Pu::ZERO);
+    /// assert_eq!(o.estimate(&s).velocity_pu, Pu::ZERO);
     /// ```
     #[inline]
-    pub fn update(
-        &self,
-        s: &mut ObserverState,
-        position_counts: i64,
-        torque_pu: Pu,
-    ) -> ObserverEstimate {
+    pub fn update(&self, s: &mut ObserverState, position_counts: i64, torque_pu: Pu) {
+        let p_meas = position_counts.wrapping_shl(32);
         if !s.primed {
-            s.p = i128::from(position_counts) << 32;
-            s.v = 0;
-            s.d = 0;
-            s.primed = true;
+            *s = ObserverState {
+                p: p_meas,
+                primed: true,
+                ..ObserverState::default()
+            };
         }
         // u [counts/tick², Q.32] = T (Q16.16) · k_u (Q8.24) = Q.40 → Q.32.
         let u = (i64::from(torque_pu.to_bits()) * i64::from(self.k_u.to_bits())) >> 8;
         let acc = u.saturating_add(s.d);
-        // Predict.
-        let p_pred =
-            s.p.saturating_add(i128::from(s.v))
-                .saturating_add(i128::from(acc >> 1));
+        // Predict (position wraps modulo 2^32 counts by design).
+        let p_pred = s.p.wrapping_add(s.v).wrapping_add(acc >> 1);
         let v_pred = s.v.saturating_add(acc);
-        // Innovation in counts, Q16.16 (saturating: a huge error means a fault elsewhere).
-        let e128 = (i128::from(position_counts) << 32).saturating_sub(p_pred);
-        let e = if e128 > i128::from(i64::MAX) {
-            i32::MAX
-        } else if e128 < i128::from(i64::MIN) {
-            i32::MIN
-        } else {
-            sat_i32((e128 as i64) >> 16)
-        };
+        // Innovation in counts, Q16.16, saturating (a huge error means a fault elsewhere).
+        let e = sat_i32(p_meas.wrapping_sub(p_pred) >> 16);
         // Corrections: e (Q16.16) · l (Q2.30) = Q.46 → Q.32.
         let corr = |l: Coef| (i64::from(e) * i64::from(l.to_bits())) >> 14;
-        s.p = p_pred.saturating_add(i128::from(corr(self.l1)));
+        s.p = p_pred.wrapping_add(corr(self.l1));
         s.v = v_pred.saturating_add(corr(self.l2));
         s.d = s.d.saturating_add(corr(self.l3));
-        // Outputs.
-        let v16 = sat_i32(s.v >> 16);
-        let velocity_pu = Pu::from_bits(mul_bits::<24>(v16, self.k_vel.to_bits()));
-        let a_now = u.saturating_add(s.d);
-        // Q12.20 · Q16.16 = Q.36 → Q16.16.
-        let acceleration_pu_s =
-            Pu::from_bits(mul_bits::<20>(q32_to_q20(a_now), self.k_acc.to_bits()));
+        s.acc = u.saturating_add(s.d);
+    }
+
+    /// Velocity estimate [pu].
+    #[inline]
+    #[must_use]
+    pub fn velocity_pu(&self, s: &ObserverState) -> Pu {
+        Pu::from_bits(mul_bits::<24>(sat_i32(s.v >> 16), self.k_vel.to_bits()))
+    }
+
+    /// Acceleration estimate (model acceleration from the last torque plus the disturbance)
+    /// [pu/s]. Q12.20 counts/tick² · Q16.16 = Q.36 → Q16.16.
+    #[inline]
+    #[must_use]
+    pub fn acceleration_pu_s(&self, s: &ObserverState) -> PuPerS {
+        Pu::from_bits(mul_bits::<20>(q32_to_q20(s.acc), self.k_acc.to_bits()))
+    }
+
+    /// Estimated load torque T_L = −J_model·d [pu] (positive brakes positive motion).
+    #[inline]
+    #[must_use]
+    pub fn load_torque_pu(&self, s: &ObserverState) -> Pu {
         let d_pu_s = Pu::from_bits(mul_bits::<20>(q32_to_q20(s.d), self.k_acc.to_bits()));
-        let load_torque_pu = mul_gain(d_pu_s, self.k_load);
+        mul_gain(d_pu_s, self.k_load)
+    }
+
+    /// All three estimates.
+    #[must_use]
+    pub fn estimate(&self, s: &ObserverState) -> ObserverEstimate {
         ObserverEstimate {
-            velocity_pu,
-            acceleration_pu_s,
-            load_torque_pu,
+            velocity_pu: self.velocity_pu(s),
+            acceleration_pu_s: self.acceleration_pu_s(s),
+            load_torque_pu: self.load_torque_pu(s),
         }
     }
 }

@@ -298,7 +298,8 @@ fn observer_matches_f64_reference_and_tracks_a_rigid_body() {
         let tq = torque.to_num::<f64>();
         // Plant over one tick with the torque of the previous tick.
         let counts = (theta_pu_s * cpps).floor() as i64;
-        let est = o.update(&mut s, counts, torque_prev(k, tq));
+        o.update(&mut s, counts, torque_prev(k, tq));
+        let est = o.estimate(&s);
         // f64 reference observer.
         if k == 0 {
             p = counts as f64;

@@ -108,7 +108,8 @@ proptest! {
             for (f, s) in filters.iter().zip(fs.iter_mut()) {
                 let _ = f.process(s, Pu::from_bits(x));
             }
-            let _ = obs.update(&mut os, p, Pu::from_bits(t));
+            obs.update(&mut os, p, Pu::from_bits(t));
+            let _ = obs.estimate(&os);
             let _ = diff.update(&mut ds, p);
             let u = pi.update(&mut ps, Pu::from_bits(x), Pu::from_bits(t));
             prop_assert!(u.abs() <= Pu::MAX);
