@@ -33,13 +33,17 @@ pub struct MetricWindows {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Metrics {
     /// Stable by the criterion of [`MetricWindows`]: no fault, all signals finite, speed
-    /// error bounded by 0.5 pu, its standard deviation below the threshold and the torque
-    /// not stuck at its limit in the stability window.
+    /// error bounded by 0.5 pu, its oscillation (`oscillation_pu`) below the threshold and
+    /// the torque not stuck at its limit in the stability window.
     pub stable: bool,
     /// The controller reported a fault at some point of the run.
     pub faulted: bool,
-    /// Standard deviation of motor speed error in the stability window (pu).
+    /// RMS of the motor speed error minus its centred moving average (the ripple
+    /// high-pass), in the stability window (pu): the limit-cycle amplitude.
     pub oscillation_pu: f64,
+    /// RMS of the motor torque (measured current) minus its centred moving average in the
+    /// stability window (pu): torque chatter / limit cycle that the speed may not show.
+    pub limit_cycle_torque_pu: f64,
     /// RMS of the motor torque (the measured current, k_t = 1) minus its centred moving
     /// average, in the ripple window (pu).
     pub torque_ripple_rms_pu: f64,
@@ -83,12 +87,6 @@ fn rms(values: &[f64]) -> f64 {
         return 0.0;
     }
     (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt()
-}
-
-fn std_dev(values: &[f64]) -> f64 {
-    let m = mean(values);
-    let centred: Vec<f64> = values.iter().map(|v| v - m).collect();
-    rms(&centred)
 }
 
 /// `x − centred moving average of x` over `half` samples each side (clipped at the ends):
@@ -162,7 +160,16 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
         .filter(|r| in_window(r, w.stable_window_s))
         .collect();
     let stable_err: Vec<f64> = stable_rows.iter().map(|r| speed_err(r)).collect();
-    let oscillation_pu = std_dev(&stable_err);
+    // Oscillation: the speed error with its slow part (centred moving average over
+    // `ripple_average_s`) removed, so a slow recovery from a step is not counted as a
+    // limit cycle; growth beyond bounds is caught by `bounded`.
+    let (oscillation_pu, _) = ripple(trace, speed_err, w.stable_window_s, w.ripple_average_s);
+    let (limit_cycle_torque_pu, _) = ripple(
+        trace,
+        |r| r.current_pu,
+        w.stable_window_s,
+        w.ripple_average_s,
+    );
     let bounded = stable_err.iter().all(|e| e.abs() < 0.5);
     let sat_threshold = w.torque_limit_pu * 0.999;
     let saturated_in_window = stable_rows
@@ -269,6 +276,7 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
         stable,
         faulted,
         oscillation_pu,
+        limit_cycle_torque_pu,
         torque_ripple_rms_pu,
         shaft_torque_ripple_rms_pu,
         shaft_ripple_freq_hz,

@@ -6,9 +6,10 @@
 //! with `sine_load.freq_rad_s = ω`; after the transient has died out (5 s) the load speed
 //! and the load torque are correlated with sin/cos over a whole number of periods, and
 //! |τ_L/θ| = ω·|T̂_L|/|Ω̂_l| (θ in pu·s, the integral of pu speed). Analytic: Eq. 1,
-//! |J·s² + Kp·s + Ki| at s = jω with J = J_total, Kp = ω_bw·J, Ki = Kp·ω_bw/(4ζ²); with
-//! acceleration feedback the inertia term becomes J + Ka·F(jω), F the feedback filter
-//! (delays ignored: this is the idealised curve the measurement is compared with).
+//! |J·s² + Kp·s + Ki| at s = jω with J = J_total and the drive's designed Kp, Ki
+//! (controller-core: Kp = ω_bw·J_loop, Ki = Kp·ω_bw/(4ζ²), J_loop = J_total + Ka with AFB
+//! on); with acceleration feedback the inertia term becomes J + Ka·F(jω), F the feedback
+//! filter (delays ignored: this is the idealised curve the measurement is compared with).
 
 use crate::config::{resolve, RunConfig};
 use crate::error::Result;
@@ -79,10 +80,11 @@ fn filter_response(f: FilterConfig, w: f64) -> (f64, f64) {
 pub fn analytic(cfg: &RunConfig, w: f64) -> f64 {
     let d = &cfg.drive;
     let j = f64::from(d.total_inertia_s());
-    let bw = f64::from(d.velocity_bandwidth_rad_s);
-    let zeta = f64::from(d.velocity_damping);
-    let kp = bw * j;
-    let ki = kp * bw / (4.0 * zeta * zeta);
+    // The drive's own gains: with AFB on, controller-core designs the PI for J_total + Ka.
+    let (kp, ki) = match controller_core::design(d) {
+        Ok(g) => (f64::from(g.kp_vel), f64::from(g.ki_vel)),
+        Err(_) => return f64::NAN,
+    };
     let j_eff = if d.accel_feedback.mode == AfbMode::Off {
         (j, 0.0)
     } else {

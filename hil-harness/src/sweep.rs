@@ -15,6 +15,10 @@ use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
 
+/// Torque chatter (pu RMS, above ~5 Hz, unloaded at speed) below which a stable point
+/// also counts as quiet: a drive engineer would hear and reject more than 0.1 pu.
+pub const QUIET_TORQUE_PU: f64 = 0.1;
+
 /// Plants swept.
 pub const PLANTS: [&str; 2] = ["table1", "printing-press"];
 
@@ -124,9 +128,19 @@ pub struct SweepPoint {
     pub plant: String,
     /// Design label.
     pub design: String,
-    /// The design.
-    #[serde(flatten)]
+    /// The design (its fields are written out below for the CSV).
+    #[serde(skip)]
     pub afb: AfbDesign,
+    /// AFB mode.
+    pub mode: &'static str,
+    /// Ka / J_total.
+    pub gain_fraction: f64,
+    /// Filter kind.
+    pub filter: &'static str,
+    /// Filter corner (Hz).
+    pub filter_corner_hz: f64,
+    /// Acceleration source.
+    pub source: &'static str,
     /// Velocity bandwidth (rad/s).
     pub bandwidth_rad_s: f64,
     /// The run's `stable` metric.
@@ -135,6 +149,10 @@ pub struct SweepPoint {
     pub oscillation_pu: f64,
     /// Torque ripple RMS in the loaded window (pu).
     pub torque_ripple_rms_pu: f64,
+    /// Motor-torque chatter in the stability window (pu).
+    pub limit_cycle_torque_pu: f64,
+    /// Stable and the torque chatter below [`QUIET_TORQUE_PU`].
+    pub quiet: bool,
     /// The controller faulted.
     pub faulted: bool,
     /// Error text if the configuration was rejected (e.g. a gain does not fit).
@@ -152,20 +170,31 @@ pub struct SweepResult {
     pub with_afb_rad_s: f64,
     /// The design that achieved it.
     pub best_design: String,
+    /// Largest quiet bandwidth without AFB (rad/s).
+    pub quiet_without_afb_rad_s: f64,
+    /// Largest quiet bandwidth over all AFB designs (rad/s).
+    pub quiet_with_afb_rad_s: f64,
+    /// The design that achieved it.
+    pub best_quiet_design: String,
 }
 
-/// Largest bandwidth with every grid point up to it stable.
-pub fn largest_stable(points: &[&SweepPoint]) -> f64 {
+/// Largest bandwidth with every grid point up to it passing `ok`.
+pub fn largest(points: &[&SweepPoint], ok: fn(&SweepPoint) -> bool) -> f64 {
     let mut sorted: Vec<&&SweepPoint> = points.iter().collect();
     sorted.sort_by(|a, b| a.bandwidth_rad_s.total_cmp(&b.bandwidth_rad_s));
     let mut best = 0.0;
     for p in sorted {
-        if !p.stable {
+        if !ok(p) {
             break;
         }
         best = p.bandwidth_rad_s;
     }
     best
+}
+
+/// Largest bandwidth with every grid point up to it stable.
+pub fn largest_stable(points: &[&SweepPoint]) -> f64 {
+    largest(points, |p| p.stable)
 }
 
 fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> SweepPoint {
@@ -177,10 +206,17 @@ fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> 
         plant: plant.into(),
         design: design.label(),
         afb: design.clone(),
+        mode: design.mode,
+        gain_fraction: design.gain_fraction,
+        filter: design.filter,
+        filter_corner_hz: design.filter_corner_hz,
+        source: design.source,
         bandwidth_rad_s: bw,
         stable: false,
         oscillation_pu: f64::NAN,
         torque_ripple_rms_pu: f64::NAN,
+        limit_cycle_torque_pu: f64::NAN,
+        quiet: false,
         faulted: false,
         error: String::new(),
     };
@@ -189,6 +225,8 @@ fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> 
             point.stable = out.metrics.stable;
             point.oscillation_pu = out.metrics.oscillation_pu;
             point.torque_ripple_rms_pu = out.metrics.torque_ripple_rms_pu;
+            point.limit_cycle_torque_pu = out.metrics.limit_cycle_torque_pu;
+            point.quiet = out.metrics.stable && out.metrics.limit_cycle_torque_pu < QUIET_TORQUE_PU;
             point.faulted = out.metrics.faulted;
         }
         Err(e) => point.error = e.to_string(),
@@ -236,11 +274,17 @@ pub fn results(points: &[SweepPoint], plants: &[&str], designs: &[AfbDesign]) ->
                     .collect()
             };
             let without = largest_stable(&of(&AfbDesign::OFF));
+            let quiet_without = largest(&of(&AfbDesign::OFF), |p| p.quiet);
             let mut best = (0.0, String::from("none"));
+            let mut best_quiet = (0.0, String::from("none"));
             for d in designs.iter().filter(|d| d.mode != "off") {
                 let bw = largest_stable(&of(d));
                 if bw > best.0 {
                     best = (bw, d.label());
+                }
+                let q = largest(&of(d), |p| p.quiet);
+                if q > best_quiet.0 {
+                    best_quiet = (q, d.label());
                 }
             }
             SweepResult {
@@ -248,6 +292,9 @@ pub fn results(points: &[SweepPoint], plants: &[&str], designs: &[AfbDesign]) ->
                 without_afb_rad_s: without,
                 with_afb_rad_s: best.0,
                 best_design: best.1,
+                quiet_without_afb_rad_s: quiet_without,
+                quiet_with_afb_rad_s: best_quiet.0,
+                best_quiet_design: best_quiet.1,
             }
         })
         .collect()
@@ -336,8 +383,15 @@ pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepResult>, String)> {
     for r in &results {
         let _ = writeln!(
             text,
-            "{}: largest stable velocity bandwidth {} rad/s without AFB, {} rad/s with ({})",
-            r.plant, r.without_afb_rad_s, r.with_afb_rad_s, r.best_design
+            "{}: largest stable velocity bandwidth {} rad/s without AFB, {} rad/s with ({}); \
+             largest quiet (torque chatter < {QUIET_TORQUE_PU} pu) {} rad/s without, {} rad/s with ({})",
+            r.plant,
+            r.without_afb_rad_s,
+            r.with_afb_rad_s,
+            r.best_design,
+            r.quiet_without_afb_rad_s,
+            r.quiet_with_afb_rad_s,
+            r.best_quiet_design
         );
     }
     let errors = points.iter().filter(|p| !p.error.is_empty()).count();

@@ -1,0 +1,218 @@
+//! The command line end to end: good runs write their files, bad input gives a clear
+//! message, a non-zero exit and nothing half-written.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    clippy::panic
+)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn stiffdrive(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stiffdrive"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn empty_or_missing(dir: &Path) -> bool {
+    !dir.exists() || std::fs::read_dir(dir).unwrap().next().is_none()
+}
+
+#[test]
+fn run_writes_trace_summary_and_plots() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("fig6");
+    let o = stiffdrive(&[
+        "run",
+        "--scenario",
+        "fig6",
+        "--set",
+        "scenario.duration_s=0.5",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    let header = csv.lines().next().unwrap();
+    for col in [
+        "t_s",
+        "pos_cmd_counts",
+        "motor_pos_counts",
+        "load_pos_counts",
+        "vel_cmd_pu",
+        "motor_vel_pu",
+        "load_vel_pu",
+        "torque_cmd_pu",
+        "current_pu",
+        "accel_fb_pu",
+        "load_torque_pu",
+    ] {
+        assert!(header.split(',').any(|c| c == col), "missing column {col}");
+    }
+    // 0.5 s at 2 kHz.
+    assert_eq!(csv.lines().count(), 1 + 1000);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    for key in [
+        "stable",
+        "torque_ripple_rms_pu",
+        "load_step_droop_pu",
+        "overshoot_pu",
+        "settling_s",
+        "torque_saturated_s",
+        "sim_time_s",
+        "wall_time_s",
+        "ticks",
+    ] {
+        assert!(summary.get(key).is_some(), "summary lacks {key}");
+    }
+    assert_eq!(summary["ticks"], 2000);
+    for f in ["trace.png", "trace.svg"] {
+        assert!(std::fs::metadata(out.join(f)).unwrap().len() > 1000, "{f}");
+    }
+}
+
+#[test]
+fn unknown_scenario_is_a_clear_error_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let o = stiffdrive(&["run", "--scenario", "fig99", "--out", out.to_str().unwrap()]);
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(
+        e.contains("unknown scenario `fig99`") && e.contains("fig6"),
+        "{e}"
+    );
+    assert!(empty_or_missing(&out));
+}
+
+#[test]
+fn bad_set_key_or_value_names_the_key_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    let cases = [
+        (
+            "drive.velocity_bandwith_rad_s=50",
+            "drive.velocity_bandwith_rad_s",
+        ),
+        (
+            "drive.velocity_bandwidth_rad_s=-3",
+            "drive.velocity_bandwidth_rad_s",
+        ),
+        (
+            "drive.accel_feedback.mode=sideways",
+            "drive.accel_feedback.mode",
+        ),
+        ("plant.backlash_deg=90", "plant.backlash_deg"),
+        ("plant.nosuch=1", "plant.nosuch"),
+        ("motor.x=1", "motor.x"),
+        ("drive.velocity_damping", "drive.velocity_damping"),
+    ];
+    for (set, key) in cases {
+        let o = stiffdrive(&[
+            "run",
+            "--scenario",
+            "fig6",
+            "--set",
+            set,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{set} accepted");
+        let e = stderr(&o);
+        assert!(e.contains(key), "{set}: message does not name {key}: {e}");
+        assert!(empty_or_missing(&out), "{set} wrote output");
+    }
+}
+
+#[test]
+fn unwritable_out_is_a_clear_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let out = file.join("sub");
+    let o = stiffdrive(&[
+        "run",
+        "--scenario",
+        "fig6",
+        "--set",
+        "scenario.duration_s=0.1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("a-file/sub"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "x");
+}
+
+#[test]
+fn replay_runs_the_plant_on_a_generated_torque_csv() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = tmp.path().join("torque.csv");
+    let mut text = String::from(plant_host::REPLAY_INPUT_HEADER);
+    text.push('\n');
+    let columns = plant_host::REPLAY_INPUT_HEADER.split(',').count();
+    for k in 0..50 {
+        let t = k as f64 * 1e-3;
+        let mut row = vec![format!("{t}")];
+        // Motor torque 1 pu, other inputs zero.
+        row.push("1.0".into());
+        while row.len() < columns {
+            row.push("0.0".into());
+        }
+        text.push_str(&row.join(","));
+        text.push('\n');
+    }
+    std::fs::write(&input, text).unwrap();
+    let out = tmp.path().join("state.csv");
+    let o = stiffdrive(&[
+        "replay",
+        "--config",
+        "table1",
+        "--torque",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let result = std::fs::read_to_string(&out).unwrap();
+    let mut lines = result.lines();
+    assert_eq!(lines.next().unwrap(), plant_host::REPLAY_OUTPUT_HEADER);
+    assert_eq!(lines.count(), 50);
+
+    // A bad config names the key and writes nothing.
+    let bad = tmp.path().join("bad.toml");
+    let good =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/table1.toml"))
+            .unwrap();
+    std::fs::write(
+        &bad,
+        good.replace("motor_inertia_s = 0.117", "motor_inertia_s = -1.0"),
+    )
+    .unwrap();
+    let out2 = tmp.path().join("state2.csv");
+    let o = stiffdrive(&[
+        "replay",
+        "--config",
+        bad.to_str().unwrap(),
+        "--torque",
+        input.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("plant.motor_inertia_s"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out2.exists());
+}
