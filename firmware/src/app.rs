@@ -78,6 +78,7 @@ pub use crate::lil::words::fault_code;
 
 /// Gather the velocity tick's inputs: encoder and fault input from the board, the next
 /// setpoint from the profile. Runs before the controller is taken.
+#[inline]
 pub fn velocity_inputs<I: VelocityLoopIo, S: SetpointSource>(
     io: &mut I,
     profile: &mut S,
@@ -101,8 +102,6 @@ pub struct App {
     sensor_fault: bool,
     /// Last velocity-tick setpoint, for the trace.
     last_setpoint: Setpoint,
-    /// Last current-tick outputs (for the trace and status).
-    last_current: CurrentOutputs,
 }
 
 impl App {
@@ -124,7 +123,6 @@ impl App {
             enable_request: false,
             sensor_fault: false,
             last_setpoint: Setpoint::default(),
-            last_current: CurrentOutputs::default(),
         })
     }
 
@@ -170,6 +168,7 @@ impl App {
 
     /// The body of the current-loop interrupt: sample, run the core's current tick, drive
     /// the PWM and the enable output, record the trend buffer.
+    #[inline]
     pub fn on_current_tick<I: CurrentLoopIo>(&mut self, io: &mut I) -> CurrentOutputs {
         let encoder_count = io.encoder_count();
         let current_pu = match io.current_pu() {
@@ -196,6 +195,7 @@ impl App {
 
     /// The controller part of the velocity-loop interrupt: run the core's velocity tick on
     /// inputs gathered by [`velocity_inputs`]. A latched sensor fault forces the fault input.
+    #[inline]
     pub fn on_velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
         self.step_velocity(VelocityInputs {
             fault_input: inputs.fault_input || self.sensor_fault,
@@ -206,6 +206,7 @@ impl App {
     /// One current tick from sensor values, without a board: the code the current-loop
     /// interrupt runs between its board reads and writes (used by `on_current_tick`, the
     /// loop-in-the-loop replay and the PIL image). Returns the commands.
+    #[inline]
     pub fn step_current(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
         let out = self.controller.current_tick(inputs);
         if out.fault.is_some() {
@@ -223,21 +224,15 @@ impl App {
             position_setpoint_counts: saturate_counts(*setpoint),
             fault_code: i32::from(fault_code(out.fault)),
         });
-        self.last_current = out;
         self.tick = self.tick.wrapping_add(1);
         out
     }
 
     /// One velocity tick from its inputs, without a board (see [`App::step_current`]).
+    #[inline]
     pub fn step_velocity(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
         self.last_setpoint = inputs.setpoint;
         self.controller.velocity_tick(inputs)
-    }
-
-    /// The last current-tick outputs.
-    #[must_use]
-    pub const fn last_current(&self) -> &CurrentOutputs {
-        &self.last_current
     }
 }
 

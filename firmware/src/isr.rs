@@ -131,6 +131,7 @@ where
     }
 
     /// Body of the current-loop interrupt (4 kHz).
+    #[inline]
     pub fn current_isr(&self) -> Option<CurrentOutputs> {
         critical_section::with(|cs| {
             self.app
@@ -141,6 +142,7 @@ where
     }
 
     /// Body of the velocity-loop interrupt (2 kHz).
+    #[inline]
     pub fn velocity_isr(&self) -> Option<VelocityOutputs> {
         // Preemptible part: board reads and the profile.
         let Some(inputs) = self

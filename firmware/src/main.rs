@@ -88,6 +88,12 @@ mod target {
                 exit(false)
             }
         };
+        let mem = firmware::rt::memory_use();
+        defmt::info!(
+            "image: {=u32} bytes of flash, {=u32} bytes of static RAM",
+            mem.flash_bytes,
+            mem.static_ram_bytes
+        );
         LOOPS.install(app, b.current_io, b.velocity_io, profile);
         LOOPS.with_app(|app| app.set_enable_request(true));
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
@@ -156,19 +162,17 @@ mod target {
     /// QEMU: check the run and exit with its status.
     #[cfg(not(feature = "board-stm32f4"))]
     fn finish(dumps: u32) -> ! {
-        let status = LOOPS.with_app(|app| (app.ticks(), app.fault(), *app.last_current()));
-        let Some((ticks, fault, last)) = status else {
+        let status = LOOPS.with_app(|app| (app.ticks(), app.fault()));
+        let Some((ticks, fault)) = status else {
             exit(false)
         };
         let overruns = LOOPS.overruns();
         defmt::info!(
-            "run done: {=u32} current ticks, {=u32} velocity overruns, {=u32} dumps, fault {}, \
-             last current ref {=i32} (Q16.16)",
+            "run done: {=u32} current ticks, {=u32} velocity overruns, {=u32} dumps, fault {}",
             ticks,
             overruns,
             dumps,
-            defmt::Debug2Format(&fault),
-            last.current_ref_pu.to_bits()
+            defmt::Debug2Format(&fault)
         );
         exit(fault.is_none() && overruns == 0 && dumps == 1 && ticks >= RUN_TICKS)
     }
