@@ -30,6 +30,8 @@ pub struct DrivePlant {
     config: PlantConfig,
     derived: MechanicsDerived,
     time_s: f64,
+    /// The voltage the PWM is producing now (for [`DrivePlant::advance_period`]), pu.
+    applied_voltage_pu: f64,
 }
 
 impl DrivePlant {
@@ -46,7 +48,42 @@ impl DrivePlant {
             config: *config,
             derived: config.mechanics.derived(),
             time_s: 0.0,
+            applied_voltage_pu: 0.0,
         }
+    }
+
+    /// One sampling period with the computational delay, for callers that do not schedule
+    /// events themselves: the voltage applied so far holds for `computational_delay_s`
+    /// (clamped to the period), then `new_voltage_pu` (computed from samples taken at the
+    /// start of the period) holds for the rest and stays applied.
+    ///
+    /// ```
+    /// use plant_host::{DrivePlant, PlantConfig};
+    /// let cfg = PlantConfig::table1();
+    /// let (mut a, mut b) = (DrivePlant::new(&cfg), DrivePlant::new(&cfg));
+    /// a.advance_period(250e-6, 0.3, 0.0).unwrap();
+    /// b.advance(180e-6, 0.0, 0.0);
+    /// b.advance(70e-6, 0.3, 0.0);
+    /// assert_eq!(a.current_pu(), b.current_pu());
+    /// assert_eq!(a.applied_voltage_pu(), 0.3);
+    /// ```
+    pub fn advance_period(
+        &mut self,
+        period_s: f64,
+        new_voltage_pu: f64,
+        load_torque_pu: f64,
+    ) -> Result<(), PlantError> {
+        check_step(period_s, &[new_voltage_pu, load_torque_pu])?;
+        let delay_s = self.config.electrics.computational_delay_s.min(period_s);
+        self.try_advance(delay_s, self.applied_voltage_pu, load_torque_pu)?;
+        self.try_advance(period_s - delay_s, new_voltage_pu, load_torque_pu)?;
+        self.applied_voltage_pu = new_voltage_pu;
+        Ok(())
+    }
+
+    /// The voltage [`Self::advance_period`] is currently applying, pu.
+    pub fn applied_voltage_pu(&self) -> f64 {
+        self.applied_voltage_pu
     }
 
     /// Advances `dt_s` seconds with the winding voltage and load torque held (pu). Invalid

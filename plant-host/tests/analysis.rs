@@ -191,3 +191,24 @@ fn table1_15hz_without_acceleration_feedback_is_linearly_stable() {
     assert!(lp.is_stable());
     assert!(m.phase_margin_deg > 20.0, "{m:?}");
 }
+
+#[test]
+fn acceleration_feedback_raises_high_frequency_stiffness_of_a_stable_design() {
+    // 15 Hz bandwidth at 4 kHz; Ka = J_total with a 20 Hz filter is linearly stable there.
+    let without = table1_loop(2.0 * PI * 15.0, 0.0, 20.0, 250e-6);
+    let with = table1_loop(2.0 * PI * 15.0, 0.98, 20.0, 250e-6);
+    assert!(without.is_stable() && with.is_stable());
+    let stiff = |lp: &VelocityLoop, w: f64| lp.point(w).unwrap().motor_stiffness.norm();
+    // Low frequency: the integral gain sets the stiffness either way (Eq. 1: → Ki).
+    let (a, b) = (stiff(&without, 0.1), stiff(&with, 0.1));
+    assert!((a / b - 1.0).abs() < 0.01, "{a} vs {b}");
+    assert!((a / without.ki - 1.0).abs() < 0.01);
+    // Above the bandwidth the motor behaves like Jm + Jl + Ka below the filter corner.
+    for w in [60.0, 100.0] {
+        let (a, b) = (stiff(&without, w), stiff(&with, w));
+        println!(
+            "ω = {w} rad/s: motor stiffness {a:.3e} without, {b:.3e} with acceleration feedback"
+        );
+        assert!(b > 1.2 * a, "ω = {w}: {b} vs {a}");
+    }
+}
