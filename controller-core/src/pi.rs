@@ -60,7 +60,8 @@ impl PiCoefficients {
         let i_next = if pushing_out {
             i_now
         } else {
-            i_now.saturating_add(inc).max(-lim64).min(lim64)
+            // |I| ≤ 2^47 and |inc| ≤ 2^54: the plain sum cannot overflow.
+            (i_now + inc).max(-lim64).min(lim64)
         };
         state.integral = I32F32::from_bits(i_next);
         let u = i64::from(p) + i64::from(ff.to_bits()) + (i_next >> 16);

@@ -7,7 +7,9 @@
 //! ```text
 //! p ← p + v + a/2 + j/6,   v ← v + a + j/2,   a ← a + j        (exact for constant jerk)
 //! ```
-//! p is Q64.64 counts, v Q32.32 counts/tick, a Q32.32 counts/tick², j Q32.32 counts/tick³.
+//! p is whole counts (i64) plus a Q0.32 fraction (the fraction's carry moves into the whole
+//! counts every tick, so the per-tick work stays in 64 bits), v Q32.32 counts/tick,
+//! a Q32.32 counts/tick², j Q32.32 counts/tick³.
 //! Each segment restarts from exact start values computed once (f64), so rounding never
 //! accumulates across segments.
 
@@ -67,12 +69,23 @@ const MAX_SEGMENTS: usize = 9;
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Segment {
     ticks: u32,
-    p0: i128,
+    /// Start position, whole counts.
+    p0_int: i64,
+    /// Start position, fraction of a count (Q0.32, 0 ≤ f < 2^32).
+    p0_frac: i64,
     v0: i64,
     a0: i64,
     jerk: i64,
-    /// j/6 in Q64.64 (precomputed: no division on the tick path).
-    jerk_over_6: i128,
+    /// j/6 in Q32.32 (precomputed: no division on the tick path).
+    jerk_over_6: i64,
+}
+
+/// Split an f64 position [counts] into whole counts and a Q0.32 fraction.
+fn split_counts(p: f64) -> (i64, i64) {
+    let whole = p as i64;
+    let whole = if (whole as f64) > p { whole - 1 } else { whole };
+    let frac = ((p - whole as f64) * Q32) as i64;
+    (whole, frac.clamp(0, (1 << 32) - 1))
 }
 
 /// A running profile: call [`Profile::next`] once per velocity tick.
@@ -84,7 +97,8 @@ pub struct Profile {
     k_acc: Gain,
     index: usize,
     tick_in_segment: u32,
-    p: i128,
+    p_int: i64,
+    p_frac: i64,
     v: i64,
     a: i64,
 }
@@ -203,13 +217,15 @@ impl Profile {
             }
             *a = a_start;
             if let Some(s) = segs.get_mut(count) {
+                let (p0_int, p0_frac) = split_counts(*p);
                 *s = Segment {
                     ticks: n,
-                    p0: (*p * Q32 * Q32) as i128,
+                    p0_int,
+                    p0_frac,
                     v0: to_q32(*v),
                     a0: to_q32(*a),
                     jerk: to_q32(j),
-                    jerk_over_6: (j / 6.0 * Q32 * Q32) as i128,
+                    jerk_over_6: to_q32(j / 6.0),
                 };
                 count += 1;
             }
@@ -270,7 +286,8 @@ impl Profile {
             k_acc,
             index: 0,
             tick_in_segment: 0,
-            p: first.p0,
+            p_int: first.p0_int,
+            p_frac: first.p0_frac,
             v: first.v0,
             a: first.a0,
         })
@@ -279,11 +296,17 @@ impl Profile {
     /// Shift the whole profile by a start position [counts].
     #[must_use]
     pub fn with_start_position(mut self, start: Counts) -> Self {
-        let offset = i128::from(start.to_bits()) << 48;
+        // start = whole + frac/2^16 counts; the fraction in Q0.32 is frac << 16.
+        let bits = start.to_bits();
+        let add = |int: &mut i64, frac: &mut i64| {
+            let f = *frac + ((bits & 0xFFFF) << 16);
+            *int = int.saturating_add(bits >> 16).saturating_add(f >> 32);
+            *frac = f & 0xFFFF_FFFF;
+        };
         for s in &mut self.segments {
-            s.p0 = s.p0.saturating_add(offset);
+            add(&mut s.p0_int, &mut s.p0_frac);
         }
-        self.p = self.p.saturating_add(offset);
+        add(&mut self.p_int, &mut self.p_frac);
         self
     }
 
@@ -297,41 +320,38 @@ impl Profile {
     /// Fixed point only, no division.
     #[allow(clippy::should_implement_trait)] // never ends, so not an `Iterator`
     pub fn next(&mut self) -> Setpoint {
+        // Position Q48.16: whole counts << 16 plus the top 16 bits of the fraction
+        // (wraps only beyond 2^47 counts, 2.7e5 years at 10^6 CPR and 1000 rpm).
         let sp = Setpoint {
-            position_counts: Counts::from_bits(sat_i64(self.p >> 48)),
+            position_counts: Counts::from_bits(self.p_int.wrapping_shl(16) | (self.p_frac >> 16)),
             velocity_pu: Pu::from_bits(mul_bits::<24>(sat_i32(self.v >> 16), self.k_vel.to_bits())),
             acceleration_pu_s: Pu::from_bits(mul_bits::<20>(
                 sat_i32(self.a >> 12),
                 self.k_acc.to_bits(),
             )),
         };
-        let seg = self.segments.get(self.index).copied().unwrap_or_default();
-        let j = seg.jerk;
-        // p += v + a/2 + j/6 ; v += a + j/2 ; a += j   (Q64.64 / Q32.32)
-        let dp = (i128::from(self.v) << 32) + (i128::from(self.a) << 31) + seg.jerk_over_6;
-        self.p = self.p.saturating_add(dp);
+        let (j, j6, ticks) = match self.segments.get(self.index) {
+            Some(seg) => (seg.jerk, seg.jerk_over_6, seg.ticks),
+            None => (0, 0, u32::MAX),
+        };
+        // p += v + a/2 + j/6 ; v += a + j/2 ; a += j   (Q32.32, fraction carried into p_int)
+        let dp = self.v.saturating_add(self.a >> 1).saturating_add(j6);
+        let f = self.p_frac.saturating_add(dp);
+        self.p_int = self.p_int.wrapping_add(f >> 32);
+        self.p_frac = f & 0xFFFF_FFFF;
         self.v = self.v.saturating_add(self.a).saturating_add(j >> 1);
         self.a = self.a.saturating_add(j);
         self.tick_in_segment = self.tick_in_segment.saturating_add(1);
-        if self.tick_in_segment >= seg.ticks && self.index + 1 < self.count {
+        if self.tick_in_segment >= ticks && self.index + 1 < self.count {
             self.index += 1;
             self.tick_in_segment = 0;
             if let Some(s) = self.segments.get(self.index) {
-                self.p = s.p0;
+                self.p_int = s.p0_int;
+                self.p_frac = s.p0_frac;
                 self.v = s.v0;
                 self.a = s.a0;
             }
         }
         sp
-    }
-}
-
-fn sat_i64(x: i128) -> i64 {
-    if x > i128::from(i64::MAX) {
-        i64::MAX
-    } else if x < i128::from(i64::MIN) {
-        i64::MIN
-    } else {
-        x as i64
     }
 }

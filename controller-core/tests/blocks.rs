@@ -423,3 +423,35 @@ fn profiles_match_f64_reference() {
         assert!(prof.is_done());
     }
 }
+
+/// A reverse move from a fractional start position lands where the f64 kinematics say:
+/// start − v·(t_a/2 + t_h + t_d/2)·counts_per_pu_s, within 0.01 counts, and then holds.
+#[test]
+fn reverse_profile_from_a_start_position() {
+    let drive = DriveConfig::table1();
+    let cpps = 4096.0 * 1000.0 / 60.0;
+    let cfg = ProfileConfig {
+        kind: ProfileKind::SCurve { jerk_time_s: 0.05 },
+        peak_velocity_pu: -0.5,
+        accel_time_s: 0.2,
+        hold_time_s: 0.25,
+        decel_time_s: 0.3,
+        start_delay_s: 0.0,
+    };
+    let start = controller_core::Counts::from_num(-1234.5);
+    let mut prof = Profile::new(&cfg, &drive)
+        .unwrap()
+        .with_start_position(start);
+    assert_eq!(prof.next().position_counts, start);
+    let mut last = start;
+    for _ in 0..2000 {
+        last = prof.next().position_counts;
+    }
+    let want = -1234.5 - 0.5 * (0.1 + 0.25 + 0.15) * cpps;
+    println!("reverse profile end {last} want {want}");
+    assert!(
+        (last.to_num::<f64>() - want).abs() < 0.01,
+        "{last} vs {want}"
+    );
+    assert_eq!(prof.next().velocity_pu, Pu::ZERO);
+}
