@@ -57,6 +57,9 @@ mod target {
     static VELOCITY_SAMPLES: AtomicU32 = AtomicU32::new(0);
     static VELOCITY_OVERHEAD: AtomicU32 = AtomicU32::new(0);
     static DISTURBED: AtomicU32 = AtomicU32::new(0);
+    /// Longest single window [SysTick counts].
+    static CURRENT_MAX: AtomicU32 = AtomicU32::new(0);
+    static VELOCITY_MAX: AtomicU32 = AtomicU32::new(0);
     /// A second, bare controller fed the same inputs: the core's share of the figures.
     static BARE: TaskLocal<(Controller, Profile)> = TaskLocal::new();
     static BARE_CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
@@ -92,6 +95,7 @@ mod target {
             let _ = LOOPS.current_isr();
             let t1 = SYST::get_current();
             CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            CURRENT_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
             CURRENT_SAMPLES.fetch_add(1, Ordering::Relaxed);
             let mut io = SyntheticCurrentIo;
             let inputs = CurrentInputs {
@@ -154,6 +158,7 @@ mod target {
             });
             if CURRENT_TICKS.load(Ordering::Relaxed) == before {
                 VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+                VELOCITY_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
                 VELOCITY_SAMPLES.fetch_add(1, Ordering::Relaxed);
             } else {
                 // Preempted by the current loop: the window holds both ticks.
@@ -230,6 +235,14 @@ mod target {
         (net.saturating_mul(INSTRUCTIONS_PER_COUNT) + n / 2) / n
     }
 
+    /// Longest window net of the mean measuring overhead [instructions].
+    fn longest(max: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32) -> u32 {
+        let n = samples.load(Ordering::Relaxed).max(1);
+        let max = max.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT;
+        let mean_overhead = overhead.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT / n;
+        max.saturating_sub(mean_overhead)
+    }
+
     #[entry]
     fn main() -> ! {
         paint_stack();
@@ -293,6 +306,12 @@ mod target {
         );
         defmt::info!("current_tick_instructions: {=u32}", current);
         defmt::info!("velocity_tick_instructions: {=u32}", velocity);
+        defmt::info!(
+            "longest single tick: current {=u32}, velocity {=u32} instructions (one window, ±{=u32})",
+            longest(&CURRENT_MAX, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
+            longest(&VELOCITY_MAX, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
+            INSTRUCTIONS_PER_COUNT
+        );
         defmt::info!(
             "period_instructions: {=u32} (current + velocity/2; budget {=u32})",
             period,
