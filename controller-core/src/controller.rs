@@ -14,6 +14,10 @@
 //! i_vel = VelocityRegulator(ω_cmd − ω_fb) + k_aff·a_sp     (PI, ±torque_limit)
 //! afb   ← AccelerationFeedback(...)                         (if AFB runs at this rate)
 //! ```
+//! In a period where both ticks run, call `velocity_tick` before `current_tick` so the
+//! current tick applies the new torque reference at once; the other order adds one current
+//! period of delay to the velocity loop and is otherwise equally valid. The velocity tick
+//! reads the observer state left by the latest current tick.
 
 use crate::accel_feedback::AccelerationFeedback;
 use crate::config::{AfbMode, AfbRate, DriveConfig, Estimator};

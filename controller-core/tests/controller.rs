@@ -262,3 +262,31 @@ fn afb_output_is_a_named_signal_and_follows_the_mode() {
         }
     }
 }
+
+/// "The same gains without acceleration feedback": design with AFB on, then build with AFB
+/// off from those gains; the velocity regulator keeps Kp = ω·(J_total + Ka).
+#[test]
+fn with_gains_runs_the_same_gains_with_afb_off() {
+    let on = DriveConfig::table1();
+    let gains = controller_core::design(&on).unwrap();
+    let w = on.velocity_bandwidth_rad_s;
+    assert!(
+        (gains.kp_vel - w * (0.98 + 0.49)).abs() < 1e-3,
+        "{}",
+        gains.kp_vel
+    );
+    assert!((gains.ki_vel - gains.kp_vel * w / 4.0).abs() < 1e-2);
+    let mut off = on;
+    off.accel_feedback.mode = controller_core::AfbMode::Off;
+    let own = controller_core::design(&off).unwrap();
+    assert!((own.kp_vel - w * 0.98).abs() < 1e-3);
+    let c = Controller::with_gains(&off, &gains).unwrap();
+    assert_eq!(c.gains().kp_vel, gains.kp_vel);
+    // Bad gains are still validated against their Q-formats.
+    let mut bad = gains;
+    bad.kp_vel = 1e9;
+    assert!(Controller::with_gains(&off, &bad)
+        .unwrap_err()
+        .param()
+        .starts_with("kp_vel"));
+}
