@@ -4,8 +4,8 @@
 //! Plain:  afb = −Ka·LPF(a_meas)
 //! Error:  afb = +Ka·LPF(a_cmd − a_meas)      (Rockwell US 7,141,946)
 //! ```
-//! `afb` [pu torque] is added to the torque reference and clamped to ±torque limit.
-//! Ka [s] is Q16.16, the filter Q2.30 (see [`crate::filter`]).
+//! `afb` \[pu torque\] is added to the torque reference and clamped to ±torque limit.
+//! Ka \[s\] is Q16.16, the filter Q2.30 (see [`crate::filter`]).
 
 use crate::config::AfbMode;
 use crate::filter::{LowPass, LowPassState};
@@ -16,16 +16,16 @@ use crate::per_unit::{mul_gain, Gain, Pu, PuPerS};
 pub struct AccelerationFeedback {
     /// Form of the feedback.
     pub mode: AfbMode,
-    /// Ka [pu torque per pu/s].
+    /// Ka \[pu torque per pu/s\].
     pub ka: Gain,
     /// Low-pass filter on the acceleration or acceleration error.
     pub filter: LowPass,
-    /// Output limit [pu torque].
+    /// Output limit \[pu torque\].
     pub limit: Pu,
 }
 
 impl AccelerationFeedback {
-    /// One step: returns the torque term [pu] to add to the torque reference.
+    /// One step: returns the torque term \[pu\] to add to the torque reference.
     ///
     /// ```
     /// use controller_core::accel_feedback::AccelerationFeedback;

@@ -1,5 +1,5 @@
 //! Drive settings: plain `Copy` data, all in SI or per-unit as the field names say.
-//! [`crate::design`] validates them and turns them into gains once.
+//! [`crate::design()`] validates them and turns them into gains once.
 
 /// Source of a velocity or acceleration estimate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,12 +18,12 @@ pub enum FilterConfig {
     None,
     /// First-order low-pass, corner in Hz (matched pole: α = 1 − e^(−2π·f_c·Ts)).
     FirstOrder {
-        /// Corner frequency [Hz], 0 < f_c < rate/2.
+        /// Corner frequency \[Hz\], 0 < f_c < rate/2.
         corner_hz: f32,
     },
     /// Second-order (biquad) low-pass, bilinear with pre-warped corner.
     SecondOrder {
-        /// Corner frequency [Hz], 0 < f_c < rate/2.
+        /// Corner frequency \[Hz\], 0 < f_c < rate/2.
         corner_hz: f32,
         /// Quality factor (0.707 = Butterworth), 0.1..=10.
         q: f32,
@@ -78,7 +78,7 @@ pub enum ObserverInertia {
 /// Luenberger observer settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ObserverConfig {
-    /// Observer bandwidth [Hz]: the three observer poles sit at z = e^(−2π·f·Ts_current).
+    /// Observer bandwidth \[Hz\]: the three observer poles sit at z = e^(−2π·f·Ts_current).
     /// 0 < f < current_rate_hz/2.
     pub bandwidth_hz: f32,
     /// Model inertia.
@@ -88,9 +88,9 @@ pub struct ObserverConfig {
 /// Fault thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FaultLimits {
-    /// Overspeed trip on the velocity estimate [pu], > 0.
+    /// Overspeed trip on the velocity estimate \[pu\], > 0.
     pub overspeed_pu: f32,
-    /// Following-error trip on |commanded − measured position| [counts], > 0; only while
+    /// Following-error trip on |commanded − measured position| \[counts\], > 0; only while
     /// the position loop is on. At most 8,000,000.
     pub following_error_counts: f32,
     /// Encoder jump trip: a change of counts between two current ticks larger than
@@ -101,35 +101,35 @@ pub struct FaultLimits {
 /// The drive's settings. Every field is plain data; the units are in the names.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveConfig {
-    /// Base (rated) speed [rpm], defines 1 pu of speed. > 0.
+    /// Base (rated) speed \[rpm\], defines 1 pu of speed. > 0.
     pub base_speed_rpm: f32,
     /// Encoder counts per motor revolution (after quadrature), ≥ 4.
     pub encoder_cpr: u32,
-    /// Width of the hardware counter that delivers `encoder_count` [bits], 16..=32.
+    /// Width of the hardware counter that delivers `encoder_count` \[bits\], 16..=32.
     pub counter_bits: u8,
-    /// Current-loop tick rate [Hz], 100..=100,000.
+    /// Current-loop tick rate \[Hz\], 100..=100,000.
     pub current_rate_hz: u32,
-    /// Velocity-loop tick rate [Hz]; must divide `current_rate_hz`.
+    /// Velocity-loop tick rate \[Hz\]; must divide `current_rate_hz`.
     pub velocity_rate_hz: u32,
-    /// Motor inertia [s], > 0.
+    /// Motor inertia \[s\], > 0.
     pub motor_inertia_s: f32,
-    /// Load inertia reflected to the motor [s], ≥ 0.
+    /// Load inertia reflected to the motor \[s\], ≥ 0.
     pub load_inertia_s: f32,
-    /// Position-loop bandwidth [rad/s] (Kpp = ω_pos); 0 = position loop off (velocity mode).
+    /// Position-loop bandwidth \[rad/s\] (Kpp = ω_pos); 0 = position loop off (velocity mode).
     pub position_bandwidth_rad_s: f32,
-    /// Velocity-loop bandwidth [rad/s]: Kp = ω·J, Ki = Kp·ω/(4ζ²). > 0, below π·velocity_rate_hz.
+    /// Velocity-loop bandwidth \[rad/s\]: Kp = ω·J, Ki = Kp·ω/(4ζ²). > 0, below π·velocity_rate_hz.
     pub velocity_bandwidth_rad_s: f32,
     /// Velocity-loop damping ζ, 0.1..=10 (1 = Ki = Kp·ω/4).
     pub velocity_damping: f32,
-    /// Current-loop bandwidth [rad/s]: Kp = L·ω_c, Ki = R·ω_c. > 0, below π·current_rate_hz.
+    /// Current-loop bandwidth \[rad/s\]: Kp = L·ω_c, Ki = R·ω_c. > 0, below π·current_rate_hz.
     pub current_bandwidth_rad_s: f32,
-    /// Winding resistance [pu voltage per pu current], > 0.
+    /// Winding resistance \[pu voltage per pu current\], > 0.
     pub winding_resistance_pu: f32,
-    /// Winding inductance [pu voltage per pu current per second, i.e. pu·s], > 0.
+    /// Winding inductance \[pu voltage per pu current per second, i.e. pu·s\], > 0.
     pub winding_inductance_pu_s: f32,
-    /// Torque (= current) reference limit [pu], > 0.
+    /// Torque (= current) reference limit \[pu\], > 0.
     pub torque_limit_pu: f32,
-    /// Voltage command limit [pu], > 0.
+    /// Voltage command limit \[pu\], > 0.
     pub voltage_limit_pu: f32,
     /// Fraction of the commanded velocity fed forward into the velocity reference, 0..=1.
     pub velocity_ff_gain: f32,
@@ -201,7 +201,7 @@ impl DriveConfig {
         }
     }
 
-    /// Total inertia J_total = motor + load [s].
+    /// Total inertia J_total = motor + load \[s\].
     #[must_use]
     pub fn total_inertia_s(&self) -> f32 {
         self.motor_inertia_s + self.load_inertia_s

@@ -38,18 +38,18 @@ use crate::pi::{PiCoefficients, PiState};
 pub struct CurrentInputs {
     /// Raw encoder counter, wraps at `counter_bits`.
     pub encoder_count: u32,
-    /// Measured current [pu].
+    /// Measured current \[pu\].
     pub current_pu: Pu,
 }
 
 /// Outputs of the current tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CurrentOutputs {
-    /// Voltage command [pu], within ±voltage_limit_pu.
+    /// Voltage command \[pu\], within ±voltage_limit_pu.
     pub voltage_cmd_pu: Pu,
-    /// Current (= torque) reference [pu], within ±torque_limit_pu; 0 when faulted.
+    /// Current (= torque) reference \[pu\], within ±torque_limit_pu; 0 when faulted.
     pub current_ref_pu: Pu,
-    /// Acceleration-feedback term added to the torque reference [pu].
+    /// Acceleration-feedback term added to the torque reference \[pu\].
     pub accel_fb_pu: Pu,
     /// Latched fault, if any.
     pub fault: Option<Fault>,
@@ -58,11 +58,11 @@ pub struct CurrentOutputs {
 /// A motion command for one velocity tick (from [`crate::Profile::next`] or elsewhere).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Setpoint {
-    /// Commanded position [counts, unwrapped, Q48.16].
+    /// Commanded position \[counts, unwrapped, Q48.16\].
     pub position_counts: Counts,
-    /// Commanded velocity [pu].
+    /// Commanded velocity \[pu\].
     pub velocity_pu: Pu,
-    /// Commanded acceleration [pu/s].
+    /// Commanded acceleration \[pu/s\].
     pub acceleration_pu_s: PuPerS,
 }
 
@@ -81,19 +81,19 @@ pub struct VelocityInputs {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VelocityOutputs {
     /// Torque reference from the velocity regulator plus feed-forward, plus the AFB term
-    /// held at that moment, clamped [pu].
+    /// held at that moment, clamped \[pu\].
     pub current_ref_pu: Pu,
-    /// Acceleration-feedback term [pu torque].
+    /// Acceleration-feedback term \[pu torque\].
     pub accel_fb_pu: Pu,
-    /// Velocity reference into the velocity regulator [pu].
+    /// Velocity reference into the velocity regulator \[pu\].
     pub velocity_cmd_pu: Pu,
-    /// Velocity feedback used by the regulator [pu].
+    /// Velocity feedback used by the regulator \[pu\].
     pub velocity_est_pu: Pu,
-    /// Acceleration estimate from the AFB source at this rate [pu/s].
+    /// Acceleration estimate from the AFB source at this rate \[pu/s\].
     pub acceleration_est_pu_s: PuPerS,
-    /// Commanded minus measured position [counts] (0 in velocity mode).
+    /// Commanded minus measured position \[counts\] (0 in velocity mode).
     pub position_error_counts: CountsErr,
-    /// Observer load-torque estimate [pu].
+    /// Observer load-torque estimate \[pu\].
     pub disturbance_est_pu: Pu,
     /// Latched fault, if any.
     pub fault: Option<Fault>,
@@ -325,7 +325,7 @@ impl Controller {
         Self::with_gains(cfg, &gains)
     }
 
-    /// Build a controller from explicitly given gains (e.g. [`design`] output with some
+    /// Build a controller from explicitly given gains (e.g. [`design()`] output with some
     /// gains changed, to run "the same gains" with acceleration feedback off). The settings
     /// still supply limits, filters, modes and rates; `design(cfg)` must succeed too.
     pub fn with_gains(cfg: &DriveConfig, gains: &Gains) -> Result<Self, ConfigError> {

@@ -3,7 +3,7 @@
 //! * Velocity PI: Kp = ω_v·J_loop, Ki = Kp·ω_v/(4ζ²), J_loop = J_total + Ka (with
 //!   acceleration feedback on, the loop sees J_total + Ka below the filter corner, so the
 //!   velocity bandwidth setting is honoured while the gears are engaged).
-//! * Position P: Kpp = ω_pos [rad/s] → k_pos = Kpp/counts_per_pu_s [pu per count].
+//! * Position P: Kpp = ω_pos \[rad/s\] → k_pos = Kpp/counts_per_pu_s \[pu per count\].
 //! * Current PI: Kp = L·ω_c, Ki = R·ω_c.
 //! * Filters and observer from their corners (see [`crate::filter`], [`crate::observer`]).
 
@@ -15,47 +15,47 @@ use crate::per_unit::counts_per_pu_s;
 /// Designed gains and coefficients (f32, before quantization). Units in the names.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Gains {
-    /// Total inertia J_total = Jm + Jl [s].
+    /// Total inertia J_total = Jm + Jl \[s\].
     pub j_total_s: f32,
-    /// Inertia the velocity PI is designed for, J_total + Ka [s].
+    /// Inertia the velocity PI is designed for, J_total + Ka \[s\].
     pub j_loop_s: f32,
-    /// Position gain Kpp [rad/s = pu speed per pu·s of position error]; 0 = velocity mode.
+    /// Position gain Kpp \[rad/s = pu speed per pu·s of position error\]; 0 = velocity mode.
     pub kpp: f32,
     /// Position gain in pu speed per count of position error.
     pub k_pos_pu_per_count: f32,
-    /// Velocity Kp [pu torque per pu speed].
+    /// Velocity Kp \[pu torque per pu speed\].
     pub kp_vel: f32,
-    /// Velocity Ki [pu torque per pu speed per s].
+    /// Velocity Ki \[pu torque per pu speed per s\].
     pub ki_vel: f32,
-    /// Current Kp [pu voltage per pu current].
+    /// Current Kp \[pu voltage per pu current\].
     pub kp_cur: f32,
-    /// Current Ki [pu voltage per pu current per s].
+    /// Current Ki \[pu voltage per pu current per s\].
     pub ki_cur: f32,
-    /// Acceleration-feedback gain Ka [s = pu torque per pu/s]; 0 when off.
+    /// Acceleration-feedback gain Ka \[s = pu torque per pu/s\]; 0 when off.
     pub ka: f32,
-    /// Acceleration feed-forward [pu torque per pu/s of commanded acceleration].
+    /// Acceleration feed-forward \[pu torque per pu/s of commanded acceleration\].
     pub k_accel_ff: f32,
-    /// Velocity per count of position change per velocity tick [pu].
+    /// Velocity per count of position change per velocity tick \[pu\].
     pub vel_tick_pu_per_count: f32,
-    /// Acceleration per count of second difference per velocity tick [pu/s].
+    /// Acceleration per count of second difference per velocity tick \[pu/s\].
     pub vel_tick_pu_s_per_count: f32,
-    /// Velocity per count of position change per current tick [pu].
+    /// Velocity per count of position change per current tick \[pu\].
     pub cur_tick_pu_per_count: f32,
-    /// Acceleration per count of second difference per current tick [pu/s].
+    /// Acceleration per count of second difference per current tick \[pu/s\].
     pub cur_tick_pu_s_per_count: f32,
     /// Velocity feedback filter (at the velocity rate).
     pub velocity_filter: LowPassDesign,
     /// Acceleration-feedback filter (at the AFB rate).
     pub afb_filter: LowPassDesign,
-    /// AFB tick rate [Hz].
+    /// AFB tick rate \[Hz\].
     pub afb_rate_hz: f32,
-    /// Observer model inertia [s].
+    /// Observer model inertia \[s\].
     pub observer_inertia_s: f32,
     /// Observer pole θ = e^(−2π·f_o·Ts).
     pub observer_pole: f32,
-    /// Observer correction gains [l1, l2, l3].
+    /// Observer correction gains \[l1, l2, l3\].
     pub observer_l: [f32; 3],
-    /// Observer torque-to-acceleration factor [counts/tick² per pu].
+    /// Observer torque-to-acceleration factor \[counts/tick² per pu\].
     pub observer_k_u: f32,
     /// Largest plausible change of counts between current ticks (encoder-jump trip).
     pub max_count_step: f32,

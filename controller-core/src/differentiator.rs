@@ -12,25 +12,25 @@ use crate::per_unit::{counts_to_pu, mul_gain, sat_i32, Gain, Pu, PuPerS, TickGai
 /// Differentiator scale factors for one tick rate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Differentiator {
-    /// Velocity per count of change per tick [pu], Q8.24.
+    /// Velocity per count of change per tick \[pu\], Q8.24.
     pub k_vel: TickGain,
-    /// Acceleration per count of second difference [pu/s], Q16.16.
+    /// Acceleration per count of second difference \[pu/s\], Q16.16.
     pub k_acc: Gain,
 }
 
 /// Differentiator state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DifferentiatorState {
-    /// Last unwrapped position [counts].
+    /// Last unwrapped position \[counts\].
     pub last_position: i64,
-    /// Last first difference [counts per tick].
+    /// Last first difference \[counts per tick\].
     pub last_delta: i32,
     /// Samples seen since reset, saturating at 2 (outputs are zero until primed).
     pub primed: u8,
 }
 
 impl Differentiator {
-    /// Update with the unwrapped position [counts]; returns (velocity [pu], acceleration [pu/s]).
+    /// Update with the unwrapped position \[counts\]; returns (velocity \[pu\], acceleration \[pu/s\]).
     ///
     /// ```
     /// use controller_core::differentiator::{Differentiator, DifferentiatorState};

@@ -3,7 +3,7 @@
 
 use core::fmt;
 
-/// A bad setting found by [`crate::design`], [`crate::Controller::new`] or
+/// A bad setting found by [`crate::design()`], [`crate::Controller::new`] or
 /// [`crate::Profile::new`]. Never a panic and never a silent clamp.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ConfigError {
@@ -55,9 +55,9 @@ pub enum ConfigError {
     },
     /// `current_rate_hz` is not an integer multiple of `velocity_rate_hz`.
     RateRatio {
-        /// Current tick rate [Hz].
+        /// Current tick rate \[Hz\].
         current_rate_hz: u32,
-        /// Velocity tick rate [Hz].
+        /// Velocity tick rate \[Hz\].
         velocity_rate_hz: u32,
     },
 }

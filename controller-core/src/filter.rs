@@ -33,9 +33,9 @@ pub enum LowPass {
 pub struct LowPassState {
     /// First order: output in Q32.32. Biquad: unused.
     pub y_q32: i64,
-    /// Biquad inputs x[n−1], x[n−2] (Q16.16 bits).
+    /// Biquad inputs x\[n−1\], x\[n−2\] (Q16.16 bits).
     pub x: [i32; 2],
-    /// Biquad outputs y[n−1], y[n−2] (Q16.16 bits).
+    /// Biquad outputs y\[n−1\], y\[n−2\] (Q16.16 bits).
     pub y: [i32; 2],
     /// Biquad rounding residual (Q.46 bits below the output LSB).
     pub residual: i64,

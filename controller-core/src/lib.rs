@@ -3,7 +3,7 @@
 //! acceleration-feedback path with its filters and a state observer, profiles and faults.
 //! The same code runs, bit for bit, in the firmware's interrupts and in the host harness.
 //!
-//! Configuration ([`DriveConfig`] → [`design`] → [`Gains`]) uses `f32` once; the ticks
+//! Configuration ([`DriveConfig`] → [`design()`] → [`Gains`]) uses `f32` once; the ticks
 //! ([`Controller::current_tick`], [`Controller::velocity_tick`], [`Profile::next`]) use
 //! only fixed-point integer arithmetic, saturate instead of wrapping, and cannot panic.
 #![cfg_attr(not(test), no_std)]

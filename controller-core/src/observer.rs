@@ -13,8 +13,8 @@
 //! ```
 //! With l1 = 1 − θ³, l2 = 1.5·(1 − θ)²·(1 + θ), l3 = (1 − θ)³ all three observer poles sit
 //! at z = θ = e^(−2π·f_o·Ts) (critically damped α-β-γ form; checked by the tests through
-//! the characteristic polynomial). Outputs: velocity [pu], acceleration (u + d) [pu/s],
-//! load-torque estimate T_L = −J_model·d [pu].
+//! the characteristic polynomial). Outputs: velocity \[pu\], acceleration (u + d) \[pu/s\],
+//! load-torque estimate T_L = −J_model·d \[pu\].
 
 use crate::per_unit::{mul_bits, mul_gain, sat_i32, Coef, Gain, Pu, PuPerS, TickGain};
 
@@ -23,31 +23,31 @@ use crate::per_unit::{mul_bits, mul_gain, sat_i32, Coef, Gain, Pu, PuPerS, TickG
 pub struct Observer {
     /// Position correction gain l1, Q2.30.
     pub l1: Coef,
-    /// Velocity correction gain l2 [per tick], Q2.30.
+    /// Velocity correction gain l2 \[per tick\], Q2.30.
     pub l2: Coef,
-    /// Disturbance correction gain l3 [per tick²], Q2.30.
+    /// Disturbance correction gain l3 \[per tick²\], Q2.30.
     pub l3: Coef,
-    /// Torque to model acceleration, k_u [counts/tick² per pu], Q8.24.
+    /// Torque to model acceleration, k_u \[counts/tick² per pu\], Q8.24.
     pub k_u: TickGain,
-    /// Velocity scale [pu per count/tick], Q8.24.
+    /// Velocity scale \[pu per count/tick\], Q8.24.
     pub k_vel: TickGain,
-    /// Acceleration scale [pu/s per count/tick²], Q16.16.
+    /// Acceleration scale \[pu/s per count/tick²\], Q16.16.
     pub k_acc: Gain,
-    /// Load torque per pu/s of disturbance acceleration (= −J_model) [pu·s], Q16.16.
+    /// Load torque per pu/s of disturbance acceleration (= −J_model) \[pu·s\], Q16.16.
     pub k_load: Gain,
 }
 
 /// Observer state (plain data, reset = default).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ObserverState {
-    /// Position estimate [counts], Q32.32 bits, wrapping modulo 2^32 counts: the observer
+    /// Position estimate \[counts\], Q32.32 bits, wrapping modulo 2^32 counts: the observer
     /// only uses the innovation p_meas − p, which wrapping arithmetic gives exactly.
     pub p: i64,
-    /// Velocity estimate [counts/tick], Q32.32 bits.
+    /// Velocity estimate \[counts/tick\], Q32.32 bits.
     pub v: i64,
-    /// Disturbance acceleration estimate [counts/tick²], Q32.32 bits.
+    /// Disturbance acceleration estimate \[counts/tick²\], Q32.32 bits.
     pub d: i64,
-    /// Model plus disturbance acceleration over the last tick, u + d [counts/tick²], Q32.32.
+    /// Model plus disturbance acceleration over the last tick, u + d \[counts/tick²\], Q32.32.
     pub acc: i64,
     /// Whether the position has been initialised from a measurement.
     pub primed: bool,
@@ -56,11 +56,11 @@ pub struct ObserverState {
 /// Observer outputs for one tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ObserverEstimate {
-    /// Velocity [pu].
+    /// Velocity \[pu\].
     pub velocity_pu: Pu,
-    /// Acceleration [pu/s] (model acceleration from the torque plus the disturbance).
+    /// Acceleration \[pu/s\] (model acceleration from the torque plus the disturbance).
     pub acceleration_pu_s: PuPerS,
-    /// Estimated load torque [pu] (positive brakes positive motion).
+    /// Estimated load torque \[pu\] (positive brakes positive motion).
     pub load_torque_pu: Pu,
 }
 
@@ -71,8 +71,8 @@ fn q32_to_q20(x: i64) -> i32 {
 }
 
 impl Observer {
-    /// One observer step with the measured unwrapped position [counts] and the torque
-    /// command applied over the last tick [pu]. Updates the state only; read the estimates
+    /// One observer step with the measured unwrapped position \[counts\] and the torque
+    /// command applied over the last tick \[pu\]. Updates the state only; read the estimates
     /// with [`Observer::velocity_pu`], [`Observer::acceleration_pu_s`],
     /// [`Observer::load_torque_pu`] or [`Observer::estimate`] (each costs a multiply, so a
     /// tick reads only what it uses).
@@ -113,7 +113,7 @@ impl Observer {
         s.acc = u.saturating_add(s.d);
     }
 
-    /// Velocity estimate [pu].
+    /// Velocity estimate \[pu\].
     #[inline]
     #[must_use]
     pub fn velocity_pu(&self, s: &ObserverState) -> Pu {
@@ -121,14 +121,14 @@ impl Observer {
     }
 
     /// Acceleration estimate (model acceleration from the last torque plus the disturbance)
-    /// [pu/s]. Q12.20 counts/tick² · Q16.16 = Q.36 → Q16.16.
+    /// \[pu/s\]. Q12.20 counts/tick² · Q16.16 = Q.36 → Q16.16.
     #[inline]
     #[must_use]
     pub fn acceleration_pu_s(&self, s: &ObserverState) -> PuPerS {
         Pu::from_bits(mul_bits::<20>(q32_to_q20(s.acc), self.k_acc.to_bits()))
     }
 
-    /// Estimated load torque T_L = −J_model·d [pu] (positive brakes positive motion).
+    /// Estimated load torque T_L = −J_model·d \[pu\] (positive brakes positive motion).
     #[inline]
     #[must_use]
     pub fn load_torque_pu(&self, s: &ObserverState) -> Pu {

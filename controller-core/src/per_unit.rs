@@ -9,13 +9,13 @@
 //!
 //! | Signal / coefficient                       | Type        | Range            | Resolution |
 //! |--------------------------------------------|-------------|------------------|------------|
-//! | speed, current, voltage, torque [pu]       | [`Pu`]      | ±32768           | 1.5e-5     |
-//! | acceleration [pu/s]                        | [`PuPerS`]  | ±32768           | 1.5e-5     |
-//! | commanded position [counts, unwrapped]     | [`Counts`]  | ±1.4e14          | 1/65536    |
-//! | position error [counts]                    | [`CountsErr`] | ±8.4e6         | 1/256      |
+//! | speed, current, voltage, torque \[pu\]       | [`Pu`]      | ±32768           | 1.5e-5     |
+//! | acceleration \[pu/s\]                        | [`PuPerS`]  | ±32768           | 1.5e-5     |
+//! | commanded position \[counts, unwrapped\]     | [`Counts`]  | ±1.4e14          | 1/65536    |
+//! | position error \[counts\]                    | [`CountsErr`] | ±8.4e6         | 1/256      |
 //! | large gains (Kp_vel, Ka, Kp_cur, J)        | [`Gain`]    | ±32768           | 1.5e-5     |
 //! | per-tick gains (Ki·Ts, count→pu scales)    | [`TickGain`]| ±128             | 6.0e-8     |
-//! | position gain [pu per count]               | [`PosGain`] | ±1               | 4.7e-10    |
+//! | position gain \[pu per count\]               | [`PosGain`] | ±1               | 4.7e-10    |
 //! | filter / observer coefficients             | [`Coef`]    | ±2               | 9.3e-10    |
 //!
 //! Products are formed in 64 bits, rounded to nearest and saturated to the 32-bit result
@@ -31,8 +31,8 @@ pub type PuPerS = I16F16;
 pub type Counts = I48F16;
 /// Position error in counts (Q24.8): ±8.4 million counts, 1/256 count resolution.
 pub type CountsErr = I24F8;
-/// Large gain (Q16.16): velocity Kp [pu torque per pu speed], Ka and inertias [s],
-/// current Kp [pu voltage per pu current].
+/// Large gain (Q16.16): velocity Kp \[pu torque per pu speed\], Ka and inertias \[s\],
+/// current Kp \[pu voltage per pu current\].
 pub type Gain = I16F16;
 /// Per-tick gain (Q8.24): Ki·Ts, counts-per-tick to pu scale factors.
 pub type TickGain = I8F24;

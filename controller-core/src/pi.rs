@@ -17,18 +17,18 @@ use crate::per_unit::{mul_bits, mul_gain, sat_i32, Gain, Pu, TickGain};
 /// PI coefficients (Q-formats: `kp` Q16.16, `ki_ts` Q8.24, `limit` Q16.16).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PiCoefficients {
-    /// Proportional gain [output pu per error pu].
+    /// Proportional gain \[output pu per error pu\].
     pub kp: Gain,
-    /// Integral gain times the tick period, Ki·Ts [output pu per error pu per tick].
+    /// Integral gain times the tick period, Ki·Ts \[output pu per error pu per tick\].
     pub ki_ts: TickGain,
-    /// Symmetric output limit [pu], > 0.
+    /// Symmetric output limit \[pu\], > 0.
     pub limit: Pu,
 }
 
-/// PI state: the integral [output pu], Q32.32.
+/// PI state: the integral \[output pu\], Q32.32.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PiState {
-    /// Integrator [output pu].
+    /// Integrator \[output pu\].
     pub integral: I32F32,
     /// Whether the last output was clamped (for logging).
     pub saturated: bool,

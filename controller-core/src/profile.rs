@@ -25,7 +25,7 @@ pub enum ProfileKind {
     Trapezoid,
     /// Jerk-limited (S-curve velocity): each acceleration change takes `jerk_time_s`.
     SCurve {
-        /// Duration of each jerk ramp [s], 0 < t_j ≤ half of the accel and decel times.
+        /// Duration of each jerk ramp \[s\], 0 < t_j ≤ half of the accel and decel times.
         jerk_time_s: f32,
     },
 }
@@ -35,15 +35,15 @@ pub enum ProfileKind {
 pub struct ProfileConfig {
     /// Acceleration shape.
     pub kind: ProfileKind,
-    /// Peak (cruise) velocity [pu], signed, |v| ≤ 10.
+    /// Peak (cruise) velocity \[pu\], signed, |v| ≤ 10.
     pub peak_velocity_pu: f32,
-    /// Time from standstill to the peak velocity [s], 0 < t ≤ 10,000.
+    /// Time from standstill to the peak velocity \[s\], 0 < t ≤ 10,000.
     pub accel_time_s: f32,
-    /// Time at the peak velocity [s], ≥ 0; `f32::INFINITY` = never decelerate.
+    /// Time at the peak velocity \[s\], ≥ 0; `f32::INFINITY` = never decelerate.
     pub hold_time_s: f32,
-    /// Time from the peak velocity back to standstill [s], 0 < t ≤ 10,000.
+    /// Time from the peak velocity back to standstill \[s\], 0 < t ≤ 10,000.
     pub decel_time_s: f32,
-    /// Standstill before the acceleration starts [s], 0..=10,000.
+    /// Standstill before the acceleration starts \[s\], 0..=10,000.
     pub start_delay_s: f32,
 }
 
@@ -80,7 +80,7 @@ struct Segment {
     jerk_over_6: i64,
 }
 
-/// Split an f64 position [counts] into whole counts and a Q0.32 fraction.
+/// Split an f64 position \[counts\] into whole counts and a Q0.32 fraction.
 fn split_counts(p: f64) -> (i64, i64) {
     let whole = p as i64;
     let whole = if (whole as f64) > p { whole - 1 } else { whole };
@@ -293,7 +293,7 @@ impl Profile {
         })
     }
 
-    /// Shift the whole profile by a start position [counts].
+    /// Shift the whole profile by a start position \[counts\].
     #[must_use]
     pub fn with_start_position(mut self, start: Counts) -> Self {
         // start = whole + frac/2^16 counts; the fraction in Q0.32 is frac << 16.
