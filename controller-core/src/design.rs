@@ -263,6 +263,22 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
     )?;
 
     let cpps = counts_per_pu_s(cfg.encoder_cpr, rpm);
+    // The counter must not wrap by half its range between two current ticks at the jump
+    // limit, or a legal motion would read as a jump backwards.
+    let max_count_step = margin * overspeed * cpps * ts_cur + 2.0;
+    let mut bits_needed = 16u32;
+    while bits_needed < 32 && max_count_step >= (1u64 << (bits_needed - 1)) as f32 {
+        bits_needed += 1;
+    }
+    if u32::from(cfg.counter_bits) < bits_needed || max_count_step >= (1u64 << 31) as f32 {
+        return Err(ConfigError::OutOfRange {
+            param: "counter_bits",
+            value: f32::from(cfg.counter_bits),
+            min: bits_needed as f32,
+            max: 32.0,
+            min_exclusive: false,
+        });
+    }
     let j_loop = j_total + ka;
     let kp_vel = w_vel * j_loop;
     let ki_vel = kp_vel * w_vel / (4.0 * zeta * zeta);
@@ -295,7 +311,7 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
         observer_pole: theta,
         observer_l,
         observer_k_u: ts_cur * ts_cur * cpps / j_obs,
-        max_count_step: margin * overspeed * cpps * ts_cur + 2.0,
+        max_count_step,
         ticks_per_velocity: (f_cur / f_vel) as u32,
     })
 }

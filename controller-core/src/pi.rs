@@ -12,7 +12,7 @@
 
 use fixed::types::I32F32;
 
-use crate::per_unit::{mul_bits, mul_gain, sat_i32, Gain, Pu, TickGain};
+use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, TickGain};
 
 /// PI coefficients (Q-formats: `kp` Q16.16, `ki_ts` Q8.24, `limit` Q16.16).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -70,10 +70,4 @@ impl PiCoefficients {
         state.saturated = u_clamped != u;
         Pu::from_bits(sat_i32(u_clamped))
     }
-}
-
-/// Integrator increment helper shared with tests: Ki·Ts·e in Q16.16.
-#[must_use]
-pub fn ki_step(e: Pu, ki_ts: TickGain) -> Pu {
-    Pu::from_bits(mul_bits::<24>(e.to_bits(), ki_ts.to_bits()))
 }

@@ -193,7 +193,13 @@ fn derived_coefficients_that_do_not_fit_are_errors() {
         "{e:?}"
     );
     // The observer's torque-to-counts factor overflows Q8.24 at 2^30 counts per rev.
-    let e = expect_err(|c| c.encoder_cpr = 1 << 30, "observer k_u");
+    let e = expect_err(
+        |c| {
+            c.encoder_cpr = 1 << 30;
+            c.counter_bits = 32;
+        },
+        "observer k_u",
+    );
     assert!(
         matches!(e, ConfigError::CoefficientOverflow { .. }),
         "{e:?}"
