@@ -122,14 +122,27 @@ fn bounds(panel: &Panel) -> ((f64, f64), (f64, f64)) {
     (x, fix(yr))
 }
 
+/// `v` with two significant digits, without trailing zeros.
+fn sig2(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let a = v.abs();
+    if !(1e-3..1e5).contains(&a) {
+        return format!("{v:.1e}");
+    }
+    let digits = (1 - a.log10().floor() as i32).max(0) as usize;
+    let text = format!("{v:.digits$}");
+    if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        text
+    }
+}
+
 fn tick_label(v: f64, log: bool) -> String {
     if log {
-        let p = 10f64.powf(v);
-        if !(0.01..1000.0).contains(&p) {
-            format!("{p:.0e}")
-        } else {
-            format!("{}", (p * 1000.0).round() / 1000.0)
-        }
+        sig2(10f64.powf(v))
     } else {
         let a = v.abs();
         if a != 0.0 && !(1e-3..1e4).contains(&a) {
@@ -200,7 +213,12 @@ fn draw_panel<DB: DrawingBackend>(
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK.mix(0.4))
             .label_font((FONT, 13))
-            .position(SeriesLabelPosition::UpperRight)
+            // Frequency and bandwidth charts rise to the upper right: keep the legend clear.
+            .position(if panel.log_x {
+                SeriesLabelPosition::LowerRight
+            } else {
+                SeriesLabelPosition::UpperRight
+            })
             .draw()
             .map_err(|e| format!("{e:?}"))?;
     }

@@ -414,8 +414,8 @@ fn write_report(
         &["sweep/sweep.png"],
         "Printing-press stand (1e6 CPR, 3:1 gearbox, 8:1 reflected inertia, ~150 counts lost motion): 140 rad/s with acceleration feedback, only 30 rad/s without before the system went unstable.",
         &format!(
-            "{sweep_text}Grid: {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, filters {:?}, observer or differentiation as the acceleration source (all points in `sweep/sweep.csv`).",
-            crate::sweep::BANDWIDTHS_RAD_S, crate::sweep::GAINS, crate::sweep::FILTERS
+            "{sweep_text}Grid: {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, filters {:?}, acceleration from differentiation or from the observer at {:?} Hz (all points in `sweep/sweep.csv`).",
+            crate::sweep::BANDWIDTHS_RAD_S, crate::sweep::GAINS, crate::sweep::FILTERS, crate::sweep::OBSERVER_HZ
         ),
         &format!(
             "{} (criterion: on the printing press the best AFB design reaches at least twice the bandwidth reached without; the paper's ratio is 4.7).",

@@ -23,8 +23,9 @@ pub const QUIET_TORQUE_PU: f64 = 0.1;
 pub const PLANTS: [&str; 2] = ["table1", "printing-press"];
 
 /// Velocity bandwidths tried (rad/s).
-pub const BANDWIDTHS_RAD_S: [f64; 14] = [
-    1.5, 3.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0, 94.2, 120.0, 140.0, 190.0, 250.0, 350.0,
+pub const BANDWIDTHS_RAD_S: [f64; 17] = [
+    1.5, 3.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0, 94.2, 120.0, 140.0, 190.0, 250.0, 350.0, 500.0,
+    700.0, 1000.0,
 ];
 
 /// One acceleration-feedback design of the grid.
@@ -40,6 +41,8 @@ pub struct AfbDesign {
     pub filter_corner_hz: f64,
     /// `observer` or `differentiation`.
     pub source: &'static str,
+    /// Observer bandwidth (Hz) when the source is the observer; 0 = the drive's default.
+    pub observer_hz: f64,
 }
 
 impl AfbDesign {
@@ -50,6 +53,7 @@ impl AfbDesign {
         filter: "none",
         filter_corner_hz: 0.0,
         source: "observer",
+        observer_hz: 0.0,
     };
 
     /// Short label.
@@ -57,8 +61,13 @@ impl AfbDesign {
         if self.mode == "off" {
             "no AFB".into()
         } else {
+            let observer = if self.observer_hz > 0.0 {
+                format!(" {}Hz", self.observer_hz)
+            } else {
+                String::new()
+            };
             format!(
-                "{} Ka={}J {}-order {}Hz {}",
+                "{} Ka={}J {}-order {}Hz {}{observer}",
                 self.mode,
                 self.gain_fraction,
                 if self.filter == "first_order" {
@@ -86,26 +95,38 @@ impl AfbDesign {
                 self.filter_corner_hz
             ));
             s.push(format!("drive.accel_feedback.source={}", self.source));
+            if self.observer_hz > 0.0 {
+                s.push(format!("drive.observer.bandwidth_hz={}", self.observer_hz));
+            }
         }
         s
     }
 }
 
 /// Filters tried: (kind, corner Hz).
-pub const FILTERS: [(&str, f64); 4] = [
+pub const FILTERS: [(&str, f64); 6] = [
+    ("first_order", 25.0),
     ("first_order", 50.0),
     ("first_order", 100.0),
-    ("second_order", 100.0),
     ("first_order", 250.0),
+    ("second_order", 100.0),
+    ("second_order", 250.0),
 ];
 
 /// Gains tried (Ka / J_total).
-pub const GAINS: [f64; 3] = [0.5, 1.0, 2.0];
+pub const GAINS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 
-/// The grid of designs: off, and error-form AFB over source × gain × filter.
+/// Observer bandwidths tried when the observer is the acceleration source (Hz).
+pub const OBSERVER_HZ: [f64; 2] = [75.0, 150.0];
+
+/// The grid of designs: off, and error-form AFB over source (differentiation, or the
+/// observer at each bandwidth) × gain × filter.
 pub fn designs() -> Vec<AfbDesign> {
     let mut v = vec![AfbDesign::OFF];
-    for source in ["observer", "differentiation"] {
+    let sources = [("differentiation", 0.0)]
+        .into_iter()
+        .chain(OBSERVER_HZ.iter().map(|hz| ("observer", *hz)));
+    for (source, observer_hz) in sources {
         for gain_fraction in GAINS {
             for (filter, filter_corner_hz) in FILTERS {
                 v.push(AfbDesign {
@@ -114,6 +135,7 @@ pub fn designs() -> Vec<AfbDesign> {
                     filter,
                     filter_corner_hz,
                     source,
+                    observer_hz,
                 });
             }
         }
@@ -141,6 +163,8 @@ pub struct SweepPoint {
     pub filter_corner_hz: f64,
     /// Acceleration source.
     pub source: &'static str,
+    /// Observer bandwidth (Hz), 0 = default.
+    pub observer_hz: f64,
     /// Velocity bandwidth (rad/s).
     pub bandwidth_rad_s: f64,
     /// The run's `stable` metric.
@@ -211,6 +235,7 @@ fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> 
         filter: design.filter,
         filter_corner_hz: design.filter_corner_hz,
         source: design.source,
+        observer_hz: design.observer_hz,
         bandwidth_rad_s: bw,
         stable: false,
         oscillation_pu: f64::NAN,
@@ -308,44 +333,43 @@ fn write_csv(points: &[SweepPoint], path: &Path) -> Result<()> {
     w.flush().map_err(|e| HarnessError::io(path, e))
 }
 
-/// The sweep figure: speed-error oscillation against bandwidth, no AFB vs the best design.
-pub fn figure(
-    points: &[SweepPoint],
-    results: &[SweepResult],
-    designs: &[AfbDesign],
-    threshold_pu: f64,
-) -> Figure {
+/// The sweep figure: per plant, the torque chatter (unloaded, at speed) against
+/// bandwidth without AFB and with the best quiet design, stable and unstable points apart,
+/// with the quiet threshold.
+pub fn figure(points: &[SweepPoint], results: &[SweepResult]) -> Figure {
     let panels = results
         .iter()
         .map(|r| {
-            let curve = |label: &str| -> Vec<(f64, f64)> {
+            let curve = |label: &str, stable: bool| -> Vec<(f64, f64)> {
                 points
                     .iter()
-                    .filter(|p| p.plant == r.plant && p.design == label)
-                    .map(|p| (p.bandwidth_rad_s, p.oscillation_pu.max(1e-6)))
+                    .filter(|p| p.plant == r.plant && p.design == label && p.stable == stable)
+                    .filter(|p| p.limit_cycle_torque_pu.is_finite())
+                    .map(|p| (p.bandwidth_rad_s, p.limit_cycle_torque_pu.max(1e-4)))
                     .collect()
             };
-            let best = designs
-                .iter()
-                .find(|d| d.label() == r.best_design)
-                .map(AfbDesign::label)
-                .unwrap_or_default();
-            let xs: Vec<f64> = points.iter().map(|p| p.bandwidth_rad_s).collect();
-            let (lo, hi) = xs
+            let best = r.best_quiet_design.as_str();
+            let (lo, hi) = BANDWIDTHS_RAD_S
                 .iter()
                 .fold((f64::MAX, 0.0f64), |a, x| (a.0.min(*x), a.1.max(*x)));
             Panel {
                 title: format!(
-                    "{}: largest stable bandwidth {} rad/s without AFB, {} rad/s with ({})",
-                    r.plant, r.without_afb_rad_s, r.with_afb_rad_s, r.best_design
+                    "{}: quiet up to {} rad/s without AFB, {} with; stable up to {} / {}",
+                    r.plant,
+                    r.quiet_without_afb_rad_s,
+                    r.quiet_with_afb_rad_s,
+                    r.without_afb_rad_s,
+                    r.with_afb_rad_s
                 ),
-                y_label: "speed error std (pu)".into(),
+                y_label: "torque chatter (pu RMS)".into(),
                 series: vec![
-                    Series::markers("no AFB", curve("no AFB")),
-                    Series::markers(format!("best AFB: {best}"), curve(&best)),
+                    Series::markers("no AFB, stable", curve("no AFB", true)),
+                    Series::markers("no AFB, unstable", curve("no AFB", false)),
+                    Series::markers(format!("{best}, stable"), curve(best, true)),
+                    Series::markers(format!("{best}, unstable"), curve(best, false)),
                     Series::line(
-                        "stability threshold",
-                        vec![(lo, threshold_pu), (hi, threshold_pu)],
+                        "quiet threshold",
+                        vec![(lo, QUIET_TORQUE_PU), (hi, QUIET_TORQUE_PU)],
                     ),
                 ],
                 log_x: true,
@@ -371,14 +395,7 @@ pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepResult>, String)> {
         w.serialize(r).map_err(|e| HarnessError::io(dir, e))?;
     }
     w.flush().map_err(|e| HarnessError::io(dir, e))?;
-    let threshold = resolve("sweep", None, &[])?
-        .scenario
-        .metric_windows(2.0)
-        .stable_oscillation_pu;
-    save(
-        &figure(&points, &results, &designs, threshold),
-        &dir.join("sweep"),
-    )?;
+    save(&figure(&points, &results), &dir.join("sweep"))?;
     let mut text = String::new();
     for r in &results {
         let _ = writeln!(
