@@ -46,7 +46,7 @@ fn main() {
             let r4 = run_scenario(&mut ctl, &cfg, &plant, &Scenario::fig4());
             let v = match (vel, vf) {
                 (Estimator::Observer, _) => "observer 75 Hz".to_string(),
-                (_, f) if f == 0.0 => "differentiation, raw".to_string(),
+                (_, 0.0) => "differentiation, raw".to_string(),
                 (_, f) => format!("differentiation, 1st-order {f} Hz"),
             };
             let a = match mode {
