@@ -210,3 +210,26 @@ fn drive_with_winding_matches_reference_for_irregular_steps() {
     assert!(drive.mode_changes() >= 20);
     assert!(max_pos < 1e-6 && max_vel < 1e-6 && max_cur < 1e-6);
 }
+
+/// Why the edges are located: RK4 at 62.5 µs stepping straight over them (the contact law
+/// frozen per step) misses the fine reference by far more than the 1e-4 bound.
+#[test]
+fn stepping_over_the_edges_would_fail_the_bound() {
+    let cfg = PlantConfig::table1();
+    let p = ref_params(&cfg, false);
+    let mut fine = Reference::new(p, 1e-6);
+    let mut naive = Reference::new(p, 62.5e-6);
+    naive.locate = false;
+    let (mut pos, mut torque) = (0.0_f64, 0.0_f64);
+    for k in 0..4000 {
+        let (tm, tl) = profile(k as f64 * 250e-6);
+        fine.advance(250e-6, tm, tl);
+        naive.advance(250e-6, tm, tl);
+        pos = pos
+            .max((fine.x[0] - naive.x[0]).abs())
+            .max((fine.x[1] - naive.x[1]).abs());
+        torque = torque.max((fine.shaft_torque() - naive.shaft_torque()).abs());
+    }
+    println!("RK4 62.5 µs without edge location: max position error {pos:.2e} rad, shaft torque {torque:.2e} pu");
+    assert!(torque > 1e-4, "{torque}");
+}

@@ -130,6 +130,8 @@ pub struct Reference {
     pub x: S,
     pub h: f64,
     pub switches: u64,
+    /// false: step straight over the edges (to show what edge location buys).
+    pub locate: bool,
 }
 
 impl Reference {
@@ -139,6 +141,7 @@ impl Reference {
             x: [0.0; 5],
             h,
             switches: 0,
+            locate: true,
         }
     }
 
@@ -157,7 +160,7 @@ impl Reference {
             let h = self.h.min(left);
             let law = classify(&self.p, &self.x);
             let x1 = rk4(&self.p, &self.x, law, u, tl, h);
-            if classify(&self.p, &x1) == law {
+            if !self.locate || classify(&self.p, &x1) == law {
                 self.x = x1;
                 left -= h;
                 continue;
