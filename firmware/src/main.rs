@@ -1,12 +1,15 @@
 //! stiffdrive firmware: controller-core in a 4 kHz current-loop interrupt and a 2 kHz
 //! velocity-loop interrupt, driven by hardware timers, the current loop at the higher
-//! priority. Thread mode serves dump requests: a `d` on the console UART (or a fault)
-//! triggers the trend buffer, and once it has frozen its samples go out on the UART as CSV.
+//! priority. Console commands (one byte on the UART, handled by its RX interrupt):
+//! `e` enable the power stage and start the move, `x` disable, `r` reset a latched fault,
+//! `d` dump the trend buffer. A dump request (or a fault) triggers the trend buffer; once it
+//! has frozen, thread mode writes its samples to the UART as CSV.
 //!
-//! Under QEMU (`cargo fw-run`) the drive runs the Table 1 controller on the virtual motor
-//! for a 1 s move, asks for one dump itself, checks the loops ran at their rates without
-//! a fault, and exits 0 (1 on any failure, panic or HardFault). On the STM32F4 board it runs
-//! until reset. On the host this binary is an empty `main` (so `cargo test` and
+//! Under QEMU (`cargo fw-run`) the drive enables itself, runs the Table 1 controller on the
+//! virtual motor for a 1 s move, asks for one dump itself, checks the loops ran at their
+//! rates without a fault, and exits 0 (1 on any failure, panic or HardFault). On the
+//! STM32F4 board it starts disabled, holding position, and waits for `e`; it runs until
+//! reset. On the host this binary is an empty `main` (so `cargo test` and
 //! `cargo clippy --workspace` work without the ARM target).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -15,17 +18,35 @@ mod target {
     use core::fmt::Write;
     use core::sync::atomic::{AtomicBool, Ordering};
 
-    use controller_core::{DriveConfig, Profile, ProfileConfig, ProfileKind};
+    use controller_core::{DriveConfig, Profile, ProfileConfig, ProfileKind, Setpoint};
     use cortex_m_rt::entry;
-    use firmware::app::{App, DEFAULT_TRACE};
+    use firmware::app::{App, SetpointSource, DEFAULT_TRACE};
     use firmware::board::EncoderCounter;
     use firmware::boards::active as board;
     use firmware::isr::Loops;
     use firmware::rt::exit;
     use firmware::trace::{TraceSample, TraceState};
 
-    static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, Profile> = Loops::new();
+    static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, GatedMove> = Loops::new();
     static DUMP_REQUESTED: AtomicBool = AtomicBool::new(false);
+    /// The move runs while set (by `e`); otherwise the setpoint holds where it is.
+    static MOVE_GO: AtomicBool = AtomicBool::new(false);
+
+    /// The profile, advanced only while the drive is told to move: a drive that is enabled
+    /// later starts its move then, instead of chasing a setpoint that ran ahead.
+    struct GatedMove {
+        profile: Profile,
+        hold: Setpoint,
+    }
+
+    impl SetpointSource for GatedMove {
+        fn next_setpoint(&mut self) -> Setpoint {
+            if MOVE_GO.load(Ordering::Relaxed) {
+                self.hold = self.profile.next();
+            }
+            self.hold
+        }
+    }
 
     fn current_loop() {
         let _ = LOOPS.current_isr();
@@ -36,9 +57,20 @@ mod target {
     }
 
     fn command() {
-        if board::read_command() == Some(b'd') {
-            DUMP_REQUESTED.store(true, Ordering::Relaxed);
+        match board::read_command() {
+            Some(b'd') => DUMP_REQUESTED.store(true, Ordering::Relaxed),
+            Some(b'e') => enable(true),
+            Some(b'x') => enable(false),
+            Some(b'r') => {
+                LOOPS.with_app(|app| app.reset());
+            }
+            _ => {}
         }
+    }
+
+    fn enable(on: bool) {
+        LOOPS.with_app(|app| app.set_enable_request(on));
+        MOVE_GO.store(on, Ordering::Relaxed);
     }
 
     firmware::bind_interrupts!(current: current_loop, velocity: velocity_loop, command: command);
@@ -94,8 +126,14 @@ mod target {
             mem.flash_bytes,
             mem.static_ram_bytes
         );
-        LOOPS.install(app, b.current_io, b.velocity_io, profile);
-        LOOPS.with_app(|app| app.set_enable_request(true));
+        let motion = GatedMove {
+            profile,
+            hold: Setpoint::default(),
+        };
+        LOOPS.install(app, b.current_io, b.velocity_io, motion);
+        // QEMU demo: enable at once. The real board waits for `e` on the console.
+        #[cfg(not(feature = "board-stm32f4"))]
+        enable(true);
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
 
         let mut dumps = 0_u32;

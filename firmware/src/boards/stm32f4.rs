@@ -98,8 +98,12 @@ fn clocks(rcc: &pac::RCC, flash: &pac::FLASH) -> bool {
         return false; // HSERDY never came: no crystal?
     }
     // PLLCFGR: PLLM[5:0] = 8, PLLN[14:6] = 336, PLLP[17:16] = 0 (/2), PLLSRC[22] = HSE,
-    // PLLQ[27:24] = 7.
-    wr!(rcc.pllcfgr(), 8 | (336 << 6) | (1 << 22) | (7 << 24));
+    // PLLQ[27:24] = 7; the reserved bits keep their reset values.
+    rmw!(
+        rcc.pllcfgr(),
+        0x0F43_7FFF,
+        8 | (336 << 6) | (1 << 22) | (7 << 24)
+    );
     rmw!(rcc.cr(), 0, 1 << 24); // PLLON
     if !wait(|| rcc.cr().read().bits() & (1 << 25) != 0) {
         return false;
@@ -333,6 +337,10 @@ pub fn init(_core: &mut cortex_m::Peripherals, _cfg: &controller_core::DriveConf
         (1 << 1) | (1 << 4) | (1 << 5) | (1 << 17)
     );
     rmw!(dp.RCC.apb2enr(), 0, 1 | (1 << 8));
+    // Read back: the first access to a just-clocked peripheral must wait two bus cycles
+    // (STM32F40x errata, "delay after an RCC peripheral clock enabling").
+    let _ = dp.RCC.apb2enr().read();
+    cortex_m::asm::dsb();
 
     // Enable output low first, then the pins.
     wr!(dp.GPIOD.bsrr(), 1 << (12 + 16));
