@@ -88,6 +88,9 @@ mod target {
     /// QEMU run length [current ticks]: 1.2 s at 4 kHz.
     #[cfg(not(feature = "board-stm32f4"))]
     const RUN_TICKS: u32 = 4800;
+    /// How close to the move's end position the virtual motor must stop [counts].
+    #[cfg(not(feature = "board-stm32f4"))]
+    const END_TOLERANCE_COUNTS: i32 = 8;
     /// Tick at which the QEMU run asks for a dump itself (0.5 s, at speed).
     #[cfg(not(feature = "board-stm32f4"))]
     const SELF_DUMP_TICK: u32 = 2000;
@@ -205,14 +208,28 @@ mod target {
             exit(false)
         };
         let overruns = LOOPS.overruns();
+        // The move's end position: 0.5 pu for (0.4/2 + 0.2 + 0.4/2) s at 4096·1000/60
+        // counts per pu·s = 20,480 counts. The motor must have got there and stopped.
+        let end_counts = (0.5 * 0.6 * 4096.0 * 1000.0 / 60.0) as i32;
+        let final_error = board::motor_counts() as i32 - end_counts;
         defmt::info!(
-            "run done: {=u32} current ticks, {=u32} velocity overruns, {=u32} dumps, fault {}",
+            "run done: {=u32} current ticks, {=u32} velocity overruns, {=u32} dumps, fault {}, \
+             motor at {=i32} counts of {=i32} ({=i32} off)",
             ticks,
             overruns,
             dumps,
-            defmt::Debug2Format(&fault)
+            defmt::Debug2Format(&fault),
+            board::motor_counts() as i32,
+            end_counts,
+            final_error
         );
-        exit(fault.is_none() && overruns == 0 && dumps >= 1 && ticks >= RUN_TICKS)
+        exit(
+            fault.is_none()
+                && overruns == 0
+                && dumps >= 1
+                && ticks >= RUN_TICKS
+                && final_error.abs() <= END_TOLERANCE_COUNTS,
+        )
     }
 }
 

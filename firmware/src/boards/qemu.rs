@@ -319,6 +319,11 @@ impl embedded_hal::pwm::SetDutyCycle for VirtualPwm {
     }
 }
 
+/// The virtual motor's position [counts, 32-bit]: what the shaft did, for run checks.
+pub fn motor_counts() -> u32 {
+    MOTOR_COUNTS.load(Ordering::Relaxed)
+}
+
 /// The virtual current ADC: reads the virtual motor's winding current.
 pub struct VirtualCurrent;
 
