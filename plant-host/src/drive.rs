@@ -7,6 +7,7 @@
 
 use crate::config::{MechanicsDerived, PlantConfig};
 use crate::error::PlantError;
+use crate::load::{for_each_load_piece, LoadTorque};
 use crate::piecewise::{Contact, Piecewise, Vec3, Vec5, Winding};
 use crate::sensors::Sensors;
 use crate::two_inertia::check_step;
@@ -91,6 +92,25 @@ impl DrivePlant {
     pub fn advance(&mut self, dt_s: f64, voltage_pu: f64, load_torque_pu: f64) {
         // The error is the caller's contract violation; the plant stays as it was.
         let _ = self.try_advance(dt_s, voltage_pu, load_torque_pu);
+    }
+
+    /// Advances `dt_s` with `voltage_pu` held and the load torque following `load` (time from
+    /// [`Self::time_s`]): steps end at the load's discontinuities and a sinusoid is held at
+    /// midpoints of ≤ 50 µs pieces.
+    pub fn advance_with_load(
+        &mut self,
+        dt_s: f64,
+        voltage_pu: f64,
+        load: &LoadTorque,
+    ) -> Result<(), PlantError> {
+        check_step(dt_s, &[voltage_pu])?;
+        let mut result = Ok(());
+        for_each_load_piece(self.time_s, dt_s, load, |h, tl| {
+            if result.is_ok() {
+                result = self.try_advance(h, voltage_pu, tl);
+            }
+        });
+        result
     }
 
     /// As [`Self::advance`], reporting invalid input.

@@ -26,7 +26,7 @@ pub use config::{
 };
 pub use drive::DrivePlant;
 pub use error::{ConfigError, PlantError};
-pub use load::{LoadTorque, TimeSeries};
+pub use load::{for_each_load_piece, LoadTorque, TimeSeries, SMOOTH_LOAD_STEP_S};
 pub use piecewise::Contact;
 pub use replay::{
     parse_torque_csv, replay, simulate, write_atomically, ReplaySummary, StateRow, TorqueRow,

@@ -2,6 +2,7 @@
 
 use crate::config::{BacklashModel, MechanicsConfig, MechanicsDerived};
 use crate::error::PlantError;
+use crate::load::{for_each_load_piece, LoadTorque};
 use crate::piecewise::{Contact, Piecewise, Vec3, Vec5};
 
 /// Two inertias coupled by a damped shaft through lost motion, reflected to the motor side,
@@ -41,6 +42,25 @@ impl TwoInertiaPlant {
     pub fn advance(&mut self, dt_s: f64, motor_torque_pu: f64, load_torque_pu: f64) {
         // The error is the caller's contract violation; the plant stays as it was.
         let _ = self.try_advance(dt_s, motor_torque_pu, load_torque_pu);
+    }
+
+    /// Advances `dt_s` with `motor_torque_pu` held and the load torque following `load` (time from
+    /// [`Self::time_s`]): steps end at the load's discontinuities and a sinusoid is held at
+    /// midpoints of ≤ 50 µs pieces.
+    pub fn advance_with_load(
+        &mut self,
+        dt_s: f64,
+        motor_torque_pu: f64,
+        load: &LoadTorque,
+    ) -> Result<(), PlantError> {
+        check_step(dt_s, &[motor_torque_pu])?;
+        let mut result = Ok(());
+        for_each_load_piece(self.time_s, dt_s, load, |h, tl| {
+            if result.is_ok() {
+                result = self.try_advance(h, motor_torque_pu, tl);
+            }
+        });
+        result
     }
 
     /// As [`Self::advance`], reporting invalid input.

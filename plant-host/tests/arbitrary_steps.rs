@@ -94,3 +94,38 @@ fn invalid_steps_are_rejected_and_leave_the_plant_unchanged() {
     p.advance(f64::NAN, 1.0, 0.0);
     assert_eq!(before, (p.motor_pos_rad(), p.motor_vel_pu(), p.time_s()));
 }
+
+#[test]
+fn advance_with_load_ends_steps_at_load_changes() {
+    use plant_host::LoadTorque;
+    let cfg = PlantConfig::table1();
+    let load = LoadTorque::Sum(vec![
+        LoadTorque::Step {
+            at_s: 0.010_1,
+            torque_pu: 0.5,
+        },
+        LoadTorque::Shock {
+            start_s: 0.020_05,
+            duration_s: 0.001,
+            torque_pu: 1.5,
+        },
+    ]);
+    let mut a = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    let mut b = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    for _ in 0..120 {
+        a.advance_with_load(250e-6, 1.0, &load).unwrap();
+    }
+    // By hand: the same held torques over the exact segments.
+    for (dt, tl) in [
+        (0.010_1, 0.0),
+        (0.020_05 - 0.010_1, 0.5),
+        (0.001, 2.0),
+        (0.03 - 0.021_05, 0.5),
+    ] {
+        b.advance(dt, 1.0, tl);
+    }
+    assert!((a.time_s() - 0.03).abs() < 1e-12);
+    assert!((a.motor_pos_rad() - b.motor_pos_rad()).abs() < 1e-10);
+    assert!((a.load_vel_pu() - b.load_vel_pu()).abs() < 1e-10);
+    assert!(a.advance_with_load(f64::NAN, 1.0, &load).is_err());
+}
