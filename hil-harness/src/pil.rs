@@ -320,7 +320,10 @@ pub fn pil_command(args: &PilArgs) -> Result<String> {
                     c.current_ticks, c.velocity_ticks
                 )
             } else {
-                format!("DIFFERS from the host run: {} mismatched values", c.mismatches)
+                format!(
+                    "DIFFERS from the host run: {} mismatched values",
+                    c.mismatches
+                )
             }
         },
     );
@@ -366,13 +369,17 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
 
     let mut link = HostLink::new(stream, Duration::from_millis(args.reply_timeout_ms));
     let backend_err = |stage: &str, e: HostError| {
-        HarnessError::Backend(format!("PIL {stage}: {e} (QEMU stderr: {})", qemu_stderr_hint()))
+        HarnessError::Backend(format!(
+            "PIL {stage}: {e} (QEMU stderr: {})",
+            qemu_stderr_hint()
+        ))
     };
     let ack: HelloAck = link
         .hello(args.watchdog_ms)
         .map_err(|e| backend_err("hello", e))?;
     let mut w = Writer::new();
-    pil_link::settings::encode(&cfg.drive, &mut w).map_err(|e| backend_err("config", HostError::Link(e)))?;
+    pil_link::settings::encode(&cfg.drive, &mut w)
+        .map_err(|e| backend_err("config", HostError::Link(e)))?;
     link.configure(w.as_slice())
         .map_err(|e| backend_err("config", e))?;
     if let Some(p) = plan {
@@ -393,10 +400,7 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
     let tc_s = 1.0 / f64::from(cfg.drive.current_rate_hz.max(1));
     let fault = match backend.fault.take() {
         None => {
-            backend
-                .link
-                .stop()
-                .map_err(|e| backend_err("stop", e))?;
+            backend.link.stop().map_err(|e| backend_err("stop", e))?;
             None
         }
         Some((error, at)) => {
@@ -445,9 +449,8 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
 
     let comparison = if link_report.fault.is_none() && !args.no_compare {
         let mut host = Recorder {
-            inner: Controller::new(&cfg.drive).map_err(|e| {
-                HarnessError::config(format!("drive.{}", e.param()), e.to_string())
-            })?,
+            inner: Controller::new(&cfg.drive)
+                .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?,
             log: TickLog::default(),
         };
         let host_run = run_with_backend(&cfg, &mut host)?;
@@ -535,7 +538,9 @@ pub fn build_pil_image() -> Result<PathBuf> {
         .env("CARGO_TARGET_DIR", &target_dir)
         .stderr(Stdio::inherit())
         .output()
-        .map_err(|e| HarnessError::Backend(format!("PIL: cannot run cargo to build the image: {e}")))?;
+        .map_err(|e| {
+            HarnessError::Backend(format!("PIL: cannot run cargo to build the image: {e}"))
+        })?;
     if !output.status.success() {
         return Err(HarnessError::Backend(format!(
             "PIL: building the firmware image failed ({}): cargo build -p firmware --release \
@@ -551,8 +556,7 @@ pub fn build_pil_image() -> Result<PathBuf> {
             .then(|| v.get("executable")?.as_str().map(PathBuf::from))
             .flatten()
     });
-    let elf = from_json
-        .unwrap_or_else(|| target_dir.join("thumbv7em-none-eabihf/release/pil"));
+    let elf = from_json.unwrap_or_else(|| target_dir.join("thumbv7em-none-eabihf/release/pil"));
     if elf.is_file() {
         Ok(elf)
     } else {
@@ -652,7 +656,10 @@ pub fn compare(
     let mut first = None;
     let mut compared = 0;
     let mut mismatches = 0;
-    let mut note = |tick_loop: &str, index: usize, host: &[(&'static str, i64)], pil: &[(&'static str, i64)]| {
+    let mut note = |tick_loop: &str,
+                    index: usize,
+                    host: &[(&'static str, i64)],
+                    pil: &[(&'static str, i64)]| {
         for (&(name, h), &(_, p)) in host.iter().zip(pil) {
             compared += 1;
             if h != p {
@@ -730,8 +737,16 @@ pub fn report_section(dir: &Path) -> Result<String> {
     };
     let c = read("pil-comparison.json")?;
     let l = read("pil.json")?;
-    let n = |v: &serde_json::Value, k: &str| v.get(k).and_then(serde_json::Value::as_f64).unwrap_or(f64::NAN);
-    let b = |v: &serde_json::Value, k: &str| v.get(k).and_then(serde_json::Value::as_bool).unwrap_or(false);
+    let n = |v: &serde_json::Value, k: &str| {
+        v.get(k)
+            .and_then(serde_json::Value::as_f64)
+            .unwrap_or(f64::NAN)
+    };
+    let b = |v: &serde_json::Value, k: &str| {
+        v.get(k)
+            .and_then(serde_json::Value::as_bool)
+            .unwrap_or(false)
+    };
     let s = |v: &serde_json::Value, k: &str| {
         v.get(k)
             .and_then(serde_json::Value::as_str)
@@ -751,7 +766,9 @@ pub fn report_section(dir: &Path) -> Result<String> {
         n(&l, "frames"),
         n(&l, "round_trip_us"),
         n(&l, "wall_time_s"),
-        &c.get("first_mismatch").map(ToString::to_string).unwrap_or_default(),
+        &c.get("first_mismatch")
+            .map(ToString::to_string)
+            .unwrap_or_default(),
     ))
 }
 
@@ -815,7 +832,7 @@ fn format_section(
          | controller inputs identical | {inputs_identical} |\n\
          | trace (plant states included) identical | {trace_identical} |\n\
          | link frames | {frames:.0} |\n\
-         | mean round trip (harness → QEMU → harness) | {round_trip_us:.0} µs |\n\
+         | mean wall time per frame (QEMU round trip + plant step) | {round_trip_us:.0} µs |\n\
          | wall time of the closed loop | {wall_time_s:.1} s |\n\n\
          Verdict: {verdict}.\n"
     );
