@@ -107,6 +107,23 @@ fn main() -> Result<(), plant_host::PlantError> {
         }
     }
 
+    println!("== Table 1 gains (designed for J_total) with the gears APART (Jm alone), 2 kHz");
+    for (bw_label, bw) in [("15 Hz", 2.0 * PI * 15.0), ("2 rad/s", 2.0)] {
+        for (label, ka, fc) in [("no AFB", 0.0, 100.0), ("Ka=1.0 J, 20 Hz", 1.0, 20.0)] {
+            let mut lp = design(&cfg, bw, ka, fc, 500e-6);
+            lp.plant = EngagedPlant::disengaged(&cfg.mechanics);
+            let mg = lp.margins();
+            println!(
+                "  bandwidth {bw_label}, {label}: PM {:.1} deg at {:.0} rad/s, GM {:.1} dB, spectral radius {:.5} ({})",
+                mg.phase_margin_deg,
+                mg.gain_crossover_rad_s,
+                mg.gain_margin_db,
+                lp.sampled_spectral_radius(),
+                if lp.is_stable() { "stable" } else { "UNSTABLE" }
+            );
+        }
+    }
+
     println!("== Eq. 1 / Fig. 2 (Jp = 1 s, zeros at 1 and 10 rad/s)");
     let st = PiStiffness::from_zeros(1.0, 1.0, 10.0);
     for p in st.curve(&[0.1, 1.0, 3.162, 10.0, 100.0]) {

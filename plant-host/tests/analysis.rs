@@ -212,3 +212,23 @@ fn acceleration_feedback_raises_high_frequency_stiffness_of_a_stable_design() {
         assert!(b > 1.2 * a, "ω = {w}: {b} vs {a}");
     }
 }
+
+#[test]
+fn disengaged_plant_is_the_motor_alone() {
+    let cfg = config("table1.toml");
+    let p = EngagedPlant::disengaged(&cfg.mechanics);
+    for w in [1.0, 100.0, 1000.0] {
+        let g = p.response(w).unwrap();
+        // ωm/Tm = 1/(Jm·jω); the load does not feel the motor.
+        let want = 1.0 / (cfg.mechanics.motor_inertia_s * w);
+        assert!((g.motor_speed_per_motor_torque.norm() / want - 1.0).abs() < 1e-12);
+        assert!(g.load_speed_per_motor_torque.norm() < 1e-15);
+    }
+    // Gains sized for J_total on Jm alone: the loop crosses over ~(Jm + Jl)/Jm = 8.4× higher.
+    let mut lp = table1_loop(2.0 * PI * 15.0, 0.0, 100.0, 500e-6);
+    let engaged_gc = lp.margins().gain_crossover_rad_s;
+    lp.plant = p;
+    let apart_gc = lp.margins().gain_crossover_rad_s;
+    println!("gain crossover engaged {engaged_gc:.1} rad/s, gears apart {apart_gc:.1} rad/s");
+    assert!(apart_gc > 6.0 * engaged_gc);
+}

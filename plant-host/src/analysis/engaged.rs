@@ -76,6 +76,21 @@ impl EngagedPlant {
         }
     }
 
+    /// The plant with the gears apart (inside the lost motion): no shaft, the motor alone
+    /// (Jm) and the load coasting. What a velocity loop sees while the gap is crossed.
+    pub fn disengaged(m: &MechanicsConfig) -> Self {
+        let mut free = *m;
+        free.shaft_damping_ratio = 0.0;
+        let mut p = Self::new(&free);
+        // Remove the spring: zero the coupling terms of the speed rows.
+        for (r, c) in [(2, 0), (2, 1), (3, 0), (3, 1)] {
+            if let Some(v) = p.a.get_mut((r, c)) {
+                *v = 0.0;
+            }
+        }
+        p
+    }
+
     /// Poles, resonance and anti-resonance. The zeros of ωm/Tm (relative degree one, c·b ≠ 0)
     /// are the eigenvalues of (I − b·c/(c·b))·A restricted to ker c, i.e. with the ωm row
     /// and column removed.

@@ -156,20 +156,32 @@ impl VelocityLoop {
         )
     }
 
-    /// Largest |eigenvalue| of the exact sampled-data closed loop, excluding the free
-    /// position mode (eigenvalue 1: a velocity loop does not hold position). Stable iff < 1.
+    /// Largest |eigenvalue| of the exact sampled-data closed loop, excluding the structural
+    /// eigenvalues at exactly 1 (free position of the shaft, and with the gears apart the
+    /// coasting load: a velocity loop holds neither). Stable iff < 1.
     pub fn sampled_spectral_radius(&self) -> f64 {
         let m = self.sampled_closed_loop();
-        let mut eig: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
-        // Remove the eigenvalue nearest 1 (the rigid position mode).
-        if let Some((i, _)) = eig.iter().enumerate().min_by(|a, b| {
-            let da = (a.1 - Complex::new(1.0, 0.0)).norm();
-            let db = (b.1 - Complex::new(1.0, 0.0)).norm();
-            da.total_cmp(&db)
-        }) {
-            eig.remove(i);
+        let eig: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
+        // The free position mode is always there; the coasting load adds two more (θl, ωl)
+        // when the shaft is removed. They are exact integrators: drop eigenvalues within
+        // 1e-7 of 1 (a Jordan pair splits by ~√ε), at least one.
+        let one = Complex::new(1.0, 0.0);
+        let mut rest: Vec<Complex<f64>> = eig
+            .iter()
+            .copied()
+            .filter(|l| (l - one).norm() > 1e-7)
+            .collect();
+        if rest.len() == eig.len() {
+            // Not found within tolerance: drop the nearest one.
+            if let Some((i, _)) = rest
+                .iter()
+                .enumerate()
+                .min_by(|a, b| (a.1 - one).norm().total_cmp(&(b.1 - one).norm()))
+            {
+                rest.remove(i);
+            }
         }
-        eig.iter().map(|l| l.norm()).fold(0.0, f64::max)
+        rest.iter().map(|l| l.norm()).fold(0.0, f64::max)
     }
 
     /// Whether the sampled-data closed loop is asymptotically stable.
