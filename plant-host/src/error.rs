@@ -50,6 +50,13 @@ pub enum ConfigError {
         /// The allowed range.
         allowed: String,
     },
+    /// Keys each in range whose combination is not allowed.
+    Inconsistent {
+        /// The keys involved, `table.key` comma-separated.
+        keys: String,
+        /// What is wrong and how to fix it.
+        message: String,
+    },
     /// A value outside its allowed range.
     OutOfRange {
         /// `table.key`.
@@ -79,6 +86,7 @@ impl fmt::Display for ConfigError {
             Self::NotFinite { key, allowed } => {
                 write!(f, "`{key}` is not finite (allowed: {allowed})")
             }
+            Self::Inconsistent { keys, message } => write!(f, "{keys}: {message}"),
             Self::OutOfRange {
                 key,
                 value,

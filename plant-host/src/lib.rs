@@ -23,6 +23,7 @@ mod two_inertia;
 
 pub use config::{
     BacklashModel, ElectricsConfig, MechanicsConfig, MechanicsDerived, PlantConfig, SensorsConfig,
+    MAX_RATE_PER_S,
 };
 pub use drive::DrivePlant;
 pub use error::{ConfigError, PlantError};

@@ -275,7 +275,9 @@ impl Piecewise {
             .fold(0.0, f64::max);
         // ‖A‖·h ≤ 0.5 keeps the Taylor series short and the tangent bound tight; 250 µs keeps
         // the crossing search (16 samples per step) fine even for slow plants.
-        let h_max_s = (0.5 / norm.max(1e-9)).min(250e-6);
+        // Configs from TOML are checked to ‖A‖ ≤ 1e6 1/s; a hand-built absurd one is still
+        // stepped (exactly between edges) with sub-steps no shorter than 0.5 µs, never hung.
+        let h_max_s = (0.5 / norm.clamp(1e-9, 1e6)).min(250e-6);
         let contacts = [Contact::Free, Contact::Driving, Contact::Braking];
         let modes = core::array::from_fn(|i| {
             let c = contacts.get(i).copied().unwrap_or(Contact::Free);
@@ -571,6 +573,21 @@ fn first_crossing(t: &Taylor, g: &Guard, h: f64) -> Option<f64> {
         x = next;
     }
     Some(hi)
+}
+
+/// Fastest rate of the plant, ‖A‖∞ of the engaged mode with the winding (1/s): sets the
+/// internal sub-step (‖A‖·h ≤ 0.5).
+pub(crate) fn fastest_rate_per_s(mech: &MechanicsConfig, winding: Option<Winding>) -> f64 {
+    let dv = mech.derived();
+    let shaft = Shaft {
+        k: dv.stiffness_pu_per_rad,
+        d: dv.damping_pu,
+        g: dv.half_gap_rad,
+    };
+    let (a, _) = system_matrices(mech, &shaft, 1.0, 1.0, winding, dv.base_speed_rad_s);
+    a.row_iter()
+        .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
 }
 
 /// A and B of one mode. `on` = 1 when the shaft transmits, `sigma` = ±1 selects the edge.

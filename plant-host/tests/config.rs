@@ -296,3 +296,26 @@ fn replay_writes_nothing_on_any_error() {
     assert!((row1[1] - wb * 1e-6 / (2.0 * 0.117)).abs() < 1e-12);
     assert_eq!(row1[5], 0.0);
 }
+
+#[test]
+fn absurdly_stiff_combinations_are_rejected_naming_the_keys() {
+    // Each key in range, the combination far too stiff: Jm = 1e-5 s under a 5 kHz shaft.
+    let text = plant_table(None, Some(("motor_inertia_s", "1e-5")))
+        .replace("anti_resonance_hz = 22.5", "anti_resonance_hz = 5000.0");
+    let e = err(&text);
+    assert!(matches!(e, ConfigError::Inconsistent { .. }), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("plant.motor_inertia_s") && msg.contains("1e6"),
+        "{msg}"
+    );
+    // A very small winding inductance alone also trips it.
+    let e = err(&format!(
+        "{}[electrics]\nwinding_inductance_pu_s = 1e-6\n",
+        plant_table(None, None)
+    ));
+    assert!(
+        e.to_string().contains("electrics.winding_inductance_pu_s"),
+        "{e}"
+    );
+}

@@ -6,6 +6,7 @@
 mod reader;
 
 use crate::error::{ConfigError, PlantError};
+use crate::piecewise::{fastest_rate_per_s, Winding};
 use reader::{IntSpec, RealSpec, TableReader};
 use std::f64::consts::PI;
 use std::path::Path;
@@ -317,12 +318,40 @@ impl PlantConfig {
         };
         lm.finish()?;
 
-        Ok(Self {
+        let config = Self {
             mechanics,
             electrics,
             sensors,
             backlash,
-        })
+        };
+        config.check_speed_of_dynamics()?;
+        Ok(config)
+    }
+
+    /// Cross-key check: each key may be in range while the combination is absurdly stiff
+    /// (e.g. a tiny motor inertia under a stiff, heavy load). The integrator sub-steps at
+    /// ‖A‖·h ≤ 0.5, so ‖A‖ is capped at [`MAX_RATE_PER_S`] (sub-steps ≥ 0.5 µs).
+    pub fn check_speed_of_dynamics(&self) -> Result<(), ConfigError> {
+        let winding = Winding {
+            r_pu: self.electrics.winding_resistance_pu,
+            l_pu_s: self.electrics.winding_inductance_pu_s,
+        };
+        let rate = fastest_rate_per_s(&self.mechanics, Some(winding));
+        if rate > MAX_RATE_PER_S || !rate.is_finite() {
+            return Err(ConfigError::Inconsistent {
+                keys: "plant.motor_inertia_s, plant.load_inertia_s, plant.anti_resonance_hz, \
+                       plant.base_speed_rpm, electrics.winding_inductance_pu_s"
+                    .into(),
+                message: format!(
+                    "the plant's fastest rate ‖A‖ = {rate:.3e} 1/s exceeds {MAX_RATE_PER_S:e} 1/s \
+                     (K/Jm = {:.3e}, (1 + R)/L = {:.3e}); raise motor_inertia_s or \
+                     winding_inductance_pu_s, or lower anti_resonance_hz or load_inertia_s",
+                    self.mechanics.derived().stiffness_pu_per_rad / self.mechanics.motor_inertia_s,
+                    (1.0 + winding.r_pu) / winding.l_pu_s,
+                ),
+            });
+        }
+        Ok(())
     }
 
     /// Reads and parses a config file.
@@ -334,6 +363,9 @@ impl PlantConfig {
         Ok(Self::from_toml_str(&text)?)
     }
 }
+
+/// Largest allowed ‖A‖∞ of the plant, 1/s (see [`PlantConfig::check_speed_of_dynamics`]).
+pub const MAX_RATE_PER_S: f64 = 1e6;
 
 /// Values already range-checked to fit; saturate rather than panic all the same.
 fn to_u32(v: i64) -> u32 {
