@@ -1,0 +1,375 @@
+//! Trap 1, the whole linear loop: the controller's tick written in f64 (observer or
+//! differentiation, acceleration feedback, velocity PI, the velocity tick every second
+//! current tick) around a rigid inertia (gears separated: Jm; engaged: J_total) with the
+//! current loop as its designed first-order response and the 0.18 ms computation delay,
+//! discretized exactly. The map over one velocity period is built column by column from
+//! unit vectors and its spectral radius decides stability (ρ < 1). No quantization, no
+//! lost-motion transitions: this is the linear skeleton of the closed-loop simulations.
+//! `cargo test -p controller-core --release --test afb_state_space -- --nocapture`
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing,
+    clippy::needless_range_loop
+)]
+
+use controller_core::{design, AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig};
+
+const N: usize = 15;
+type Mat = Vec<Vec<f64>>;
+
+// State indices. Positions are kept relative to the plant (only differences matter), so
+// the free position mode (a pole at z = 1 that no velocity loop can move) is left out.
+const W: usize = 0; // motor speed [pu]
+const I: usize = 1; // motor current = torque [pu]
+const UPREV: usize = 2; // torque command of the last tick [pu] (applied until the delay ends)
+const EP: usize = 3; // observer position minus plant position [pu·s]
+const VH: usize = 4; // observer velocity [pu]
+const DH: usize = 5; // observer disturbance acceleration [pu/s]
+const Y: usize = 6; // AFB filter output [pu/s]
+const INTEG: usize = 7; // velocity PI integral [pu]
+const IVEL: usize = 8; // velocity PI output held between velocity ticks [pu]
+const AFB: usize = 9; // AFB term held [pu]
+const D1: usize = 10; // θ_n − θ_(n−1) [pu·s]
+const D2: usize = 11;
+const D3: usize = 12;
+const D4: usize = 13;
+const VF: usize = 14; // held differentiated-velocity history (unused slot kept for clarity)
+
+fn matmul(a: &Mat, b: &Mat) -> Mat {
+    let n = a.len();
+    let mut c = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        for k in 0..n {
+            let aik = a[i][k];
+            if aik != 0.0 {
+                for j in 0..n {
+                    c[i][j] += aik * b[k][j];
+                }
+            }
+        }
+    }
+    c
+}
+
+/// Exact discretization of θ' = ω, ω' = i/J, i' = ω_c·(r − i) over h with r constant:
+/// returns (Φ, Γ) for x = [θ, ω, i].
+fn plant_step(j: f64, wc: f64, h: f64) -> ([[f64; 3]; 3], [f64; 3]) {
+    // Augment r as a constant state: z = [θ, ω, i, r], z' = A z; exp by scaled Taylor series.
+    let a = [
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0 / j, 0.0],
+        [0.0, 0.0, -wc, wc],
+        [0.0; 4],
+    ];
+    let s = 8;
+    let hs = h / f64::from(1 << s);
+    let mut e = [[0.0; 4]; 4];
+    let mut term = [[0.0; 4]; 4];
+    for k in 0..4 {
+        e[k][k] = 1.0;
+        term[k][k] = 1.0;
+    }
+    for n in 1..30 {
+        let mut next = [[0.0; 4]; 4];
+        for r in 0..4 {
+            for c in 0..4 {
+                for k in 0..4 {
+                    next[r][c] += term[r][k] * a[k][c] * hs / f64::from(n);
+                }
+            }
+        }
+        term = next;
+        for r in 0..4 {
+            for c in 0..4 {
+                e[r][c] += term[r][c];
+            }
+        }
+    }
+    for _ in 0..s {
+        let mut sq = [[0.0; 4]; 4];
+        for r in 0..4 {
+            for c in 0..4 {
+                for k in 0..4 {
+                    sq[r][c] += e[r][k] * e[k][c];
+                }
+            }
+        }
+        e = sq;
+    }
+    let phi = [
+        [e[0][0], e[0][1], e[0][2]],
+        [e[1][0], e[1][1], e[1][2]],
+        [e[2][0], e[2][1], e[2][2]],
+    ];
+    (phi, [e[0][3], e[1][3], e[2][3]])
+}
+
+/// Linear model parameters, from the drive's designed gains.
+struct Model {
+    ts: f64,
+    j_plant: f64,
+    wc: f64,
+    delay: f64,
+    kp: f64,
+    ki_ts_v: f64,
+    ka: f64,
+    alpha: f64,
+    afb_on: bool,
+    afb_at_current: bool,
+    afb_from_observer: bool,
+    vel_from_observer: bool,
+    l: [f64; 3],
+    j_obs: f64,
+}
+
+impl Model {
+    fn new(cfg: &DriveConfig, j_plant: f64) -> Self {
+        let g = design(cfg).unwrap();
+        let ts = 1.0 / f64::from(cfg.current_rate_hz);
+        let alpha = match cfg.accel_feedback.filter {
+            FilterConfig::FirstOrder { corner_hz } => {
+                let f = if cfg.accel_feedback.rate == AfbRate::Current {
+                    1.0
+                } else {
+                    2.0
+                };
+                1.0 - (-std::f64::consts::TAU * f64::from(corner_hz) * ts * f).exp()
+            }
+            FilterConfig::None => 1.0,
+            FilterConfig::SecondOrder { .. } => panic!("first-order filters only"),
+        };
+        Self {
+            ts,
+            j_plant,
+            wc: f64::from(cfg.current_bandwidth_rad_s),
+            delay: 0.18e-3,
+            kp: f64::from(g.kp_vel),
+            ki_ts_v: f64::from(g.ki_vel) / f64::from(cfg.velocity_rate_hz),
+            ka: f64::from(g.ka),
+            alpha,
+            afb_on: cfg.accel_feedback.mode != AfbMode::Off,
+            afb_at_current: cfg.accel_feedback.rate == AfbRate::Current,
+            afb_from_observer: cfg.accel_feedback.source == Estimator::Observer,
+            vel_from_observer: cfg.velocity_estimator == Estimator::Observer,
+            l: g.observer_l.map(f64::from),
+            j_obs: f64::from(g.observer_inertia_s),
+        }
+    }
+
+    /// One current tick (with the velocity tick first when `velocity`), then the plant over
+    /// one current period. Linear in `x`.
+    fn tick(&self, x: &[f64], velocity: bool) -> Vec<f64> {
+        let mut s = x.to_vec();
+        let ts = self.ts;
+        let tv = 2.0 * ts;
+        let afb_step = |s: &mut Vec<f64>, a: f64| {
+            s[Y] += self.alpha * (a - s[Y]);
+            s[AFB] = -self.ka * s[Y];
+        };
+        if velocity {
+            // The velocity tick reads the observer state of the last current tick.
+            let v_fb = if self.vel_from_observer {
+                s[VH]
+            } else {
+                (s[D1] + s[D2]) / tv
+            };
+            let e = -v_fb;
+            s[INTEG] += self.ki_ts_v * e;
+            s[IVEL] = self.kp * e + s[INTEG];
+            if self.afb_on && !self.afb_at_current {
+                let a = if self.afb_from_observer {
+                    s[UPREV] / self.j_obs + s[DH]
+                } else {
+                    (s[D1] + s[D2] - s[D3] - s[D4]) / (tv * tv)
+                };
+                afb_step(&mut s, a);
+            }
+        }
+        // Observer: positions relative to the plant at this sample (θ moved by D1).
+        let u = s[UPREV] / self.j_obs;
+        let acc = u + s[DH];
+        let ep_pred = s[EP] - s[D1] + s[VH] * ts + acc * ts * ts / 2.0;
+        let v_pred = s[VH] + acc * ts;
+        let e = -ep_pred;
+        s[EP] = ep_pred + self.l[0] * e;
+        s[VH] = v_pred + self.l[1] * e / ts;
+        s[DH] += self.l[2] * e / (ts * ts);
+        if self.afb_on && self.afb_at_current {
+            let a = if self.afb_from_observer {
+                u + s[DH]
+            } else {
+                (s[D1] - s[D2]) / (ts * ts)
+            };
+            afb_step(&mut s, a);
+        }
+        if !self.afb_on {
+            // Unused states must not hold a mode at z = 1.
+            s[Y] = 0.0;
+            s[AFB] = 0.0;
+        }
+        let i_ref = s[IVEL] + s[AFB];
+        // Plant: the old command until the delay ends, the new one after.
+        let (p1, g1) = plant_step(self.j_plant, self.wc, self.delay);
+        let (p2, g2) = plant_step(self.j_plant, self.wc, ts - self.delay);
+        let mut z = [0.0, s[W], s[I]];
+        let apply = |z: [f64; 3], p: &[[f64; 3]; 3], g: &[f64; 3], r: f64| {
+            let mut o = [0.0; 3];
+            for (r_i, o_i) in o.iter_mut().enumerate() {
+                *o_i = p[r_i][0] * z[0] + p[r_i][1] * z[1] + p[r_i][2] * z[2] + g[r_i] * r;
+            }
+            o
+        };
+        z = apply(z, &p1, &g1, s[UPREV]);
+        z = apply(z, &p2, &g2, i_ref);
+        s[W] = z[1];
+        s[I] = z[2];
+        s[UPREV] = i_ref;
+        s[D4] = s[D3];
+        s[D3] = s[D2];
+        s[D2] = s[D1];
+        s[D1] = z[0];
+        s[VF] = 0.0;
+        s
+    }
+
+    /// Map over one velocity period (velocity tick + current tick, then a current tick).
+    fn period_matrix(&self) -> Mat {
+        let mut m = vec![vec![0.0; N]; N];
+        for c in 0..N {
+            let mut e = vec![0.0; N];
+            e[c] = 1.0;
+            let x = self.tick(&self.tick(&e, true), false);
+            for r in 0..N {
+                m[r][c] = x[r];
+            }
+        }
+        m
+    }
+}
+
+/// Spectral radius by Gelfand's formula with repeated squaring (ρ = lim ‖M^k‖^(1/k)).
+fn spectral_radius(m: &Mat) -> f64 {
+    let norm = |a: &Mat| {
+        a.iter()
+            .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
+            .fold(0.0, f64::max)
+    };
+    let mut p = m.clone();
+    let mut log_scale = 0.0f64;
+    let mut k = 1.0f64;
+    for _ in 0..40 {
+        let n = norm(&p).max(1e-300);
+        for r in &mut p {
+            for v in r.iter_mut() {
+                *v /= n;
+            }
+        }
+        log_scale = 2.0 * (log_scale + n.ln());
+        p = matmul(&p, &p);
+        k *= 2.0;
+    }
+    ((log_scale + norm(&p).max(1e-300).ln()) / k).exp()
+}
+
+fn radius(cfg: &DriveConfig, j_plant: f64) -> f64 {
+    spectral_radius(&Model::new(cfg, j_plant).period_matrix())
+}
+
+#[test]
+fn spectral_radius_of_a_known_matrix() {
+    let m = vec![vec![0.5, 1.0], vec![0.0, -0.8]];
+    assert!(
+        (spectral_radius(&m) - 0.8).abs() < 1e-3,
+        "{}",
+        spectral_radius(&m)
+    );
+}
+
+fn bisect(lo: f32, hi: f32, stable: impl Fn(f32) -> bool) -> f32 {
+    if !stable(lo) {
+        return 0.0;
+    }
+    if stable(hi) {
+        return hi;
+    }
+    let (mut lo, mut hi) = (lo, hi);
+    for _ in 0..30 {
+        let mid = 0.5 * (lo + hi);
+        if stable(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// The linear skeleton of the sweep, as stability limits. Checks: the Table 1 default is
+/// stable for both inertias with Ka halved and doubled; AFB off is stable; with
+/// differentiated velocity and acceleration (the 10⁶-CPR simulation's setting, Ka = 0.5·J)
+/// the corner limit lies between the simulation's stable 25 Hz and unstable 50 Hz… at
+/// 4 kHz (the simulation sits on the boundary there, where quantization keeps the lightly
+/// damped mode ringing) and is at most half of it at 2 kHz.
+#[test]
+fn linear_closed_loop_stability_limits() {
+    let jm = 0.117;
+    let jt = 0.98;
+    let base = DriveConfig::table1();
+    println!("Observer-fed AFB (error form, 4 kHz, observer 75 Hz), largest stable Ka/J_total:");
+    println!("| filter corner [Hz] | gears separated (Jm) | engaged rigid (J_total) |");
+    println!("|---|---|---|");
+    for fc in [25.0f32, 50.0, 100.0, 200.0] {
+        let lim = |j: f64| {
+            bisect(0.01, 20.0, |frac| {
+                let mut c = base;
+                c.accel_feedback.gain_fraction = frac;
+                c.accel_feedback.filter = FilterConfig::FirstOrder { corner_hz: fc };
+                radius(&c, j) < 1.0
+            })
+        };
+        println!("| {fc} | {:.2} | {:.2} |", lim(jm), lim(jt));
+    }
+    println!("Differentiated velocity and acceleration, largest stable first-order corner [Hz]:");
+    println!(
+        "| Ka/J_total | AFB at 4 kHz, separated | engaged | AFB at 2 kHz, separated | engaged |"
+    );
+    println!("|---|---|---|---|---|");
+    let diff_limit = |frac: f32, rate: AfbRate, j: f64| {
+        bisect(1.0, 900.0, |fc| {
+            let mut c = base;
+            c.accel_feedback.source = Estimator::Differentiation;
+            c.velocity_estimator = Estimator::Differentiation;
+            c.accel_feedback.rate = rate;
+            c.accel_feedback.gain_fraction = frac;
+            c.accel_feedback.filter = FilterConfig::FirstOrder { corner_hz: fc };
+            radius(&c, j) < 1.0
+        })
+    };
+    for frac in [0.25f32, 0.5, 1.0] {
+        println!(
+            "| {frac} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            diff_limit(frac, AfbRate::Current, jm),
+            diff_limit(frac, AfbRate::Current, jt),
+            diff_limit(frac, AfbRate::Velocity, jm),
+            diff_limit(frac, AfbRate::Velocity, jt)
+        );
+    }
+    for scale in [0.5f32, 1.0, 2.0] {
+        let mut cfg = base;
+        cfg.accel_feedback.gain_fraction *= scale;
+        let (rs, re) = (radius(&cfg, jm), radius(&cfg, jt));
+        println!("default with Ka × {scale}: ρ separated {rs:.4}, engaged {re:.4}");
+        assert!(rs < 1.0 && re < 1.0, "default × {scale}: {rs} {re}");
+    }
+    let mut off = base;
+    off.accel_feedback.mode = AfbMode::Off;
+    let (rs, re) = (radius(&off, jm), radius(&off, jt));
+    println!("AFB off: ρ separated {rs:.4}, engaged {re:.4}");
+    assert!(rs < 1.0 && re < 1.0);
+    let f4 = diff_limit(0.5, AfbRate::Current, jm);
+    let f2 = diff_limit(0.5, AfbRate::Velocity, jm);
+    assert!(f4 > 25.0 && f4 < 60.0, "{f4}");
+    assert!(f2 <= 0.55 * f4, "{f2} vs {f4}");
+}
