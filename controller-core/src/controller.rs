@@ -515,10 +515,13 @@ impl Controller {
         if self.state.fault.is_none() {
             let ff = mul_gain(sp.acceleration_pu_s, self.coef.k_accel_ff);
             let e = v_cmd.saturating_sub(v_fb);
-            self.state.i_vel =
-                self.coef
-                    .velocity_regulator
-                    .update(&mut self.state.velocity_regulator, e, ff);
+            // Anti-windup judged on the final torque reference (PI + AFB term held now).
+            self.state.i_vel = self.coef.velocity_regulator.update_with_offset(
+                &mut self.state.velocity_regulator,
+                e,
+                ff,
+                self.state.afb,
+            );
             if self.coef.afb_in_velocity_tick {
                 self.afb_step(a_est);
             }

@@ -9,6 +9,10 @@
 //! the output is saturated and the error would push it further into saturation, and the
 //! integral itself never exceeds the output limit. The integral is kept in Q32.32 so a
 //! small Ki·Ts (the current loop's is ≈ 0.025) still integrates sub-LSB errors.
+//!
+//! [`PiCoefficients::update_with_offset`] judges the saturation on the output plus a term
+//! added after the regulator (the velocity loop passes the acceleration-feedback term), so the
+//! integrator also holds when it is the sum that sits at the torque limit.
 
 use fixed::types::I32F32;
 
@@ -47,6 +51,24 @@ impl PiCoefficients {
     /// ```
     #[inline]
     pub fn update(&self, state: &mut PiState, e: Pu, ff: Pu) -> Pu {
+        self.update_with_offset(state, e, ff, Pu::ZERO)
+    }
+
+    /// As [`PiCoefficients::update`], with the anti-windup decision taken on
+    /// `Kp·e + I + ff + offset`, where `offset` is added to the output downstream (and
+    /// clamped together with it there). The returned output does not include `offset`.
+    ///
+    /// ```
+    /// use controller_core::pi::{PiCoefficients, PiState};
+    /// use controller_core::per_unit::{Pu, Gain, TickGain};
+    /// let c = PiCoefficients { kp: Gain::from_num(1), ki_ts: TickGain::from_num(0.1), limit: Pu::from_num(2) };
+    /// let mut s = PiState::default();
+    /// // The downstream sum is already at the limit: the integrator holds.
+    /// c.update_with_offset(&mut s, Pu::from_num(0.5), Pu::ZERO, Pu::from_num(2));
+    /// assert_eq!(s.integral, 0);
+    /// ```
+    #[inline]
+    pub fn update_with_offset(&self, state: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
         // |limit| so a negative limit in hand-made coefficients cannot invert the clamp.
         let limit = self.limit.to_bits().saturating_abs();
         let lim64 = i64::from(limit) << 16;
@@ -54,7 +76,8 @@ impl PiCoefficients {
         let inc = (i64::from(e.to_bits()) * i64::from(self.ki_ts.to_bits()) + (1 << 7)) >> 8;
         let p = mul_gain(e, self.kp).to_bits();
         let i_now = state.integral.to_bits();
-        let u_trial = i64::from(p) + i64::from(ff.to_bits()) + (i_now >> 16);
+        let u_trial =
+            i64::from(p) + i64::from(ff.to_bits()) + i64::from(offset.to_bits()) + (i_now >> 16);
         let pushing_out =
             (u_trial >= i64::from(limit) && inc > 0) || (u_trial <= -i64::from(limit) && inc < 0);
         let i_next = if pushing_out {

@@ -290,3 +290,30 @@ fn with_gains_runs_the_same_gains_with_afb_off() {
         .param()
         .starts_with("kp_vel"));
 }
+
+/// Anti-windup on the final torque reference: when the velocity regulator's output plus the
+/// AFB term sits at the torque limit, the velocity integrator holds even though the
+/// regulator's own output is inside its limit.
+#[test]
+fn velocity_integrator_holds_when_the_sum_with_afb_saturates() {
+    use controller_core::per_unit::{Gain, TickGain};
+    use controller_core::pi::{PiCoefficients, PiState};
+    let c = PiCoefficients {
+        kp: Gain::from_num(10),
+        ki_ts: TickGain::from_num(0.5),
+        limit: Pu::from_num(2),
+    };
+    let mut s = PiState::default();
+    for _ in 0..100 {
+        let u = c.update_with_offset(&mut s, Pu::from_num(0.1), Pu::ZERO, Pu::from_num(1.5));
+        assert!(u <= Pu::from_num(2));
+    }
+    // Kp·e = 1, offset 1.5: the sum is past the limit from the first step; nothing integrates.
+    assert_eq!(s.integral, 0);
+    // Without the offset the same error winds the integral up to the limit.
+    let mut s2 = PiState::default();
+    for _ in 0..100 {
+        c.update(&mut s2, Pu::from_num(0.1), Pu::ZERO);
+    }
+    assert!(s2.integral > 0.9);
+}
