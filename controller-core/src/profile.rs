@@ -294,6 +294,15 @@ impl Profile {
     }
 
     /// Shift the whole profile by a start position \[counts\].
+    ///
+    /// ```
+    /// use controller_core::{Counts, DriveConfig, Profile, ProfileConfig};
+    /// let start = Counts::from_num(-100.5);
+    /// let mut p = Profile::new(&ProfileConfig::fig6(), &DriveConfig::table1())
+    ///     .unwrap()
+    ///     .with_start_position(start);
+    /// assert_eq!(p.next().position_counts, start);
+    /// ```
     #[must_use]
     pub fn with_start_position(mut self, start: Counts) -> Self {
         // start = whole + frac/2^16 counts; the fraction in Q0.32 is frac << 16.
@@ -311,6 +320,16 @@ impl Profile {
     }
 
     /// Whether the profile has reached its final standstill (or endless hold).
+    ///
+    /// ```
+    /// use controller_core::{DriveConfig, Profile, ProfileConfig};
+    /// let mut cfg = ProfileConfig::fig6();
+    /// cfg.hold_time_s = 0.0;
+    /// let mut p = Profile::new(&cfg, &DriveConfig::table1()).unwrap();
+    /// assert!(!p.is_done());
+    /// for _ in 0..4000 { p.next(); } // 1 s up, 1 s down at 2 kHz
+    /// assert!(p.is_done());
+    /// ```
     #[must_use]
     pub fn is_done(&self) -> bool {
         self.index + 1 >= self.count
