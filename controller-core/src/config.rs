@@ -131,7 +131,8 @@ pub struct DriveConfig {
     pub torque_limit_pu: f32,
     /// Voltage command limit \[pu\], > 0.
     pub voltage_limit_pu: f32,
-    /// Fraction of the commanded velocity fed forward into the velocity reference, 0..=1.
+    /// Fraction of the commanded velocity fed forward into the velocity reference, 0..=1
+    /// (position mode; in velocity mode the setpoint velocity is the reference).
     pub velocity_ff_gain: f32,
     /// Fraction of the commanded acceleration times inertia fed forward as torque, 0..=1.
     pub accel_ff_gain: f32,
