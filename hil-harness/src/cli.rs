@@ -48,6 +48,8 @@ pub enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
+    /// Run one scenario through the firmware in QEMU (processor in the loop).
+    Pil(crate::pil::PilArgs),
     /// Drive the plant open-loop with a torque CSV (plant-host's replay).
     Replay {
         /// Configuration (path, or name under configs/).

@@ -36,18 +36,21 @@ pub fn trace_figure(trace: &Trace, title: &str) -> Figure {
                 ..Default::default()
             },
             Panel {
-                title: format!("{title}: position differences"),
+                title: format!("{title}: command - motor position"),
                 y_label: "counts".into(),
-                series: vec![
-                    Series::line(
-                        "command - motor",
-                        trace.series(|r| r.cmd_minus_motor_counts()),
-                    ),
-                    Series::line(
-                        "motor - load",
-                        trace.series(|r| r.motor_minus_load_counts()),
-                    ),
-                ],
+                series: vec![Series::line(
+                    "command - motor",
+                    trace.series(|r| r.cmd_minus_motor_counts()),
+                )],
+                ..Default::default()
+            },
+            Panel {
+                title: format!("{title}: motor - load position (lost motion and twist)"),
+                y_label: "counts".into(),
+                series: vec![Series::line(
+                    "motor - load",
+                    trace.series(|r| r.motor_minus_load_counts()),
+                )],
                 ..Default::default()
             },
         ],

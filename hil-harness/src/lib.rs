@@ -14,6 +14,7 @@ pub mod error;
 pub mod metrics;
 pub mod output;
 pub mod overrides;
+pub mod pil;
 pub mod plant;
 pub mod plot;
 pub mod progress;
@@ -79,5 +80,6 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             torque,
             out,
         } => replay::replay(&config, &torque, &out),
+        Command::Pil(args) => pil::pil_command(&args),
     }
 }

@@ -342,7 +342,7 @@ mod tests {
             vel_cmd_pu: 1.0,
             motor_vel_pu: 1.0
                 - if t > 1.0 {
-                    0.05 * (t - 1.0) * (40.0 * t).sin()
+                    0.2 * (t - 1.0) * (200.0 * t).sin()
                 } else {
                     0.0
                 },

@@ -401,65 +401,94 @@ fn write_report(
     for s in sweep {
         let _ = write!(
             sweep_text,
-            "{}: {} rad/s without AFB, {} rad/s with AFB (best design: {}). ",
-            s.plant, s.without_afb_rad_s, s.with_afb_rad_s, s.best_design
+            "{}: stable up to {} rad/s without AFB and {} rad/s with (best: {}); quiet (torque chatter below {} pu) up to {} rad/s without and {} rad/s with (best: {}). ",
+            s.plant,
+            s.without_afb_rad_s,
+            s.with_afb_rad_s,
+            s.best_design,
+            crate::sweep::QUIET_TORQUE_PU,
+            s.quiet_without_afb_rad_s,
+            s.quiet_with_afb_rad_s,
+            s.best_quiet_design
         );
     }
     let pp = sweep.iter().find(|s| s.plant == "printing-press");
-    let okp = pp.is_some_and(|s| {
-        s.with_afb_rad_s >= 2.0 * s.without_afb_rad_s.max(1e-9) && s.without_afb_rad_s > 0.0
+    let ratio_ok = pp.is_some_and(|s| {
+        s.without_afb_rad_s > 0.0 && s.with_afb_rad_s >= 2.0 * s.without_afb_rad_s
     });
+    let level_ok = pp.is_some_and(|s| s.without_afb_rad_s <= 60.0);
+    let sweep_verdict = match (ratio_ok, level_ok) {
+        (true, true) => "**agrees**",
+        (true, false) => "**partly agrees**",
+        _ => "**does not agree**",
+    };
     r.section(
         "Sec. III-D: largest stable velocity bandwidth, printing-press stand (and Table 1)",
         &["sweep/sweep.png"],
         "Printing-press stand (1e6 CPR, 3:1 gearbox, 8:1 reflected inertia, ~150 counts lost motion): 140 rad/s with acceleration feedback, only 30 rad/s without before the system went unstable.",
         &format!(
-            "{sweep_text}Grid: {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, filters {:?}, acceleration from differentiation or from the observer at {:?} Hz (all points in `sweep/sweep.csv`).",
+            "{sweep_text}Probe run `configs/scenarios/sweep.toml` in speed mode; a bandwidth counts only if every grid point below it passes too. Grid: {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, filters {:?}, acceleration from differentiation or from the observer at {:?} Hz (every point in `sweep/sweep.csv`; points whose gains do not fit controller-core's fixed-point formats are rejected there and count as not achievable).",
             crate::sweep::BANDWIDTHS_RAD_S, crate::sweep::GAINS, crate::sweep::FILTERS, crate::sweep::OBSERVER_HZ
         ),
         &format!(
-            "{} (criterion: on the printing press the best AFB design reaches at least twice the bandwidth reached without; the paper's ratio is 4.7).",
-            verdict(okp)
+            "{sweep_verdict} (criteria: on the printing press the best AFB design reaches at least twice the stable bandwidth reached without, as the paper's 140 vs 30 rad/s; and the no-AFB limit is of the paper's order, at most 60 rad/s). Without acceleration feedback the modelled press stays stable far above the paper's 30 rad/s: with a 1e6-count encoder the quantization that drives the chatter at 4096 counts is 244x smaller, the 150-count lost motion is only 0.054 deg, and the model has no friction or gear-tooth compliance to excite; the limit it does reach comes from the sampled loop itself. On Table 1 the quieter measure shows the paper's direction: the torque chatter stays below the threshold to a higher bandwidth with AFB than without."
         ),
     );
 
     // Stiffness.
-    let (bw, ratio_above) = {
-        let cfg = resolve("stiffness", None, &[])?;
-        let bw = f64::from(cfg.drive.velocity_bandwidth_rad_s);
-        let above: Vec<f64> = stiff
+    let cfg_st = resolve("stiffness", None, &[])?;
+    let bw = f64::from(cfg_st.drive.velocity_bandwidth_rad_s);
+    let ratio_in = |source: &str, lo: f64, hi: f64| -> f64 {
+        let v: Vec<f64> = stiff
             .iter()
-            .filter(|p| !p.afb && p.freq_rad_s > 3.0 * bw)
+            .filter(|p| p.source == "none" && p.freq_rad_s > lo && p.freq_rad_s <= hi)
             .filter_map(|a| {
                 stiff
                     .iter()
-                    .find(|b| b.afb && b.freq_rad_s == a.freq_rad_s)
+                    .find(|b| b.source == source && b.freq_rad_s == a.freq_rad_s && b.stable)
                     .map(|b| b.measured / a.measured)
             })
             .collect();
-        let geo = if above.is_empty() {
-            0.0
+        if v.is_empty() {
+            f64::NAN
         } else {
-            (above.iter().map(|x| x.ln()).sum::<f64>() / above.len() as f64).exp()
-        };
-        (bw, geo)
+            (v.iter().map(|x| x.ln()).sum::<f64>() / v.len() as f64).exp()
+        }
     };
-    let below: Vec<f64> = stiff
+    let low = ratio_in("observer", 0.0, bw);
+    let above = ratio_in("observer", 3.0 * bw, 1e9);
+    let diff_stable = stiff
         .iter()
-        .filter(|p| !p.afb && p.freq_rad_s <= 10.0)
-        .map(|p| p.measured / p.analytic)
+        .filter(|p| p.source == "differentiation")
+        .all(|p| p.stable);
+    let eq1_err = stiff
+        .iter()
+        .filter(|p| p.source == "none")
+        .map(|p| (p.measured / p.analytic - 1.0).abs())
+        .fold(0.0, f64::max);
+    let okst = above > 1.2;
+    let est_ratios: Vec<String> = stiff
+        .iter()
+        .filter(|p| p.source == "observer" && p.freq_rad_s >= bw)
+        .map(|p| format!("{:.2} at {} rad/s", p.accel_est_ratio, p.freq_rad_s))
         .collect();
-    let eq1_err = below.iter().map(|x| (x - 1.0).abs()).fold(0.0, f64::max);
-    let okst = ratio_above > 1.2;
     r.section(
         "Fig. 2 and Eq. 1: dynamic stiffness; acceleration feedback adds stiffness above the velocity bandwidth",
         &["stiffness/stiffness.png"],
         "Stiffness tau_L/theta = Jp s^2 + Kp s + Ki (Eq. 1) with breaks at 1 and 10 rad/s (Fig. 2); acceleration feedback improves stiffness in the high-frequency region, typically above the velocity loop bandwidth.",
         &format!(
-            "Fig. 2 gains (Kp = 11 J, Ki = 10 J, i.e. {bw} rad/s with damping 1.74) on a stiff coupling: measured vs Eq. 1 without AFB within {:.0} % up to 10 rad/s; above 3x the velocity bandwidth the measured stiffness with AFB is {:.2}x that without (geometric mean over the frequencies). Points in `stiffness/stiffness.csv`.",
-            100.0 * eq1_err, ratio_above
+            "Fig. 2 gains (Kp = 11 J, Ki = 10 J, i.e. {bw} rad/s with damping 1.74) on the dyno plant with a stiff coupling: without AFB the measured stiffness follows Eq. 1 within {:.0} % from 0.3 to 1500 rad/s. With the drive's default AFB (observer acceleration) the stiffness is {low:.2}x higher below the velocity bandwidth, because controller-core designs the PI for J_total + Ka, and {above:.2}x above 3x the bandwidth, where the ideal J + Ka*F curve predicts up to 1.5x. Observer acceleration estimate / true acceleration: {}. The same design with differentiated acceleration is {} at 4096 counts (its points are left off the chart; see `stiffness/stiffness.csv`).",
+            100.0 * eq1_err,
+            est_ratios.join(", "),
+            if diff_stable { "stable" } else { "not stable (torque chatter)" }
         ),
-        &format!("{} (criterion: AFB raises the measured stiffness above 3x the velocity bandwidth by more than 20 %).", verdict(okst)),
+        &format!(
+            "{} (criterion: AFB raises the measured stiffness above 3x the velocity bandwidth by more than 20 %). {}",
+            verdict(okst),
+            if okst { "" } else {
+                "Why: the observer's acceleration estimate follows only part of the load-driven motor acceleration (column `accel_est_ratio` of `stiffness/stiffness.csv`: estimate over true acceleration at each frequency), so the AFB term it drives adds little inertia against a load disturbance. The paper's AFB differentiated position (its Sec. II: \"the velocity and acceleration signals were found by differentiation\"), which sees all of the acceleration, but at 4096 counts that path chatters in this model."
+            }
+        ),
     );
 
     // Table of all runs and speed.

@@ -37,12 +37,23 @@ const SETTLE_S: f64 = 5.0;
 pub struct StiffnessPoint {
     /// Acceleration feedback on.
     pub afb: bool,
+    /// Acceleration source of the AFB path: `none` (AFB off), `observer` (the drive's
+    /// default design) or `differentiation` (same design, differentiated encoder).
+    pub source: &'static str,
     /// Frequency (rad/s).
     pub freq_rad_s: f64,
     /// Measured |τ_L/θ| (pu torque per pu·s).
     pub measured: f64,
     /// Eq. 1 (with J + Ka·F(jω) when AFB is on).
     pub analytic: f64,
+    /// The run's `stable` metric (a point from an unstable or chattering loop is not a
+    /// linear stiffness).
+    pub stable: bool,
+    /// Motor-torque chatter in the last 0.5 s (pu RMS, above ~5 Hz).
+    pub limit_cycle_torque_pu: f64,
+    /// |controller's acceleration estimate| / |true motor acceleration| at ω: how much of
+    /// the load-driven acceleration the AFB path sees (1 = all of it).
+    pub accel_est_ratio: f64,
 }
 
 /// Complex number helpers (re, im).
@@ -108,10 +119,18 @@ fn phasor(
     t0: f64,
     t1: f64,
 ) -> (f64, f64) {
+    let rows: Vec<&crate::trace::TraceRow> = trace
+        .rows
+        .iter()
+        .filter(|r| r.t_s >= t0 && r.t_s < t1)
+        .collect();
+    // Remove the mean first: a 0.5 pu speed leaking through a window that is a whole
+    // number of periods only to within one sample would swamp a 1e-4 pu response.
+    let mean = rows.iter().map(|r| f(r)).sum::<f64>() / rows.len().max(1) as f64;
     let mut acc = (0.0, 0.0);
     let mut n = 0usize;
-    for r in trace.rows.iter().filter(|r| r.t_s >= t0 && r.t_s < t1) {
-        let x = f(r);
+    for r in rows {
+        let x = f(r) - mean;
         acc.0 += x * (w * r.t_s).cos();
         acc.1 -= x * (w * r.t_s).sin();
         n += 1;
@@ -120,7 +139,12 @@ fn phasor(
     (2.0 * acc.0 / n, 2.0 * acc.1 / n)
 }
 
-fn measure(afb: bool, w: f64) -> Result<StiffnessPoint> {
+/// The three drives compared: AFB off, the default AFB design, and the same design with
+/// the acceleration from differentiation instead of the observer.
+pub const SOURCES: [&str; 3] = ["none", "observer", "differentiation"];
+
+fn measure(source: &'static str, w: f64) -> Result<StiffnessPoint> {
+    let afb = source != "none";
     let period = 2.0 * PI / w;
     let periods = (1.0 / period).ceil().max(3.0);
     let window = periods * period;
@@ -130,7 +154,9 @@ fn measure(afb: bool, w: f64) -> Result<StiffnessPoint> {
         format!("scenario.sine_load.freq_rad_s={w}"),
         format!("scenario.duration_s={duration}"),
     ];
-    if !afb {
+    if afb {
+        sets.push(format!("drive.accel_feedback.source={source}"));
+    } else {
         sets.push("drive.accel_feedback.mode=off".into());
     }
     let cfg = resolve("stiffness", None, &sets)?;
@@ -139,17 +165,23 @@ fn measure(afb: bool, w: f64) -> Result<StiffnessPoint> {
     let torque = phasor(&out.trace, |r| r.load_torque_pu, w, t0, t1);
     let speed = phasor(&out.trace, |r| r.load_vel_pu, w, t0, t1);
     let mag = |c: (f64, f64)| (c.0 * c.0 + c.1 * c.1).sqrt();
+    let motor_accel = w * mag(phasor(&out.trace, |r| r.motor_vel_pu, w, t0, t1));
+    let accel_est = mag(phasor(&out.trace, |r| r.accel_est_pu_s, w, t0, t1));
     Ok(StiffnessPoint {
         afb,
+        source,
         freq_rad_s: w,
         measured: w * mag(torque) / mag(speed).max(1e-12),
         analytic: analytic(&cfg, w),
+        stable: out.metrics.stable,
+        limit_cycle_torque_pu: out.metrics.limit_cycle_torque_pu,
+        accel_est_ratio: accel_est / motor_accel.max(1e-12),
     })
 }
 
 /// Measures every frequency with and without AFB, in parallel.
 pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
-    let jobs: Vec<(bool, f64)> = [false, true]
+    let jobs: Vec<(&'static str, f64)> = SOURCES
         .iter()
         .flat_map(|a| freqs.iter().map(move |w| (*a, *w)))
         .collect();
@@ -157,7 +189,7 @@ pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
     let points: Result<Vec<StiffnessPoint>> = jobs
         .par_iter()
         .map(|(a, w)| {
-            let r = measure(*a, *w);
+            let r = measure(a, *w);
             pb.inc(1);
             r
         })
@@ -168,10 +200,12 @@ pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
 
 /// The stiffness chart: analytic lines and measured markers, both designs.
 pub fn figure(points: &[StiffnessPoint]) -> Figure {
-    let pick = |afb: bool, measured: bool| -> Vec<(f64, f64)> {
+    let pick = |source: &str, measured: bool| -> Vec<(f64, f64)> {
         points
             .iter()
-            .filter(|p| p.afb == afb)
+            // A chattering loop has no linear stiffness: unstable points are left out (they
+            // stay in stiffness.csv with `stable = false`).
+            .filter(|p| p.source == source && p.stable)
             .map(|p| (p.freq_rad_s, if measured { p.measured } else { p.analytic }))
             .collect()
     };
@@ -181,10 +215,14 @@ pub fn figure(points: &[StiffnessPoint]) -> Figure {
             title: "Dynamic stiffness |load torque / position| (Fig. 2, Eq. 1)".into(),
             y_label: "pu torque per pu*s".into(),
             series: vec![
-                Series::line("Eq. 1, no AFB", pick(false, false)),
-                Series::markers("measured, no AFB", pick(false, true)),
-                Series::line("Eq. 1 with J + Ka*F, AFB", pick(true, false)),
-                Series::markers("measured, AFB", pick(true, true)),
+                Series::line("Eq. 1, no AFB", pick("none", false)),
+                Series::markers("measured, no AFB", pick("none", true)),
+                Series::line("Eq. 1 with J + Ka*F, AFB", pick("observer", false)),
+                Series::markers("measured, AFB (observer)", pick("observer", true)),
+                Series::markers(
+                    "measured, AFB (differentiation)",
+                    pick("differentiation", true),
+                ),
             ],
             log_x: true,
             log_y: true,
@@ -207,16 +245,24 @@ pub fn stiffness_into(dir: &Path) -> Result<(Vec<StiffnessPoint>, String)> {
     save(&figure(&points), &dir.join("stiffness"))?;
     let mut text = String::new();
     for w in FREQS_RAD_S {
-        let get = |afb: bool| points.iter().find(|p| p.afb == afb && p.freq_rad_s == w);
-        if let (Some(a), Some(b)) = (get(false), get(true)) {
+        let get = |source: &str| {
+            points
+                .iter()
+                .find(|p| p.source == source && p.freq_rad_s == w)
+        };
+        if let (Some(a), Some(b), Some(c)) = (get("none"), get("observer"), get("differentiation"))
+        {
             let _ = writeln!(
                 text,
-                "{w:>7} rad/s: no AFB {:.4} (Eq. 1 {:.4}), AFB {:.4} (ideal {:.4}), ratio {:.2}",
+                "{w:>7} rad/s: no AFB {:.4} (Eq. 1 {:.4}), AFB observer {:.4} (ideal {:.4}), \
+                 AFB differentiation {:.4}; ratios {:.2} / {:.2}",
                 a.measured,
                 a.analytic,
                 b.measured,
                 b.analytic,
-                b.measured / a.measured
+                c.measured,
+                b.measured / a.measured,
+                c.measured / a.measured
             );
         }
     }

@@ -1,0 +1,214 @@
+//! Processor in the loop, end to end (GitHub issue 7): the firmware's `pil` image, built for
+//! the Cortex-M4F, runs in QEMU and controls the simulated machine through `pil-link`.
+//!
+//! * `fig6` through the firmware matches the host build bit for bit (every controller
+//!   output of every tick, and the whole trace);
+//! * corrupted, dropped, late and out-of-sequence frames, in either direction, are detected;
+//!   the firmware latches its safe state (zero torque and voltage, fault latched, QEMU exits
+//!   with status 1) and the harness reports the fault, stops, and writes the trace up to it.
+//!
+//! These tests build the ARM image themselves (cargo, thumbv7em-none-eabihf) and need
+//! `qemu-system-arm`: without it they FAIL with a message saying so, they are not skipped.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    clippy::panic
+)]
+
+use hil_harness::pil::{build_pil_image, pil_command, run_pil, PilArgs};
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// The `pil` ELF, built once per test binary.
+fn elf() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    ELF.get_or_init(|| {
+        let qemu = Command::new("qemu-system-arm").arg("--version").output();
+        assert!(
+            matches!(qemu, Ok(ref o) if o.status.success()),
+            "qemu-system-arm is required for the processor-in-the-loop tests and was not \
+             found: install it (Debian/Ubuntu: apt-get install qemu-system-arm)"
+        );
+        build_pil_image().unwrap_or_else(|e| panic!("cannot build the PIL firmware image: {e}"))
+    })
+    .clone()
+}
+
+fn csv_rows(dir: &std::path::Path) -> usize {
+    let text = std::fs::read_to_string(dir.join("trace.csv")).expect("trace.csv written");
+    text.lines().count() - 1
+}
+
+#[test]
+fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = PilArgs::new("fig6", dir.path());
+    args.elf = Some(elf());
+    let o = run_pil(&args).unwrap();
+    assert!(o.link.fault.is_none(), "link fault: {:?}", o.link.fault);
+    assert_eq!(
+        o.link.qemu_exit_code,
+        Some(0),
+        "the firmware exits cleanly on Stop"
+    );
+    let c = o.comparison.expect("compared with the host run");
+    // fig6: 2.5 s at 4 kHz / 2 kHz.
+    assert_eq!((c.current_ticks, c.velocity_ticks), (10_000, 5_000));
+    assert_eq!(c.host_ticks, (10_000, 5_000));
+    assert_eq!(c.values_compared, 10_000 * 4 + 5_000 * 8);
+    assert_eq!(c.mismatches, 0, "first mismatch: {:?}", c.first_mismatch);
+    assert!(c.inputs_identical && c.trace_identical && c.bit_identical);
+    assert_eq!(o.link.frames, 15_000);
+    // The same files as `run`, plus the comparison.
+    for f in [
+        "trace.csv",
+        "summary.json",
+        "pil.json",
+        "pil-comparison.json",
+        "pil-comparison.md",
+        "firmware.defmt",
+    ] {
+        assert!(dir.path().join(f).is_file(), "{f} missing");
+    }
+    assert_eq!(csv_rows(dir.path()), 5_000);
+    let section = hil_harness::pil::report_section(dir.path()).unwrap();
+    assert!(section.contains("| mismatches | 0 |"), "{section}");
+}
+
+/// One injected fault: what the harness must report and what the firmware must latch.
+struct Case {
+    inject: &'static str,
+    /// Fault code the firmware must report.
+    firmware_code: &'static str,
+    /// True when the firmware, not the harness, must see it first.
+    firmware_first: bool,
+    /// Text the harness's error must contain.
+    harness_says: &'static str,
+}
+
+#[test]
+fn link_faults_latch_the_safe_state_on_both_sides() {
+    let elf = elf();
+    let cases = [
+        // A bit flipped in a sensor frame: the firmware's CRC check.
+        Case {
+            inject: "corrupt@301:12",
+            firmware_code: "BadCrc",
+            firmware_first: true,
+            harness_says: "BadCrc",
+        },
+        // A sensor frame lost: the firmware's watchdog (nothing arrives).
+        Case {
+            inject: "drop@450",
+            firmware_code: "Timeout",
+            firmware_first: true,
+            harness_says: "Timeout",
+        },
+        // A sensor frame late by twice the watchdog.
+        Case {
+            inject: "delay@600:1000",
+            firmware_code: "Timeout",
+            firmware_first: true,
+            harness_says: "Timeout",
+        },
+        // A frame lost in a stream: the sequence gap.
+        Case {
+            inject: "skip-seq@200",
+            firmware_code: "OutOfSequence",
+            firmware_first: true,
+            harness_says: "OutOfSequence",
+        },
+        // A bit flipped in the firmware's reply: the harness's CRC check; then the
+        // firmware, hearing nothing more, must latch on its watchdog.
+        Case {
+            inject: "corrupt-reply@500:9",
+            firmware_code: "Timeout",
+            firmware_first: false,
+            harness_says: "bad CRC",
+        },
+    ];
+    for case in cases {
+        let dir = tempfile::tempdir().unwrap();
+        let mut args = PilArgs::new("fig6", dir.path());
+        args.elf = Some(elf.clone());
+        args.inject = Some(case.inject.to_string());
+        args.watchdog_ms = 500;
+        args.reply_timeout_ms = 3000;
+        let o = run_pil(&args).unwrap();
+        let fault = o
+            .link
+            .fault
+            .as_ref()
+            .unwrap_or_else(|| panic!("{}: no fault reported", case.inject));
+        assert!(
+            fault.harness_error.contains(case.harness_says),
+            "{}: harness said {:?}",
+            case.inject,
+            fault.harness_error
+        );
+        assert_eq!(
+            fault.detected_by_firmware, case.firmware_first,
+            "{}",
+            case.inject
+        );
+        // The firmware's safe state, as it reports it: code, zero torque, zero voltage.
+        let fw = fault
+            .firmware
+            .as_ref()
+            .unwrap_or_else(|| panic!("{}: firmware never showed its safe state", case.inject));
+        assert_eq!(fw.code, case.firmware_code, "{}", case.inject);
+        assert_eq!(
+            (fw.torque_cmd_bits, fw.voltage_cmd_bits),
+            (0, 0),
+            "{}",
+            case.inject
+        );
+        assert_eq!(
+            o.link.qemu_exit_code,
+            Some(1),
+            "{}: firmware must end faulted",
+            case.inject
+        );
+        // Sensor frame k is the k-th of the pattern [velocity, current, current] repeated
+        // (fig6: 2 current ticks per velocity tick), so the run stopped at current tick
+        // floor(2k/3) or just after it, and the trace holds only the rows before that.
+        let frame: u64 = case.inject[case.inject.find('@').unwrap() + 1..]
+            .split(':')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        let at = fault.at_current_tick;
+        assert!(
+            at == frame * 2 / 3 || at == frame * 2 / 3 + 1,
+            "{}: stopped at current tick {at}",
+            case.inject
+        );
+        let rows = csv_rows(dir.path());
+        assert_eq!(
+            rows as u64,
+            at.div_ceil(2),
+            "{}: trace cut at the fault",
+            case.inject
+        );
+        assert!(o.run.trace.rows.iter().all(|r| r.t_s < fault.t_s));
+        assert!(o.comparison.is_none());
+    }
+}
+
+#[test]
+fn the_command_fails_loudly_on_a_link_fault() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = PilArgs::new("fig6", dir.path());
+    args.elf = Some(elf());
+    args.inject = Some("corrupt@40".to_string());
+    let err = pil_command(&args).unwrap_err().to_string();
+    assert!(
+        err.contains("PIL link fault") && err.contains("BadCrc"),
+        "{err}"
+    );
+    // The trace up to the fault is still there.
+    assert!(csv_rows(dir.path()) > 0);
+}
