@@ -18,7 +18,14 @@ fn config(name: &str) -> Result<PlantConfig, plant_host::PlantError> {
 }
 
 /// Kp = ω_bw·J_total, Ki = Kp·ω_bw/4 (ζ = 1), current loop 318 Hz, delay 0.18 ms.
-fn design(cfg: &PlantConfig, bw: f64, ka_frac: f64, fc_hz: f64, period_s: f64) -> VelocityLoop {
+fn design(
+    cfg: &PlantConfig,
+    bw: f64,
+    ka_frac: f64,
+    fc_hz: f64,
+    periods_s: (f64, f64),
+) -> VelocityLoop {
+    let (period_s, accel_period_s) = periods_s;
     let j = cfg.mechanics.motor_inertia_s + cfg.mechanics.load_inertia_s;
     VelocityLoop {
         plant: EngagedPlant::new(&cfg.mechanics),
@@ -27,16 +34,17 @@ fn design(cfg: &PlantConfig, bw: f64, ka_frac: f64, fc_hz: f64, period_s: f64) -
         ka: ka_frac * j,
         accel_filter_hz: fc_hz,
         velocity_period_s: period_s,
+        accel_period_s,
         delay_s: cfg.electrics.computational_delay_s,
         current_bandwidth_hz: Some(318.0),
     }
 }
 
 /// Largest bandwidth on a log grid below which every grid point is stable.
-fn max_stable_bw(cfg: &PlantConfig, ka_frac: f64, fc_hz: f64, period_s: f64) -> f64 {
+fn max_stable_bw(cfg: &PlantConfig, ka_frac: f64, fc_hz: f64, periods_s: (f64, f64)) -> f64 {
     let mut last = 0.0;
     for bw in log_space(1.0, 3000.0, 400) {
-        if !design(cfg, bw, ka_frac, fc_hz, period_s).is_stable() {
+        if !design(cfg, bw, ka_frac, fc_hz, periods_s).is_stable() {
             break;
         }
         last = bw;
@@ -61,14 +69,42 @@ fn main() -> Result<(), plant_host::PlantError> {
             "  resonance {:.2} Hz (damping {:.3}), anti-resonance {:.2} Hz (damping {:.3})",
             m.resonance_hz, m.resonance_damping, m.anti_resonance_hz, m.anti_resonance_damping
         );
+        let (slow, fast, mixed) = ((500e-6, 500e-6), (250e-6, 250e-6), (500e-6, 250e-6));
         for (label, ka, fc, t) in [
-            ("no AFB, 2 kHz", 0.0, 100.0, 500e-6),
-            ("no AFB, 4 kHz", 0.0, 100.0, 250e-6),
-            ("AFB Ka=0.5 J, 100 Hz filter, 2 kHz", 0.5, 100.0, 500e-6),
-            ("AFB Ka=0.5 J, 100 Hz filter, 4 kHz", 0.5, 100.0, 250e-6),
-            ("AFB Ka=1.0 J, 100 Hz filter, 2 kHz", 1.0, 100.0, 500e-6),
-            ("AFB Ka=1.0 J, 20 Hz filter, 2 kHz", 1.0, 20.0, 500e-6),
-            ("AFB Ka=1.0 J, 20 Hz filter, 4 kHz", 1.0, 20.0, 250e-6),
+            ("no AFB, 2 kHz", 0.0, 100.0, slow),
+            ("no AFB, 4 kHz", 0.0, 100.0, fast),
+            (
+                "AFB Ka=0.5 J, 100 Hz filter, all at 2 kHz",
+                0.5,
+                100.0,
+                slow,
+            ),
+            (
+                "AFB Ka=0.5 J, 100 Hz filter, PI 2 kHz + AFB 4 kHz",
+                0.5,
+                100.0,
+                mixed,
+            ),
+            (
+                "AFB Ka=0.5 J, 100 Hz filter, all at 4 kHz",
+                0.5,
+                100.0,
+                fast,
+            ),
+            (
+                "AFB Ka=1.0 J, 100 Hz filter, all at 2 kHz",
+                1.0,
+                100.0,
+                slow,
+            ),
+            ("AFB Ka=1.0 J, 20 Hz filter, all at 2 kHz", 1.0, 20.0, slow),
+            (
+                "AFB Ka=1.0 J, 20 Hz filter, PI 2 kHz + AFB 4 kHz",
+                1.0,
+                20.0,
+                mixed,
+            ),
+            ("AFB Ka=1.0 J, 20 Hz filter, all at 4 kHz", 1.0, 20.0, fast),
         ] {
             println!(
                 "  largest linearly stable velocity bandwidth, {label}: {:.0} rad/s",
@@ -84,7 +120,7 @@ fn main() -> Result<(), plant_host::PlantError> {
         ("Ka=0.5 J, 100 Hz", 0.5, 100.0),
         ("Ka=1.0 J, 20 Hz", 1.0, 20.0),
     ] {
-        let lp = design(&cfg, 2.0 * PI * 15.0, ka, fc, 500e-6);
+        let lp = design(&cfg, 2.0 * PI * 15.0, ka, fc, (500e-6, 500e-6));
         let mg = lp.margins();
         let am = lp.accel_margins();
         println!(
@@ -110,7 +146,7 @@ fn main() -> Result<(), plant_host::PlantError> {
     println!("== Table 1 gains (designed for J_total) with the gears APART (Jm alone), 2 kHz");
     for (bw_label, bw) in [("15 Hz", 2.0 * PI * 15.0), ("2 rad/s", 2.0)] {
         for (label, ka, fc) in [("no AFB", 0.0, 100.0), ("Ka=1.0 J, 20 Hz", 1.0, 20.0)] {
-            let mut lp = design(&cfg, bw, ka, fc, 500e-6);
+            let mut lp = design(&cfg, bw, ka, fc, (500e-6, 500e-6));
             lp.plant = EngagedPlant::disengaged(&cfg.mechanics);
             let mg = lp.margins();
             println!(

@@ -1,18 +1,22 @@
 //! The closed velocity loop around the engaged plant, with and without acceleration feedback.
 //!
-//! Controller (sampled at T = `velocity_period_s`, all signals pu):
-//!   ω̂[k] = (θm[k] − θm[k−1]) / (ω_b·T)            backward difference of the encoder angle
-//!   â[k] = LPF( (ω̂[k] − ω̂[k−1]) / T )              first-order filter, corner `accel_filter_hz`
-//!   T*[k] = PI(ω_ref − ω̂)[k] − ka·â[k]              PI: kp·e + ki·T·Σe
+//! Controller (two rates, all signals pu). The PI runs every Tv = `velocity_period_s`, the
+//! acceleration path and the torque command update every Ta = `accel_period_s` (Tv = N·Ta):
+//!   ω̂v[k] = (θm[k] − θm[k−N]) / (ω_b·Tv)          velocity: difference over one PI period
+//!   PI[k] = kp·e + ki·Tv·Σe, e = ω_ref − ω̂v         (held between PI updates)
+//!   ω̂a[k] = (θm[k] − θm[k−1]) / (ω_b·Ta)
+//!   â[k] = LPF( (ω̂a[k] − ω̂a[k−1]) / Ta )           first-order filter, corner `accel_filter_hz`
+//!   T*[k] = PI[k] − ka·â[k]
 //! T*[k] is applied `delay_s` after the sample and held (ZOH); the current loop is a
-//! first-order lag at `current_bandwidth_hz` (None: ideal).
+//! first-order lag at `current_bandwidth_hz` (None: ideal). Ta = Tv gives the single-rate loop.
 //!
 //! Frequency responses use the usual continuous approximations of the sampled elements
-//! (valid below the Nyquist frequency π/T): difference (1 − e^{−sT})/T, hold (1 − e^{−sT})/(sT),
-//! delay e^{−s·delay}. The loop is broken at the torque command (every feedback path goes
-//! through it), so L(s) = Hold·Delay·Current·P(s)·[PI(s)·Dv(s) + ka·s·Dv(s)²·F(s)] with
-//! Dv = (1 − e^{−sT})/(sT). Stability is ALSO decided exactly, without approximation, from the
-//! eigenvalues of the sampled-data closed loop (`sampled_spectral_radius`).
+//! (valid below the Nyquist frequency π/Tv): difference (1 − e^{−sT})/T, hold
+//! H(T) = (1 − e^{−sT})/(sT), delay e^{−s·delay}. The loop is broken at the torque command
+//! (every feedback path goes through it):
+//! L(s) = Delay·Current·P(s)·[H(Tv)·PI(s)·H(Tv) + H(Ta)·ka·s·H(Ta)²·F(s)].
+//! Stability is ALSO decided exactly, without approximation, from the eigenvalues of the
+//! sampled-data closed loop over one PI period (`sampled_spectral_radius`).
 
 use super::engaged::EngagedPlant;
 use crate::expm::expm;
@@ -32,9 +36,12 @@ pub struct VelocityLoop {
     pub ka: f64,
     /// First-order filter corner on the acceleration estimate, Hz.
     pub accel_filter_hz: f64,
-    /// Velocity loop sample period, s.
+    /// Velocity (PI) sample period Tv, s.
     pub velocity_period_s: f64,
-    /// Computational delay from sample to applied torque command, s (< the period).
+    /// Acceleration path and torque-command update period Ta, s; Tv must be a whole multiple
+    /// (rounded to the nearest). Ta = Tv: single rate.
+    pub accel_period_s: f64,
+    /// Computational delay from sample to applied torque command, s (< Ta).
     pub delay_s: f64,
     /// Closed current loop as a first-order lag at this bandwidth (Hz); None = ideal.
     pub current_bandwidth_hz: Option<f64>,
@@ -84,33 +91,40 @@ impl VelocityLoop {
         Self { ka: 0.0, ..*self }
     }
 
-    /// π/T, rad/s: the approximations hold below it.
+    /// π/Tv, rad/s: the approximations hold below it.
     pub fn nyquist_rad_s(&self) -> f64 {
         PI / self.velocity_period_s
     }
 
+    /// N = Tv/Ta rounded, at least 1; and Ta = Tv/N exactly.
+    fn rates(&self) -> (usize, f64) {
+        let n = (self.velocity_period_s / self.accel_period_s)
+            .round()
+            .max(1.0);
+        (n as usize, self.velocity_period_s / n)
+    }
+
     fn elements(&self, omega: f64) -> Option<Elements> {
-        let t = self.velocity_period_s;
+        let tv = self.velocity_period_s;
+        let (_, ta) = self.rates();
+        let one = Complex::new(1.0, 0.0);
         let s = Complex::new(0.0, omega);
-        let e = (-s * t).exp();
-        let dv = (Complex::new(1.0, 0.0) - e) / (s * t);
-        let hold = dv;
+        let hold = |t: f64| (one - (-s * t).exp()) / (s * t);
+        let (hv, ha) = (hold(tv), hold(ta));
         let delay = (-s * self.delay_s).exp();
         let current = match self.current_bandwidth_hz {
-            Some(f) => Complex::new(1.0, 0.0) / (Complex::new(1.0, 0.0) + s / (2.0 * PI * f)),
-            None => Complex::new(1.0, 0.0),
+            Some(f) => one / (one + s / (2.0 * PI * f)),
+            None => one,
         };
-        let filter = Complex::new(1.0, 0.0)
-            / (Complex::new(1.0, 0.0) + s / (2.0 * PI * self.accel_filter_hz));
-        let pi = Complex::new(self.kp, 0.0) + self.ki * t / (Complex::new(1.0, 0.0) - e);
+        let filter = one / (one + s / (2.0 * PI * self.accel_filter_hz));
+        let pi = Complex::new(self.kp, 0.0) + self.ki * tv / (one - (-s * tv).exp());
         let p = self.plant.response(omega)?;
-        let out = hold * delay * current;
         Some(Elements {
             s,
-            out,
-            pi,
-            vel_path: pi * dv,
-            acc_path: s * dv * dv * filter * self.ka,
+            out: delay * current,
+            pi: pi * hv,
+            vel_path: hv * pi * hv,
+            acc_path: ha * s * ha * ha * filter * self.ka,
             p,
         })
     }
@@ -189,12 +203,15 @@ impl VelocityLoop {
         self.sampled_spectral_radius() < 1.0
     }
 
-    /// X[k+1] = M·X[k], X = [θm, θl, ωm, ωl, Ta, u[k−1], θm[k−1], ω̂[k−1], â[k−1], I[k−1]].
-    fn sampled_closed_loop(&self) -> SMatrix<f64, 10, 10> {
-        let t = self.velocity_period_s;
-        let td = self.delay_s.clamp(0.0, t);
+    /// The map over one PI period, X ← M·X, with
+    /// X = [θm, θl, ωm, ωl, Tact, u_prev, θa_prev, ω̂a_prev, â, θv_prev, I, PI_out]:
+    /// one PI tick followed by N − 1 ticks that hold the PI output.
+    fn sampled_closed_loop(&self) -> SMatrix<f64, 12, 12> {
+        let (n, ta) = self.rates();
+        let tv = self.velocity_period_s;
+        let td = self.delay_s.clamp(0.0, ta);
         let wb = self.plant.base_speed_rad_s;
-        // Continuous plant + current lag: z = [θm, θl, ωm, ωl, Ta], input = torque command.
+        // Continuous plant + current lag: z = [θm, θl, ωm, ωl, Tact], input = torque command.
         let mut ac = SMatrix::<f64, 6, 6>::zeros();
         ac.fixed_view_mut::<4, 4>(0, 0).copy_from(&self.plant.a);
         let b_tm = self.plant.b.column(0).into_owned();
@@ -207,9 +224,9 @@ impl VelocityLoop {
             }
             None => {
                 ac.fixed_view_mut::<4, 1>(0, 5).copy_from(&b_tm);
-                // Ta is unused: make it a fast decaying, decoupled state so it adds no
+                // Tact is unused: make it a fast decaying, decoupled state so it adds no
                 // eigenvalue at 1.
-                set(&mut ac, 4, 4, -1.0 / self.velocity_period_s.max(1e-9));
+                set(&mut ac, 4, 4, -1.0 / ta.max(1e-9));
             }
         }
         let disc = |h: f64| {
@@ -220,39 +237,56 @@ impl VelocityLoop {
             )
         };
         let (phi1, gam1) = disc(td);
-        let (phi2, gam2) = disc(t - td);
+        let (phi2, gam2) = disc(ta - td);
+        let alpha = (-2.0 * PI * self.accel_filter_hz * ta).exp();
 
-        // Controller rows as linear functions of X (10-vectors).
         let unit = |i: usize| {
-            let mut v = SVector::<f64, 10>::zeros();
+            let mut v = SVector::<f64, 12>::zeros();
             if let Some(x) = v.get_mut(i) {
                 *x = 1.0;
             }
             v
         };
-        let w_hat = (unit(0) - unit(6)) / (wb * t);
-        let a_raw = (w_hat - unit(7)) / t;
-        let alpha = (-2.0 * PI * self.accel_filter_hz * t).exp();
-        let a_f = unit(8) * alpha + a_raw * (1.0 - alpha);
-        let integ = unit(9) - w_hat * (self.ki * t);
-        let u = -w_hat * self.kp + integ - a_f * self.ka;
-
-        let mut m = SMatrix::<f64, 10, 10>::zeros();
-        let zz = phi2 * phi1;
-        let zu_prev = phi2 * gam1;
-        m.fixed_view_mut::<5, 5>(0, 0).copy_from(&zz);
-        m.fixed_view_mut::<5, 1>(0, 5).copy_from(&zu_prev);
-        // z[k+1] += Γ2·u[k]
-        m.fixed_view_mut::<5, 10>(0, 0)
-            .iter_mut()
-            .zip((gam2 * u.transpose()).iter())
-            .for_each(|(a, b)| *a += b);
-        m.set_row(5, &u.transpose());
-        m.set_row(6, &unit(0).transpose());
-        m.set_row(7, &w_hat.transpose());
-        m.set_row(8, &a_f.transpose());
-        m.set_row(9, &integ.transpose());
-        m
+        // One tick as rows (linear functions of X); `pi_tick` updates the PI.
+        let tick = |pi_tick: bool| {
+            let (integ, pi_out, th_v) = if pi_tick {
+                let w_v = (unit(0) - unit(9)) / (wb * tv);
+                let integ = unit(10) - w_v * (self.ki * tv);
+                (integ, -w_v * self.kp + integ, unit(0))
+            } else {
+                (unit(10), unit(11), unit(9))
+            };
+            let w_a = (unit(0) - unit(6)) / (wb * ta);
+            let a_raw = (w_a - unit(7)) / ta;
+            let a_f = unit(8) * alpha + a_raw * (1.0 - alpha);
+            let u = pi_out - a_f * self.ka;
+            let mut m = SMatrix::<f64, 12, 12>::zeros();
+            m.fixed_view_mut::<5, 5>(0, 0).copy_from(&(phi2 * phi1));
+            m.fixed_view_mut::<5, 1>(0, 5).copy_from(&(phi2 * gam1));
+            // z[k+1] += Γ2·u[k]
+            m.fixed_view_mut::<5, 12>(0, 0)
+                .iter_mut()
+                .zip((gam2 * u.transpose()).iter())
+                .for_each(|(a, b)| *a += b);
+            for (row, v) in [
+                (5, u),
+                (6, unit(0)),
+                (7, w_a),
+                (8, a_f),
+                (9, th_v),
+                (10, integ),
+                (11, pi_out),
+            ] {
+                m.set_row(row, &v.transpose());
+            }
+            m
+        };
+        let hold = tick(false);
+        let mut total = tick(true);
+        for _ in 1..n {
+            total = hold * total;
+        }
+        total
     }
 }
 
