@@ -1,5 +1,6 @@
 //! Runtime edge shared by every firmware image: the defmt logger, panic and HardFault
-//! handlers, and the exit path. Under QEMU a panic or HardFault logs and exits with a
+//! handlers, and the exit path. Both handlers first switch the power stage off
+//! (`emergency_stop`: plain register writes, no locks), then log. Under QEMU a panic or HardFault logs and exits with a
 //! non-zero semihosting status, so a crash fails CI; on the board the same status reaches
 //! `probe-rs run` (which implements semihosting exit), and the log goes out over RTT.
 
@@ -30,6 +31,7 @@ pub fn exit(success: bool) -> ! {
 #[allow(unsafe_code)]
 #[exception]
 unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    crate::boards::active::emergency_stop();
     defmt::error!(
         "HardFault at pc={=u32:#x} lr={=u32:#x} xpsr={=u32:#x}",
         frame.pc(),
@@ -41,6 +43,7 @@ unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
+    crate::boards::active::emergency_stop();
     defmt::error!("panic: {}", defmt::Display2Format(info));
     exit(false)
 }

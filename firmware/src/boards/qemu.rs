@@ -402,6 +402,13 @@ pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
     PeriodicTimer::TIMER0.start(current_rate_hz);
 }
 
+/// Power stage off from a fault handler: enable output (LED0) low, loop timers stopped.
+/// Plain register writes, callable from any context.
+pub fn emergency_stop() {
+    write(FPGAIO_BASE + FPGAIO_LED0, 0);
+    stop();
+}
+
 /// Stop the loop timers.
 pub fn stop() {
     PeriodicTimer::TIMER0.stop();

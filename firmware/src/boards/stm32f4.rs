@@ -138,8 +138,9 @@ const PULL_NONE: u32 = 0b00;
 const PULL_DOWN: u32 = 0b10;
 
 fn tim1() -> &'static pac::tim1::RegisterBlock {
-    // SAFETY: TIM1 is configured once in `init` and afterwards written only by the current
-    // loop's `Tim1Pwm` (CCR1): a shared reference to the MMIO block is sound (vcell).
+    // SAFETY: TIM1 is configured once in `init`; afterwards the current loop's `Tim1Pwm`
+    // writes CCR1 and only `emergency_stop` (fault handlers) writes BDTR: a shared
+    // reference to the MMIO block is sound (vcell).
     #[allow(unsafe_code)]
     unsafe {
         &*pac::TIM1::ptr()
@@ -429,6 +430,15 @@ pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
     }
     wr!(tim6().cr1(), 1);
     wr!(tim7().cr1(), 1);
+}
+
+/// Power stage off from a fault handler: gate-driver enable (PD12) low, TIM1 main output
+/// off (BDTR.MOE = 0: both bridge outputs to their idle state), loop timers stopped.
+/// Plain register writes, callable from any context.
+pub fn emergency_stop() {
+    wr!(gpiod().bsrr(), 1 << (12 + 16));
+    rmw!(tim1().bdtr(), 1 << 15, 0);
+    stop();
 }
 
 /// Stop the loop timers and switch the power stage off.
