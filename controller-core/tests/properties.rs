@@ -117,6 +117,37 @@ proptest! {
     }
 
     #[test]
+    fn profiles_never_panic(
+        v in prop_oneof![any::<f32>(), -12.0f32..12.0],
+        ta in prop_oneof![any::<f32>(), 0.0f32..3.0],
+        th in prop_oneof![any::<f32>(), 0.0f32..3.0, Just(f32::INFINITY)],
+        td in prop_oneof![any::<f32>(), 0.0f32..3.0],
+        delay in prop_oneof![any::<f32>(), 0.0f32..1.0],
+        tj in prop_oneof![any::<f32>(), 0.0f32..1.0],
+        scurve: bool, start: i64, cpr in prop_oneof![Just(4096u32), Just(1_000_000u32)],
+    ) {
+        use controller_core::{Profile, ProfileConfig, ProfileKind};
+        let cfg = ProfileConfig {
+            kind: if scurve { ProfileKind::SCurve { jerk_time_s: tj } } else { ProfileKind::Trapezoid },
+            peak_velocity_pu: v,
+            accel_time_s: ta,
+            hold_time_s: th,
+            decel_time_s: td,
+            start_delay_s: delay,
+        };
+        let mut drive = DriveConfig::table1();
+        drive.encoder_cpr = cpr;
+        drive.counter_bits = 32;
+        if let Ok(p) = Profile::new(&cfg, &drive) {
+            let mut p = p.with_start_position(Counts::from_bits(start >> 8));
+            for _ in 0..2000 {
+                let sp = p.next();
+                prop_assert!(sp.velocity_pu.abs() <= Pu::from_num(10.01));
+            }
+        }
+    }
+
+    #[test]
     fn count_diff_recovers_any_motion_below_half_range(
         bits in 16u8..=32, start: u32, delta in any::<i32>(),
     ) {
