@@ -383,7 +383,7 @@ pub struct MechanicsDerived {
     pub resonance_rad_s: f64,
     /// K = Jl·ω_ar²/ω_b, pu torque per rad of motor-side twist.
     pub stiffness_pu_per_rad: f64,
-    /// D = 2·ζ·Jl·ω_ar / ω_b·ω_b... in pu torque per pu speed difference: 2·ζ·Jl·ω_ar.
+    /// D = 2·ζ·Jl·ω_ar, pu torque per pu speed difference (ωm − ωl).
     pub damping_pu: f64,
     /// g = backlash/2 in rad at the motor side.
     pub half_gap_rad: f64,
