@@ -100,6 +100,11 @@ pub struct App {
     enable_request: bool,
     /// A sensor read failed since the last reset: forces the external fault.
     sensor_fault: bool,
+    /// The external fault input as the last velocity tick read it.
+    fault_input_active: bool,
+    /// Disabled without a fault: the core's ticks are not run (no regulator winds up
+    /// while the stage is off); the controller is reset on the next enable.
+    held: bool,
     /// Last velocity-tick setpoint, for the trace.
     last_setpoint: Setpoint,
 }
@@ -122,19 +127,33 @@ impl App {
             tick: 0,
             enable_request: false,
             sensor_fault: false,
+            fault_input_active: false,
+            held: true,
             last_setpoint: Setpoint::default(),
         })
     }
 
     /// Allow (or forbid) the power stage to switch on; it stays off while faulted.
+    ///
+    /// Disabling without a latched fault holds the regulators: the core's ticks stop (so
+    /// nothing winds up while the stage is off). Enabling from the held state resets the
+    /// controller first, so it starts from a clean state at the present position. A latched
+    /// fault is never cleared here (that takes [`App::reset`]).
     pub fn set_enable_request(&mut self, enable: bool) {
         self.enable_request = enable;
+        if enable && self.held {
+            self.controller.reset();
+            self.held = false;
+        } else if !enable && self.controller.fault().is_none() {
+            self.held = true;
+        }
     }
 
     /// Clear a latched fault and the regulators' state (the operator's fault reset).
     pub fn reset(&mut self) {
         self.controller.reset();
         self.sensor_fault = false;
+        self.held = !self.enable_request;
     }
 
     /// The latched fault, if any.
@@ -166,8 +185,18 @@ impl App {
         self.trace.trigger(self.tick, TriggerCause::Request);
     }
 
+    /// Whether the regulators are held in reset (disabled, no fault latched).
+    #[must_use]
+    pub const fn is_held(&self) -> bool {
+        self.held
+    }
+
     /// The body of the current-loop interrupt: sample, run the core's current tick, drive
     /// the PWM and the enable output, record the trend buffer.
+    ///
+    /// While held (see [`App::set_enable_request`]) the core's ticks do not run: 0 V, enable
+    /// low, the trend buffer still records the sensors. A latched fault keeps the ticks
+    /// running (the core then commands zero torque) and the stage off until [`App::reset`].
     #[inline]
     pub fn on_current_tick<I: CurrentLoopIo>(&mut self, io: &mut I) -> CurrentOutputs {
         let encoder_count = io.encoder_count();
@@ -180,11 +209,21 @@ impl App {
                 Pu::ZERO
             }
         };
-        let out = self.step_current(CurrentInputs {
+        let inputs = CurrentInputs {
             encoder_count,
             current_pu,
-        });
-        let run = out.fault.is_none() && !self.sensor_fault && self.enable_request;
+        };
+        let out = if self.held {
+            self.record_trace(&inputs, &CurrentOutputs::default());
+            CurrentOutputs::default()
+        } else {
+            self.step_current(inputs)
+        };
+        // `held` implies no enable request.
+        let run = out.fault.is_none()
+            && !self.sensor_fault
+            && !self.fault_input_active
+            && self.enable_request;
         let applied = io.set_voltage_pu(if run { out.voltage_cmd_pu } else { Pu::ZERO });
         let enabled = io.set_enable(run);
         if !(applied && enabled) {
@@ -197,6 +236,11 @@ impl App {
     /// inputs gathered by [`velocity_inputs`]. A latched sensor fault forces the fault input.
     #[inline]
     pub fn on_velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
+        self.fault_input_active = inputs.fault_input;
+        if self.held {
+            self.last_setpoint = inputs.setpoint;
+            return VelocityOutputs::default();
+        }
         self.step_velocity(VelocityInputs {
             fault_input: inputs.fault_input || self.sensor_fault,
             ..inputs
@@ -212,6 +256,13 @@ impl App {
         if out.fault.is_some() {
             self.trace.trigger(self.tick, TriggerCause::Fault);
         }
+        self.record_trace(&inputs, &out);
+        out
+    }
+
+    /// Offer this tick's signals to the trend buffer and count the tick.
+    #[inline]
+    fn record_trace(&mut self, inputs: &CurrentInputs, out: &CurrentOutputs) {
         let setpoint = &self.last_setpoint;
         self.trace.record_with(self.tick, || SignalSnapshot {
             encoder_counts: inputs.encoder_count,
@@ -225,7 +276,6 @@ impl App {
             fault_code: i32::from(fault_code(out.fault)),
         });
         self.tick = self.tick.wrapping_add(1);
-        out
     }
 
     /// One velocity tick from its inputs, without a board (see [`App::step_current`]).

@@ -18,7 +18,8 @@ mod target {
     use core::fmt::Write;
     use core::sync::atomic::{AtomicBool, Ordering};
 
-    use controller_core::{DriveConfig, Profile, ProfileConfig, ProfileKind, Setpoint};
+    use controller_core::per_unit::count_signed;
+    use controller_core::{Counts, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu, Setpoint};
     use cortex_m_rt::entry;
     use firmware::app::{App, SetpointSource, DEFAULT_TRACE};
     use firmware::board::EncoderCounter;
@@ -32,16 +33,36 @@ mod target {
     /// The move runs while set (by `e`); otherwise the setpoint holds where it is.
     static MOVE_GO: AtomicBool = AtomicBool::new(false);
 
-    /// The profile, advanced only while the drive is told to move: a drive that is enabled
-    /// later starts its move then, instead of chasing a setpoint that ran ahead.
+    /// The profile, advanced only while the drive is told to move: a drive enabled later
+    /// starts its move then, from where the shaft is, instead of chasing a setpoint that
+    /// ran ahead or jumping back to where it was at power-up.
     struct GatedMove {
+        /// The move from position 0, as built.
+        base: Profile,
+        /// The move in progress (`base` shifted to the start position).
         profile: Profile,
         hold: Setpoint,
+        moving: bool,
+        counter_bits: u8,
     }
 
     impl SetpointSource for GatedMove {
         fn next_setpoint(&mut self) -> Setpoint {
-            if MOVE_GO.load(Ordering::Relaxed) {
+            let go = MOVE_GO.load(Ordering::Relaxed);
+            if go && !self.moving {
+                // Start from the present position, in the frame the core uses after its
+                // reset at enable: the raw counter read as signed.
+                let raw = board::encoder().count();
+                let start = count_signed(raw, self.counter_bits);
+                self.profile = self.base.with_start_position(Counts::from_num(start));
+            }
+            if !go && self.moving {
+                // Disabled: hold where the move had got to.
+                self.hold.velocity_pu = Pu::ZERO;
+                self.hold.acceleration_pu_s = Pu::ZERO;
+            }
+            self.moving = go;
+            if go {
                 self.hold = self.profile.next();
             }
             self.hold
@@ -130,8 +151,11 @@ mod target {
             mem.static_ram_bytes
         );
         let motion = GatedMove {
+            base: profile,
             profile,
             hold: Setpoint::default(),
+            moving: false,
+            counter_bits: cfg.counter_bits,
         };
         LOOPS.install(app, b.current_io, b.velocity_io, motion);
         // QEMU demo: enable at once. The real board waits for `e` on the console.

@@ -203,3 +203,69 @@ fn a_dump_request_freezes_the_trace_after_its_post_trigger_samples() {
     app.trace_mut().rearm();
     assert_eq!(app.trace().state(), TraceState::Armed);
 }
+
+#[test]
+fn nothing_winds_up_while_disabled() {
+    // A: disabled for 0.25 s with the setpoint 500 counts away, then enabled.
+    // B: a fresh app enabled at that moment. Same inputs from there on: same outputs.
+    let mut a = app();
+    let mut io_a = MockIo {
+        current: Some(Pu::from_num(0.1)),
+        encoder: 7,
+        ..MockIo::default()
+    };
+    let mut far = Setpoint {
+        position_counts: controller_core::Counts::from_num(500),
+        ..Setpoint::default()
+    };
+    for k in 0..1000 {
+        period(&mut a, &mut io_a, k, &mut far);
+    }
+    assert!(a.is_held());
+    assert_eq!(io_a.voltage, Pu::ZERO);
+    a.set_enable_request(true);
+    assert!(!a.is_held());
+
+    let mut b = app();
+    b.set_enable_request(true);
+    let mut io_b = MockIo {
+        current: Some(Pu::from_num(0.1)),
+        encoder: 7,
+        ..MockIo::default()
+    };
+    let mut sp = Setpoint::default();
+    for k in 0..200 {
+        let (oa, ob) = (a.on_current_tick(&mut io_a), b.on_current_tick(&mut io_b));
+        assert_eq!(oa, ob, "current tick {k}");
+        if k % 2 == 1 {
+            let va = a.on_velocity_tick(velocity_inputs(&mut io_a, &mut sp));
+            let vb = b.on_velocity_tick(velocity_inputs(&mut io_b, &mut sp));
+            assert_eq!(va, vb, "velocity tick {k}");
+        }
+    }
+    assert!(io_a.enabled && io_b.enabled);
+}
+
+#[test]
+fn disabling_never_clears_a_latched_fault() {
+    let mut app = app();
+    app.set_enable_request(true);
+    let mut io = MockIo {
+        current: Some(Pu::ZERO),
+        fault_input: true,
+        ..MockIo::default()
+    };
+    let mut sp = Setpoint::default();
+    for k in 0..4 {
+        period(&mut app, &mut io, k, &mut sp);
+    }
+    assert_eq!(app.fault(), Some(Fault::External));
+    io.fault_input = false;
+    app.set_enable_request(false);
+    app.set_enable_request(true);
+    for k in 4..8 {
+        period(&mut app, &mut io, k, &mut sp);
+    }
+    assert_eq!(app.fault(), Some(Fault::External));
+    assert!(!io.enabled);
+}

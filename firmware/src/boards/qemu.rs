@@ -278,6 +278,11 @@ pub type Console = Uart0;
 /// The encoder counter type (its `COUNTER_BITS` must match the drive settings).
 pub type Encoder = VirtualEncoder;
 
+/// A read-only handle on the encoder counter (for thread mode and the setpoint logic).
+pub const fn encoder() -> Encoder {
+    VirtualEncoder
+}
+
 /// Latest virtual-motor current, raw Q16.16 bits (published by the PWM, read by the ADC).
 static MOTOR_CURRENT_BITS: AtomicI32 = AtomicI32::new(0);
 /// Latest virtual encoder count.

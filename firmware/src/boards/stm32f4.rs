@@ -57,6 +57,11 @@ pub type Console = Usart2;
 /// The encoder counter type.
 pub type Encoder = Tim3Encoder;
 
+/// A read-only handle on the encoder counter (for thread mode and the setpoint logic).
+pub const fn encoder() -> Encoder {
+    Tim3Encoder
+}
+
 /// Raw 32-bit register write through the PAC.
 macro_rules! wr {
     ($reg:expr, $value:expr) => {
