@@ -160,6 +160,39 @@ fn main() -> Result<(), plant_host::PlantError> {
         }
     }
 
+    // Describing-function view of the lost motion: a dead zone of half-width g driven by a
+    // twist of amplitude A > g acts, to first harmonic, like the spring and damper scaled by
+    // N(A) = 1 − (2/π)·(asin(g/A) + (g/A)·√(1 − (g/A)²)), N from 0 (inside the gap) to 1.
+    // The equivalent plant has K·N and D·N, i.e. f_ar·√N and ζ·√N.
+    println!(
+        "== Table 1, equivalent-stiffness sweep (dead-zone describing function N), 15 Hz, PI 2 kHz"
+    );
+    for (label, ka, fc, periods) in [
+        ("no AFB", 0.0, 100.0, (500e-6, 500e-6)),
+        ("Ka=1.0 J, 20 Hz, AFB 4 kHz", 1.0, 20.0, (500e-6, 250e-6)),
+        ("Ka=0.5 J, 100 Hz, AFB 4 kHz", 0.5, 100.0, (500e-6, 250e-6)),
+    ] {
+        let mut unstable = Vec::new();
+        for k in 1..=100 {
+            let n = f64::from(k) / 100.0;
+            let mut eq = cfg;
+            eq.mechanics.anti_resonance_hz *= n.sqrt();
+            eq.mechanics.shaft_damping_ratio *= n.sqrt();
+            let lp = design(&eq, 2.0 * PI * 15.0, ka, fc, periods);
+            if !lp.is_stable() {
+                unstable.push(n);
+            }
+        }
+        let span = match (unstable.first(), unstable.last()) {
+            (Some(a), Some(b)) => format!(
+                "unstable for N in [{a:.2}, {b:.2}] ({} of 100 points)",
+                unstable.len()
+            ),
+            _ => "stable for every N in (0, 1]".to_string(),
+        };
+        println!("  {label}: {span}");
+    }
+
     println!("== Eq. 1 / Fig. 2 (Jp = 1 s, zeros at 1 and 10 rad/s)");
     let st = PiStiffness::from_zeros(1.0, 1.0, 10.0);
     for p in st.curve(&[0.1, 1.0, 3.162, 10.0, 100.0]) {
