@@ -164,11 +164,14 @@ mod target {
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
 
         let mut dumps = 0_u32;
+        #[cfg(not(feature = "board-stm32f4"))]
+        let mut self_dump_asked = false;
         loop {
             cortex_m::asm::wfi();
             let ticks = LOOPS.with_app(|app| app.ticks()).unwrap_or(0);
             #[cfg(not(feature = "board-stm32f4"))]
-            if ticks == SELF_DUMP_TICK {
+            if ticks >= SELF_DUMP_TICK && !self_dump_asked {
+                self_dump_asked = true;
                 DUMP_REQUESTED.store(true, Ordering::Relaxed);
             }
             if DUMP_REQUESTED.swap(false, Ordering::Relaxed) {
