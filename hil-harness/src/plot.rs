@@ -242,7 +242,7 @@ fn draw_figure<DB: DrawingBackend>(
 pub fn save(fig: &Figure, stem: &Path) -> Result<(PathBuf, PathBuf)> {
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
-    let height = 300 * fig.panels.len().max(1) as u32;
+    let height = (300 * fig.panels.len().max(1) as u32).max(480);
     let size = (1000u32, height);
     draw_figure(BitMapBackend::new(&png, size).into_drawing_area(), fig)
         .map_err(|e| HarnessError::Plot(format!("{}: {e}", png.display())))?;

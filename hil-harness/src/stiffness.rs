@@ -198,6 +198,23 @@ pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
     points
 }
 
+/// Eq. 1 for the stiffness scenario's drive, with AFB on or off, on a dense log grid
+/// from 0.2 to 2000 rad/s.
+pub fn analytic_curve(afb: bool) -> Result<Vec<(f64, f64)>> {
+    let sets: Vec<String> = if afb {
+        Vec::new()
+    } else {
+        vec!["drive.accel_feedback.mode=off".into()]
+    };
+    let cfg = resolve("stiffness", None, &sets)?;
+    Ok((0..=120)
+        .map(|i| {
+            let w = 0.2 * 10f64.powf(f64::from(i) / 30.0);
+            (w, analytic(&cfg, w))
+        })
+        .collect())
+}
+
 /// The stiffness chart: analytic lines and measured markers, both designs.
 pub fn figure(points: &[StiffnessPoint]) -> Figure {
     let pick = |source: &str, measured: bool| -> Vec<(f64, f64)> {
@@ -215,9 +232,15 @@ pub fn figure(points: &[StiffnessPoint]) -> Figure {
             title: "Dynamic stiffness |load torque / position| (Fig. 2, Eq. 1)".into(),
             y_label: "pu torque per pu*s".into(),
             series: vec![
-                Series::line("Eq. 1, no AFB", pick("none", false)),
+                Series::line(
+                    "Eq. 1, no AFB",
+                    analytic_curve(false).unwrap_or_else(|_| pick("none", false)),
+                ),
                 Series::markers("measured, no AFB", pick("none", true)),
-                Series::line("Eq. 1 with J + Ka*F, AFB", pick("observer", false)),
+                Series::line(
+                    "Eq. 1 with J + Ka*F, AFB",
+                    analytic_curve(true).unwrap_or_else(|_| pick("observer", false)),
+                ),
                 Series::markers("measured, AFB (observer)", pick("observer", true)),
                 Series::markers(
                     "measured, AFB (differentiation)",

@@ -411,6 +411,12 @@ pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepResult>, String)> {
             r.best_quiet_design
         );
     }
+    let _ = writeln!(
+        text,
+        "{} closed-loop runs on {} threads",
+        points.len(),
+        rayon::current_num_threads()
+    );
     let errors = points.iter().filter(|p| !p.error.is_empty()).count();
     if errors > 0 {
         let _ = writeln!(text, "{errors} grid points were rejected by the configuration checks (see sweep.csv `error`)");
