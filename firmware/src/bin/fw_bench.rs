@@ -66,6 +66,24 @@ mod target {
     static BARE_VELOCITY_COUNTS: AtomicU32 = AtomicU32::new(0);
     static BARE_PROFILE_COUNTS: AtomicU32 = AtomicU32::new(0);
 
+    /// Velocity tick (after the measurement) that checks the priorities.
+    const PREEMPTION_CHECK_TICK: u32 = (WARMUP_TICKS + MEASURED_TICKS) / 2 + 10;
+    /// Current ticks that ran inside the stretched velocity interrupt.
+    static PREEMPTIONS: AtomicU32 = AtomicU32::new(0);
+
+    /// Check that the current loop preempts the velocity loop: stay in the velocity
+    /// interrupt for 600 µs (2.4 current periods, timed on SysTick) and count the current
+    /// ticks that ran meanwhile. With the priorities right that is 2 or 3; with them wrong,
+    /// 0. Runs once, after the measured ticks.
+    fn preemption_check() {
+        let before = CURRENT_TICKS.load(Ordering::Relaxed);
+        let counts = board::CORE_CLOCK_HZ / 1_000_000 * 600;
+        let start = SYST::get_current();
+        while elapsed(start, SYST::get_current()) < counts {}
+        let ran = CURRENT_TICKS.load(Ordering::Relaxed).wrapping_sub(before);
+        PREEMPTIONS.store(ran, Ordering::Relaxed);
+    }
+
     /// Spin `n` short iterations: shifts the window's phase against the SysTick edges.
     #[inline(never)]
     fn dither(n: u32) {
@@ -129,6 +147,9 @@ mod target {
 
     fn velocity_loop() {
         let tick = VELOCITY_TICKS.fetch_add(1, Ordering::Relaxed);
+        if tick == PREEMPTION_CHECK_TICK {
+            preemption_check();
+        }
         if measuring(tick * 2) {
             dither(tick % 23);
             let t0 = SYST::get_current();
@@ -282,7 +303,7 @@ mod target {
         core.SYST.enable_counter();
         let calibration = calibrate();
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
-        while CURRENT_TICKS.load(Ordering::Relaxed) < WARMUP_TICKS + MEASURED_TICKS + 2 {
+        while CURRENT_TICKS.load(Ordering::Relaxed) < WARMUP_TICKS + MEASURED_TICKS + 60 {
             cortex_m::asm::wfi();
         }
         board::stop();
@@ -337,6 +358,15 @@ mod target {
         }
         if !ok_samples || LOOPS.overruns() != 0 {
             defmt::error!("FAIL: measurement incomplete or disturbed");
+            exit(false)
+        }
+        let preemptions = PREEMPTIONS.load(Ordering::Relaxed);
+        defmt::info!(
+            "preemption: {=u32} current ticks ran inside one 600 µs velocity interrupt",
+            preemptions
+        );
+        if preemptions < 2 {
+            defmt::error!("FAIL: the current loop did not preempt the velocity loop");
             exit(false)
         }
         if period > PERIOD_BUDGET {
