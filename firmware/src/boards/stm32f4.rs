@@ -14,6 +14,7 @@
 //! | 4 kHz tick      | TIM6 update, IRQ 54, priority 0x20 (higher)                     |
 //! | 2 kHz tick      | TIM7 update, IRQ 55, priority 0x40                              |
 //! | console         | USART2 TX PA2 / RX PA3 (AF7), 115200 Bd, RX IRQ 38, priority 0x80 |
+//! | watchdog        | IWDG, ≈ 5 ms (LSI 32 kHz / 4, reload 40), refreshed by every current tick |
 //!
 //! The current scaling assumes a shunt amplifier centred at mid-scale with ±2 pu at the ADC
 //! rails (1024 LSB per pu); set [`ADC_LSB_PER_PU`] and [`ADC_OFFSET`] for the real stage.
@@ -193,6 +194,15 @@ fn gpioe() -> &'static pac::gpioi::RegisterBlock {
     }
 }
 
+fn iwdg() -> &'static pac::iwdg::RegisterBlock {
+    // SAFETY: the watchdog is started in `start` and afterwards only refreshed (KR writes)
+    // by the current loop.
+    #[allow(unsafe_code)]
+    unsafe {
+        &*pac::IWDG::ptr()
+    }
+}
+
 fn tim6() -> &'static pac::tim6::RegisterBlock {
     // SAFETY: after `init`, TIM6 SR is cleared only by its own interrupt.
     #[allow(unsafe_code)]
@@ -343,6 +353,18 @@ pub fn init(_core: &mut cortex_m::Peripherals, _cfg: &controller_core::DriveConf
         (1 << 1) | (1 << 4) | (1 << 5) | (1 << 17)
     );
     rmw!(dp.RCC.apb2enr(), 0, 1 | (1 << 8));
+    // Debug halt: stop the watchdog and the loop timers, and disable TIM1's outputs.
+    dp.DBGMCU.apb1_fz().modify(|_, w| {
+        w.dbg_iwdg_stop()
+            .set_bit()
+            .dbg_tim6_stop()
+            .set_bit()
+            .dbg_tim7_stop()
+            .set_bit()
+    });
+    dp.DBGMCU
+        .apb2_fz()
+        .modify(|_, w| w.dbg_tim1_stop().set_bit());
     // Read back: the first access to a just-clocked peripheral must wait two bus cycles
     // (STM32F40x errata, "delay after an RCC peripheral clock enabling").
     let _ = dp.RCC.apb2enr().read();
@@ -422,6 +444,7 @@ pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
         wr!(tim.sr(), 0);
         wr!(tim.dier(), 1); // UIE
     }
+    start_watchdog();
     // SAFETY: priorities are set before unmasking; the handlers share data only through
     // `critical_section::Mutex` cells, atomics and `TaskLocal`s.
     #[allow(unsafe_code)]
@@ -453,9 +476,25 @@ pub fn stop() {
     wr!(gpiod().bsrr(), 1 << (12 + 16));
 }
 
-/// Acknowledge the current-loop timer interrupt.
+/// Independent watchdog: if the current loop stops refreshing it for ≈ 5 ms (nominal
+/// LSI 32 kHz / 4, reload 40; the LSI may run 17–47 kHz, so 3.4–9.4 ms), the MCU resets and
+/// the PWM pins fall back to their reset state (inputs: the gate driver's pulls hold the
+/// bridge off). It stops while a debugger halts the core.
+fn start_watchdog() {
+    let w = iwdg();
+    wr!(w.kr(), 0xCCCC); // start
+    wr!(w.kr(), 0x5555); // unlock PR and RLR
+    wr!(w.pr(), 0); // /4
+    wr!(w.rlr(), 40);
+    // SR.PVU / SR.RVU: wait until the new values reached the LSI domain.
+    let _ = wait(|| w.sr().read().bits() & 0b11 == 0);
+    wr!(w.kr(), 0xAAAA); // refresh
+}
+
+/// Acknowledge the current-loop timer interrupt and refresh the watchdog.
 pub fn ack_current() {
     wr!(tim6().sr(), 0);
+    wr!(iwdg().kr(), 0xAAAA);
 }
 
 /// Acknowledge the velocity-loop timer interrupt.
