@@ -167,6 +167,17 @@ where
         critical_section::with(|cs| self.app.borrow_ref_mut(cs).as_mut().map(|(app, _)| f(app)))
     }
 
+    /// Run `f` on the current loop's I/O (thread mode, e.g. a stand-in board's inputs),
+    /// under a critical section.
+    pub fn with_current_io<R>(&self, f: impl FnOnce(&mut C) -> R) -> Option<R> {
+        critical_section::with(|cs| self.app.borrow_ref_mut(cs).as_mut().map(|(_, io)| f(io)))
+    }
+
+    /// Run `f` on the velocity loop's I/O; `None` if the velocity interrupt holds it.
+    pub fn with_velocity_io<R>(&self, f: impl FnOnce(&mut V) -> R) -> Option<R> {
+        self.velocity.with(|task| f(&mut task.io))
+    }
+
     /// Velocity ticks skipped so far.
     pub fn overruns(&self) -> u32 {
         self.overruns.load(Ordering::Relaxed)

@@ -6,6 +6,8 @@
 //!   readers) and the per-loop I/O traits the ticks use.
 //! * [`app`]: [`app::App`] holds the controller and the trend buffer; its
 //!   `on_current_tick` / `on_velocity_tick` are what the 4 kHz and 2 kHz interrupts call.
+//! * [`isr`]: the interrupt glue (`Loops`: where the app, I/O and profile live between
+//!   interrupts; the handler bodies).
 //! * [`trace`]: the trend buffer (fixed-size capture of chosen signals, dumped on request).
 //! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU).
 //! * [`lil`]: the loop-in-the-loop record format and its bit-exact output words.
@@ -17,6 +19,7 @@
 
 pub mod app;
 pub mod board;
+pub mod isr;
 pub mod lil;
 pub mod synthetic;
 pub mod trace;
@@ -24,8 +27,6 @@ pub mod virtual_motor;
 
 #[cfg(target_os = "none")]
 pub mod boards;
-#[cfg(target_os = "none")]
-pub mod isr;
 #[cfg(target_os = "none")]
 pub mod rt;
 
