@@ -148,6 +148,141 @@ where
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+    use embedded_hal::digital::{ErrorKind, ErrorType};
+
+    /// A pin or PWM that can be told to fail.
+    #[derive(Default)]
+    struct Fake {
+        level: bool,
+        fail: bool,
+        duty: u16,
+    }
+
+    #[derive(Debug)]
+    struct FakeError;
+
+    impl embedded_hal::digital::Error for FakeError {
+        fn kind(&self) -> ErrorKind {
+            ErrorKind::Other
+        }
+    }
+
+    impl embedded_hal::pwm::Error for FakeError {
+        fn kind(&self) -> embedded_hal::pwm::ErrorKind {
+            embedded_hal::pwm::ErrorKind::Other
+        }
+    }
+
+    impl ErrorType for Fake {
+        type Error = FakeError;
+    }
+
+    impl embedded_hal::pwm::ErrorType for Fake {
+        type Error = FakeError;
+    }
+
+    impl InputPin for Fake {
+        fn is_high(&mut self) -> Result<bool, FakeError> {
+            if self.fail {
+                Err(FakeError)
+            } else {
+                Ok(self.level)
+            }
+        }
+        fn is_low(&mut self) -> Result<bool, FakeError> {
+            self.is_high().map(|h| !h)
+        }
+    }
+
+    impl OutputPin for Fake {
+        fn set_low(&mut self) -> Result<(), FakeError> {
+            self.level = false;
+            if self.fail {
+                Err(FakeError)
+            } else {
+                Ok(())
+            }
+        }
+        fn set_high(&mut self) -> Result<(), FakeError> {
+            self.level = true;
+            if self.fail {
+                Err(FakeError)
+            } else {
+                Ok(())
+            }
+        }
+    }
+
+    impl SetDutyCycle for Fake {
+        fn max_duty_cycle(&self) -> u16 {
+            4200
+        }
+        fn set_duty_cycle(&mut self, duty: u16) -> Result<(), FakeError> {
+            self.duty = duty;
+            if self.fail {
+                Err(FakeError)
+            } else {
+                Ok(())
+            }
+        }
+    }
+
+    struct Adc(Option<Pu>);
+
+    impl CurrentSense for Adc {
+        type Error = FakeError;
+        fn sample_current(&mut self) -> Result<Pu, FakeError> {
+            self.0.ok_or(FakeError)
+        }
+    }
+
+    #[derive(Clone, Copy)]
+    struct Counter(u32);
+
+    impl EncoderCounter for Counter {
+        const COUNTER_BITS: u8 = 16;
+        fn count(&mut self) -> u32 {
+            self.0
+        }
+    }
+
+    #[test]
+    fn current_half_maps_voltage_to_duty_and_reports_errors() {
+        let mut io = CurrentIo {
+            pwm: Fake::default(),
+            current: Adc(Some(Pu::from_num(0.5))),
+            encoder: Counter(1234),
+            enable: Fake::default(),
+        };
+        assert_eq!(CurrentLoopIo::encoder_count(&mut io), 1234);
+        assert_eq!(io.current_pu(), Some(Pu::from_num(0.5)));
+        assert!(io.set_voltage_pu(Pu::from_num(-0.5)));
+        assert_eq!(io.pwm.duty, 1050);
+        assert!(io.set_enable(true) && io.enable.level);
+        io.current.0 = None;
+        assert_eq!(io.current_pu(), None, "a failed conversion is reported");
+        io.pwm.fail = true;
+        assert!(!io.set_voltage_pu(Pu::ZERO));
+        io.enable.fail = true;
+        assert!(!io.set_enable(false));
+    }
+
+    #[test]
+    fn velocity_half_treats_an_unreadable_fault_input_as_a_fault() {
+        let mut io = VelocityIo {
+            encoder: Counter(7),
+            fault: Fake::default(),
+        };
+        assert_eq!(VelocityLoopIo::encoder_count(&mut io), 7);
+        assert!(!io.fault_input());
+        io.fault.level = true;
+        assert!(io.fault_input());
+        io.fault = Fake {
+            fail: true,
+            ..Fake::default()
+        };
+        assert!(io.fault_input(), "fail safe");
+    }
 
     #[test]
     fn duty_is_monotonic_and_bounded() {
