@@ -841,3 +841,112 @@ fn format_section(
     }
     text
 }
+
+/// The REPORT.md section for the PIL run in `dir`, or, if there is none, a paragraph
+/// saying how to produce it (the PIL run needs QEMU and the ARM image, which `reproduce`
+/// may not have).
+pub fn report_section_or_hint(dir: &Path) -> String {
+    report_section(dir).unwrap_or_else(|_| {
+        format!(
+            "## Processor in the loop\n\nNo PIL run in `{}`. Produce it with \
+             `cargo run --release -p hil-harness -- pil --scenario fig6 --out {}` \
+             (needs qemu-system-arm and the thumbv7em-none-eabihf target); it compares \
+             every controller output of the firmware in QEMU with the host run, bit for bit.\n",
+            dir.display(),
+            dir.display()
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use crate::trace::{Trace, TraceRow};
+    use controller_core::Pu;
+
+    fn log(n: usize) -> TickLog {
+        let mut l = TickLog::default();
+        for k in 0..n {
+            let i = CurrentInputs {
+                encoder_count: k as u32,
+                current_pu: Pu::from_bits(k as i32),
+            };
+            let o = CurrentOutputs {
+                voltage_cmd_pu: Pu::from_bits(3 * k as i32),
+                ..CurrentOutputs::default()
+            };
+            l.current.push((i, o));
+            if k % 2 == 0 {
+                l.velocity
+                    .push((VelocityInputs::default(), VelocityOutputs::default()));
+            }
+        }
+        l
+    }
+
+    fn run_of(rows: usize) -> RunOutput {
+        let trace = Trace {
+            rows: (0..rows)
+                .map(|k| TraceRow {
+                    t_s: k as f64 * 5e-4,
+                    ..TraceRow::default()
+                })
+                .collect(),
+        };
+        let windows = resolve("fig6", None, &[])
+            .unwrap()
+            .scenario
+            .metric_windows(2.0);
+        let metrics = compute(&trace, &windows);
+        RunOutput {
+            trace,
+            metrics,
+            sim_time_s: 0.0,
+            wall_time_s: 0.0,
+            ticks: 0,
+        }
+    }
+
+    #[test]
+    fn identical_logs_compare_bit_identical() {
+        let c = compare("t", &log(10), &log(10), &run_of(5), &run_of(5));
+        assert!(c.bit_identical, "{c:?}");
+        assert_eq!(c.values_compared, 10 * 4 + 5 * 8);
+    }
+
+    #[test]
+    fn one_lsb_anywhere_is_a_mismatch() {
+        let host = log(10);
+        let mut pil = log(10);
+        pil.current[7].1.voltage_cmd_pu =
+            Pu::from_bits(pil.current[7].1.voltage_cmd_pu.to_bits() + 1);
+        pil.velocity[3].1.fault = Some(Fault::External);
+        let c = compare("t", &host, &pil, &run_of(5), &run_of(5));
+        assert!(!c.bit_identical);
+        assert_eq!(c.mismatches, 2);
+        assert_eq!(c.per_field.get("current.voltage_cmd_pu"), Some(&1));
+        assert_eq!(c.per_field.get("velocity.fault"), Some(&1));
+        let m = c.first_mismatch.unwrap();
+        assert_eq!((m.tick_loop.as_str(), m.index), ("current", 7));
+    }
+
+    #[test]
+    fn missing_ticks_or_trace_rows_are_not_identical() {
+        let c = compare("t", &log(10), &log(9), &run_of(5), &run_of(5));
+        assert!(!c.bit_identical && !c.inputs_identical);
+        let mut other = run_of(5);
+        other.trace.rows[2].motor_vel_pu = 1e-300;
+        let c = compare("t", &log(10), &log(10), &run_of(5), &other);
+        assert!(!c.bit_identical && !c.trace_identical);
+    }
+
+    #[test]
+    fn the_trace_is_cut_before_the_fault() {
+        let cfg = resolve("fig6", None, &[]).unwrap();
+        let mut run = run_of(100);
+        cut_at(&mut run, &cfg, 0.01);
+        assert_eq!(run.trace.rows.len(), 20);
+        assert!(run.trace.rows.iter().all(|r| r.t_s < 0.01));
+    }
+}
