@@ -146,7 +146,7 @@ mod target {
             let applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
             defmt::warn!(
                 "pil: safe state: fault {}, current ref {=i32}, voltage {=i32}, enabled {=bool}",
-                defmt::Debug2Format(&LOOPS.with_app(|app| app.fault())),
+                defmt::Debug2Format(&LOOPS.with_app(|app| app.fault()).flatten()),
                 out.map_or(0, |o| o.current_ref_pu.to_bits()),
                 applied.voltage_bits,
                 applied.enabled
