@@ -359,10 +359,11 @@ fn write_report(
         &["dyno-accel-compare.png", "dyno-accel-no-afb/trace.png", "dyno-accel/trace.png"],
         "Velocity bandwidth 100 rad/s, 1.03 s total inertia, no lost motion; the torque saturates; about 10 Hz torque oscillation in the measured torque without acceleration feedback, reduced in magnitude by 75-80 % with it.",
         &format!(
-            "dyno plant as assumed in `configs/scenarios/plants/dyno.toml` (Jm 0.20 s + Jl 0.83 s, coupling anti-resonance {} Hz, no lost motion). Shaft-torque ripple (0.5-3.5 s, above ~5 Hz): {:.4} pu RMS at about {:.1} Hz without AFB, {:.4} pu RMS at about {:.1} Hz with: reduction {}. Torque at its limit {:.2} s / {:.2} s.",
+            "dyno plant as assumed in `configs/scenarios/plants/dyno.toml` (Jm 0.20 s + Jl 0.83 s, coupling anti-resonance {} Hz, no lost motion). Shaft-torque ripple during the acceleration (0.6-2.5 s, above ~5 Hz): {:.4} pu RMS at about {:.1} Hz without AFB, {:.4} pu RMS at about {:.1} Hz with: {}. Torque at its limit {:.2} s / {:.2} s.",
             cd.plant.mechanics.anti_resonance_hz,
             d_off.metrics.shaft_torque_ripple_rms_pu, d_off.metrics.shaft_ripple_freq_hz,
-            d_on.metrics.shaft_torque_ripple_rms_pu, d_on.metrics.shaft_ripple_freq_hz, pct(red),
+            d_on.metrics.shaft_torque_ripple_rms_pu, d_on.metrics.shaft_ripple_freq_hz,
+            if red >= 0.0 { format!("reduced by {}", pct(red)) } else { format!("increased by {}", pct(-red)) },
             d_off.metrics.torque_saturated_s, d_on.metrics.torque_saturated_s
         ),
         &format!(
@@ -387,7 +388,7 @@ fn write_report(
         &["shock-compare.png"],
         "Acceleration feedback reduces the torque ripple after the shock.",
         &format!(
-            "shaft-torque ripple after the step (0.25 s after it to the end): {:.4} pu without AFB, {:.4} pu with; motor-torque ripple {:.4} / {:.4} pu; droop {} / {} pu.",
+            "shaft-torque ripple after the step (0.1 s after it to the end): {:.4} pu without AFB, {:.4} pu with; motor-torque ripple {:.4} / {:.4} pu; droop {} / {} pu.",
             s_off.metrics.shaft_torque_ripple_rms_pu, s_on.metrics.shaft_torque_ripple_rms_pu,
             s_off.metrics.torque_ripple_rms_pu, s_on.metrics.torque_ripple_rms_pu,
             fmt_opt(s_off.metrics.load_step_droop_pu), fmt_opt(s_on.metrics.load_step_droop_pu)

@@ -167,8 +167,8 @@ pub struct SineLoad {
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MetricSpec {
-    /// Ripple window (s); default: from 0.25 s after the first load step (or the ramp
-    /// end) to the end.
+    /// Ripple window (s); default: from one averaging length (`ripple_average_s`) after
+    /// the first load step (or the ramp end) to the end.
     pub ripple_window_s: Option<[f64; 2]>,
     /// Overshoot window (s); default: ramp end to the first load step (or the end).
     pub overshoot_window_s: Option<[f64; 2]>,
@@ -246,8 +246,11 @@ impl ScenarioSpec {
         let ramp_end = (self.profile.accel_s > 0.0 || self.profile.speed_pu != 0.0)
             .then(|| self.profile.ramp_end_s());
         let pair = |p: Option<[f64; 2]>| p.map(|[a, b]| (a, b));
-        let ripple_from = step.or(ramp_end).unwrap_or(0.0) + 0.25;
         let m = &self.metrics;
+        let average_s = m.ripple_average_s.unwrap_or(0.1);
+        // One averaging length after the step: the step itself no longer leaks through
+        // the high-pass, the ringing it excites does count.
+        let ripple_from = step.or(ramp_end).unwrap_or(0.0) + average_s;
         MetricWindows {
             step_time_s: step,
             ramp_end_s: ramp_end,
@@ -255,7 +258,7 @@ impl ScenarioSpec {
             overshoot_window_s: pair(m.overshoot_window_s)
                 .or_else(|| ramp_end.map(|r| (r, step.unwrap_or(end)))),
             stable_window_s: pair(m.stable_window_s).unwrap_or(((end - 0.5).max(0.0), end)),
-            ripple_average_s: m.ripple_average_s.unwrap_or(0.1),
+            ripple_average_s: average_s,
             settle_band_pu: m.settle_band_pu.unwrap_or(0.02),
             stable_oscillation_pu: m.stable_oscillation_pu.unwrap_or(0.02),
             stable_saturation_fraction: m.stable_saturation_fraction.unwrap_or(0.2),
