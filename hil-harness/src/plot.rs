@@ -50,6 +50,8 @@ pub struct Panel {
     pub log_x: bool,
     /// Logarithmic y axis (base 10).
     pub log_y: bool,
+    /// Put the legend in the lower left corner instead of the automatic place.
+    pub legend_lower_left: bool,
 }
 
 /// A figure: stacked panels.
@@ -214,7 +216,9 @@ fn draw_panel<DB: DrawingBackend>(
             .border_style(BLACK.mix(0.4))
             .label_font((FONT, 13))
             // Frequency and bandwidth charts rise to the upper right: keep the legend clear.
-            .position(if panel.log_x {
+            .position(if panel.legend_lower_left {
+                SeriesLabelPosition::LowerLeft
+            } else if panel.log_x {
                 SeriesLabelPosition::LowerRight
             } else {
                 SeriesLabelPosition::UpperRight

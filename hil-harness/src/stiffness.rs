@@ -226,30 +226,72 @@ pub fn figure(points: &[StiffnessPoint]) -> Figure {
             .map(|p| (p.freq_rad_s, if measured { p.measured } else { p.analytic }))
             .collect()
     };
+    let diff = pick("differentiation", true);
+    let diff_label = if diff.is_empty() {
+        "measured, AFB (differentiation): unstable, not shown".to_string()
+    } else {
+        "measured, AFB (differentiation)".to_string()
+    };
+    // Ratio AFB / no AFB: measured per frequency, and the ideal curves' ratio.
+    let ratio_of = |source: &str| -> Vec<(f64, f64)> {
+        points
+            .iter()
+            .filter(|p| p.source == source && p.stable)
+            .filter_map(|b| {
+                points
+                    .iter()
+                    .find(|a| a.source == "none" && a.freq_rad_s == b.freq_rad_s)
+                    .map(|a| (b.freq_rad_s, b.measured / a.measured))
+            })
+            .collect()
+    };
+    let ideal_ratio: Vec<(f64, f64)> = match (analytic_curve(false), analytic_curve(true)) {
+        (Ok(off), Ok(on)) => off
+            .iter()
+            .zip(on.iter())
+            .map(|(a, b)| (a.0, b.1 / a.1))
+            .collect(),
+        _ => Vec::new(),
+    };
     Figure {
         x_label: "frequency (rad/s)".into(),
-        panels: vec![Panel {
-            title: "Dynamic stiffness |load torque / position| (Fig. 2, Eq. 1)".into(),
-            y_label: "pu torque per pu*s".into(),
-            series: vec![
-                Series::line(
-                    "Eq. 1, no AFB",
-                    analytic_curve(false).unwrap_or_else(|_| pick("none", false)),
-                ),
-                Series::markers("measured, no AFB", pick("none", true)),
-                Series::line(
-                    "Eq. 1 with J + Ka*F, AFB",
-                    analytic_curve(true).unwrap_or_else(|_| pick("observer", false)),
-                ),
-                Series::markers("measured, AFB (observer)", pick("observer", true)),
-                Series::markers(
-                    "measured, AFB (differentiation)",
-                    pick("differentiation", true),
-                ),
-            ],
-            log_x: true,
-            log_y: true,
-        }],
+        panels: vec![
+            Panel {
+                title: "Dynamic stiffness |load torque / position| (Fig. 2, Eq. 1)".into(),
+                y_label: "pu torque per pu*s".into(),
+                series: vec![
+                    Series::line(
+                        "Eq. 1, no AFB",
+                        analytic_curve(false).unwrap_or_else(|_| pick("none", false)),
+                    ),
+                    Series::markers("measured, no AFB", pick("none", true)),
+                    Series::line(
+                        "Eq. 1 with J + Ka*F, AFB",
+                        analytic_curve(true).unwrap_or_else(|_| pick("observer", false)),
+                    ),
+                    Series::markers("measured, AFB (observer)", pick("observer", true)),
+                    Series::markers(diff_label, diff),
+                ],
+                log_x: true,
+                log_y: true,
+                legend_lower_left: false,
+            },
+            Panel {
+                title: "Stiffness with AFB / without".into(),
+                y_label: "ratio".into(),
+                series: vec![
+                    Series::line("ideal (Eq. 1 with J + Ka*F)", ideal_ratio),
+                    Series::markers("measured, observer acceleration", ratio_of("observer")),
+                    Series::markers(
+                        "measured, differentiated acceleration (stable points)",
+                        ratio_of("differentiation"),
+                    ),
+                ],
+                log_x: true,
+                log_y: false,
+                legend_lower_left: true,
+            },
+        ],
     }
 }
 

@@ -374,6 +374,7 @@ pub fn figure(points: &[SweepPoint], results: &[SweepResult]) -> Figure {
                 ],
                 log_x: true,
                 log_y: true,
+                legend_lower_left: false,
             }
         })
         .collect();
