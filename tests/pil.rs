@@ -19,7 +19,15 @@
 use hil_harness::pil::{build_pil_image, pil_command, run_pil, PilArgs};
 use std::path::PathBuf;
 use std::process::Command;
-use std::sync::OnceLock;
+use std::sync::{Mutex, MutexGuard, OnceLock};
+
+/// One QEMU at a time: the fault tests use a 500 ms link watchdog, and on a loaded 2-core
+/// machine two lock-step runs side by side could starve each other towards it.
+fn one_at_a_time() -> MutexGuard<'static, ()> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    LOCK.lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
 
 /// The `pil` ELF, built once per test binary.
 fn elf() -> PathBuf {
@@ -43,6 +51,7 @@ fn csv_rows(dir: &std::path::Path) -> usize {
 
 #[test]
 fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
+    let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let mut args = PilArgs::new("fig6", dir.path());
     args.elf = Some(elf());
@@ -90,6 +99,7 @@ struct Case {
 
 #[test]
 fn link_faults_latch_the_safe_state_on_both_sides() {
+    let _serial = one_at_a_time();
     let elf = elf();
     let cases = [
         // A bit flipped in a sensor frame: the firmware's CRC check.
@@ -200,6 +210,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
 
 #[test]
 fn the_command_fails_loudly_on_a_link_fault() {
+    let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let mut args = PilArgs::new("fig6", dir.path());
     args.elf = Some(elf());
