@@ -467,6 +467,16 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
     }
     decode_log(&elf, &log_path, &staging);
     staging.commit()?;
+    if comparison.is_none() {
+        // A comparison left by an earlier run in the same directory would describe another
+        // run: remove it.
+        for stale in ["pil-comparison.json", "pil-comparison.md"] {
+            let p = args.out.join(stale);
+            if p.exists() {
+                std::fs::remove_file(&p).map_err(|e| HarnessError::io(&p, e))?;
+            }
+        }
+    }
     Ok(PilOutcome {
         run,
         cfg,
@@ -856,6 +866,20 @@ pub fn report_section_or_hint(dir: &Path) -> String {
             dir.display()
         )
     })
+}
+
+/// For `reproduce`: runs `fig6` through the firmware into `dir` (building the image) and
+/// returns the REPORT.md section; if that is impossible here (no QEMU, no ARM target, a
+/// link fault), returns a section that says why and how to run it.
+pub fn run_for_report(dir: &Path) -> String {
+    let args = PilArgs::new("fig6", dir);
+    match pil_command(&args) {
+        Ok(_) => report_section_or_hint(dir),
+        Err(e) => format!(
+            "## Processor in the loop\n\nThe PIL run of `fig6` did not complete here: {e}.\n\n{}",
+            report_section_or_hint(dir)
+        ),
+    }
 }
 
 #[cfg(test)]

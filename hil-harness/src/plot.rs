@@ -50,8 +50,20 @@ pub struct Panel {
     pub log_x: bool,
     /// Logarithmic y axis (base 10).
     pub log_y: bool,
-    /// Put the legend in the lower left corner instead of the automatic place.
-    pub legend_lower_left: bool,
+    /// Where the legend goes.
+    pub legend: Legend,
+}
+
+/// Legend placement.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Legend {
+    /// Upper right, or lower right on a logarithmic x axis (curves rising to the right).
+    #[default]
+    Auto,
+    /// Upper left.
+    UpperLeft,
+    /// Lower left.
+    LowerLeft,
 }
 
 /// A figure: stacked panels.
@@ -216,12 +228,11 @@ fn draw_panel<DB: DrawingBackend>(
             .border_style(BLACK.mix(0.4))
             .label_font((FONT, 13))
             // Frequency and bandwidth charts rise to the upper right: keep the legend clear.
-            .position(if panel.legend_lower_left {
-                SeriesLabelPosition::LowerLeft
-            } else if panel.log_x {
-                SeriesLabelPosition::LowerRight
-            } else {
-                SeriesLabelPosition::UpperRight
+            .position(match panel.legend {
+                Legend::UpperLeft => SeriesLabelPosition::UpperLeft,
+                Legend::LowerLeft => SeriesLabelPosition::LowerLeft,
+                Legend::Auto if panel.log_x => SeriesLabelPosition::LowerRight,
+                Legend::Auto => SeriesLabelPosition::UpperRight,
             })
             .draw()
             .map_err(|e| format!("{e:?}"))?;

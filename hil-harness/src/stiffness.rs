@@ -14,7 +14,7 @@
 use crate::config::{resolve, RunConfig};
 use crate::error::Result;
 use crate::output::Staging;
-use crate::plot::{save, Figure, Panel, Series};
+use crate::plot::{save, Figure, Legend, Panel, Series};
 use crate::runner::run_scenario;
 use crate::trace::Trace;
 use controller_core::{AfbMode, FilterConfig};
@@ -274,7 +274,7 @@ pub fn figure(points: &[StiffnessPoint]) -> Figure {
                 ],
                 log_x: true,
                 log_y: true,
-                legend_lower_left: false,
+                legend: Legend::Auto,
             },
             Panel {
                 title: "Stiffness with AFB / without".into(),
@@ -289,7 +289,7 @@ pub fn figure(points: &[StiffnessPoint]) -> Figure {
                 ],
                 log_x: true,
                 log_y: false,
-                legend_lower_left: true,
+                legend: Legend::LowerLeft,
             },
         ],
     }

@@ -8,7 +8,7 @@
 use crate::config::resolve;
 use crate::error::{HarnessError, Result};
 use crate::output::Staging;
-use crate::plot::{save, Figure, Panel, Series};
+use crate::plot::{save, Figure, Legend, Panel, Series};
 use crate::runner::run_scenario;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -374,7 +374,7 @@ pub fn figure(points: &[SweepPoint], results: &[SweepResult]) -> Figure {
                 ],
                 log_x: true,
                 log_y: true,
-                legend_lower_left: false,
+                legend: Legend::UpperLeft,
             }
         })
         .collect();
