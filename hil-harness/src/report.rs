@@ -531,6 +531,15 @@ fn write_report(
 pub fn reproduce(out: &Path) -> Result<String> {
     let staging = Staging::new(out)?;
     let text = reproduce_into(staging.dir())?;
+    // The PIL run needs QEMU and the ARM image, so `reproduce` does not start it; a run
+    // left by `hil-harness pil --scenario fig6 --out out/pil-fig6` is reported, else a hint.
+    let pil = crate::pil::report_section_or_hint(&out.join("pil-fig6"));
+    let report_path = staging.dir().join("REPORT.md");
+    let mut report =
+        std::fs::read_to_string(&report_path).map_err(|e| HarnessError::io(&report_path, e))?;
+    report.push('\n');
+    report.push_str(&pil);
+    std::fs::write(&report_path, report).map_err(|e| HarnessError::io(&report_path, e))?;
     staging.commit()?;
     Ok(format!("{text}report: {}", out.join("REPORT.md").display()))
 }
