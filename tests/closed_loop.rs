@@ -151,3 +151,22 @@ fn measured_stiffness_matches_eq1_below_the_resonance() {
         assert!(get(true) > 1.2 * get(false), "AFB stiffness at {w} rad/s");
     }
 }
+
+/// Every scenario file under configs/scenarios/ resolves against its config and runs
+/// (shortened to 0.3 s), so a broken scenario or config is caught by `cargo test`.
+#[test]
+fn every_scenario_file_resolves_and_runs() {
+    let names = hil_harness::scenario::known_scenarios();
+    assert!(names.len() >= 12, "{names:?}");
+    for name in names {
+        let out = run(&name, &["scenario.duration_s=0.3"]);
+        assert_eq!(out.ticks, 1200, "{name}");
+        assert!(
+            out.trace
+                .rows
+                .iter()
+                .all(|r| r.values().iter().all(|v| v.is_finite())),
+            "{name}"
+        );
+    }
+}

@@ -355,3 +355,83 @@ pub fn drive_config(doc: &Table, machine: &MachineDefaults) -> Result<DriveConfi
         .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
     Ok(cfg)
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn machine() -> MachineDefaults {
+        MachineDefaults {
+            base_speed_rpm: 1000.0,
+            encoder_cpr: 4096,
+            motor_inertia_s: 0.117,
+            load_inertia_s: 0.863,
+            winding_resistance_pu: 0.05,
+            winding_inductance_pu_s: 5e-4,
+        }
+    }
+
+    fn parse(text: &str) -> Result<DriveConfig> {
+        drive_config(&text.parse::<Table>().unwrap(), &machine())
+    }
+
+    #[test]
+    fn machine_values_come_from_the_plant_and_keys_override_them() {
+        let cfg = parse("[drive]\nvelocity_bandwidth_rad_s = 50\n").unwrap();
+        assert_eq!(cfg.velocity_bandwidth_rad_s, 50.0);
+        assert_eq!(cfg.winding_inductance_pu_s, 5e-4);
+        assert_eq!(cfg.encoder_cpr, 4096);
+        let cfg = parse("[drive]\nload_inertia_s = 0.5\n").unwrap();
+        assert_eq!(cfg.load_inertia_s, 0.5);
+    }
+
+    #[test]
+    fn nested_tables_and_words_map_onto_the_config() {
+        let cfg = parse(
+            "[drive.accel_feedback]\nfilter_corner_hz = 40\nfilter = \"second_order\"\nmode = \"plain\"\n\
+             source = \"differentiation\"\n[drive.observer]\nmodel_inertia = \"total\"\n",
+        )
+        .unwrap();
+        assert_eq!(cfg.accel_feedback.mode, AfbMode::Plain);
+        assert_eq!(cfg.accel_feedback.source, Estimator::Differentiation);
+        // The kind is applied before the corner, whatever the order in the file.
+        assert!(matches!(
+            cfg.accel_feedback.filter,
+            FilterConfig::SecondOrder { corner_hz, .. } if corner_hz == 40.0
+        ));
+        assert_eq!(cfg.observer.model_inertia, ObserverInertia::Total);
+    }
+
+    #[test]
+    fn errors_name_the_key_and_the_range_or_the_allowed_keys() {
+        let e = parse("[drive]\nvelocity_bandwith_rad_s = 5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.velocity_bandwith_rad_s") && e.contains("velocity_bandwidth_rad_s"),
+            "{e}"
+        );
+        let e = parse("[drive]\nvelocity_damping = 20\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.velocity_damping") && e.contains("0.1..=10"),
+            "{e}"
+        );
+        let e = parse("[drive.accel_feedback]\nmode = \"on\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.accel_feedback.mode") && e.contains("off, plain, error"),
+            "{e}"
+        );
+        let e = parse("[drive.nosuch]\nx = 1\n").unwrap_err().to_string();
+        assert!(e.contains("drive.nosuch"), "{e}");
+        // A combination only the controller's design can judge: above the loop's Nyquist.
+        let e = parse("[drive]\nvelocity_bandwidth_rad_s = 9000\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("drive.velocity_bandwidth_rad_s"), "{e}");
+    }
+}

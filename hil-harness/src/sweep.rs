@@ -432,3 +432,57 @@ pub fn sweep(out: &Path) -> Result<String> {
     staging.commit()?;
     Ok(text)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(bw: f64, stable: bool) -> SweepPoint {
+        SweepPoint {
+            plant: "p".into(),
+            design: "d".into(),
+            afb: AfbDesign::OFF,
+            mode: "off",
+            gain_fraction: 0.0,
+            filter: "none",
+            filter_corner_hz: 0.0,
+            source: "observer",
+            observer_hz: 0.0,
+            bandwidth_rad_s: bw,
+            stable,
+            oscillation_pu: 0.0,
+            torque_ripple_rms_pu: 0.0,
+            limit_cycle_torque_pu: 0.0,
+            quiet: stable,
+            faulted: false,
+            error: String::new(),
+        }
+    }
+
+    #[test]
+    fn largest_stable_stops_at_the_first_unstable_point() {
+        let pts = [
+            point(30.0, true),
+            point(10.0, true),
+            point(60.0, false),
+            point(90.0, true),
+        ];
+        let refs: Vec<&SweepPoint> = pts.iter().collect();
+        assert_eq!(largest_stable(&refs), 30.0);
+        let none = [point(10.0, false), point(30.0, true)];
+        let refs: Vec<&SweepPoint> = none.iter().collect();
+        assert_eq!(largest_stable(&refs), 0.0);
+    }
+
+    #[test]
+    fn the_design_grid_holds_off_and_every_combination() {
+        let d = designs();
+        assert_eq!(
+            d.len(),
+            1 + (1 + OBSERVER_HZ.len()) * GAINS.len() * FILTERS.len()
+        );
+        assert_eq!(d.iter().filter(|x| x.mode == "off").count(), 1);
+        let labels: std::collections::BTreeSet<String> = d.iter().map(AfbDesign::label).collect();
+        assert_eq!(labels.len(), d.len(), "labels must be unique");
+    }
+}
