@@ -293,7 +293,7 @@ fn write_report(
         &["fig6/trace.png", "fig6-compare.png"],
         "At 1 s the velocity stops ramping and the load overshoots slightly; the 50 % load step at 1.5 s causes a slight oscillation. The compensation (acceleration feedback) signal is non-zero while accelerating.",
         &format!(
-            "AFB design: {:?}, Ka = {} x J_total, filter {:?}, source {:?}, rate {:?}. Stable: {}; load overshoot after 1 s {} pu; droop after the step {} pu; settling {} s; motor-torque ripple {:.3} pu RMS; torque at its limit for {:.3} s; speed-error std in the last 0.5 s {:.4} pu.",
+            "AFB design: {:?}, Ka = {} x J_total, filter {:?}, source {:?}, rate {:?}. Stable: {}; load overshoot after 1 s {} pu; droop after the step {} pu; settling {} s; motor-torque ripple {:.3} pu RMS; torque at its limit for {:.3} s; speed-error oscillation in the last 0.5 s {:.4} pu.",
             c6.drive.accel_feedback.mode, c6.drive.accel_feedback.gain_fraction, c6.drive.accel_feedback.filter, c6.drive.accel_feedback.source, c6.drive.accel_feedback.rate,
             m6.stable, fmt_opt(m6.overshoot_pu), fmt_opt(m6.load_step_droop_pu), fmt_opt(m6.settling_s), m6.torque_ripple_rms_pu, m6.torque_saturated_s, m6.oscillation_pu
         ),
@@ -313,7 +313,7 @@ fn write_report(
         &["fig6-no-afb/trace.png"],
         "If the acceleration signal was not fed back, the system would become unstable.",
         &format!(
-            "same gains, AFB off: stable {}; speed-error std in the last 0.5 s {:.4} pu; motor-torque ripple {:.3} pu RMS; droop {} pu; twist up to {:.1} counts.",
+            "same gains, AFB off: stable {}; speed-error oscillation in the last 0.5 s {:.4} pu; motor-torque ripple {:.3} pu RMS; droop {} pu; twist up to {:.1} counts.",
             n6.metrics.stable, n6.metrics.oscillation_pu, n6.metrics.torque_ripple_rms_pu, fmt_opt(n6.metrics.load_step_droop_pu), n6.metrics.max_twist_counts
         ),
         &format!(
@@ -508,7 +508,7 @@ fn write_report(
     // Table of all runs and speed.
     let _ = writeln!(
         r.text,
-        "\n## All runs\n\n| scenario | stable | speed-error std (pu) | motor-torque ripple (pu) | shaft-torque ripple (pu) | droop (pu) | overshoot (pu) | settling (s) | saturated (s) | max twist (counts) | shaft ripple (Hz) |\n|---|---|---|---|---|---|---|---|---|---|---|"
+        "\n## All runs\n\n| scenario | stable | speed-error oscillation (pu) | motor-torque ripple (pu) | shaft-torque ripple (pu) | droop (pu) | overshoot (pu) | settling (s) | saturated (s) | max twist (counts) | shaft ripple (Hz) |\n|---|---|---|---|---|---|---|---|---|---|---|"
     );
     let mut sim = 0.0;
     let mut wall = 0.0;
