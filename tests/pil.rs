@@ -95,6 +95,8 @@ struct Case {
     firmware_first: bool,
     /// Text the harness's error must contain.
     harness_says: &'static str,
+    /// Harness reply deadline (ms); the firmware watchdog is 500 ms.
+    reply_timeout_ms: u64,
 }
 
 #[test]
@@ -108,6 +110,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
             firmware_code: "BadCrc",
             firmware_first: true,
             harness_says: "BadCrc",
+            reply_timeout_ms: 3000,
         },
         // A sensor frame lost: the firmware's watchdog (nothing arrives).
         Case {
@@ -115,6 +118,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
             firmware_code: "Timeout",
             firmware_first: true,
             harness_says: "Timeout",
+            reply_timeout_ms: 3000,
         },
         // A sensor frame late by twice the watchdog.
         Case {
@@ -122,6 +126,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
             firmware_code: "Timeout",
             firmware_first: true,
             harness_says: "Timeout",
+            reply_timeout_ms: 3000,
         },
         // A frame lost in a stream: the sequence gap.
         Case {
@@ -129,6 +134,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
             firmware_code: "OutOfSequence",
             firmware_first: true,
             harness_says: "OutOfSequence",
+            reply_timeout_ms: 3000,
         },
         // A bit flipped in the firmware's reply: the harness's CRC check; then the
         // firmware, hearing nothing more, must latch on its watchdog.
@@ -137,6 +143,16 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
             firmware_code: "Timeout",
             firmware_first: false,
             harness_says: "bad CRC",
+            reply_timeout_ms: 3000,
+        },
+        // A reply lost, with the harness's deadline shorter than the firmware's watchdog:
+        // the harness sees the loss first (its own timeout), then the firmware latches.
+        Case {
+            inject: "drop-reply@700",
+            firmware_code: "Timeout",
+            firmware_first: false,
+            harness_says: "no frame within 250 ms",
+            reply_timeout_ms: 250,
         },
     ];
     for case in cases {
@@ -145,7 +161,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
         args.elf = Some(elf.clone());
         args.inject = Some(case.inject.to_string());
         args.watchdog_ms = 500;
-        args.reply_timeout_ms = 3000;
+        args.reply_timeout_ms = case.reply_timeout_ms;
         let o = run_pil(&args).unwrap();
         let fault = o
             .link
