@@ -170,3 +170,46 @@ fn every_scenario_file_resolves_and_runs() {
         );
     }
 }
+
+/// The printing press (1e6 counts, 150-count lost motion), speed mode, at 500 rad/s: one
+/// grid step beyond the largest bandwidth the sweep finds stable without acceleration
+/// feedback (350 rad/s). There the best AFB design of the sweep (error form, Ka = 0.25
+/// J_total, first-order 100 Hz filter, observer at 75 Hz) keeps the loop stable and the
+/// motor-torque ripple after the 50 % load step below a third of the ripple without AFB
+/// (measured: about 0.06 pu against 0.46 pu). This is the model's version of the paper's
+/// Sec. III-D claim (AFB extends the usable bandwidth); the model's limits are far above
+/// the paper's 30/140 rad/s, see REPORT.md.
+#[test]
+fn printing_press_beyond_the_no_afb_limit_afb_cuts_the_ripple_by_three() {
+    let base = [
+        "drive.position_bandwidth_rad_s=0",
+        "drive.velocity_bandwidth_rad_s=500",
+    ];
+    let sets = |extra: &[&'static str]| -> Vec<String> {
+        base.iter()
+            .chain(extra.iter())
+            .map(|s| (*s).to_string())
+            .collect()
+    };
+    let run_press = |s: Vec<String>| {
+        let cfg = resolve("sweep", Some("printing-press"), &s).expect("resolves");
+        run_scenario(&cfg).expect("runs")
+    };
+    let off = run_press(sets(&["drive.accel_feedback.mode=off"]));
+    let on = run_press(sets(&[
+        "drive.accel_feedback.mode=error",
+        "drive.accel_feedback.gain_fraction=0.25",
+        "drive.accel_feedback.filter=first_order",
+        "drive.accel_feedback.filter_corner_hz=100",
+        "drive.accel_feedback.source=observer",
+        "drive.observer.bandwidth_hz=75",
+    ]));
+    assert!(!off.metrics.stable, "without AFB: {:?}", off.metrics);
+    assert!(on.metrics.stable, "with AFB: {:?}", on.metrics);
+    assert!(
+        on.metrics.torque_ripple_rms_pu < off.metrics.torque_ripple_rms_pu / 3.0,
+        "ripple with AFB {} pu, without {} pu",
+        on.metrics.torque_ripple_rms_pu,
+        off.metrics.torque_ripple_rms_pu
+    );
+}
