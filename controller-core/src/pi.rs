@@ -12,7 +12,8 @@
 //!
 //! [`PiCoefficients::update_with_offset`] judges the saturation on the output plus a term
 //! added after the regulator (the velocity loop passes the acceleration-feedback term), so the
-//! integrator also holds when it is the sum that sits at the torque limit.
+//! integrator also holds when it is the sum that sits at the torque limit, and clamps the
+//! output so that the sum, not the regulator alone, meets the limit.
 
 use fixed::types::I32F32;
 
@@ -56,7 +57,9 @@ impl PiCoefficients {
 
     /// As [`PiCoefficients::update`], with the anti-windup decision taken on
     /// `Kp·e + I + ff + offset`, where `offset` is added to the output downstream (and
-    /// clamped together with it there). The returned output does not include `offset`.
+    /// clamped together with it there). The returned output does not include `offset`; it is
+    /// clamped to `[−limit − offset, limit − offset]` (offset bounded to ±limit), so the
+    /// downstream sum can always reach either limit.
     ///
     /// ```
     /// use controller_core::pi::{PiCoefficients, PiState};
@@ -88,8 +91,15 @@ impl PiCoefficients {
         };
         state.integral = I32F32::from_bits(i_next);
         let u = i64::from(p) + i64::from(ff.to_bits()) + (i_next >> 16);
+        // Clamp so that u + offset, the reference downstream, spans the whole ±limit: a
+        // downstream term that opposes the output (the AFB term braking an acceleration the
+        // drive is saturated for) must not take usable torque away. The offset is bounded
+        // to ±limit first, so the output stays within ±2·limit.
         // max/min rather than clamp: clamp carries a (never taken) panic branch.
-        let u_clamped = u.max(-i64::from(limit)).min(i64::from(limit));
+        let off = i64::from(offset.to_bits())
+            .max(-i64::from(limit))
+            .min(i64::from(limit));
+        let u_clamped = u.max(-i64::from(limit) - off).min(i64::from(limit) - off);
         state.saturated = u_clamped != u;
         Pu::from_bits(sat_i32(u_clamped))
     }

@@ -317,3 +317,26 @@ fn velocity_integrator_holds_when_the_sum_with_afb_saturates() {
     }
     assert!(s2.integral > 0.9);
 }
+
+/// A downstream term that opposes a saturated regulator (the AFB term braking an
+/// acceleration the drive is at its torque limit for) must not lower the torque reference:
+/// the regulator's output is clamped so that the sum reaches the limit.
+#[test]
+fn opposing_afb_term_does_not_take_torque_away_at_the_limit() {
+    use controller_core::per_unit::{Gain, TickGain};
+    use controller_core::pi::{PiCoefficients, PiState};
+    let c = PiCoefficients {
+        kp: Gain::from_num(100),
+        ki_ts: TickGain::from_num(0.5),
+        limit: Pu::from_num(2),
+    };
+    let mut s = PiState::default();
+    let offset = Pu::from_num(-0.6);
+    let u = c.update_with_offset(&mut s, Pu::from_num(1), Pu::ZERO, offset);
+    assert_eq!(u + offset, Pu::from_num(2));
+    // An offset beyond the limit is bounded to it: the output stays within ±2·limit.
+    let u = c.update_with_offset(&mut s, Pu::from_num(1), Pu::ZERO, Pu::from_num(-50));
+    assert_eq!(u, Pu::from_num(4));
+    let u = c.update_with_offset(&mut s, Pu::from_num(-1), Pu::ZERO, Pu::from_num(50));
+    assert_eq!(u, Pu::from_num(-4));
+}
