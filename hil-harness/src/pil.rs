@@ -369,9 +369,11 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
 
     let mut link = HostLink::new(stream, Duration::from_millis(args.reply_timeout_ms));
     let backend_err = |stage: &str, e: HostError| {
+        let stderr = qemu.stderr();
+        let stderr = stderr.trim();
         HarnessError::Backend(format!(
             "PIL {stage}: {e} (QEMU stderr: {})",
-            qemu_stderr_hint()
+            if stderr.is_empty() { "empty" } else { stderr }
         ))
     };
     let ack: HelloAck = link
@@ -484,10 +486,6 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         comparison,
         out: args.out.clone(),
     })
-}
-
-fn qemu_stderr_hint() -> &'static str {
-    "see firmware.defmt / firmware.log in the output directory"
 }
 
 /// Drops trace rows at or after `t_s` and recomputes the metrics on what is left.
