@@ -29,7 +29,8 @@ while [[ $# -gt 0 ]]; do
 done
 command -v qemu-system-arm >/dev/null || { echo "qemu-system-arm missing: apt-get install -y qemu-system-arm" >&2; exit 127; }
 command -v defmt-print >/dev/null || { echo "defmt-print missing: cargo install defmt-print --locked" >&2; exit 127; }
-serial=(-serial file:/dev/stderr)
+# append=on: QEMU must not truncate stderr when it is a regular file (a CI log).
+serial=(-chardev file,id=uart0,path=/dev/stderr,append=on -serial chardev:uart0)
 if [[ -n "${UART_INPUT:-}" ]]; then
   # A named-pipe pair (QEMU's `pipe:` backend opens <base>.in and <base>.out read-write):
   # the input file is fed to UART0 RX, UART0 TX is copied to stderr.

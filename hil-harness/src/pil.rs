@@ -180,6 +180,10 @@ pub struct Recorder<B> {
 }
 
 impl<B: ControlBackend> ControlBackend for Recorder<B> {
+    fn halted(&self) -> bool {
+        self.inner.halted()
+    }
+
     fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
         let out = self.inner.current_tick(inputs);
         self.log.current.push((inputs, out));
@@ -194,8 +198,9 @@ impl<B: ControlBackend> ControlBackend for Recorder<B> {
 }
 
 /// The firmware in QEMU as a [`ControlBackend`]. After a link fault it stops talking to the
-/// firmware and answers with the safe state (zero commands, fault set) so the runner can
-/// finish; [`run_pil`] then cuts the trace at the fault.
+/// firmware, answers with the safe state (zero commands, fault set) and reports itself
+/// halted, so the runner stops at the next tick; [`run_pil`] then cuts the trace exactly at
+/// the fault.
 struct PilBackend {
     link: HostLink<UnixStream>,
     log: TickLog,
@@ -232,6 +237,10 @@ const SAFE_CURRENT: CurrentOutputs = CurrentOutputs {
 };
 
 impl ControlBackend for PilBackend {
+    fn halted(&self) -> bool {
+        self.fault.is_some()
+    }
+
     fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
         let out = match self.exchange(Sensors::Current(inputs)) {
             Some(Commands::Current(out, _applied)) => {

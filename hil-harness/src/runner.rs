@@ -29,6 +29,11 @@ pub trait ControlBackend {
     /// One velocity-loop tick (every 500 µs for Table 1), run before the current tick of
     /// the same instant.
     fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs;
+    /// Whether the backend can no longer control the plant (a PIL link fault): the run
+    /// stops before the next tick, with the trace up to that point.
+    fn halted(&self) -> bool {
+        false
+    }
 }
 
 impl ControlBackend for Controller {
@@ -145,7 +150,12 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
     let mut rows = Vec::with_capacity((ticks / u64::from(ratio) + 1) as usize);
     let mut voltage_pu = 0.0;
     let start = Instant::now();
+    let mut ticks_run = 0;
     for k in 0..ticks {
+        if backend.halted() {
+            break;
+        }
+        ticks_run = k + 1;
         let t_s = k as f64 * tc_s;
         // The hardware counter: the plant's unwrapped count modulo 2^counter_bits.
         let encoder_count = ((plant.encoder_count() as u64) & mask) as u32;
@@ -222,8 +232,8 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
     Ok(RunOutput {
         trace,
         metrics,
-        sim_time_s: ticks as f64 * tc_s,
+        sim_time_s: ticks_run as f64 * tc_s,
         wall_time_s,
-        ticks,
+        ticks: ticks_run,
     })
 }
