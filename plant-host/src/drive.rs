@@ -167,24 +167,23 @@ impl DrivePlant {
     }
     /// Motor angle θm, rad.
     pub fn motor_pos_rad(&self) -> f64 {
-        let x = self.core.state();
-        x.y + x.x
+        self.core.motor_pos_rad()
     }
     /// Load angle θl reflected to the motor side, rad.
     pub fn load_pos_rad(&self) -> f64 {
-        self.core.state().y
+        self.core.load_pos_rad()
     }
     /// Motor speed ωm, pu.
     pub fn motor_vel_pu(&self) -> f64 {
-        self.core.state().z
+        self.core.motor_vel_pu()
     }
     /// Load speed ωl, pu.
     pub fn load_vel_pu(&self) -> f64 {
-        self.core.state().w
+        self.core.load_vel_pu()
     }
     /// Twist δ = θm − θl, rad.
     pub fn twist_rad(&self) -> f64 {
-        self.core.state().x
+        self.core.twist_rad()
     }
     /// Shaft torque Ts, pu.
     pub fn shaft_torque_pu(&self) -> f64 {

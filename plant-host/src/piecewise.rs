@@ -307,6 +307,35 @@ impl Piecewise {
         &self.x
     }
 
+    // The state vector is (x, y, z, w, a) = (twist δ rad, load angle θl rad, motor speed
+    // ωm pu, load speed ωl pu, winding current pu); these name its parts once for both
+    // plants.
+
+    /// Motor angle θm = θl + δ, rad.
+    pub fn motor_pos_rad(&self) -> f64 {
+        self.x.y + self.x.x
+    }
+
+    /// Load angle θl (motor side), rad.
+    pub fn load_pos_rad(&self) -> f64 {
+        self.x.y
+    }
+
+    /// Motor speed ωm, pu.
+    pub fn motor_vel_pu(&self) -> f64 {
+        self.x.z
+    }
+
+    /// Load speed ωl (motor side), pu.
+    pub fn load_vel_pu(&self) -> f64 {
+        self.x.w
+    }
+
+    /// Twist δ = θm − θl, rad.
+    pub fn twist_rad(&self) -> f64 {
+        self.x.x
+    }
+
     pub fn contact(&self) -> Contact {
         self.contact
     }
