@@ -29,11 +29,29 @@ struct Real {
     key: &'static str,
     min: f64,
     max: f64,
+    /// Counts, bits and rates: a fractional value is an error, never truncated.
+    whole: bool,
     set: fn(&mut DriveConfig, f64),
 }
 
 const fn real(key: &'static str, min: f64, max: f64, set: fn(&mut DriveConfig, f64)) -> Real {
-    Real { key, min, max, set }
+    Real {
+        key,
+        min,
+        max,
+        whole: false,
+        set,
+    }
+}
+
+const fn whole(key: &'static str, min: f64, max: f64, set: fn(&mut DriveConfig, f64)) -> Real {
+    Real {
+        key,
+        min,
+        max,
+        whole: true,
+        set,
+    }
 }
 
 /// Real-valued keys of `[drive]` with their allowed ranges (units in the names).
@@ -41,14 +59,14 @@ const REALS: &[Real] = &[
     real("base_speed_rpm", 1.0, 100_000.0, |c, v| {
         c.base_speed_rpm = v as f32
     }),
-    real("encoder_cpr", 4.0, 4_294_967_295.0, |c, v| {
+    whole("encoder_cpr", 4.0, 4_294_967_295.0, |c, v| {
         c.encoder_cpr = v as u32
     }),
-    real("counter_bits", 16.0, 32.0, |c, v| c.counter_bits = v as u8),
-    real("current_rate_hz", 100.0, 100_000.0, |c, v| {
+    whole("counter_bits", 16.0, 32.0, |c, v| c.counter_bits = v as u8),
+    whole("current_rate_hz", 100.0, 100_000.0, |c, v| {
         c.current_rate_hz = v as u32
     }),
-    real("velocity_rate_hz", 10.0, 100_000.0, |c, v| {
+    whole("velocity_rate_hz", 10.0, 100_000.0, |c, v| {
         c.velocity_rate_hz = v as u32
     }),
     real("motor_inertia_s", 1e-6, 1000.0, |c, v| {
@@ -220,6 +238,12 @@ fn apply_table(
         let key = format!("{prefix}.{k}");
         if let Some(r) = reals.iter().find(|r| r.key == k) {
             let x = number(&key, v, r.min, r.max)?;
+            if r.whole && x.fract() != 0.0 {
+                return Err(HarnessError::config(
+                    &key,
+                    format!("{x} must be a whole number in {}..={}", r.min, r.max),
+                ));
+            }
             (r.set)(cfg, x);
         }
     }
@@ -401,6 +425,25 @@ mod tests {
             FilterConfig::SecondOrder { corner_hz, .. } if corner_hz == 40.0
         ));
         assert_eq!(cfg.observer.model_inertia, ObserverInertia::Total);
+    }
+
+    #[test]
+    fn counts_bits_and_rates_must_be_whole_numbers() {
+        for text in [
+            "[drive]\nencoder_cpr = 4096.5\n",
+            "[drive]\ncounter_bits = 20.7\n",
+            "[drive]\ncurrent_rate_hz = 4000.25\n",
+            "[drive]\nvelocity_rate_hz = 1999.9\n",
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains("must be a whole number"), "{text}: {e}");
+        }
+        assert_eq!(
+            parse("[drive]\ncounter_bits = 24.0\n")
+                .unwrap()
+                .counter_bits,
+            24
+        );
     }
 
     #[test]
