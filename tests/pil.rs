@@ -7,8 +7,10 @@
 //!   the firmware latches its safe state (zero torque and voltage, fault latched, QEMU exits
 //!   with status 1) and the harness reports the fault, stops, and writes the trace up to it.
 //!
-//! These tests build the ARM image themselves (cargo, thumbv7em-none-eabihf) and need
-//! `qemu-system-arm`: without it they FAIL with a message saying so, they are not skipped.
+//! These tests build the ARM image themselves (cargo, thumbv7em-none-eabihf) and run it in
+//! `qemu-system-arm`. On a fresh machine they install what is missing first (`rustup target
+//! add`, and `apt-get install qemu-system-arm` as root, one line printed for each); where
+//! that is impossible they FAIL with the command to run. They are never skipped.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -18,7 +20,6 @@
 
 use hil_harness::pil::{build_pil_image, pil_command, run_pil, PilArgs};
 use std::path::PathBuf;
-use std::process::Command;
 use std::sync::{Mutex, MutexGuard, OnceLock};
 
 /// One QEMU at a time: the fault tests use a 500 ms link watchdog, and on a loaded 2-core
@@ -33,12 +34,8 @@ fn one_at_a_time() -> MutexGuard<'static, ()> {
 fn elf() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
     ELF.get_or_init(|| {
-        let qemu = Command::new("qemu-system-arm").arg("--version").output();
-        assert!(
-            matches!(qemu, Ok(ref o) if o.status.success()),
-            "qemu-system-arm is required for the processor-in-the-loop tests and was not \
-             found: install it (Debian/Ubuntu: apt-get install qemu-system-arm)"
-        );
+        fw_runner::provision::ensure_qemu()
+            .unwrap_or_else(|e| panic!("the processor-in-the-loop tests need QEMU: {e}"));
         build_pil_image().unwrap_or_else(|e| panic!("cannot build the PIL firmware image: {e}"))
     })
     .clone()
@@ -82,6 +79,16 @@ fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
     assert_eq!(csv_rows(dir.path()), 5_000);
+    // The defmt log, decoded in-process: the boot line, the configuration, the clean stop.
+    let log = std::fs::read_to_string(dir.path().join("firmware.log")).unwrap();
+    for line in [
+        "waiting for Hello on UART0",
+        "pil: configured, current loop 4000 Hz, velocity loop 2000 Hz",
+        "pil: stopped after 15000 ticks, faulted false",
+    ] {
+        assert!(log.contains(line), "firmware.log lacks {line:?}:\n{log}");
+    }
+    assert!(!log.contains("damaged frame"), "{log}");
     let section = hil_harness::pil::report_section(dir.path()).unwrap();
     assert!(section.contains("| mismatches | 0 |"), "{section}");
 }

@@ -15,7 +15,7 @@
 //! Files in `--out` DIR: `trace.csv`, `summary.json`, `trace.svg/png` (as `run`), plus
 //! `pil.json` (link statistics, fault), `pil-comparison.json` and `pil-comparison.md` (the
 //! bit-for-bit comparison with the host run of the same scenario), `firmware.defmt` (the
-//! firmware's defmt log) and `firmware.log` (decoded, when `defmt-print` is installed).
+//! firmware's defmt log) and `firmware.log` (decoded in-process by `fw-runner`'s defmt decoder).
 //!
 //! On a link fault (lost, corrupted or late frame, seen by either side) the run stops
 //! driving the firmware at that tick, waits for the firmware to show its latched safe state,
@@ -30,6 +30,8 @@ use crate::runner::{run_with_backend, ControlBackend, RunOutput};
 use controller_core::{
     Controller, CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs,
 };
+use fw_runner::defmt_log::{LineFormat, LogDecoder};
+use fw_runner::provision;
 use pil_link::host::{FaultPlan, HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
 use pil_link::tick::{Commands, Sensors};
@@ -366,6 +368,9 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         Some(p) => p.clone(),
         None => build_pil_image()?,
     };
+    if args.qemu == Path::new(provision::QEMU_BINARY) {
+        provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
+    }
     let staging = Staging::new(&args.out)?;
     let log_path = staging.path("firmware.defmt")?;
     let (mut qemu, stream) = Qemu::spawn(&QemuOptions {
@@ -476,7 +481,7 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         write_json(&staging, "pil-comparison.json", c)?;
         staging.write("pil-comparison.md", &section_text(c, &link_report))?;
     }
-    decode_log(&elf, &log_path, &staging);
+    decode_log(&elf, &log_path, &staging)?;
     staging.commit()?;
     if comparison.is_none() {
         // A comparison left by an earlier run in the same directory would describe another
@@ -514,25 +519,17 @@ fn write_json<T: Serialize>(staging: &Staging, name: &str, value: &T) -> Result<
     staging.write(name, &(text + "\n")).map(|_| ())
 }
 
-/// Decodes the firmware's defmt log with `defmt-print` when it is installed (best effort:
-/// the raw log stays in `firmware.defmt` either way).
-fn decode_log(elf: &Path, raw: &Path, staging: &Staging) {
-    let (Ok(input), Ok(out)) = (std::fs::File::open(raw), staging.path("firmware.log")) else {
-        return;
+/// Decodes the firmware's defmt log in-process into `firmware.log` (the raw log stays in
+/// `firmware.defmt`). A log that cannot be decoded says why in `firmware.log`.
+fn decode_log(elf: &Path, raw: &Path, staging: &Staging) -> Result<()> {
+    let bytes = std::fs::read(raw).map_err(|e| HarnessError::io(raw, e))?;
+    let lines = match LogDecoder::from_elf(elf) {
+        Ok(d) => d.decode_all(&bytes, LineFormat::Full),
+        Err(e) => vec![format!("(defmt log not decoded: {e})")],
     };
-    let Ok(output) = std::fs::File::create(&out) else {
-        return;
-    };
-    let status = Command::new("defmt-print")
-        .arg("-e")
-        .arg(elf)
-        .stdin(input)
-        .stdout(output)
-        .stderr(Stdio::null())
-        .status();
-    if !matches!(status, Ok(s) if s.success()) {
-        let _ = std::fs::remove_file(&out);
-    }
+    let mut text = lines.join("\n");
+    text.push('\n');
+    staging.write("firmware.log", &text).map(|_| ())
 }
 
 /// Builds the firmware's `pil` image for thumbv7em-none-eabihf and returns the ELF path.
@@ -543,6 +540,7 @@ pub fn build_pil_image() -> Result<PathBuf> {
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_else(|| PathBuf::from("."));
+    provision::ensure_arm_target(&root).map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
     let target_dir = std::env::var_os("CARGO_TARGET_DIR")
         .map_or_else(|| root.join("target"), PathBuf::from)
         .join("pil-firmware");
