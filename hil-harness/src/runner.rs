@@ -5,8 +5,9 @@
 //! (500 µs) the velocity tick runs first, on the same samples, then the current tick. The
 //! new voltage reaches the winding after the computational delay (`electrics.
 //! computational_delay_s`, 180 µs) and is held until the next one arrives (zero-order
-//! hold). The plant is integrated exactly between those events: [t, t+delay) with the
-//! previous voltage, [t+delay, t+Ts_c) with the new one. The load torque is evaluated at
+//! hold). A delay longer than a tick delays by whole ticks plus the remainder
+//! ([`DelayLine`]). The plant is integrated exactly between those events: [t, t+r) with
+//! the voltage applied before, [t+r, t+Ts_c) with the one that arrives at t+r. The load torque is evaluated at
 //! the middle of each segment. Nothing depends on wall-clock time or threads, so a run is
 //! bit-for-bit repeatable.
 
@@ -112,6 +113,52 @@ impl RunOutput {
     }
 }
 
+/// The computational delay D = n·Tc + r (0 <= r < Tc) between a current tick and its
+/// voltage reaching the winding: the command of tick k arrives r into the interval of tick
+/// k + n. [`DelayLine::push`] takes tick k's command and returns the one that arrives
+/// during this interval.
+#[derive(Clone, Debug)]
+pub struct DelayLine {
+    whole_ticks: usize,
+    remainder_s: f64,
+    in_flight: std::collections::VecDeque<f64>,
+}
+
+impl DelayLine {
+    /// A delay of `delay_s` (negative counts as 0) at tick period `tick_s`.
+    pub fn new(delay_s: f64, tick_s: f64) -> Self {
+        let delay_s = delay_s.max(0.0);
+        let whole = (delay_s / tick_s).floor();
+        let whole_ticks = whole as usize;
+        Self {
+            whole_ticks,
+            remainder_s: delay_s - whole * tick_s,
+            in_flight: std::collections::VecDeque::with_capacity(whole_ticks + 1),
+        }
+    }
+
+    /// r, the part of the delay within one tick (s).
+    pub fn remainder_s(&self) -> f64 {
+        self.remainder_s
+    }
+
+    /// n, the whole ticks of the delay.
+    pub fn whole_ticks(&self) -> usize {
+        self.whole_ticks
+    }
+
+    /// Takes this tick's command; returns the command that arrives r into this interval
+    /// (`held`, the one applied so far, while the line is still filling).
+    pub fn push(&mut self, command: f64, held: f64) -> f64 {
+        self.in_flight.push_back(command);
+        if self.in_flight.len() > self.whole_ticks {
+            self.in_flight.pop_front().unwrap_or(held)
+        } else {
+            held
+        }
+    }
+}
+
 /// Runs `cfg` with the host controller (`controller_core::Controller`).
 pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
     let mut controller = Controller::new(&cfg.drive)
@@ -131,7 +178,8 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
     let current_rate_hz = f64::from(drive.current_rate_hz);
     let ratio = (drive.current_rate_hz / drive.velocity_rate_hz.max(1)).max(1);
     let tc_s = 1.0 / current_rate_hz;
-    let delay_s = cfg.plant.electrics.computational_delay_s.clamp(0.0, tc_s);
+    let mut delay_line = DelayLine::new(cfg.plant.electrics.computational_delay_s, tc_s);
+    let delay_s = delay_line.remainder_s();
     let ticks = (scenario.duration_s * current_rate_hz).round() as u64;
 
     // Position command: counts = pu·s · (base rpm / 60) · cpr.
@@ -204,7 +252,7 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
                 scenario.load_torque_pu(t_s + 0.5 * delay_s),
             )?;
         }
-        voltage_pu = crate::plant::f(out.voltage_cmd_pu);
+        voltage_pu = delay_line.push(crate::plant::f(out.voltage_cmd_pu), voltage_pu);
         let rest_s = tc_s - delay_s;
         if rest_s > 0.0 {
             plant.advance(
@@ -236,4 +284,45 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
         wall_time_s,
         ticks: ticks_run,
     })
+}
+
+#[cfg(test)]
+mod delay_tests {
+    use super::DelayLine;
+
+    #[test]
+    fn a_delay_shorter_than_a_tick_applies_this_ticks_command_after_the_remainder() {
+        let mut d = DelayLine::new(180e-6, 250e-6);
+        assert_eq!((d.whole_ticks(), d.remainder_s()), (0, 180e-6));
+        assert_eq!(d.push(1.0, 0.0), 1.0);
+        assert_eq!(d.push(2.0, 1.0), 2.0);
+    }
+
+    #[test]
+    fn a_longer_delay_is_whole_ticks_plus_the_remainder() {
+        // 5 ms at 4 kHz: 20 whole ticks, no remainder; 0.5 ms + 30 µs: 2 ticks + 30 µs.
+        let d = DelayLine::new(5e-3, 250e-6);
+        assert_eq!(d.whole_ticks(), 20);
+        assert!(d.remainder_s().abs() < 1e-12);
+        let mut d = DelayLine::new(530e-6, 250e-6);
+        assert_eq!(d.whole_ticks(), 2);
+        assert!((d.remainder_s() - 30e-6).abs() < 1e-12);
+        // Commands 1, 2, 3, ... : tick k's command arrives in the interval of tick k + 2.
+        let mut held = 0.0;
+        let arrived: Vec<f64> = (1..=6)
+            .map(|k| {
+                held = d.push(f64::from(k), held);
+                held
+            })
+            .collect();
+        assert_eq!(arrived, vec![0.0, 0.0, 1.0, 2.0, 3.0, 4.0]);
+    }
+
+    #[test]
+    fn a_delay_of_exactly_one_tick_holds_the_previous_command_for_the_whole_tick() {
+        let mut d = DelayLine::new(250e-6, 250e-6);
+        assert_eq!((d.whole_ticks(), d.remainder_s()), (1, 0.0));
+        assert_eq!(d.push(1.0, 0.0), 0.0);
+        assert_eq!(d.push(2.0, 0.0), 1.0);
+    }
 }
