@@ -128,13 +128,14 @@ const PLANT_REAL: [RealSpec; 8] = [
     RealSpec {
         name: "motor_inertia_s",
         min: 1e-5,
-        max: 1e4,
+        // The drive's range (controller-core design()) is (0, 1000] s.
+        max: 1e3,
         unit: "s",
     },
     RealSpec {
         name: "load_inertia_s",
         min: 1e-5,
-        max: 1e4,
+        max: 1e3,
         unit: "s",
     },
     RealSpec {
@@ -171,7 +172,8 @@ const PLANT_REAL: [RealSpec; 8] = [
 const CPR_SPEC: IntSpec = IntSpec {
     name: "encoder_cpr",
     min: 4,
-    max: 1 << 31,
+    // The drive's range (controller-core design()): up to 2^30 counts/rev.
+    max: 1 << 30,
     unit: "counts/rev",
 };
 
