@@ -28,7 +28,7 @@ use crate::metrics::compute;
 use crate::output::Staging;
 use crate::runner::{run_with_backend, ControlBackend, RunOutput};
 use controller_core::{
-    Controller, CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs,
+    CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs,
 };
 use pil_link::host::{FaultPlan, HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
@@ -356,6 +356,20 @@ pub fn pil_command(args: &PilArgs) -> Result<String> {
 /// A link fault is not an `Err` here: it is in `link.fault`, with the trace cut before it.
 pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
     let cfg = resolve(&args.scenario, args.config.as_deref(), &args.set)?;
+    // The link carries drive settings, not gains: the firmware designs its own. A
+    // comparison run whose borrowed gains differ from its own design cannot run there.
+    let own = controller_core::design(&cfg.drive)
+        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
+    if crate::runner::regulator_gains(&cfg)? != own {
+        return Err(HarnessError::config(
+            "scenario.comparison.gains_of",
+            format!(
+                "{} borrows gains that differ from its own design; the firmware designs its \
+                 gains from the drive settings, so this run cannot go through PIL",
+                cfg.name
+            ),
+        ));
+    }
     let plan: Option<FaultPlan> = args
         .inject
         .as_deref()
@@ -460,8 +474,7 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
 
     let comparison = if link_report.fault.is_none() && !args.no_compare {
         let mut host = Recorder {
-            inner: Controller::new(&cfg.drive)
-                .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?,
+            inner: crate::runner::controller(&cfg)?,
             log: TickLog::default(),
         };
         let host_run = run_with_backend(&cfg, &mut host)?;

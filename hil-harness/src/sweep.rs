@@ -221,11 +221,37 @@ pub fn largest_stable(points: &[&SweepPoint]) -> f64 {
     largest(points, |p| p.stable)
 }
 
-fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> SweepPoint {
+/// The probe run of one grid point. The run without AFB uses the regulator gains of the
+/// plant's default AFB design at the same bandwidth, bit for bit; with the PI sized for
+/// J_total (`velocity_pi_inertia = "total"`) those are the gains of every design of the
+/// grid (`the_run_without_afb_has_the_gains_of_every_design` below), so one run without
+/// AFB per bandwidth is the same-gains comparison for all of them.
+pub fn point_config(
+    plant: &str,
+    design: &AfbDesign,
+    bw: f64,
+    base_sets: &[String],
+) -> Result<crate::config::RunConfig> {
     let mut sets = base_sets.to_vec();
     sets.push("drive.position_bandwidth_rad_s=0".into());
     sets.push(format!("drive.velocity_bandwidth_rad_s={bw}"));
-    sets.extend(design.sets());
+    if design.mode == "off" {
+        let afb = resolve("sweep", Some(plant), &sets)?;
+        sets.extend(design.sets());
+        let mut cfg = resolve("sweep", Some(plant), &sets)?;
+        crate::config::borrow_gains(
+            &mut cfg,
+            &format!("{plant}'s default AFB design at {bw} rad/s"),
+            &afb.drive,
+        )?;
+        Ok(cfg)
+    } else {
+        sets.extend(design.sets());
+        resolve("sweep", Some(plant), &sets)
+    }
+}
+
+fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> SweepPoint {
     let mut point = SweepPoint {
         plant: plant.into(),
         design: design.label(),
@@ -245,7 +271,7 @@ fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> 
         faulted: false,
         error: String::new(),
     };
-    match resolve("sweep", Some(plant), &sets).and_then(|cfg| run_scenario(&cfg)) {
+    match point_config(plant, design, bw, base_sets).and_then(|cfg| run_scenario(&cfg)) {
         Ok(out) => {
             point.stable = out.metrics.stable;
             point.oscillation_pu = out.metrics.oscillation_pu;
@@ -435,6 +461,7 @@ pub fn sweep(out: &Path) -> Result<String> {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
 
     fn point(bw: f64, stable: bool) -> SweepPoint {
@@ -472,6 +499,28 @@ mod tests {
         let none = [point(10.0, false), point(30.0, true)];
         let refs: Vec<&SweepPoint> = none.iter().collect();
         assert_eq!(largest_stable(&refs), 0.0);
+    }
+
+    #[test]
+    fn the_run_without_afb_has_the_gains_of_every_design() {
+        for plant in PLANTS {
+            for bw in [10.0, 94.2] {
+                let off = point_config(plant, &AfbDesign::OFF, bw, &[]).unwrap();
+                let g_off = crate::runner::regulator_gains(&off).unwrap();
+                assert_eq!(g_off.ka, 0.0);
+                for d in designs().iter().filter(|d| d.mode != "off") {
+                    let Ok(on) = point_config(plant, d, bw, &[]) else {
+                        continue; // rejected by the configuration checks (see sweep.csv)
+                    };
+                    let g = crate::runner::regulator_gains(&on).unwrap();
+                    assert!(
+                        crate::runner::same_regulator_gains(&g_off, &g),
+                        "{plant} {bw} rad/s {}:\n{g_off:?}\n{g:?}",
+                        d.label()
+                    );
+                }
+            }
+        }
     }
 
     #[test]
