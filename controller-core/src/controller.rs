@@ -322,14 +322,32 @@ impl Controller {
     /// ```
     pub fn new(cfg: &DriveConfig) -> Result<Self, ConfigError> {
         let gains = design(cfg)?;
-        Self::with_gains(cfg, &gains)
+        Self::build(cfg, &gains)
     }
 
     /// Build a controller from explicitly given gains (e.g. [`design()`] output with some
-    /// gains changed, to run "the same gains" with acceleration feedback off). The settings
-    /// still supply limits, filters, modes and rates; `design(cfg)` must succeed too.
+    /// gains changed; for "the same gains" with acceleration feedback off use
+    /// [`Gains::without_afb`] with a config whose `accel_feedback.mode` is `Off`). The
+    /// settings still supply limits, modes and rates and are validated (`design(cfg)` must
+    /// succeed); every coefficient is taken from `gains` and checked against its Q-format.
+    ///
+    /// ```
+    /// use controller_core::{design, AfbMode, Controller, DriveConfig};
+    /// let cfg = DriveConfig::table1();
+    /// let mut off = cfg;
+    /// off.accel_feedback.mode = AfbMode::Off;
+    /// let g = design(&cfg).unwrap().without_afb();
+    /// let c = Controller::with_gains(&off, &g).unwrap();
+    /// assert_eq!(c.gains(), &g);
+    /// ```
     pub fn with_gains(cfg: &DriveConfig, gains: &Gains) -> Result<Self, ConfigError> {
+        // Validation only: the designed gains themselves are not used.
         design(cfg)?;
+        Self::build(cfg, gains)
+    }
+
+    /// Quantize `gains` for the (already validated) settings `cfg`.
+    fn build(cfg: &DriveConfig, gains: &Gains) -> Result<Self, ConfigError> {
         let coef = Coefficients::from_gains(cfg, gains)?;
         Ok(Self {
             gains: *gains,

@@ -3,14 +3,14 @@
 //! comparison also checks that `design` (the one place floats are used) gives the same
 //! fixed-point coefficients on the Cortex-M4F as on the host.
 //!
-//! Layout (108 bytes): the scalar fields in declaration order, each filter as
+//! Layout (109 bytes): the scalar fields in declaration order, each filter as
 //! `tag u8 (0 none, 1 first order, 2 second order) | corner_hz f32 | q f32`, each enum as u8.
 
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 use controller_core::{
     AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
-    ObserverConfig, ObserverInertia,
+    ObserverConfig, ObserverInertia, PiInertia,
 };
 
 /// Payload bytes of a [`DriveConfig`].
@@ -37,6 +37,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         position_bandwidth_rad_s,
         velocity_bandwidth_rad_s,
         velocity_damping,
+        velocity_pi_inertia,
         current_bandwidth_rad_s,
         winding_resistance_pu,
         winding_inductance_pu_s,
@@ -77,6 +78,14 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         position_bandwidth_rad_s,
         velocity_bandwidth_rad_s,
         velocity_damping,
+    ] {
+        w.u32(x.to_bits())?;
+    }
+    w.u8(match velocity_pi_inertia {
+        PiInertia::Total => 0,
+        PiInertia::TotalPlusAfb => 1,
+    })?;
+    for x in [
         current_bandwidth_rad_s,
         winding_resistance_pu,
         winding_inductance_pu_s,
@@ -113,7 +122,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 108;
+pub const LEN: usize = 109;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -132,6 +141,11 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
     let position_bandwidth_rad_s = f(&mut r)?;
     let velocity_bandwidth_rad_s = f(&mut r)?;
     let velocity_damping = f(&mut r)?;
+    let velocity_pi_inertia = match r.u8()? {
+        0 => PiInertia::Total,
+        1 => PiInertia::TotalPlusAfb,
+        _ => return Err(bad),
+    };
     let current_bandwidth_rad_s = f(&mut r)?;
     let winding_resistance_pu = f(&mut r)?;
     let winding_inductance_pu_s = f(&mut r)?;
@@ -178,6 +192,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         position_bandwidth_rad_s,
         velocity_bandwidth_rad_s,
         velocity_damping,
+        velocity_pi_inertia,
         current_bandwidth_rad_s,
         winding_resistance_pu,
         winding_inductance_pu_s,
