@@ -50,9 +50,7 @@ pub fn borrow_gains(cfg: &mut RunConfig, source: &str, afb_drive: &DriveConfig) 
     if cfg.drive.accel_feedback.mode != AfbMode::Off {
         return Err(HarnessError::config(
             key,
-            format!(
-                "a run at the gains of {source} must have drive.accel_feedback.mode = \"off\""
-            ),
+            format!("a run at the gains of {source} must have drive.accel_feedback.mode = \"off\""),
         ));
     }
     if afb_drive.accel_feedback.mode == AfbMode::Off {

@@ -27,9 +27,7 @@ use crate::error::{HarnessError, Result};
 use crate::metrics::compute;
 use crate::output::Staging;
 use crate::runner::{run_with_backend, ControlBackend, RunOutput};
-use controller_core::{
-    CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs,
-};
+use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
 use pil_link::host::{FaultPlan, HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
 use pil_link::tick::{Commands, Sensors};

@@ -383,14 +383,18 @@ fn write_report(
         "\n## The gains of each comparison\n\n| AFB run | run without AFB | gains |\n|---|---|---|"
     );
     for (afb, off) in COMPARISONS {
-        let _ = writeln!(r.text, "| {afb} | {off} | {} |", gains_line(runs, afb, off)?);
+        let _ = writeln!(
+            r.text,
+            "| {afb} | {off} | {} |",
+            gains_line(runs, afb, off)?
+        );
     }
     let (c6, _) = get(runs, "fig6")?;
     let _ = writeln!(
         r.text,
         "\nThe velocity PI is sized for {:?} (`drive.velocity_pi_inertia`). The sweep's runs \
-         without AFB use the gains of each plant's default AFB design at the same bandwidth; \
-         the stiffness run without AFB uses those of the stiffness scenario's default AFB \
+         without AFB use the gains of each plant's default AFB design at the same bandwidth \
+         and observer bandwidth; the stiffness run without AFB uses those of the stiffness scenario's default AFB \
          design; each row of the Sec. II map runs without AFB at the gains of that row's AFB \
          design.",
         c6.drive.velocity_pi_inertia
@@ -420,12 +424,18 @@ fn write_report(
     // Fig. 6/7, at 4096 counts and with the interpolated encoder.
     for (afb, off, what) in [
         ("fig6", "fig6-no-afb", "Table 1 encoder"),
-        ("fig6-65k", "fig6-65k-no-afb", "sin/cos encoder interpolated"),
+        (
+            "fig6-65k",
+            "fig6-65k-no-afb",
+            "sin/cos encoder interpolated",
+        ),
     ] {
         let (ca, fa) = get(runs, afb)?;
         let (_, fo) = get(runs, off)?;
         let (ma, mo) = (&fa.metrics, &fo.metrics);
-        let slight = ma.overshoot_pu.is_some_and(|v| v > 0.0 && v <= SLIGHT_OVERSHOOT_PU);
+        let slight = ma
+            .overshoot_pu
+            .is_some_and(|v| v > 0.0 && v <= SLIGHT_OVERSHOOT_PU);
         let calmer = ma.shaft_torque_ripple_rms_pu <= mo.shaft_torque_ripple_rms_pu;
         let ok = ma.stable && slight && calmer;
         let failed: Vec<&str> = [
@@ -483,13 +493,14 @@ fn write_report(
 
     // Sec. II with the paper's estimator: the map.
     let ms = crate::sec2::summarize(sec2);
-    let sec2_verdict = if ms.unstable_without_hz.is_empty() || ms.stable_with_where_unstable_without == 0 {
-        "**does not agree**"
-    } else if 2 * ms.stable_with_where_unstable_without >= ms.cells_where_unstable_without {
-        "**agrees**"
-    } else {
-        "**partly agrees**"
-    };
+    let sec2_verdict =
+        if ms.unstable_without_hz.is_empty() || ms.stable_with_where_unstable_without == 0 {
+            "**does not agree**"
+        } else if 2 * ms.stable_with_where_unstable_without >= ms.cells_where_unstable_without {
+            "**agrees**"
+        } else {
+            "**partly agrees**"
+        };
     let _ = writeln!(
         r.text,
         "\n## Sec. II with the paper's estimator: velocity and acceleration by differentiation\n\n![Sec. II map](sec2/sec2-map.png)\n\n**Paper:** \"The velocity and acceleration signals were found by differentiation\"; with acceleration feedback the system is stable, and if the acceleration signal was not fed back the system would become unstable.\n\n**Measured:** `{}` with differentiated velocity (first-order filter, rows) and differentiated acceleration for the AFB path (first-order filter, columns), the drive's default AFB gain and form; each row's run without AFB is at the gains of that row's AFB design. Each cell: fig6's `stable` metric and the speed-error oscillation in the last 0.5 s (pu). Every cell is in `sec2/sec2.csv`.\n\n{}\n{}\n\n**Assessment:** {sec2_verdict} (criterion, over the whole map: the loop without AFB is unstable at one velocity-filter corner or more, and in those rows the loop with AFB is stable in at least half of the cells; \"partly agrees\" if it is stable in fewer than half but in one or more; \"does not agree\" otherwise). The map, not one point of it, is the result.",
@@ -556,13 +567,27 @@ fn write_report(
 
     // Shock at 150 % and 50 %.
     for (afb, off, title) in [
-        ("shock", "shock-no-afb", "Fig. 11 and Fig. 12: 150 % shock load at rated speed, 100 rad/s"),
-        ("shock-50", "shock-50-no-afb", "Fig. 11 and Fig. 12 at 50 %: the linear shock, rated speed, 100 rad/s"),
+        (
+            "shock",
+            "shock-no-afb",
+            "Fig. 11 and Fig. 12: 150 % shock load at rated speed, 100 rad/s",
+        ),
+        (
+            "shock-50",
+            "shock-50-no-afb",
+            "Fig. 11 and Fig. 12 at 50 %: the linear shock, rated speed, 100 rad/s",
+        ),
     ] {
         let (ca, s_on) = get(runs, afb)?;
         let (_, s_off) = get(runs, off)?;
-        let step = ca.scenario.load.iter().find(|l| l.torque_pu != 0.0).map_or(0.0, |l| l.torque_pu);
-        let oks = s_on.metrics.shaft_torque_ripple_rms_pu < s_off.metrics.shaft_torque_ripple_rms_pu;
+        let step = ca
+            .scenario
+            .load
+            .iter()
+            .find(|l| l.torque_pu != 0.0)
+            .map_or(0.0, |l| l.torque_pu);
+        let oks =
+            s_on.metrics.shaft_torque_ripple_rms_pu < s_off.metrics.shaft_torque_ripple_rms_pu;
         r.section(
             title,
             &["shock-compare.png"],
@@ -631,7 +656,7 @@ fn write_report(
         &["sweep/sweep.png"],
         "Printing-press stand (1e6 CPR, 3:1 gearbox, 8:1 reflected inertia, ~150 counts lost motion): 140 rad/s with acceleration feedback, only 30 rad/s without before the system went unstable.",
         &format!(
-            "{sweep_text}Probe run `configs/scenarios/sweep.toml` in speed mode; a bandwidth counts only if every grid point below it passes too. Grid: {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, filters {:?}, acceleration from differentiation or from the observer at {:?} Hz (every point in `sweep/sweep.csv`; points whose gains do not fit controller-core's fixed-point formats are rejected there and count as not achievable). The runs without AFB use the gains of each plant's default AFB design at the same bandwidth. The modelled press: {} counts/rev, lost motion {} deg ({:.0} counts), Jm {} s, Jl {} s (`configs/printing-press.toml`).",
+            "{sweep_text}Probe run `configs/scenarios/sweep.toml` in speed mode; a bandwidth counts only if every grid point below it passes too. Grid: {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, filters {:?}, acceleration from differentiation or from the observer at {:?} Hz (every point in `sweep/sweep.csv`; points whose gains do not fit controller-core's fixed-point formats are rejected there and count as not achievable). The runs without AFB use the gains of each plant's default AFB design at the same bandwidth, one per observer bandwidth of the grid (the observer also gives the velocity feedback); \"without AFB\" is the better of them. The modelled press: {} counts/rev, lost motion {} deg ({:.0} counts), Jm {} s, Jl {} s (`configs/printing-press.toml`).",
             crate::sweep::BANDWIDTHS_RAD_S, crate::sweep::GAINS, crate::sweep::FILTERS, crate::sweep::OBSERVER_HZ,
             press.plant.sensors.counts_per_rev(), press.plant.mechanics.backlash_deg,
             press.plant.mechanics.backlash_deg / 360.0 * f64::from(press.plant.sensors.counts_per_rev()),
@@ -647,7 +672,9 @@ fn write_report(
     let bw = f64::from(cfg_st.drive.velocity_bandwidth_rad_s);
     let w_obs = std::f64::consts::TAU * f64::from(cfg_st.drive.observer.bandwidth_hz);
     let ratio_at = |source: &str, w: f64| -> Option<f64> {
-        let a = stiff.iter().find(|p| p.source == "none" && p.freq_rad_s == w)?;
+        let a = stiff
+            .iter()
+            .find(|p| p.source == "none" && p.freq_rad_s == w)?;
         let b = stiff
             .iter()
             .find(|p| p.source == source && p.freq_rad_s == w && p.stable)?;
@@ -704,8 +731,10 @@ fn write_report(
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let all_ratios: Vec<(f64, Option<f64>)> =
-        freqs.iter().map(|w| (*w, ratio_at("observer", *w))).collect();
+    let all_ratios: Vec<(f64, Option<f64>)> = freqs
+        .iter()
+        .map(|w| (*w, ratio_at("observer", *w)))
+        .collect();
     let diff_ratios: Vec<(f64, Option<f64>)> = freqs
         .iter()
         .map(|w| (*w, ratio_at("differentiation", *w)))
@@ -763,7 +792,9 @@ fn write_report(
             "{}",
             summary_line(
                 name,
-                c.gains_of.as_ref().map_or("own design", |g| g.source.as_str()),
+                c.gains_of
+                    .as_ref()
+                    .map_or("own design", |g| g.source.as_str()),
                 f64::from(g.kp_vel),
                 o
             )

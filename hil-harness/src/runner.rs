@@ -15,8 +15,8 @@ use crate::error::{HarnessError, Result};
 use crate::metrics::{compute, Metrics};
 use crate::trace::{Trace, TraceRow};
 use controller_core::{
-    per_unit::Counts, Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint,
-    VelocityInputs, VelocityOutputs,
+    per_unit::Counts, Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs,
+    VelocityOutputs,
 };
 use serde::Serialize;
 use std::time::Instant;
@@ -131,25 +131,26 @@ fn drive_error(e: controller_core::ConfigError) -> HarnessError {
 }
 
 /// The gains the controller of `cfg` runs with: its own `design()`, or, for a comparison
-/// run without AFB ([`RunConfig::gains_of`]), the AFB run's `design()` with Ka = 0, so
-/// that every regulator gain is bit-identical to the AFB run's.
+/// run without AFB ([`RunConfig::gains_of`]), the AFB run's `design()` without its AFB
+/// (`Gains::without_afb`: Ka = 0, every regulator gain bit-identical to the AFB run's).
 pub fn regulator_gains(cfg: &RunConfig) -> Result<Gains> {
     match &cfg.gains_of {
         None => controller_core::design(&cfg.drive).map_err(drive_error),
-        Some(of) => {
-            let mut g = controller_core::design(&of.drive).map_err(drive_error)?;
-            g.ka = 0.0;
-            Ok(g)
-        }
+        Some(of) => Ok(controller_core::design(&of.drive)
+            .map_err(drive_error)?
+            .without_afb()),
     }
 }
 
 /// Whether `a` and `b` are the same regulator gains, bit for bit: every field of [`Gains`]
-/// except those of the acceleration-feedback path itself (Ka, its filter and its rate),
-/// compared through their exact (shortest round-trip) decimal form.
+/// except those of the acceleration-feedback path itself (Ka, its filter and its rate) and
+/// the acceleration feed-forward, which `Gains::without_afb` sets to the inertia the
+/// commanded acceleration meets without AFB (unchanged in the error form), compared
+/// through their exact (shortest round-trip) decimal form.
 pub fn same_regulator_gains(a: &Gains, b: &Gains) -> bool {
     let mut b = *b;
     b.ka = a.ka;
+    b.k_accel_ff = a.k_accel_ff;
     b.afb_filter = a.afb_filter;
     b.afb_rate_hz = a.afb_rate_hz;
     format!("{a:?}") == format!("{b:?}")

@@ -126,7 +126,8 @@ pub fn map_points() -> Vec<MapPoint> {
     let jobs: Vec<(f64, Option<f64>)> = VELOCITY_CORNERS_HZ
         .iter()
         .flat_map(|fv| {
-            std::iter::once((*fv, None)).chain(AFB_CORNERS_HZ.iter().map(move |fa| (*fv, Some(*fa))))
+            std::iter::once((*fv, None))
+                .chain(AFB_CORNERS_HZ.iter().map(move |fa| (*fv, Some(*fa))))
         })
         .collect();
     let pb = crate::progress::bar(jobs.len() as u64, "sec2 map");
@@ -168,7 +169,10 @@ pub fn summarize(points: &[MapPoint]) -> MapSummary {
         if !without {
             s.unstable_without_hz.push(fv);
         }
-        for p in points.iter().filter(|p| p.afb && p.velocity_corner_hz == fv) {
+        for p in points
+            .iter()
+            .filter(|p| p.afb && p.velocity_corner_hz == fv)
+        {
             if without {
                 s.cells_where_stable_without += 1;
                 s.unstable_with_where_stable_without += usize::from(!p.stable);
