@@ -45,6 +45,8 @@ pub struct MapPoint {
     pub limit_cycle_torque_pu: f64,
     /// Shaft-torque ripple after the load step (pu).
     pub shaft_torque_ripple_rms_pu: f64,
+    /// Time the torque command spent at its limit (s).
+    pub torque_saturated_s: f64,
     /// The controller faulted.
     pub faulted: bool,
     /// Velocity Kp the run used (identical with and without AFB).
@@ -94,6 +96,7 @@ fn run_cell(velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
         oscillation_pu: f64::NAN,
         limit_cycle_torque_pu: f64::NAN,
         shaft_torque_ripple_rms_pu: f64::NAN,
+        torque_saturated_s: f64::NAN,
         faulted: false,
         kp_vel: f64::NAN,
         error: String::new(),
@@ -114,6 +117,7 @@ fn run_cell(velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
             p.limit_cycle_torque_pu = m.limit_cycle_torque_pu;
             p.shaft_torque_ripple_rms_pu = m.shaft_torque_ripple_rms_pu;
             p.faulted = m.faulted;
+            p.torque_saturated_s = m.torque_saturated_s;
             p.kp_vel = f64::from(g.kp_vel);
         }
         Err(e) => p.error = e.to_string(),
@@ -189,10 +193,12 @@ fn cell(p: Option<&MapPoint>) -> String {
     match p {
         None => "-".into(),
         Some(p) if !p.error.is_empty() => "rejected".into(),
+        Some(p) if p.stable => format!("stable ({:.3})", p.oscillation_pu),
         Some(p) => format!(
-            "{} ({:.3})",
-            if p.stable { "stable" } else { "**unstable**" },
-            p.oscillation_pu
+            "**unstable** ({:.3}{}, {:.2} s at the limit)",
+            p.oscillation_pu,
+            if p.faulted { ", tripped" } else { "" },
+            p.torque_saturated_s
         ),
     }
 }
@@ -316,6 +322,7 @@ mod tests {
             oscillation_pu: 0.0,
             limit_cycle_torque_pu: 0.0,
             shaft_torque_ripple_rms_pu: 0.0,
+            torque_saturated_s: 0.0,
             faulted: false,
             kp_vel: 0.0,
             error: String::new(),
