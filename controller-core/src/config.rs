@@ -87,6 +87,15 @@ pub enum PiInertia {
     TotalPlusAfb,
 }
 
+/// Torque the observer's model is driven with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ObserverTorque {
+    /// The torque (current) reference of the last current tick.
+    Command,
+    /// The measured current: the mean of this and the last current tick's sample.
+    MeasuredCurrent,
+}
+
 /// Luenberger observer settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ObserverConfig {
@@ -95,6 +104,9 @@ pub struct ObserverConfig {
     pub bandwidth_hz: f32,
     /// Model inertia.
     pub model_inertia: ObserverInertia,
+    /// Torque input of the model (see `controller-core/README.md` for the measurement
+    /// behind the default, `Command`).
+    pub torque_input: ObserverTorque,
 }
 
 /// Fault thresholds.
@@ -208,6 +220,7 @@ impl DriveConfig {
             observer: ObserverConfig {
                 bandwidth_hz: 75.0,
                 model_inertia: ObserverInertia::Motor,
+                torque_input: ObserverTorque::Command,
             },
             faults: FaultLimits {
                 overspeed_pu: 1.5,

@@ -309,6 +309,9 @@ mod payloads {
             if bits[5] % 2 == 1 {
                 cfg.velocity_pi_inertia = controller_core::PiInertia::TotalPlusAfb;
             }
+            if bits[5] & 2 == 2 {
+                cfg.observer.torque_input = controller_core::ObserverTorque::MeasuredCurrent;
+            }
             let mut w = Writer::new();
             settings::encode(&cfg, &mut w).unwrap();
             prop_assert_eq!(w.as_slice().len(), settings::LEN);
