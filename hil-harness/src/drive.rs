@@ -6,7 +6,8 @@
 
 use crate::error::{HarnessError, Result};
 use controller_core::{
-    AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, ObserverInertia, PiInertia,
+    AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, ObserverInertia, ObserverTorque,
+    PiInertia,
 };
 use toml::{Table, Value};
 
@@ -365,9 +366,17 @@ pub fn drive_config(doc: &Table, machine: &MachineDefaults) -> Result<DriveConfi
                         };
                         Ok(true)
                     }
+                    "torque_input" => {
+                        c.observer.torque_input =
+                            match word(key, v, &["command", "measured_current"])? {
+                                "measured_current" => ObserverTorque::MeasuredCurrent,
+                                _ => ObserverTorque::Command,
+                            };
+                        Ok(true)
+                    }
                     _ => Ok(false),
                 },
-                &["model_inertia"],
+                &["model_inertia", "torque_input"],
             )?,
             "faults" => apply_table(
                 &mut cfg,
@@ -436,6 +445,16 @@ mod tests {
             FilterConfig::SecondOrder { corner_hz, .. } if corner_hz == 40.0
         ));
         assert_eq!(cfg.observer.model_inertia, ObserverInertia::Total);
+        assert_eq!(cfg.observer.torque_input, ObserverTorque::Command);
+        let cfg = parse("[drive.observer]\ntorque_input = \"measured_current\"\n").unwrap();
+        assert_eq!(cfg.observer.torque_input, ObserverTorque::MeasuredCurrent);
+        let e = parse("[drive.observer]\ntorque_input = \"current\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.observer.torque_input") && e.contains("command, measured_current"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -2,7 +2,8 @@
 //! acceleration signals were found by differentiation", and "if the acceleration signal
 //! was not fed back to the controller, the system would become unstable".
 //!
-//! The map: `fig6` with differentiated velocity (first-order filter at each corner of
+//! The map, once per encoder resolution of [`ENCODER_INTERPOLATIONS`] (Table 1's 4096
+//! counts, and the same encoder interpolated): `fig6` with differentiated velocity (first-order filter at each corner of
 //! [`VELOCITY_CORNERS_HZ`]) and differentiated acceleration for the AFB path (first-order
 //! filter at each corner of [`AFB_CORNERS_HZ`]), the drive's default AFB gain and form.
 //! At each velocity corner the loop runs without AFB at the regulator gains of the AFB
@@ -25,12 +26,18 @@ pub const VELOCITY_CORNERS_HZ: [f64; 9] = [10.0, 15.0, 25.0, 35.0, 50.0, 75.0, 1
 /// Acceleration-feedback filter corners (Hz, first order at the AFB rate).
 pub const AFB_CORNERS_HZ: [f64; 6] = [10.0, 25.0, 50.0, 100.0, 200.0, 400.0];
 
+/// Sin/cos interpolation factors of the 4096-count encoder (1 = Table 1's plain counts).
+/// The following-error trip is kept at the same angle (Table 1's counts × factor).
+pub const ENCODER_INTERPOLATIONS: [u32; 2] = [1, 16];
+
 /// The scenario the map repeats.
 pub const SCENARIO: &str = "fig6";
 
 /// One cell of the map (or, with `afb = false`, the row's run without AFB).
 #[derive(Clone, Debug, Serialize)]
 pub struct MapPoint {
+    /// Encoder interpolation factor.
+    pub encoder_interpolation: u32,
     /// Acceleration feedback on.
     pub afb: bool,
     /// Velocity filter corner (Hz).
@@ -56,8 +63,14 @@ pub struct MapPoint {
 }
 
 /// `--set` overrides of one cell (AFB on).
-pub fn sets(velocity_corner_hz: f64, afb_corner_hz: f64) -> Vec<String> {
+pub fn sets(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: f64) -> Vec<String> {
+    let trip = controller_core::DriveConfig::table1()
+        .faults
+        .following_error_counts
+        * interpolation as f32;
     vec![
+        format!("sensors.encoder_interpolation={interpolation}"),
+        format!("drive.faults.following_error_counts={trip}"),
         "drive.velocity_estimator=differentiation".into(),
         "drive.velocity_filter=first_order".into(),
         format!("drive.velocity_filter_corner_hz={velocity_corner_hz}"),
@@ -68,15 +81,23 @@ pub fn sets(velocity_corner_hz: f64, afb_corner_hz: f64) -> Vec<String> {
 }
 
 /// The AFB run of a cell.
-pub fn afb_config(velocity_corner_hz: f64, afb_corner_hz: f64) -> Result<RunConfig> {
-    resolve(SCENARIO, None, &sets(velocity_corner_hz, afb_corner_hz))
+pub fn afb_config(
+    interpolation: u32,
+    velocity_corner_hz: f64,
+    afb_corner_hz: f64,
+) -> Result<RunConfig> {
+    resolve(
+        SCENARIO,
+        None,
+        &sets(interpolation, velocity_corner_hz, afb_corner_hz),
+    )
 }
 
 /// The run without AFB of a row, at the gains of the row's AFB design.
-pub fn no_afb_config(velocity_corner_hz: f64) -> Result<RunConfig> {
+pub fn no_afb_config(interpolation: u32, velocity_corner_hz: f64) -> Result<RunConfig> {
     let first = AFB_CORNERS_HZ.first().copied().unwrap_or(100.0);
-    let afb = afb_config(velocity_corner_hz, first)?;
-    let mut s = sets(velocity_corner_hz, first);
+    let afb = afb_config(interpolation, velocity_corner_hz, first)?;
+    let mut s = sets(interpolation, velocity_corner_hz, first);
     s.push("drive.accel_feedback.mode=off".into());
     let mut cfg = resolve(SCENARIO, None, &s)?;
     borrow_gains(
@@ -87,8 +108,9 @@ pub fn no_afb_config(velocity_corner_hz: f64) -> Result<RunConfig> {
     Ok(cfg)
 }
 
-fn run_cell(velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
+fn run_cell(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
     let mut p = MapPoint {
+        encoder_interpolation: interpolation,
         afb: afb_corner_hz.is_some(),
         velocity_corner_hz,
         afb_corner_hz: afb_corner_hz.unwrap_or(0.0),
@@ -102,8 +124,8 @@ fn run_cell(velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
         error: String::new(),
     };
     let cfg = match afb_corner_hz {
-        Some(fa) => afb_config(velocity_corner_hz, fa),
-        None => no_afb_config(velocity_corner_hz),
+        Some(fa) => afb_config(interpolation, velocity_corner_hz, fa),
+        None => no_afb_config(interpolation, velocity_corner_hz),
     };
     let run = cfg.and_then(|c| {
         let g = crate::runner::regulator_gains(&c)?;
@@ -127,18 +149,20 @@ fn run_cell(velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
 
 /// Runs the whole map in parallel.
 pub fn map_points() -> Vec<MapPoint> {
-    let jobs: Vec<(f64, Option<f64>)> = VELOCITY_CORNERS_HZ
+    let jobs: Vec<(u32, f64, Option<f64>)> = ENCODER_INTERPOLATIONS
         .iter()
-        .flat_map(|fv| {
-            std::iter::once((*fv, None))
-                .chain(AFB_CORNERS_HZ.iter().map(move |fa| (*fv, Some(*fa))))
+        .flat_map(|n| {
+            VELOCITY_CORNERS_HZ.iter().flat_map(move |fv| {
+                std::iter::once((*n, *fv, None))
+                    .chain(AFB_CORNERS_HZ.iter().map(move |fa| (*n, *fv, Some(*fa))))
+            })
         })
         .collect();
     let pb = crate::progress::bar(jobs.len() as u64, "sec2 map");
     let points = jobs
         .par_iter()
-        .map(|(fv, fa)| {
-            let r = run_cell(*fv, *fa);
+        .map(|(n, fv, fa)| {
+            let r = run_cell(*n, *fv, *fa);
             pb.inc(1);
             r
         })
@@ -162,7 +186,16 @@ pub struct MapSummary {
     pub unstable_with_where_stable_without: usize,
 }
 
-/// Counts the map.
+/// The points of the map at one encoder interpolation factor.
+pub fn at(points: &[MapPoint], interpolation: u32) -> Vec<MapPoint> {
+    points
+        .iter()
+        .filter(|p| p.encoder_interpolation == interpolation)
+        .cloned()
+        .collect()
+}
+
+/// Counts one map (the points of one encoder, [`at`]).
 pub fn summarize(points: &[MapPoint]) -> MapSummary {
     let mut s = MapSummary::default();
     for fv in VELOCITY_CORNERS_HZ {
@@ -235,8 +268,8 @@ pub fn table(points: &[MapPoint]) -> String {
     t
 }
 
-/// The map as a chart: each AFB cell by the stability with and without AFB.
-pub fn figure(points: &[MapPoint]) -> Figure {
+/// One map as a chart panel: each AFB cell by the stability with and without AFB.
+fn panel(points: &[MapPoint], interpolation: u32) -> Panel {
     let without = |fv: f64| {
         points
             .iter()
@@ -250,11 +283,9 @@ pub fn figure(points: &[MapPoint]) -> Figure {
             .map(|p| (p.velocity_corner_hz, p.afb_corner_hz))
             .collect()
     };
-    Figure {
-        x_label: "velocity filter corner (Hz)".into(),
-        panels: vec![Panel {
+    Panel {
             title: format!(
-                "Sec. II map: {SCENARIO} with differentiated velocity and acceleration, same gains"
+                "Sec. II map: {SCENARIO}, differentiated velocity and acceleration, same gains, encoder x{interpolation}"
             ),
             y_label: "AFB filter corner (Hz)".into(),
             series: vec![
@@ -266,7 +297,17 @@ pub fn figure(points: &[MapPoint]) -> Figure {
             log_x: true,
             log_y: true,
             legend: Legend::UpperLeft,
-        }],
+    }
+}
+
+/// The maps as a chart, one panel per encoder.
+pub fn figure(points: &[MapPoint]) -> Figure {
+    Figure {
+        x_label: "velocity filter corner (Hz)".into(),
+        panels: ENCODER_INTERPOLATIONS
+            .iter()
+            .map(|n| panel(&at(points, *n), *n))
+            .collect(),
     }
 }
 
@@ -283,7 +324,7 @@ pub fn map_into(dir: &Path) -> Result<Vec<MapPoint>> {
     Ok(points)
 }
 
-/// One paragraph of what the map shows, counted from the points.
+/// One paragraph of what the map of one encoder shows, counted from its points.
 pub fn summary_text(points: &[MapPoint]) -> String {
     let s = summarize(points);
     format!(
@@ -303,9 +344,19 @@ pub fn summary_text(points: &[MapPoint]) -> String {
 pub fn sec2(out: &Path) -> Result<String> {
     let staging = crate::output::Staging::new(out)?;
     let points = map_into(staging.dir())?;
-    staging.write("sec2-map.md", &table(&points))?;
+    let mut text = String::new();
+    for n in ENCODER_INTERPOLATIONS {
+        let m = at(&points, n);
+        let _ = write!(
+            text,
+            "\nEncoder 4096 counts x {n}:\n\n{}\n{}\n",
+            table(&m),
+            summary_text(&m)
+        );
+    }
+    staging.write("sec2-map.md", &text)?;
     staging.commit()?;
-    Ok(format!("{}\n{}", table(&points), summary_text(&points)))
+    Ok(text)
 }
 
 #[cfg(test)]
@@ -315,6 +366,7 @@ mod tests {
 
     fn p(afb: bool, fv: f64, fa: f64, stable: bool) -> MapPoint {
         MapPoint {
+            encoder_interpolation: 1,
             afb,
             velocity_corner_hz: fv,
             afb_corner_hz: fa,
@@ -351,12 +403,15 @@ mod tests {
 
     #[test]
     fn the_run_without_afb_has_the_gains_of_its_afb_design() {
-        for fv in VELOCITY_CORNERS_HZ {
-            let off = no_afb_config(fv).unwrap();
+        for (n, fv) in ENCODER_INTERPOLATIONS
+            .iter()
+            .flat_map(|n| VELOCITY_CORNERS_HZ.iter().map(move |fv| (*n, *fv)))
+        {
+            let off = no_afb_config(n, fv).unwrap();
             let g_off = crate::runner::regulator_gains(&off).unwrap();
             assert_eq!(g_off.ka, 0.0);
             for fa in AFB_CORNERS_HZ {
-                let on = afb_config(fv, fa).unwrap();
+                let on = afb_config(n, fv, fa).unwrap();
                 let g_on = crate::runner::regulator_gains(&on).unwrap();
                 assert!(g_on.ka > 0.0);
                 assert!(
