@@ -7,8 +7,10 @@
 //!   the firmware latches its safe state (zero torque and voltage, fault latched, QEMU exits
 //!   with status 1) and the harness reports the fault, stops, and writes the trace up to it.
 //!
-//! These tests build the ARM image themselves (cargo, thumbv7em-none-eabihf) and need
-//! `qemu-system-arm`: without it they FAIL with a message saying so, they are not skipped.
+//! These tests build the ARM image themselves (cargo, thumbv7em-none-eabihf) and run it in
+//! `qemu-system-arm`. On a fresh machine they install what is missing first (`rustup target
+//! add`, and `apt-get install qemu-system-arm` as root, one line printed for each); where
+//! that is impossible they FAIL with the command to run. They are never skipped.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -16,10 +18,13 @@
     clippy::panic
 )]
 
-use hil_harness::pil::{build_pil_image, pil_command, run_pil, PilArgs};
+use hil_harness::pil::{build_pil_image, build_pil_image_with, pil_command, run_pil, PilArgs};
+use pil_link::host::{HostError, HostLink};
+use pil_link::qemu::{Qemu, QemuOptions};
+use pil_link::FaultCode;
 use std::path::PathBuf;
-use std::process::Command;
 use std::sync::{Mutex, MutexGuard, OnceLock};
+use std::time::{Duration, Instant};
 
 /// One QEMU at a time: the fault tests use a 500 ms link watchdog, and on a loaded 2-core
 /// machine two lock-step runs side by side could starve each other towards it.
@@ -33,12 +38,8 @@ fn one_at_a_time() -> MutexGuard<'static, ()> {
 fn elf() -> PathBuf {
     static ELF: OnceLock<PathBuf> = OnceLock::new();
     ELF.get_or_init(|| {
-        let qemu = Command::new("qemu-system-arm").arg("--version").output();
-        assert!(
-            matches!(qemu, Ok(ref o) if o.status.success()),
-            "qemu-system-arm is required for the processor-in-the-loop tests and was not \
-             found: install it (Debian/Ubuntu: apt-get install qemu-system-arm)"
-        );
+        fw_runner::provision::ensure_qemu()
+            .unwrap_or_else(|e| panic!("the processor-in-the-loop tests need QEMU: {e}"));
         build_pil_image().unwrap_or_else(|e| panic!("cannot build the PIL firmware image: {e}"))
     })
     .clone()
@@ -82,6 +83,16 @@ fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
         assert!(dir.path().join(f).is_file(), "{f} missing");
     }
     assert_eq!(csv_rows(dir.path()), 5_000);
+    // The defmt log, decoded in-process: the boot line, the configuration, the clean stop.
+    let log = std::fs::read_to_string(dir.path().join("firmware.log")).unwrap();
+    for line in [
+        "waiting for Hello on UART0",
+        "pil: configured, current loop 4000 Hz, velocity loop 2000 Hz",
+        "pil: stopped after 15000 ticks, faulted false",
+    ] {
+        assert!(log.contains(line), "firmware.log lacks {line:?}:\n{log}");
+    }
+    assert!(!log.contains("damaged frame"), "{log}");
     let section = hil_harness::pil::report_section(dir.path()).unwrap();
     assert!(section.contains("| mismatches | 0 |"), "{section}");
 }
@@ -179,18 +190,22 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
             "{}",
             case.inject
         );
-        // The firmware's safe state, as it reports it: code, zero torque, zero voltage.
+        // The safe state, from the board's outputs as the fault frame carries them: the
+        // current tick ran, zero torque, zero PWM voltage, enable pin low.
         let fw = fault
             .firmware
             .as_ref()
             .unwrap_or_else(|| panic!("{}: firmware never showed its safe state", case.inject));
         assert_eq!(fw.code, case.firmware_code, "{}", case.inject);
-        assert_eq!(
-            (fw.torque_cmd_bits, fw.voltage_cmd_bits),
-            (0, 0),
-            "{}",
+        assert!(
+            fw.current_tick_ran
+                && fw.torque_cmd_bits == 0
+                && fw.pwm_voltage_bits == 0
+                && !fw.enable_pin,
+            "{}: {fw:?}",
             case.inject
         );
+        assert!(fw.outputs_safe, "{}", case.inject);
         assert_eq!(
             o.link.qemu_exit_code,
             Some(1),
@@ -238,4 +253,130 @@ fn the_command_fails_loudly_on_a_link_fault() {
     );
     // The trace up to the fault is still there.
     assert!(csv_rows(dir.path()) > 0);
+}
+
+/// QEMU with the `pil` image and the raw link to it, for tests that speak the protocol
+/// themselves (below the harness's own argument checks).
+fn raw_session(
+    elf: &std::path::Path,
+    log: &std::path::Path,
+) -> (Qemu, HostLink<std::os::unix::net::UnixStream>) {
+    let (qemu, stream) = Qemu::spawn(&QemuOptions {
+        qemu: PathBuf::from("qemu-system-arm"),
+        elf: elf.to_path_buf(),
+        log: log.to_path_buf(),
+        connect_timeout: Duration::from_secs(20),
+    })
+    .unwrap();
+    (qemu, HostLink::new(stream, Duration::from_secs(3)))
+}
+
+#[test]
+fn a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check() {
+    let _serial = one_at_a_time();
+    fw_runner::provision::ensure_qemu().unwrap();
+    // The same image with the safe-state entry sabotaged (enable stays on, controller runs).
+    let bad = build_pil_image_with(&["test-unsafe-keep-outputs-on"]).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = PilArgs::new("fig6", dir.path());
+    args.elf = Some(bad);
+    args.inject = Some("drop@450".to_string());
+    args.watchdog_ms = 500;
+    args.reply_timeout_ms = 3000;
+    let o = run_pil(&args).unwrap();
+    let fw = o
+        .link
+        .fault
+        .as_ref()
+        .and_then(|f| f.firmware.clone())
+        .expect("fault report");
+    assert_eq!(fw.code, "Timeout");
+    assert!(
+        !fw.outputs_safe,
+        "a firmware with its outputs on passed: {fw:?}"
+    );
+    assert!(fw.enable_pin, "{fw:?}");
+    // And the command says so.
+    let dir2 = tempfile::tempdir().unwrap();
+    args.out = dir2.path().to_path_buf();
+    let err = pil_command(&args).unwrap_err().to_string();
+    assert!(err.contains("NOT SAFE"), "{err}");
+}
+
+#[test]
+fn the_firmware_refuses_an_unbounded_watchdog_with_a_protocol_fault() {
+    let _serial = one_at_a_time();
+    let elf = elf();
+    let dir = tempfile::tempdir().unwrap();
+    let start = Instant::now();
+    let (mut qemu, mut link) = raw_session(&elf, &dir.path().join("fw.defmt"));
+    match link.hello(u32::MAX) {
+        Err(HostError::FirmwareFault(r)) => {
+            assert_eq!(r.code, FaultCode::Protocol);
+            // Refused before any Config: no controller runs, the stage stays off.
+            assert!(!r.outputs.current_tick_ran, "{:?}", r.outputs);
+            assert!(r.outputs.are_safe(), "{:?}", r.outputs);
+        }
+        other => panic!("a Hello with a 49-day watchdog was not refused: {other:?}"),
+    }
+    drop(link);
+    qemu.finish(Duration::from_secs(1));
+    assert!(
+        start.elapsed() < Duration::from_secs(5),
+        "{:?}",
+        start.elapsed()
+    );
+
+    // The harness refuses it before it starts anything, naming the flag and the range.
+    let out = dir.path().join("out");
+    let mut args = PilArgs::new("fig6", &out);
+    args.elf = Some(elf);
+    args.watchdog_ms = u32::MAX;
+    args.inject = Some("drop@100".to_string());
+    let start = Instant::now();
+    let Err(err) = run_pil(&args) else {
+        panic!("a 49-day watchdog was accepted by the harness")
+    };
+    let err = err.to_string();
+    assert!(
+        err.contains("--watchdog-ms") && err.contains("[1, 1000]") && err.contains("Protocol"),
+        "{err}"
+    );
+    assert!(start.elapsed() < Duration::from_secs(5));
+    assert!(!out.exists(), "nothing is written");
+}
+
+#[test]
+fn a_second_config_while_running_is_a_protocol_fault() {
+    let _serial = one_at_a_time();
+    let dir = tempfile::tempdir().unwrap();
+    let (mut qemu, mut link) = raw_session(&elf(), &dir.path().join("fw.defmt"));
+    link.hello(500).unwrap();
+    let mut w = pil_link::wire::Writer::new();
+    pil_link::settings::encode(&controller_core::DriveConfig::table1(), &mut w).unwrap();
+    link.configure(w.as_slice()).unwrap();
+    match link.configure(w.as_slice()) {
+        Err(HostError::FirmwareFault(r)) => assert_eq!(r.code, FaultCode::Protocol),
+        other => panic!("a second Config was accepted: {other:?}"),
+    }
+    drop(link);
+    qemu.finish(Duration::from_secs(1));
+}
+
+#[test]
+fn qemu_ends_by_itself_when_the_harness_goes_silent() {
+    let _serial = one_at_a_time();
+    let dir = tempfile::tempdir().unwrap();
+    let (mut qemu, mut link) = raw_session(&elf(), &dir.path().join("fw.defmt"));
+    link.hello(200).unwrap();
+    // The harness "dies": it says nothing more. Watchdog (200 ms), then 2·200 ms + 2 s.
+    let start = Instant::now();
+    let status = qemu.finish(Duration::from_secs(10));
+    assert_eq!(
+        status.and_then(|s| s.code()),
+        Some(1),
+        "QEMU did not exit by itself (waited {:?})",
+        start.elapsed()
+    );
+    drop(link);
 }

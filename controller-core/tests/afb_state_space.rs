@@ -1,10 +1,16 @@
 //! Trap 1, the whole linear loop: the controller's tick written in f64 (observer or
 //! differentiation, acceleration feedback, velocity PI, the velocity tick every second
-//! current tick) around a rigid inertia (gears separated: Jm; engaged: J_total) with the
-//! current loop as its designed first-order response and the 0.18 ms computation delay,
-//! discretized exactly. The map over one velocity period is built column by column from
-//! unit vectors and its spectral radius decides stability (ρ < 1). No quantization, no
-//! lost-motion transitions: this is the linear skeleton of the closed-loop simulations.
+//! current tick) around a rigid inertia (gears separated: Jm; engaged: J_total) or the
+//! engaged Table 1 two-mass shaft (65 Hz resonance, no lost motion), with the current loop
+//! as its designed first-order response and the 0.18 ms computation delay, discretized
+//! exactly. The map over one velocity period is built column by column from unit vectors
+//! and its spectral radius decides stability (ρ < 1). No quantization, no lost-motion
+//! transitions: this is the linear skeleton of the closed-loop simulations.
+//!
+//! The observer-fed acceleration loop is modelled two ways: as the controller now runs it
+//! (Ellis estimate, closed form; `Structure::ClosedForm`) and as the first version did
+//! (â = u + d with the last tick's torque; `Structure::OneTickLate`), to show the old
+//! inner-loop limit and that it is gone.
 //! `cargo test -p controller-core --release --test afb_state_space -- --nocapture`
 #![allow(
     clippy::unwrap_used,
@@ -16,7 +22,7 @@
 
 use controller_core::{design, AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig};
 
-const N: usize = 15;
+const N: usize = 17;
 type Mat = Vec<Vec<f64>>;
 
 // State indices. Positions are kept relative to the plant (only differences matter), so
@@ -36,6 +42,8 @@ const D2: usize = 11;
 const D3: usize = 12;
 const D4: usize = 13;
 const R: usize = 14; // observer residual acceleration r = â − u of the last current tick [pu/s]
+const DELTA: usize = 15; // shaft twist θm − θl [pu·s] (two-mass plant only)
+const WL: usize = 16; // load speed [pu] (two-mass plant only)
 
 fn matmul(a: &Mat, b: &Mat) -> Mat {
     let n = a.len();
@@ -53,62 +61,88 @@ fn matmul(a: &Mat, b: &Mat) -> Mat {
     c
 }
 
-/// Exact discretization of θ' = ω, ω' = i/J, i' = ω_c·(r − i) over h with r constant:
-/// returns (Φ, Γ) for x = [θ, ω, i].
-fn plant_step(j: f64, wc: f64, h: f64) -> ([[f64; 3]; 3], [f64; 3]) {
-    // Augment r as a constant state: z = [θ, ω, i, r], z' = A z; exp by scaled Taylor series.
-    let a = [
-        [0.0, 1.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0 / j, 0.0],
-        [0.0, 0.0, -wc, wc],
-        [0.0; 4],
-    ];
-    // Scale so that the fastest rate times the step is below 0.5 (Taylor series accuracy).
+/// The engaged two-inertia coupling (no lost motion): shaft torque
+/// T_s = Jl·ω_ar²·δ + 2ζ·Jl·ω_ar·(ωm − ωl) with the twist δ in pu·s (design notes' K and D).
+#[derive(Clone, Copy, Debug)]
+struct Shaft {
+    jl: f64,
+    w_ar: f64,
+    zeta: f64,
+}
+
+/// Exact discretization over h, with r (the current reference) constant, of
+/// θ' = ωm, ωm' = (i − T_s)/J, i' = ω_c·(r − i), δ' = ωm − ωl, ωl' = T_s/Jl
+/// (without a shaft: T_s = 0 and δ, ωl frozen). Returns (Φ, Γ) for x = [θ, ωm, i, δ, ωl].
+fn plant_step(j: f64, shaft: Option<Shaft>, wc: f64, h: f64) -> ([[f64; 5]; 5], [f64; 5]) {
+    // Augment r as a constant state: z = [θ, ω, i, δ, ωl, r], z' = A z.
+    let mut a = [[0.0f64; 6]; 6];
+    a[0][1] = 1.0;
+    a[1][2] = 1.0 / j;
+    a[2][2] = -wc;
+    a[2][5] = wc;
+    let mut fastest = wc.max(1.0);
+    if let Some(sh) = shaft {
+        let k = sh.jl * sh.w_ar * sh.w_ar;
+        let d = 2.0 * sh.zeta * sh.jl * sh.w_ar;
+        // T_s = k·δ + d·(ωm − ωl)
+        a[1][3] = -k / j;
+        a[1][1] = -d / j;
+        a[1][4] = d / j;
+        a[3][1] = 1.0;
+        a[3][4] = -1.0;
+        a[4][3] = k / sh.jl;
+        a[4][1] = d / sh.jl;
+        a[4][4] = -d / sh.jl;
+        fastest = fastest.max(sh.w_ar * (1.0 + sh.jl / j).sqrt());
+    }
+    // Scale so that the fastest rate times the step is below 0.5 (Taylor accuracy).
     let mut s = 8;
-    while s < 40 && wc.max(1.0) * h / f64::from(1u32 << s.min(31)) / 2f64.powi(s - s.min(31)) > 0.5
-    {
+    while s < 60 && fastest * h / 2f64.powi(s) > 0.5 {
         s += 1;
     }
     let hs = h / 2f64.powi(s);
-    let mut e = [[0.0; 4]; 4];
-    let mut term = [[0.0; 4]; 4];
-    for k in 0..4 {
+    let mut e = [[0.0; 6]; 6];
+    let mut term = [[0.0; 6]; 6];
+    for k in 0..6 {
         e[k][k] = 1.0;
         term[k][k] = 1.0;
     }
     for n in 1..30 {
-        let mut next = [[0.0; 4]; 4];
-        for r in 0..4 {
-            for c in 0..4 {
-                for k in 0..4 {
+        let mut next = [[0.0; 6]; 6];
+        for r in 0..6 {
+            for c in 0..6 {
+                for k in 0..6 {
                     next[r][c] += term[r][k] * a[k][c] * hs / f64::from(n);
                 }
             }
         }
         term = next;
-        for r in 0..4 {
-            for c in 0..4 {
+        for r in 0..6 {
+            for c in 0..6 {
                 e[r][c] += term[r][c];
             }
         }
     }
     for _ in 0..s {
-        let mut sq = [[0.0; 4]; 4];
-        for r in 0..4 {
-            for c in 0..4 {
-                for k in 0..4 {
+        let mut sq = [[0.0; 6]; 6];
+        for r in 0..6 {
+            for c in 0..6 {
+                for k in 0..6 {
                     sq[r][c] += e[r][k] * e[k][c];
                 }
             }
         }
         e = sq;
     }
-    let phi = [
-        [e[0][0], e[0][1], e[0][2]],
-        [e[1][0], e[1][1], e[1][2]],
-        [e[2][0], e[2][1], e[2][2]],
-    ];
-    (phi, [e[0][3], e[1][3], e[2][3]])
+    let mut phi = [[0.0; 5]; 5];
+    let mut gam = [0.0; 5];
+    for r in 0..5 {
+        for c in 0..5 {
+            phi[r][c] = e[r][c];
+        }
+        gam[r] = e[r][5];
+    }
+    (phi, gam)
 }
 
 /// How the observer-fed acceleration loop is built.
@@ -126,6 +160,7 @@ struct Model {
     structure: Structure,
     ts: f64,
     j_plant: f64,
+    shaft: Option<Shaft>,
     wc: f64,
     delay: f64,
     kp: f64,
@@ -168,6 +203,7 @@ impl Model {
             structure,
             ts,
             j_plant,
+            shaft: None,
             wc,
             delay,
             kp: f64::from(g.kp_vel),
@@ -255,13 +291,13 @@ impl Model {
         }
         let i_ref = s[IVEL] + s[AFB];
         // Plant: the old command until the delay ends, the new one after.
-        let (p1, g1) = plant_step(self.j_plant, self.wc, self.delay);
-        let (p2, g2) = plant_step(self.j_plant, self.wc, ts - self.delay);
-        let mut z = [0.0, s[W], s[I]];
-        let apply = |z: [f64; 3], p: &[[f64; 3]; 3], g: &[f64; 3], r: f64| {
-            let mut o = [0.0; 3];
+        let (p1, g1) = plant_step(self.j_plant, self.shaft, self.wc, self.delay);
+        let (p2, g2) = plant_step(self.j_plant, self.shaft, self.wc, ts - self.delay);
+        let mut z = [0.0, s[W], s[I], s[DELTA], s[WL]];
+        let apply = |z: [f64; 5], p: &[[f64; 5]; 5], g: &[f64; 5], r: f64| {
+            let mut o = [0.0; 5];
             for (r_i, o_i) in o.iter_mut().enumerate() {
-                *o_i = p[r_i][0] * z[0] + p[r_i][1] * z[1] + p[r_i][2] * z[2] + g[r_i] * r;
+                *o_i = (0..5).map(|c| p[r_i][c] * z[c]).sum::<f64>() + g[r_i] * r;
             }
             o
         };
@@ -269,6 +305,10 @@ impl Model {
         z = apply(z, &p2, &g2, i_ref);
         s[W] = z[1];
         s[I] = z[2];
+        // Without a shaft the load states are not part of the loop (no mode at z = 1).
+        let two_mass = self.shaft.is_some();
+        s[DELTA] = if two_mass { z[3] } else { 0.0 };
+        s[WL] = if two_mass { z[4] } else { 0.0 };
         s[UPREV] = i_ref;
         s[D4] = s[D3];
         s[D3] = s[D2];
@@ -361,11 +401,18 @@ fn bisect(lo: f32, hi: f32, mut stable: impl FnMut(f32) -> bool) -> f32 {
 
 /// Largest stable Ka/J_total up to `hi` (beyond the settings' 20 the model's Ka is set
 /// directly; the velocity PI does not depend on Ka with the PI sized for J_total).
-fn ka_limit(base: &DriveConfig, fc: f32, j: f64, st: Structure, act: Actuator, hi: f32) -> f32 {
+fn ka_limit(
+    base: &DriveConfig,
+    fc: f32,
+    plant: Plant,
+    st: Structure,
+    act: Actuator,
+    hi: f32,
+) -> f32 {
     let mut c = *base;
     c.accel_feedback.gain_fraction = 1.0;
     c.accel_feedback.filter = FilterConfig::FirstOrder { corner_hz: fc };
-    let mut m = Model::with(&c, j, st, act);
+    let mut m = plant.model(&c, st, act);
     let jt = m.ka;
     // Bisect on a log scale: the limits span three decades.
     let l = bisect(0.01f32.ln(), hi.ln(), |lf| {
@@ -381,6 +428,33 @@ fn ka_limit(base: &DriveConfig, fc: f32, j: f64, st: Structure, act: Actuator, h
 
 const JM: f64 = 0.117;
 const JT: f64 = 0.98;
+
+/// The mechanics around the controller.
+#[derive(Clone, Copy, Debug)]
+enum Plant {
+    /// A rigid inertia [s]: Jm (gears separated) or J_total (engaged, shaft rigid).
+    Rigid(f64),
+    /// Table 1 engaged through its shaft: Jm, Jl = 0.863 s, f_ar = 22.5 Hz, ζ = 0.05
+    /// (resonance 65 Hz), no lost motion.
+    TwoMass,
+}
+
+impl Plant {
+    fn model(self, cfg: &DriveConfig, st: Structure, act: Actuator) -> Model {
+        match self {
+            Plant::Rigid(j) => Model::with(cfg, j, st, act),
+            Plant::TwoMass => {
+                let mut m = Model::with(cfg, JM, st, act);
+                m.shaft = Some(Shaft {
+                    jl: JT - JM,
+                    w_ar: std::f64::consts::TAU * 22.5,
+                    zeta: 0.05,
+                });
+                m
+            }
+        }
+    }
+}
 
 /// Trap 1's inner loop. Around a rigid motor that is exactly the observer's model (J = Jm,
 /// torque = command), the first version's structure (â = u + d with the last tick's torque)
@@ -400,7 +474,7 @@ fn the_inner_loop_limit_is_gone() {
         let old = ka_limit(
             &base,
             fc,
-            JM,
+            Plant::Rigid(JM),
             Structure::OneTickLate,
             Actuator::Ideal,
             1000.0,
@@ -408,7 +482,7 @@ fn the_inner_loop_limit_is_gone() {
         let new = ka_limit(
             &base,
             fc,
-            JM,
+            Plant::Rigid(JM),
             Structure::ClosedForm,
             Actuator::Ideal,
             1000.0,
@@ -431,23 +505,54 @@ fn the_inner_loop_limit_is_gone() {
 fn acceleration_loop_limits_through_the_plant() {
     let base = DriveConfig::table1();
     println!("Observer-fed AFB (error form, 4 kHz, observer 75 Hz, PI sized for J_total), largest stable Ka/J_total (1000 = the search's end):");
-    println!("| filter corner [Hz] | one tick late, separated (Jm) | engaged (J_total) | closed form, separated (Jm) | engaged (J_total) |");
-    println!("|---|---|---|---|---|");
+    println!("| filter corner [Hz] | one tick late: separated (Jm) | rigid J_total | two-mass | closed form: separated (Jm) | rigid J_total | two-mass |");
+    println!("|---|---|---|---|---|---|---|");
     for fc in [25.0f32, 50.0, 100.0, 200.0, 400.0] {
-        let lim = |j, st| ka_limit(&base, fc, j, st, Actuator::Drive, 1000.0);
-        let (os, oe) = (
-            lim(JM, Structure::OneTickLate),
-            lim(JT, Structure::OneTickLate),
+        let lim = |p, st| ka_limit(&base, fc, p, st, Actuator::Drive, 1000.0);
+        let plants = [Plant::Rigid(JM), Plant::Rigid(JT), Plant::TwoMass];
+        let old = plants.map(|p| lim(p, Structure::OneTickLate));
+        let new = plants.map(|p| lim(p, Structure::ClosedForm));
+        println!(
+            "| {fc} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            old[0], old[1], old[2], new[0], new[1], new[2]
         );
-        let (cs, ce) = (
-            lim(JM, Structure::ClosedForm),
-            lim(JT, Structure::ClosedForm),
-        );
-        println!("| {fc} | {os:.2} | {oe:.2} | {cs:.2} | {ce:.2} |");
         let alpha = 1.0 - (-std::f64::consts::TAU * f64::from(fc) / 4000.0).exp();
         let old_inner = ((2.0 - alpha) / alpha * JM / JT) as f32;
-        assert!(cs >= os * 0.999 && ce >= oe * 0.999, "{fc} Hz");
-        assert!(cs > old_inner, "{fc} Hz: {cs} vs {old_inner}");
+        for (o, n) in old.iter().zip(&new) {
+            assert!(
+                *n >= o * 0.999,
+                "{fc} Hz: closed form {n} below one tick late {o}"
+            );
+            assert!(
+                *n > old_inner,
+                "{fc} Hz: {n} vs the old inner limit {old_inner}"
+            );
+        }
+    }
+    // No stability limit is left for these plants: as Ka grows the closed form tends to a
+    // fixed controller (g·Ka → J_model/b0, 1 − g → 1) that takes P back entirely, and the
+    // slowest mode's radius creeps to 1: the limit is the velocity loop's speed, not stability.
+    for frac in [1.0f64, 10.0, 100.0, 1000.0] {
+        let mut c = base;
+        c.accel_feedback.gain_fraction = 1.0;
+        let mut m = Plant::TwoMass.model(&c, Structure::ClosedForm, Actuator::Drive);
+        m.ka *= frac;
+        println!(
+            "two-mass, closed form, Ka = {frac}·J_total: ρ {:.6}",
+            spectral_radius(&m.period_matrix())
+        );
+    }
+    // The Table 1 default with Ka halved and doubled, on the two-mass plant too.
+    for scale in [0.5f32, 1.0, 2.0] {
+        let mut cfg = base;
+        cfg.accel_feedback.gain_fraction *= scale;
+        let r2 = spectral_radius(
+            &Plant::TwoMass
+                .model(&cfg, Structure::ClosedForm, Actuator::Drive)
+                .period_matrix(),
+        );
+        println!("default with Ka × {scale}: ρ two-mass {r2:.4}");
+        assert!(r2 < 1.0, "default × {scale}: {r2}");
     }
     for scale in [0.5f32, 1.0, 2.0] {
         let mut cfg = base;

@@ -1,7 +1,21 @@
-//! Output directories that are never half-written: files go to a hidden staging directory
-//! beside the target and are moved in only when the whole command succeeded.
+//! Output directories that are never half-written and never mix two runs.
+//!
+//! A command writes into a staging directory beside its target
+//! (`<parent>/.<name>.staging-<pid>`). [`Staging::commit`] then swaps it in with two
+//! renames: the old directory to `<parent>/.<name>.old-<pid>`, the staging directory to
+//! the target; then the old set is removed. A crash between the two renames leaves the
+//! target absent and the old set beside it; the next [`Staging::new`] for that target puts
+//! the old set back, so a reader sees the old set or the new one, never a mix. Staging
+//! directories of processes that no longer run are removed at the same time.
+//!
+//! [`Staging::new`] replaces the whole directory: after the commit it holds exactly what
+//! the command wrote. [`Staging::keeping_others`] is for a directory that collects the
+//! products of several commands (`out/` holds `pil-fig6/` from `pil` beside the report):
+//! entries of the old set that the new one lacks are carried over (hard links, so the old
+//! set stays intact until the swap).
 
 use crate::error::{HarnessError, Result};
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 
 /// A staging directory for one command's output.
@@ -9,31 +23,135 @@ use std::path::{Path, PathBuf};
 pub struct Staging {
     target: PathBuf,
     dir: PathBuf,
+    keep_others: bool,
     committed: bool,
 }
 
-impl Staging {
-    /// Creates `target` (and parents) and a staging directory inside it. Fails with the
-    /// path named if `target` cannot be created or written.
-    pub fn new(target: &Path) -> Result<Self> {
-        std::fs::create_dir_all(target).map_err(|e| HarnessError::io(target, e))?;
-        let dir = target.join(format!(".staging-{}", std::process::id()));
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir).map_err(|e| HarnessError::io(&dir, e))?;
+/// The steps of a commit, in order (a crash test stops after one of them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum CommitStep {
+    /// Old entries carried over into the staging directory (keeping mode).
+    CarriedOver,
+    /// The old set moved aside.
+    OldMovedAside,
+    /// The new set renamed into place.
+    NewInPlace,
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> HarnessError + '_ {
+    move |e| HarnessError::io(path, e)
+}
+
+/// `<parent>` and `<name>` of a target directory.
+fn split(target: &Path) -> Result<(PathBuf, OsString)> {
+    let name = target.file_name().ok_or_else(|| {
+        HarnessError::io(
+            target,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "an output directory needs a name (not `/`, `.` or `..`)",
+            ),
+        )
+    })?;
+    let parent = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    Ok((parent, name.to_os_string()))
+}
+
+fn sibling(parent: &Path, name: &OsString, kind: &str, pid: u32) -> PathBuf {
+    let mut s = OsString::from(".");
+    s.push(name);
+    s.push(format!(".{kind}-{pid}"));
+    parent.join(s)
+}
+
+/// The pid in `.<name>.<kind>-<pid>`, if `file` is such an entry.
+fn sibling_pid(file: &OsString, name: &OsString, kind: &str) -> Option<u32> {
+    let mut prefix = OsString::from(".");
+    prefix.push(name);
+    prefix.push(format!(".{kind}-"));
+    let file = file.to_str()?;
+    file.strip_prefix(prefix.to_str()?)?.parse().ok()
+}
+
+fn process_alive(pid: u32) -> bool {
+    pid == std::process::id() || Path::new("/proc").join(pid.to_string()).exists()
+}
+
+/// Puts back an old set a crashed commit left beside an absent target, and removes stale
+/// staging and old sets.
+fn recover(target: &Path, parent: &Path, name: &OsString) -> Result<()> {
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return Ok(());
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let path = entry.path();
+        if sibling_pid(&file, name, "old").is_some() {
+            if target.exists() {
+                std::fs::remove_dir_all(&path).map_err(io(&path))?;
+            } else {
+                std::fs::rename(&path, target).map_err(io(target))?;
+            }
+        } else if let Some(pid) = sibling_pid(&file, name, "staging") {
+            if pid == std::process::id() || !process_alive(pid) {
+                std::fs::remove_dir_all(&path).map_err(io(&path))?;
+            }
         }
-        std::fs::create_dir(&dir).map_err(|e| HarnessError::io(target, e))?;
+    }
+    Ok(())
+}
+
+/// Copies `from` into `to` as hard links (directories recreated).
+fn link_tree(from: &Path, to: &Path) -> Result<()> {
+    let meta = std::fs::symlink_metadata(from).map_err(io(from))?;
+    if meta.is_dir() {
+        std::fs::create_dir(to).map_err(io(to))?;
+        for entry in std::fs::read_dir(from).map_err(io(from))? {
+            let entry = entry.map_err(io(from))?;
+            link_tree(&entry.path(), &to.join(entry.file_name()))?;
+        }
+        Ok(())
+    } else if meta.file_type().is_symlink() {
+        let dest = std::fs::read_link(from).map_err(io(from))?;
+        std::os::unix::fs::symlink(dest, to).map_err(io(to))
+    } else {
+        std::fs::hard_link(from, to).map_err(io(to))
+    }
+}
+
+impl Staging {
+    /// A staging directory whose commit replaces `target` as a whole. Creates the parent,
+    /// recovers from a crashed earlier commit, and fails with the path named if the
+    /// location cannot be written.
+    pub fn new(target: &Path) -> Result<Self> {
+        let (parent, name) = split(target)?;
+        std::fs::create_dir_all(&parent).map_err(io(target))?;
+        recover(target, &parent, &name)?;
+        let dir = sibling(&parent, &name, "staging", std::process::id());
+        std::fs::create_dir(&dir).map_err(io(target))?;
         Ok(Self {
             target: target.to_path_buf(),
             dir,
+            keep_others: false,
             committed: false,
         })
+    }
+
+    /// Like [`Staging::new`], but the commit keeps the old entries the new set lacks.
+    pub fn keeping_others(target: &Path) -> Result<Self> {
+        let mut s = Self::new(target)?;
+        s.keep_others = true;
+        Ok(s)
     }
 
     /// Path of `name` inside the staging directory (subdirectories are created).
     pub fn path(&self, name: &str) -> Result<PathBuf> {
         let p = self.dir.join(name);
         if let Some(parent) = p.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| HarnessError::io(parent, e))?;
+            std::fs::create_dir_all(parent).map_err(io(parent))?;
         }
         Ok(p)
     }
@@ -46,23 +164,58 @@ impl Staging {
     /// Writes a text file into the staging directory.
     pub fn write(&self, name: &str, text: &str) -> Result<PathBuf> {
         let p = self.path(name)?;
-        std::fs::write(&p, text).map_err(|e| HarnessError::io(&p, e))?;
+        std::fs::write(&p, text).map_err(io(&p))?;
         Ok(p)
     }
 
-    /// Moves every staged entry into the target, replacing entries of the same name.
-    pub fn commit(mut self) -> Result<()> {
-        let entries = std::fs::read_dir(&self.dir).map_err(|e| HarnessError::io(&self.dir, e))?;
-        for entry in entries {
-            let entry = entry.map_err(|e| HarnessError::io(&self.dir, e))?;
-            let dest = self.target.join(entry.file_name());
-            if dest.is_dir() {
-                std::fs::remove_dir_all(&dest).map_err(|e| HarnessError::io(&dest, e))?;
+    /// Swaps the staged set in (see the module docs).
+    pub fn commit(self) -> Result<()> {
+        self.commit_until(None)
+    }
+
+    /// The commit, stopped after `crash_after` as if the process had died there (tests).
+    #[doc(hidden)]
+    pub fn commit_until(mut self, crash_after: Option<CommitStep>) -> Result<()> {
+        let stop = |step: CommitStep| crash_after == Some(step);
+        let (parent, name) = split(&self.target)?;
+        let had_old = self.target.is_dir();
+        if self.keep_others && had_old {
+            for entry in std::fs::read_dir(&self.target).map_err(io(&self.target))? {
+                let entry = entry.map_err(io(&self.target))?;
+                let dest = self.dir.join(entry.file_name());
+                if !dest.exists() {
+                    link_tree(&entry.path(), &dest)?;
+                }
             }
-            std::fs::rename(entry.path(), &dest).map_err(|e| HarnessError::io(&dest, e))?;
         }
+        if stop(CommitStep::CarriedOver) {
+            return self.die();
+        }
+        let old = sibling(&parent, &name, "old", std::process::id());
+        if had_old {
+            std::fs::rename(&self.target, &old).map_err(io(&self.target))?;
+        } else if self.target.exists() {
+            // A file where the directory should go.
+            std::fs::remove_file(&self.target).map_err(io(&self.target))?;
+        }
+        if stop(CommitStep::OldMovedAside) {
+            return self.die();
+        }
+        std::fs::rename(&self.dir, &self.target).map_err(io(&self.target))?;
         self.committed = true;
-        std::fs::remove_dir_all(&self.dir).map_err(|e| HarnessError::io(&self.dir, e))
+        if stop(CommitStep::NewInPlace) {
+            return self.die();
+        }
+        if had_old {
+            std::fs::remove_dir_all(&old).map_err(io(&old))?;
+        }
+        Ok(())
+    }
+
+    /// Ends here as a killed process would: nothing cleaned up.
+    fn die(self) -> Result<()> {
+        std::mem::forget(self);
+        Ok(())
     }
 }
 
@@ -79,21 +232,128 @@ impl Drop for Staging {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
+    use std::collections::BTreeMap;
+
+    /// Every file below `dir` with its content, and the hidden siblings beside it.
+    fn snapshot(dir: &Path) -> BTreeMap<String, String> {
+        fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<String, String>) {
+            for e in std::fs::read_dir(dir).unwrap().flatten() {
+                let p = e.path();
+                if p.is_dir() {
+                    walk(root, &p, out);
+                } else {
+                    let rel = p.strip_prefix(root).unwrap().display().to_string();
+                    out.insert(rel, std::fs::read_to_string(&p).unwrap());
+                }
+            }
+        }
+        let mut out = BTreeMap::new();
+        if dir.is_dir() {
+            walk(dir, dir, &mut out);
+        }
+        out
+    }
+
+    fn write_set(out: &Path, files: &[(&str, &str)]) {
+        let s = Staging::new(out).unwrap();
+        for (name, text) in files {
+            s.write(name, text).unwrap();
+        }
+        s.commit().unwrap();
+    }
+
+    fn siblings(parent: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(parent)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect();
+        v.sort();
+        v
+    }
 
     #[test]
-    fn dropped_staging_leaves_nothing_and_commit_moves_files() {
+    fn dropped_staging_leaves_nothing_and_commit_replaces_the_set() {
         let tmp = tempfile::tempdir().unwrap();
         let out = tmp.path().join("o");
         {
             let s = Staging::new(&out).unwrap();
             s.write("a.txt", "x").unwrap();
         }
-        assert_eq!(std::fs::read_dir(&out).unwrap().count(), 0);
-        let s = Staging::new(&out).unwrap();
-        s.write("sub/b.txt", "y").unwrap();
+        assert!(!out.exists() && siblings(tmp.path()).is_empty());
+        write_set(&out, &[("sub/b.txt", "y"), ("trace.svg", "fig6")]);
+        write_set(&out, &[("sub/b.txt", "z")]);
+        // Exactly the second run's files: no trace.svg of the first run beside them.
+        let expect: BTreeMap<String, String> = [("sub/b.txt".into(), "z".into())].into();
+        assert_eq!(snapshot(&out), expect);
+        assert!(siblings(tmp.path()).is_empty());
+    }
+
+    #[test]
+    fn keeping_others_carries_over_what_the_new_set_lacks() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("out");
+        write_set(&out, &[("pil-fig6/pil.json", "pil"), ("REPORT.md", "old")]);
+        let s = Staging::keeping_others(&out).unwrap();
+        s.write("REPORT.md", "new").unwrap();
         s.commit().unwrap();
-        assert_eq!(std::fs::read_to_string(out.join("sub/b.txt")).unwrap(), "y");
-        assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
+        let snap = snapshot(&out);
+        assert_eq!(snap.get("REPORT.md").map(String::as_str), Some("new"));
+        assert_eq!(
+            snap.get("pil-fig6/pil.json").map(String::as_str),
+            Some("pil")
+        );
+    }
+
+    #[test]
+    fn a_crash_at_any_commit_step_leaves_the_old_set_or_the_new_one() {
+        let old: &[(&str, &str)] = &[
+            ("summary.json", "fig4"),
+            ("trace.csv", "fig4"),
+            ("trace.png", "fig4"),
+        ];
+        let new: &[(&str, &str)] = &[("summary.json", "fig6"), ("trace.svg", "fig6")];
+        let set = |files: &[(&str, &str)]| -> BTreeMap<String, String> {
+            files
+                .iter()
+                .map(|(a, b)| ((*a).to_string(), (*b).to_string()))
+                .collect()
+        };
+        for (step, expect_new) in [
+            (CommitStep::CarriedOver, false),
+            (CommitStep::OldMovedAside, false),
+            (CommitStep::NewInPlace, true),
+        ] {
+            let tmp = tempfile::tempdir().unwrap();
+            let out = tmp.path().join("run");
+            write_set(&out, old);
+            let s = Staging::new(&out).unwrap();
+            for (name, text) in new {
+                s.write(name, text).unwrap();
+            }
+            s.commit_until(Some(step)).unwrap();
+            // The next command (here: the next staging of the same target) recovers.
+            drop(Staging::new(&out).unwrap());
+            let want = if expect_new { set(new) } else { set(old) };
+            assert_eq!(snapshot(&out), want, "crash after {step:?}");
+            assert!(
+                siblings(tmp.path()).is_empty(),
+                "crash after {step:?}: left {:?}",
+                siblings(tmp.path())
+            );
+        }
+    }
+
+    #[test]
+    fn a_stale_staging_directory_of_a_dead_process_is_removed() {
+        let tmp = tempfile::tempdir().unwrap();
+        let out = tmp.path().join("o");
+        // No process has pid u32::MAX - 1 (Linux pids stay below 2^22).
+        let stale = sibling(tmp.path(), &OsString::from("o"), "staging", u32::MAX - 1);
+        std::fs::create_dir_all(stale.join("big")).unwrap();
+        drop(Staging::new(&out).unwrap());
+        assert!(!stale.exists());
     }
 
     #[test]

@@ -15,7 +15,7 @@
 //! Files in `--out` DIR: `trace.csv`, `summary.json`, `trace.svg/png` (as `run`), plus
 //! `pil.json` (link statistics, fault), `pil-comparison.json` and `pil-comparison.md` (the
 //! bit-for-bit comparison with the host run of the same scenario), `firmware.defmt` (the
-//! firmware's defmt log) and `firmware.log` (decoded, when `defmt-print` is installed).
+//! firmware's defmt log) and `firmware.log` (decoded in-process by `fw-runner`'s defmt decoder).
 //!
 //! On a link fault (lost, corrupted or late frame, seen by either side) the run stops
 //! driving the firmware at that tick, waits for the firmware to show its latched safe state,
@@ -28,6 +28,8 @@ use crate::metrics::compute;
 use crate::output::Staging;
 use crate::runner::{run_with_backend, ControlBackend, RunOutput};
 use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
+use fw_runner::defmt_log::{LineFormat, LogDecoder};
+use fw_runner::provision;
 use pil_link::host::{FaultPlan, HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
 use pil_link::tick::{Commands, Sensors};
@@ -39,6 +41,9 @@ use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// The harness's reply deadlines it accepts, in ms.
+pub const REPLY_TIMEOUT_MS: std::ops::RangeInclusive<u64> = 1..=60_000;
 
 /// `hil-harness pil` arguments.
 #[derive(Clone, Debug, clap::Args)]
@@ -66,10 +71,11 @@ pub struct PilArgs {
     /// ms), skip-seq, corrupt-reply, drop-reply; TICK counts sensor frames from 0.
     #[arg(long, value_name = "KIND@TICK[:ARG]")]
     pub inject: Option<String>,
-    /// Firmware link watchdog: no frame for this long latches its safe state (ms).
+    /// Firmware link watchdog: no frame for this long latches its safe state (ms, 1 to
+    /// 1000: the firmware refuses others).
     #[arg(long, default_value_t = 1000)]
     pub watchdog_ms: u32,
-    /// Harness deadline for each reply (ms).
+    /// Harness deadline for each reply (ms, 1 to 60000).
     #[arg(long, default_value_t = 5000)]
     pub reply_timeout_ms: u64,
     /// Skip the bit-for-bit comparison with the host run.
@@ -104,20 +110,31 @@ pub struct FirmwareFault {
     pub expected_seq: u16,
     /// Sensor frames it had answered.
     pub ticks_done: u32,
-    /// Torque (current) reference it now commands, Q16.16 bits (0 = safe).
+    /// Whether the current-loop interrupt ran after the fault (else nothing is shown).
+    pub current_tick_ran: bool,
+    /// Torque (current) reference of that tick, Q16.16 bits (0 = safe).
     pub torque_cmd_bits: i32,
-    /// Voltage it now applies, Q16.16 bits (0 = safe).
-    pub voltage_cmd_bits: i32,
+    /// Voltage the board layer wrote to the PWM, Q16.16 bits (0 = safe).
+    pub pwm_voltage_bits: i32,
+    /// Level the board layer wrote to the enable pin (false = low = safe).
+    pub enable_pin: bool,
+    /// The harness's verdict on those outputs: tick ran, zero torque, zero PWM voltage,
+    /// enable pin low.
+    pub outputs_safe: bool,
 }
 
 impl From<FaultReport> for FirmwareFault {
     fn from(r: FaultReport) -> Self {
+        let o = r.outputs;
         Self {
             code: r.code.name().to_string(),
             expected_seq: r.expected_seq,
             ticks_done: r.ticks_done,
-            torque_cmd_bits: r.torque_cmd_bits,
-            voltage_cmd_bits: r.voltage_cmd_bits,
+            current_tick_ran: o.current_tick_ran,
+            torque_cmd_bits: o.torque_cmd_bits,
+            pwm_voltage_bits: o.pwm_voltage_bits,
+            enable_pin: o.enable_pin,
+            outputs_safe: o.are_safe(),
         }
     }
 }
@@ -300,15 +317,22 @@ pub struct PilOutcome {
 pub fn pil_command(args: &PilArgs) -> Result<String> {
     let o = run_pil(args)?;
     if let Some(f) = &o.link.fault {
-        let fw = f.firmware.as_ref().map_or_else(
-            || "the firmware never reported a latched safe state".to_string(),
-            |r| {
-                format!(
-                    "firmware latched {} (torque bits {}, voltage bits {})",
-                    r.code, r.torque_cmd_bits, r.voltage_cmd_bits
+        let fw =
+            f.firmware.as_ref().map_or_else(
+                || "the firmware never reported a latched safe state".to_string(),
+                |r| {
+                    format!(
+                    "firmware latched {}; its outputs are {} (torque bits {}, PWM voltage bits \
+                     {}, enable pin {}, tick after the fault {})",
+                    r.code,
+                    if r.outputs_safe { "safe" } else { "NOT SAFE" },
+                    r.torque_cmd_bits,
+                    r.pwm_voltage_bits,
+                    if r.enable_pin { "high" } else { "low" },
+                    if r.current_tick_ran { "ran" } else { "did not run" }
                 )
-            },
-        );
+                },
+            );
         return Err(HarnessError::Backend(format!(
             "PIL link fault at t = {:.4} s (current tick {}): {}; {fw}; trace up to the fault \
              written to {}",
@@ -353,6 +377,30 @@ pub fn pil_command(args: &PilArgs) -> Result<String> {
 /// Runs a scenario through the firmware in QEMU and writes its files (see the module docs).
 /// A link fault is not an `Err` here: it is in `link.fault`, with the trace cut before it.
 pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
+    let wd = &pil_link::WATCHDOG_MS_RANGE;
+    if !wd.contains(&args.watchdog_ms) {
+        return Err(HarnessError::config(
+            "--watchdog-ms",
+            format!(
+                "{} ms is outside the PIL protocol's watchdog range [{}, {}] ms (the firmware \
+                 refuses such a Hello with a Protocol fault)",
+                args.watchdog_ms,
+                wd.start(),
+                wd.end()
+            ),
+        ));
+    }
+    if !REPLY_TIMEOUT_MS.contains(&args.reply_timeout_ms) {
+        return Err(HarnessError::config(
+            "--reply-timeout-ms",
+            format!(
+                "{} ms is outside [{}, {}] ms",
+                args.reply_timeout_ms,
+                REPLY_TIMEOUT_MS.start(),
+                REPLY_TIMEOUT_MS.end()
+            ),
+        ));
+    }
     let cfg = resolve(&args.scenario, args.config.as_deref(), &args.set)?;
     // The link carries drive settings, not gains: the firmware designs its own. A
     // comparison run whose borrowed gains differ from its own design cannot run there.
@@ -378,6 +426,9 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         Some(p) => p.clone(),
         None => build_pil_image()?,
     };
+    if args.qemu == Path::new(provision::QEMU_BINARY) {
+        provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
+    }
     let staging = Staging::new(&args.out)?;
     let log_path = staging.path("firmware.defmt")?;
     let (mut qemu, stream) = Qemu::spawn(&QemuOptions {
@@ -447,6 +498,18 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
     };
     let exit = qemu.finish(Duration::from_secs(5));
     drop(qemu);
+    if let Some(p) = plan {
+        if fault.is_none() && p.at_tick >= frames {
+            return Err(HarnessError::config(
+                "--inject",
+                format!(
+                    "sensor frame {} is past the end of the run ({frames} sensor frames): \
+                     nothing was injected",
+                    p.at_tick
+                ),
+            ));
+        }
+    }
 
     let link_report = LinkReport {
         protocol_version: ack.protocol_version,
@@ -487,18 +550,9 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         write_json(&staging, "pil-comparison.json", c)?;
         staging.write("pil-comparison.md", &section_text(c, &link_report))?;
     }
-    decode_log(&elf, &log_path, &staging);
+    decode_log(&elf, &log_path, &staging)?;
+    // The commit replaces the whole directory: no comparison of an earlier run survives.
     staging.commit()?;
-    if comparison.is_none() {
-        // A comparison left by an earlier run in the same directory would describe another
-        // run: remove it.
-        for stale in ["pil-comparison.json", "pil-comparison.md"] {
-            let p = args.out.join(stale);
-            if p.exists() {
-                std::fs::remove_file(&p).map_err(|e| HarnessError::io(&p, e))?;
-            }
-        }
-    }
     Ok(PilOutcome {
         run,
         cfg,
@@ -525,43 +579,52 @@ fn write_json<T: Serialize>(staging: &Staging, name: &str, value: &T) -> Result<
     staging.write(name, &(text + "\n")).map(|_| ())
 }
 
-/// Decodes the firmware's defmt log with `defmt-print` when it is installed (best effort:
-/// the raw log stays in `firmware.defmt` either way).
-fn decode_log(elf: &Path, raw: &Path, staging: &Staging) {
-    let (Ok(input), Ok(out)) = (std::fs::File::open(raw), staging.path("firmware.log")) else {
-        return;
+/// Decodes the firmware's defmt log in-process into `firmware.log` (the raw log stays in
+/// `firmware.defmt`). A log that cannot be decoded says why in `firmware.log`.
+fn decode_log(elf: &Path, raw: &Path, staging: &Staging) -> Result<()> {
+    let bytes = std::fs::read(raw).map_err(|e| HarnessError::io(raw, e))?;
+    let lines = match LogDecoder::from_elf(elf) {
+        Ok(d) => d.decode_all(&bytes, LineFormat::Full),
+        Err(e) => vec![format!("(defmt log not decoded: {e})")],
     };
-    let Ok(output) = std::fs::File::create(&out) else {
-        return;
-    };
-    let status = Command::new("defmt-print")
-        .arg("-e")
-        .arg(elf)
-        .stdin(input)
-        .stdout(output)
-        .stderr(Stdio::null())
-        .status();
-    if !matches!(status, Ok(s) if s.success()) {
-        let _ = std::fs::remove_file(&out);
-    }
+    let mut text = lines.join("\n");
+    text.push('\n');
+    staging.write("firmware.log", &text).map(|_| ())
 }
 
 /// Builds the firmware's `pil` image for thumbv7em-none-eabihf and returns the ELF path.
 /// Uses its own target directory (`<target>/pil-firmware`) so it never waits on the lock of
-/// a host build that is running it (e.g. `cargo test`).
+/// a host build that is running it (e.g. `cargo test`). Adds the ARM target to the
+/// toolchain first if it lacks it.
 pub fn build_pil_image() -> Result<PathBuf> {
+    build_pil_image_with(&[])
+}
+
+/// [`build_pil_image`] with extra firmware features (each feature set in a target
+/// directory of its own, `<target>/pil-firmware-<features>`).
+pub fn build_pil_image_with(features: &[&str]) -> Result<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_else(|| PathBuf::from("."));
+    provision::ensure_arm_target(&root).map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
+    let dir_name = if features.is_empty() {
+        "pil-firmware".to_string()
+    } else {
+        format!("pil-firmware-{}", features.join("-"))
+    };
     let target_dir = std::env::var_os("CARGO_TARGET_DIR")
         .map_or_else(|| root.join("target"), PathBuf::from)
-        .join("pil-firmware");
+        .join(dir_name);
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let output = Command::new(&cargo)
-        .current_dir(&root)
+    let mut cmd = Command::new(&cargo);
+    cmd.current_dir(&root)
         .args(["build", "-p", "firmware", "--release"])
-        .args(["--target", "thumbv7em-none-eabihf", "--bin", "pil"])
+        .args(["--target", provision::ARM_TARGET, "--bin", "pil"]);
+    if !features.is_empty() {
+        cmd.arg("--features").arg(features.join(","));
+    }
+    let output = cmd
         .arg("--message-format=json-render-diagnostics")
         .env("CARGO_TARGET_DIR", &target_dir)
         .stderr(Stdio::inherit())

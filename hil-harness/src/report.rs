@@ -833,7 +833,7 @@ fn write_report(
 
 /// `hil-harness reproduce`.
 pub fn reproduce(out: &Path) -> Result<String> {
-    let staging = Staging::new(out)?;
+    let staging = Staging::keeping_others(out)?;
     let text = reproduce_into(staging.dir())?;
     // The PIL run needs QEMU and the ARM image, so `reproduce` does not start it; a run
     // left by `hil-harness pil --scenario fig6 --out out/pil-fig6` is reported, else a hint.

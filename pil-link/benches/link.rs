@@ -13,7 +13,9 @@ use controller_core::{Setpoint, VelocityInputs};
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use pil_link::tick::Sensors;
 use pil_link::wire::{Reader, Writer};
-use pil_link::{Decoder, FaultCode, FirmwareSession, Frame, FrameKind, Hello, Target, MAX_FRAME};
+use pil_link::{
+    Decoder, FaultCode, FirmwareSession, Frame, FrameKind, Hello, SafeOutputs, Target, MAX_FRAME,
+};
 
 fn sensors_frame(seq: u16) -> Frame {
     let s = Sensors::Velocity(VelocityInputs {
@@ -42,8 +44,11 @@ impl Target for Echo {
             .map_err(|_| FaultCode::BadPayload)?;
         out.u8(x).map(|_| ()).map_err(|_| FaultCode::BadPayload)
     }
-    fn enter_safe_state(&mut self) -> (i32, i32) {
-        (0, 0)
+    fn enter_safe_state(&mut self) -> SafeOutputs {
+        SafeOutputs {
+            current_tick_ran: true,
+            ..SafeOutputs::default()
+        }
     }
 }
 

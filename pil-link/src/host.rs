@@ -132,15 +132,20 @@ impl core::fmt::Display for HostError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Link(e) => write!(f, "harness detected a link fault: {e}"),
-            Self::FirmwareFault(r) => write!(
+            Self::FirmwareFault(r) => {
+                write!(
                 f,
-                "firmware latched its safe state: {} (expected frame {}, {} ticks done, torque bits {}, voltage bits {})",
+                "firmware latched its safe state: {} (expected frame {}, {} ticks done; outputs: \
+                 torque bits {}, PWM voltage bits {}, enable pin {}, tick after the fault {})",
                 r.code.name(),
                 r.expected_seq,
                 r.ticks_done,
-                r.torque_cmd_bits,
-                r.voltage_cmd_bits
-            ),
+                r.outputs.torque_cmd_bits,
+                r.outputs.pwm_voltage_bits,
+                if r.outputs.enable_pin { "high" } else { "low" },
+                if r.outputs.current_tick_ran { "ran" } else { "did NOT run" }
+            )
+            }
             Self::UnexpectedReply { expected, received } => {
                 write!(f, "expected a {expected:?} frame, got {received:?}")
             }

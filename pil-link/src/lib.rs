@@ -30,5 +30,5 @@ pub use frame::{
     Decoder, Frame, FrameKind, SequenceCheck, CRC_LEN, HEADER_LEN, MAX_FRAME, MAX_PAYLOAD,
     PROTOCOL_VERSION, SYNC,
 };
-pub use message::{FaultCode, FaultReport, Hello, HelloAck};
+pub use message::{FaultCode, FaultReport, Hello, HelloAck, SafeOutputs, WATCHDOG_MS_RANGE};
 pub use session::{FirmwareSession, SessionState, Target};

@@ -4,11 +4,16 @@
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 
+/// The link watchdogs the firmware accepts, in ms: a `Hello` outside this range is refused
+/// with a `Protocol` fault, so no host can switch the watchdog off by asking for years.
+pub const WATCHDOG_MS_RANGE: core::ops::RangeInclusive<u32> = 1..=1000;
+
 /// H→F `Hello`: opens a session.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Hello {
     /// The firmware latches a `Timeout` fault when no complete frame arrives for this long
-    /// once the session is open (ms of the target's SysTick time).
+    /// once the session is open (ms of the target's SysTick time), within
+    /// [`WATCHDOG_MS_RANGE`].
     pub watchdog_ms: u32,
 }
 
@@ -135,6 +140,33 @@ impl FaultCode {
     }
 }
 
+/// What the safe-state entry wrote, read back from the board layer's outputs (the values
+/// that reach the PWM and the enable pin), not from the controller's intentions.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SafeOutputs {
+    /// Whether the current-loop interrupt ran after the fault latched. If it did not, the
+    /// other fields are what the outputs held before, and the safe state is not shown.
+    pub current_tick_ran: bool,
+    /// Torque (current) reference of that tick, raw Q16.16 bits (0 in the safe state;
+    /// `i32::MIN`, never safe, when the tick did not run).
+    pub torque_cmd_bits: i32,
+    /// Voltage written to the PWM, raw Q16.16 bits (0, i.e. 50 % duty, in the safe state).
+    pub pwm_voltage_bits: i32,
+    /// Level written to the power stage's enable pin (low in the safe state).
+    pub enable_pin: bool,
+}
+
+impl SafeOutputs {
+    /// Whether these outputs are the safe state: the power stage off (enable pin low, zero
+    /// PWM voltage) and, if the controller ran after the fault, zero torque from it. (Before
+    /// any configuration no controller runs, and the stage off is the whole safe state.)
+    pub const fn are_safe(&self) -> bool {
+        !self.enable_pin
+            && self.pwm_voltage_bits == 0
+            && (!self.current_tick_ran || self.torque_cmd_bits == 0)
+    }
+}
+
 /// F→H `Fault`: the firmware is latched in its safe state. It sends one when it detects the
 /// fault and answers every later frame with the same report.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -145,21 +177,21 @@ pub struct FaultReport {
     pub expected_seq: u16,
     /// Number of sensor frames the firmware answered before the fault.
     pub ticks_done: u32,
-    /// Torque (current) reference the firmware now commands, raw bits of the controller's
-    /// fixed-point type (0 in the safe state).
-    pub torque_cmd_bits: i32,
-    /// Voltage the firmware now commands, raw bits (0 in the safe state).
-    pub voltage_cmd_bits: i32,
+    /// The outputs after the safe-state entry, as the board layer wrote them.
+    pub outputs: SafeOutputs,
 }
 
 impl FaultReport {
     /// Payload bytes.
     pub fn encode(&self, w: &mut Writer) -> Result<(), LinkError> {
+        let o = &self.outputs;
         w.u8(self.code as u8)?
             .u16(self.expected_seq)?
             .u32(self.ticks_done)?
-            .i32(self.torque_cmd_bits)?
-            .i32(self.voltage_cmd_bits)
+            .u8(u8::from(o.current_tick_ran))?
+            .i32(o.torque_cmd_bits)?
+            .i32(o.pwm_voltage_bits)?
+            .u8(u8::from(o.enable_pin))
             .map(|_| ())
     }
 
@@ -168,12 +200,27 @@ impl FaultReport {
         let len = u8::try_from(payload.len()).unwrap_or(u8::MAX);
         let mut r = Reader::new(FrameKind::Fault, payload);
         let code = FaultCode::from_byte(r.u8()?, len)?;
+        let flag = |b: u8| match b {
+            0 => Ok(false),
+            1 => Ok(true),
+            _ => Err(LinkError::BadPayload {
+                kind: FrameKind::Fault as u8,
+                len,
+            }),
+        };
+        let expected_seq = r.u16()?;
+        let ticks_done = r.u32()?;
+        let outputs = SafeOutputs {
+            current_tick_ran: flag(r.u8()?)?,
+            torque_cmd_bits: r.i32()?,
+            pwm_voltage_bits: r.i32()?,
+            enable_pin: flag(r.u8()?)?,
+        };
         let out = Self {
             code,
-            expected_seq: r.u16()?,
-            ticks_done: r.u32()?,
-            torque_cmd_bits: r.i32()?,
-            voltage_cmd_bits: r.i32()?,
+            expected_seq,
+            ticks_done,
+            outputs,
         };
         r.finish()?;
         Ok(out)
@@ -191,9 +238,14 @@ mod tests {
             code: FaultCode::OutOfSequence,
             expected_seq: 41,
             ticks_done: 40,
-            torque_cmd_bits: 0,
-            voltage_cmd_bits: 0,
+            outputs: SafeOutputs {
+                current_tick_ran: true,
+                torque_cmd_bits: -3,
+                pwm_voltage_bits: 7,
+                enable_pin: true,
+            },
         };
+        assert!(!f.outputs.are_safe(), "torque, voltage and enable are on");
         let mut w = Writer::new();
         f.encode(&mut w).unwrap();
         assert_eq!(FaultReport::decode(w.as_slice()), Ok(f));
@@ -204,6 +256,48 @@ mod tests {
             Err(LinkError::BadPayload { .. })
         ));
         assert!(FaultReport::decode(&w.as_slice()[..5]).is_err());
+        // An enable byte other than 0 or 1 is a bad payload, not "on".
+        let mut bad_flag = w.as_slice().to_vec();
+        *bad_flag.last_mut().unwrap() = 2;
+        assert!(FaultReport::decode(&bad_flag).is_err());
+    }
+
+    #[test]
+    fn only_the_stage_off_and_zero_torque_from_a_tick_that_ran_are_safe() {
+        let safe = SafeOutputs {
+            current_tick_ran: true,
+            ..SafeOutputs::default()
+        };
+        assert!(safe.are_safe());
+        let not_run = SafeOutputs {
+            torque_cmd_bits: i32::MIN,
+            ..SafeOutputs::default()
+        };
+        assert!(not_run.are_safe(), "no controller ran, the stage is off");
+        for unsafe_one in [
+            SafeOutputs {
+                enable_pin: true,
+                ..not_run
+            },
+            SafeOutputs {
+                pwm_voltage_bits: 5,
+                ..not_run
+            },
+            SafeOutputs {
+                torque_cmd_bits: 1,
+                ..safe
+            },
+            SafeOutputs {
+                pwm_voltage_bits: -1,
+                ..safe
+            },
+            SafeOutputs {
+                enable_pin: true,
+                ..safe
+            },
+        ] {
+            assert!(!unsafe_one.are_safe(), "{unsafe_one:?}");
+        }
     }
 
     #[test]

@@ -4,12 +4,18 @@
 //!
 //! ```text
 //! AwaitHello --Hello--> Open --Stop--> Stopped
-//!                        |  any link error, sequence gap, watchdog expiry
-//!                        v
-//!                     Faulted (latched: safe state, every frame answered with Fault)
+//!     |                  |  any link error, sequence gap, watchdog expiry,
+//!     | Hello with a     |  a second Config
+//!     | bad watchdog     v
+//!     +------------> Faulted (latched: safe state, every frame answered with Fault)
 //! ```
+//!
+//! A session nobody talks to ends: [`FirmwareSession::abandoned`] tells the firmware to
+//! exit (which ends QEMU) when no `Hello` came within [`HELLO_WAIT_MS`] of boot, or when a
+//! faulted session hears nothing for twice its watchdog plus [`ABANDON_GRACE_MS`], as when
+//! the harness was killed.
 
-use crate::message::{FaultCode, FaultReport, Hello, HelloAck};
+use crate::message::{FaultCode, FaultReport, Hello, HelloAck, SafeOutputs, WATCHDOG_MS_RANGE};
 use crate::wire::Writer;
 use crate::{Decoder, Frame, FrameKind, SequenceCheck, PROTOCOL_VERSION};
 
@@ -19,10 +25,16 @@ pub trait Target {
     fn configure(&mut self, payload: &[u8]) -> Result<(), FaultCode>;
     /// Runs one controller tick on a `Sensors` payload and writes the `Commands` payload.
     fn tick(&mut self, sensors: &[u8], commands: &mut Writer) -> Result<(), FaultCode>;
-    /// Enters the safe state (zero torque, fault latched) and returns the raw bits of the
-    /// torque and voltage commands now applied, so the report shows what is really output.
-    fn enter_safe_state(&mut self) -> (i32, i32);
+    /// Enters the safe state (zero torque, fault latched, power stage disabled) and returns
+    /// what it wrote, read back from the board layer's outputs, so the report shows what is
+    /// really output.
+    fn enter_safe_state(&mut self) -> SafeOutputs;
 }
+
+/// How long after boot (time 0) the firmware waits for a `Hello` before it gives up.
+pub const HELLO_WAIT_MS: u32 = 30_000;
+/// Silence a faulted session tolerates beyond twice its watchdog before it gives up.
+pub const ABANDON_GRACE_MS: u32 = 2_000;
 
 /// Where the session is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,12 +99,15 @@ impl FirmwareSession {
             SessionState::Stopped { .. } => None,
             // Before Hello the line may carry start-up noise: only an intact Hello counts.
             SessionState::AwaitHello => match decoded {
-                Ok(Some(frame)) if frame.kind == FrameKind::Hello => self.open(&frame, now_ms),
+                Ok(Some(frame)) if frame.kind == FrameKind::Hello => {
+                    self.open(&frame, now_ms, target)
+                }
                 _ => None,
             },
             SessionState::Faulted(report) => match decoded {
                 Ok(None) => None,
                 Ok(Some(frame)) => {
+                    self.last_frame_ms = now_ms;
                     if frame.kind == FrameKind::Stop {
                         self.state = SessionState::Stopped { faulted: true };
                     }
@@ -123,11 +138,31 @@ impl FirmwareSession {
         None
     }
 
-    fn open(&mut self, frame: &Frame, now_ms: u32) -> Option<Frame> {
+    /// Whether nobody is driving this session any more (see the module docs): the firmware
+    /// should then exit.
+    pub fn abandoned(&self, now_ms: u32) -> bool {
+        match self.state {
+            SessionState::AwaitHello => now_ms > HELLO_WAIT_MS,
+            SessionState::Faulted(_) => {
+                let limit = self
+                    .watchdog_ms
+                    .saturating_mul(2)
+                    .saturating_add(ABANDON_GRACE_MS);
+                now_ms.wrapping_sub(self.last_frame_ms) > limit
+            }
+            SessionState::Open | SessionState::Stopped { .. } => false,
+        }
+    }
+
+    fn open<T: Target>(&mut self, frame: &Frame, now_ms: u32, target: &mut T) -> Option<Frame> {
         let hello = Hello::decode(frame.payload()).ok()?;
-        self.watchdog_ms = hello.watchdog_ms;
         self.seq = SequenceCheck::new(frame.seq.wrapping_add(1));
         self.last_frame_ms = now_ms;
+        if !WATCHDOG_MS_RANGE.contains(&hello.watchdog_ms) {
+            // A watchdog of 0 or of days would let a dead host keep the outputs on.
+            return self.latch(FaultCode::Protocol, target);
+        }
+        self.watchdog_ms = hello.watchdog_ms;
         self.state = SessionState::Open;
         let ack = HelloAck {
             protocol_version: PROTOCOL_VERSION,
@@ -149,6 +184,9 @@ impl FirmwareSession {
             return reply;
         }
         match frame.kind {
+            // A second Config would reset the controller and clear a latched controller
+            // fault without an operator: refused.
+            FrameKind::Config if self.configured => self.latch(FaultCode::Protocol, target),
             FrameKind::Config => match target.configure(frame.payload()) {
                 Ok(()) => {
                     self.configured = true;
@@ -175,13 +213,12 @@ impl FirmwareSession {
     }
 
     fn latch<T: Target>(&mut self, code: FaultCode, target: &mut T) -> Option<Frame> {
-        let (torque_cmd_bits, voltage_cmd_bits) = target.enter_safe_state();
+        let outputs = target.enter_safe_state();
         let report = FaultReport {
             code,
             expected_seq: self.seq.expected(),
             ticks_done: self.ticks_done,
-            torque_cmd_bits,
-            voltage_cmd_bits,
+            outputs,
         };
         self.state = SessionState::Faulted(report);
         fault_frame(&report)

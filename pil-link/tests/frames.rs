@@ -7,7 +7,9 @@
     clippy::panic
 )]
 
-use pil_link::{Decoder, Frame, FrameKind, LinkError, SequenceCheck, MAX_FRAME, MAX_PAYLOAD};
+use pil_link::{
+    Decoder, Frame, FrameKind, LinkError, SequenceCheck, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION,
+};
 use proptest::prelude::*;
 
 fn encode(frame: &Frame) -> Vec<u8> {
@@ -50,7 +52,17 @@ fn wire_layout_is_as_documented() {
     let wire = encode(&frame);
     assert_eq!(
         &wire[..9],
-        &[0xA5, 0x5A, 1, 0x05, 0x34, 0x12, 2, 0xDE, 0xAD]
+        &[
+            0xA5,
+            0x5A,
+            PROTOCOL_VERSION,
+            0x05,
+            0x34,
+            0x12,
+            2,
+            0xDE,
+            0xAD
+        ]
     );
     let crc = pil_link::crc32(&wire[2..9]);
     assert_eq!(&wire[9..], &crc.to_le_bytes());
@@ -80,14 +92,15 @@ fn bad_length_byte_is_reported_and_decoder_resyncs() {
 #[test]
 fn intact_frame_of_another_version_is_bad_version() {
     let mut wire = encode(&Frame::new(FrameKind::Hello, 0, &[1, 2, 3, 4]).unwrap());
-    wire[2] = 2;
+    let other = PROTOCOL_VERSION.wrapping_add(1);
+    wire[2] = other;
     let n = wire.len();
     let crc = pil_link::crc32(&wire[2..n - 4]);
     wire[n - 4..].copy_from_slice(&crc.to_le_bytes());
     let mut d = Decoder::new();
     assert_eq!(
         decode_all(&mut d, &wire),
-        vec![Err(LinkError::BadVersion { received: 2 })]
+        vec![Err(LinkError::BadVersion { received: other })]
     );
 }
 

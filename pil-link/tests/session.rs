@@ -10,7 +10,9 @@
 
 use pil_link::host::{FaultPlan, HostError, HostLink};
 use pil_link::wire::{Reader, Writer};
-use pil_link::{FaultCode, FirmwareSession, FrameKind, LinkError, SessionState, Target};
+use pil_link::{
+    FaultCode, FirmwareSession, FrameKind, LinkError, SafeOutputs, SessionState, Target,
+};
 use std::io::{Read, Write};
 use std::os::unix::net::UnixStream;
 use std::thread;
@@ -38,9 +40,13 @@ impl Target for Doubler {
             .map(|_| ())
             .map_err(|_| FaultCode::BadPayload)
     }
-    fn enter_safe_state(&mut self) -> (i32, i32) {
+    fn enter_safe_state(&mut self) -> SafeOutputs {
         self.output = 0;
-        (self.output, 0)
+        SafeOutputs {
+            current_tick_ran: true,
+            torque_cmd_bits: self.output,
+            ..SafeOutputs::default()
+        }
     }
 }
 
@@ -152,7 +158,7 @@ fn corrupted_request_is_caught_by_the_firmware() {
         Some(HostError::FirmwareFault(r)) => {
             assert_eq!(r.code, FaultCode::BadCrc);
             assert_eq!(r.ticks_done, 10);
-            assert_eq!((r.torque_cmd_bits, r.voltage_cmd_bits), (0, 0));
+            assert!(r.outputs.are_safe(), "{:?}", r.outputs);
         }
         other => panic!("harness did not report the firmware fault: {other:?}"),
     }

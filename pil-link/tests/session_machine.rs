@@ -7,16 +7,18 @@
     clippy::panic
 )]
 
+use pil_link::session::{ABANDON_GRACE_MS, HELLO_WAIT_MS};
 use pil_link::wire::Writer;
 use pil_link::{
-    FaultCode, FaultReport, FirmwareSession, Frame, FrameKind, Hello, SessionState, Target,
-    MAX_FRAME,
+    FaultCode, FaultReport, FirmwareSession, Frame, FrameKind, Hello, SafeOutputs, SessionState,
+    Target, MAX_FRAME, WATCHDOG_MS_RANGE,
 };
 
 /// Stand-in target: counts calls, refuses an empty config, outputs 5 until made safe.
 #[derive(Default)]
 struct Probe {
     ticks: u32,
+    configs: u32,
     safe: bool,
 }
 
@@ -25,6 +27,7 @@ impl Target for Probe {
         if payload.is_empty() {
             Err(FaultCode::Config)
         } else {
+            self.configs += 1;
             Ok(())
         }
     }
@@ -32,9 +35,12 @@ impl Target for Probe {
         self.ticks += 1;
         out.i32(5).map(|_| ()).map_err(|_| FaultCode::BadPayload)
     }
-    fn enter_safe_state(&mut self) -> (i32, i32) {
+    fn enter_safe_state(&mut self) -> SafeOutputs {
         self.safe = true;
-        (0, 0)
+        SafeOutputs {
+            current_tick_ran: true,
+            ..SafeOutputs::default()
+        }
     }
 }
 
@@ -167,4 +173,65 @@ fn a_clean_stop_is_acknowledged() {
     assert_eq!((r[0].kind, r[0].seq), (FrameKind::Stop, 11));
     assert_eq!(s.state(), SessionState::Stopped { faulted: false });
     assert!(!t.safe);
+}
+
+#[test]
+fn a_hello_with_a_watchdog_outside_the_range_is_refused_with_a_protocol_fault() {
+    assert_eq!(WATCHDOG_MS_RANGE, 1..=1000);
+    for bad in [0, 1001, 86_400_000, u32::MAX] {
+        let mut s = FirmwareSession::new(1);
+        let mut t = Probe::default();
+        let r = feed(&mut s, &mut t, &hello(bad), 0);
+        assert_eq!(r.len(), 1, "watchdog {bad}");
+        assert_eq!(report(&r[0]).code, FaultCode::Protocol, "watchdog {bad}");
+        assert!(t.safe, "watchdog {bad}: safe state entered");
+        assert!(matches!(s.state(), SessionState::Faulted(_)));
+        // No Config and no tick is taken afterwards.
+        feed(&mut s, &mut t, &bytes(FrameKind::Config, 11, &[1]), 1);
+        assert!(t.configs == 0 && t.ticks == 0, "watchdog {bad}");
+    }
+    for good in [1, 1000] {
+        let (s, _) = open(good);
+        assert_eq!(s.state(), SessionState::Open);
+    }
+}
+
+#[test]
+fn a_second_config_while_running_is_a_protocol_fault() {
+    let (mut s, mut t) = open(100);
+    let r = feed(&mut s, &mut t, &bytes(FrameKind::Config, 11, &[1]), 1);
+    assert_eq!(r[0].kind, FrameKind::ConfigAck);
+    feed(&mut s, &mut t, &bytes(FrameKind::Sensors, 12, &[1]), 2);
+    let configs = t.configs;
+    let r = feed(&mut s, &mut t, &bytes(FrameKind::Config, 13, &[1]), 3);
+    assert_eq!(report(&r[0]).code, FaultCode::Protocol);
+    assert_eq!(
+        t.configs, configs,
+        "the controller was not configured again"
+    );
+    assert!(t.safe);
+}
+
+#[test]
+fn a_session_nobody_drives_is_abandoned() {
+    // No Hello: abandoned only after HELLO_WAIT_MS from boot.
+    let s = FirmwareSession::new(1);
+    assert!(!s.abandoned(HELLO_WAIT_MS));
+    assert!(s.abandoned(HELLO_WAIT_MS + 1));
+    // Open: never abandoned (the watchdog latches first).
+    let (mut s, mut t) = open(100);
+    assert!(!s.abandoned(1_000_000));
+    // Faulted by the watchdog at 101 ms: abandoned after 2·100 + grace of silence.
+    let f = s.poll_watchdog(101, &mut t).unwrap();
+    assert_eq!(report(&f).code, FaultCode::Timeout);
+    let limit = 200 + ABANDON_GRACE_MS;
+    assert!(!s.abandoned(limit));
+    assert!(s.abandoned(limit + 1));
+    // A frame after the fault (the harness asking) restarts the count.
+    feed(&mut s, &mut t, &bytes(FrameKind::Sensors, 11, &[1]), limit);
+    assert!(!s.abandoned(2 * limit));
+    assert!(s.abandoned(2 * limit + 1));
+    // Stopped: the firmware exits anyway.
+    feed(&mut s, &mut t, &bytes(FrameKind::Stop, 12, &[]), 2 * limit);
+    assert!(!s.abandoned(u32::MAX));
 }

@@ -34,7 +34,9 @@ mod target {
     use firmware::rt::exit;
     use pil_link::tick::{Commands, Sensors};
     use pil_link::wire::Writer;
-    use pil_link::{settings, FaultCode, FirmwareSession, Frame, SessionState, Target, MAX_FRAME};
+    use pil_link::{
+        settings, FaultCode, FirmwareSession, Frame, SafeOutputs, SessionState, Target, MAX_FRAME,
+    };
 
     use super::pil_board::{
         ByteRing, LinkCurrentIo, LinkSetpoint, LinkVelocityIo, APPLIED, CURRENT_IN,
@@ -136,25 +138,41 @@ mod target {
             reply.encode(commands).map_err(|_| FaultCode::BadPayload)
         }
 
-        fn enter_safe_state(&mut self) -> (i32, i32) {
-            // Fault input active, operator enable off; one velocity tick latches the
-            // controller's fault, one current tick then commands and applies zero.
-            LINK_FAULT.store(true, Ordering::Relaxed);
-            LOOPS.with_app(|app| app.set_enable_request(false));
+        fn enter_safe_state(&mut self) -> SafeOutputs {
+            // Fault input active: one velocity tick latches the controller's
+            // `Fault::External` (it must run before the enable request drops, since a held
+            // app skips the controller). Then operator enable off, and one current tick
+            // commands and applies zero with the enable pin low. (The
+            // `test-unsafe-keep-outputs-on` build skips this on purpose, so the PIL tests
+            // can show that such a firmware fails the safe-state check.)
+            let keep_on = cfg!(feature = "test-unsafe-keep-outputs-on");
+            if !keep_on {
+                LINK_FAULT.store(true, Ordering::Relaxed);
+            }
             let _ = run_isr(Irq::Timer1, &VELOCITY_OUT);
+            if !keep_on {
+                LOOPS.with_app(|app| app.set_enable_request(false));
+            }
             let out = run_isr(Irq::Timer0, &CURRENT_OUT);
+            // What the board layer wrote to the PWM and the enable pin, not what the
+            // controller meant to write.
             let applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
+            let outputs = SafeOutputs {
+                current_tick_ran: out.is_some(),
+                // Unknown when the tick did not run: say so with a value that is never safe.
+                torque_cmd_bits: out.map_or(i32::MIN, |o| o.current_ref_pu.to_bits()),
+                pwm_voltage_bits: applied.voltage_bits,
+                enable_pin: applied.enabled,
+            };
             defmt::warn!(
-                "pil: safe state: fault {}, current ref {=i32}, voltage {=i32}, enabled {=bool}",
+                "pil: safe state: fault {}, current ref {=i32}, PWM voltage {=i32}, enable pin {=bool}, tick ran {=bool}",
                 defmt::Debug2Format(&LOOPS.with_app(|app| app.fault()).flatten()),
-                out.map_or(0, |o| o.current_ref_pu.to_bits()),
-                applied.voltage_bits,
-                applied.enabled
+                outputs.torque_cmd_bits,
+                outputs.pwm_voltage_bits,
+                outputs.enable_pin,
+                outputs.current_tick_ran
             );
-            (
-                out.map_or(0, |o| o.current_ref_pu.to_bits()),
-                applied.voltage_bits,
-            )
+            outputs
         }
     }
 
@@ -214,10 +232,19 @@ mod target {
                     exit(!faulted);
                 }
             }
-            if let Some(frame) = session.poll_watchdog(NOW_MS.load(Ordering::Relaxed), &mut target)
-            {
+            let now = NOW_MS.load(Ordering::Relaxed);
+            if let Some(frame) = session.poll_watchdog(now, &mut target) {
                 defmt::warn!("pil: watchdog expired");
                 send(&frame);
+            }
+            if session.abandoned(now) {
+                // Nobody drives the link (the harness died): exit, which ends QEMU.
+                defmt::warn!(
+                    "pil: no harness on the link at {=u32} ms ({}): exiting",
+                    now,
+                    defmt::Debug2Format(&session.state())
+                );
+                exit(false);
             }
             // Sleep until the next byte or SysTick; checked with interrupts masked so a byte
             // arriving between the check and WFI still wakes us (WFI wakes on pending).

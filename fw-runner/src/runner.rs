@@ -1,0 +1,265 @@
+//! The cargo runner of `thumbv7em-none-eabihf`: boots an ELF on QEMU's mps2-an386
+//! (Cortex-M4F) and exits with the firmware's semihosting exit status (0 = pass; a panic
+//! or HardFault exits 1).
+//!
+//! * `-icount shift=0,sleep=off`: one instruction is one virtual ns, and idle time (WFI)
+//!   jumps straight to the next timer deadline, so timer periods, SysTick readings and the
+//!   instruction counts of `cargo fw-bench` are exact and repeatable.
+//! * Semihosting output (QEMU's standard output) is the binary defmt stream; it is decoded
+//!   as it arrives and printed one line per frame on standard output.
+//! * UART0, the board's console (trace dumps), goes to standard error through a Unix
+//!   socket. `UART_INPUT=<file>` feeds that file to UART0's receiver (a `d` asks the
+//!   firmware for a trace dump): `UART_INPUT=<(printf d) cargo fw-run`.
+//! * `QEMU_EXTRA` adds QEMU arguments; `QEMU_TIMEOUT` (s, default 120) bounds the run.
+//!
+//! Runner options, first after the ELF: `--plain-log` prints messages without level or
+//! timestamp (`cargo fw-bench`); `--expect-crash` passes only on exit status 1 with a
+//! `HardFault` or `panic` line in the log (`cargo fw-crash-check`). Further arguments go to
+//! QEMU.
+
+use crate::defmt_log::{LineFormat, LogDecoder};
+use crate::provision::{ensure_qemu, QEMU_BINARY};
+use std::ffi::OsString;
+use std::io::{Read, Write};
+use std::os::unix::net::UnixListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+/// What the runner was asked to do.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunnerArgs {
+    /// The firmware image.
+    pub elf: PathBuf,
+    /// How log lines are printed.
+    pub format: LineFormat,
+    /// Pass only on a logged crash with exit status 1.
+    pub expect_crash: bool,
+    /// Extra QEMU arguments after the runner options.
+    pub qemu_args: Vec<OsString>,
+}
+
+/// Parses the runner's arguments (without the program name).
+pub fn parse_args(args: impl IntoIterator<Item = OsString>) -> Result<RunnerArgs, String> {
+    let mut args = args.into_iter();
+    let elf = args
+        .next()
+        .map(PathBuf::from)
+        .ok_or("usage: fw-runner ELF [--plain-log] [--expect-crash] [QEMU ARGS...]")?;
+    let mut out = RunnerArgs {
+        elf,
+        format: LineFormat::Full,
+        expect_crash: false,
+        qemu_args: Vec::new(),
+    };
+    let mut options = true;
+    for a in args {
+        match a.to_str() {
+            Some("--plain-log") if options => out.format = LineFormat::Plain,
+            Some("--expect-crash") if options => out.expect_crash = true,
+            _ => {
+                options = false;
+                out.qemu_args.push(a);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Whether a decoded log line reports a crash.
+#[must_use]
+pub fn is_crash_line(line: &str) -> bool {
+    line.contains("HardFault") || line.contains("panic")
+}
+
+/// The exit status the runner returns for `--expect-crash`, given QEMU's status and
+/// whether a crash line was logged.
+#[must_use]
+pub fn expected_crash_status(qemu_status: Option<i32>, crash_logged: bool) -> i32 {
+    if qemu_status == Some(1) && crash_logged {
+        0
+    } else {
+        1
+    }
+}
+
+/// Copies UART0 to standard error once QEMU connects, after sending `UART_INPUT`.
+fn serve_uart(listener: UnixListener, input: Option<PathBuf>) {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let mut stream = loop {
+        match listener.accept() {
+            Ok((s, _)) => break s,
+            Err(_) if Instant::now() < deadline => std::thread::sleep(Duration::from_millis(5)),
+            Err(_) => return,
+        }
+    };
+    let _ = stream.set_nonblocking(false);
+    if let Some(path) = input {
+        match std::fs::read(&path) {
+            Ok(bytes) => {
+                let _ = stream.write_all(&bytes);
+            }
+            Err(e) => eprintln!("fw-runner: cannot read UART_INPUT {}: {e}", path.display()),
+        }
+    }
+    let _ = std::io::copy(&mut stream, &mut std::io::stderr());
+}
+
+/// Kills QEMU when the run takes longer than `limit`.
+fn watchdog(child: Arc<Mutex<Child>>, limit: Duration, fired: Arc<Mutex<bool>>) {
+    let start = Instant::now();
+    loop {
+        std::thread::sleep(Duration::from_millis(20));
+        let mut c = child.lock().unwrap_or_else(PoisonError::into_inner);
+        if !matches!(c.try_wait(), Ok(None)) {
+            return;
+        }
+        if start.elapsed() > limit {
+            *fired.lock().unwrap_or_else(PoisonError::into_inner) = true;
+            let _ = c.kill();
+            return;
+        }
+    }
+}
+
+fn spawn_qemu(args: &RunnerArgs, socket: &Path) -> Result<Child, String> {
+    let mut cmd = Command::new(QEMU_BINARY);
+    cmd.args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+        .args(["-nographic", "-monitor", "none"])
+        .arg("-chardev")
+        .arg(format!("socket,id=uart0,path={}", socket.display()))
+        .args(["-serial", "chardev:uart0"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", "shift=0,sleep=off"]);
+    if let Ok(extra) = std::env::var("QEMU_EXTRA") {
+        cmd.args(extra.split_whitespace());
+    }
+    cmd.arg("-kernel")
+        .arg(&args.elf)
+        .args(&args.qemu_args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .map_err(|e| format!("cannot start {QEMU_BINARY}: {e}"))
+}
+
+/// Runs the image and returns the runner's exit status.
+pub fn run(args: &RunnerArgs) -> Result<i32, String> {
+    ensure_qemu().map_err(|e| e.to_string())?;
+    let decoder = LogDecoder::from_elf(&args.elf).map_err(|e| e.to_string())?;
+    let limit_s: u64 = match std::env::var("QEMU_TIMEOUT") {
+        Ok(v) => v
+            .parse()
+            .map_err(|_| format!("QEMU_TIMEOUT must be whole seconds, got {v:?}"))?,
+        Err(_) => 120,
+    };
+    let dir = tempfile_dir()?;
+    let socket = dir.join("uart0.sock");
+    let listener = UnixListener::bind(&socket).map_err(|e| format!("UART socket: {e}"))?;
+    listener
+        .set_nonblocking(true)
+        .map_err(|e| format!("UART socket: {e}"))?;
+    let input = std::env::var_os("UART_INPUT").map(PathBuf::from);
+    let uart = std::thread::spawn(move || serve_uart(listener, input));
+
+    let mut child = spawn_qemu(args, &socket)?;
+    let stdout = child.stdout.take();
+    let child = Arc::new(Mutex::new(child));
+    let fired = Arc::new(Mutex::new(false));
+    {
+        let (child, fired) = (Arc::clone(&child), Arc::clone(&fired));
+        std::thread::spawn(move || watchdog(child, Duration::from_secs(limit_s), fired));
+    }
+
+    let mut crash_logged = false;
+    let mut stream = decoder.stream(args.format);
+    let mut out = std::io::stdout();
+    if let Some(mut pipe) = stdout {
+        let mut buf = [0u8; 4096];
+        loop {
+            let n = match pipe.read(&mut buf) {
+                Ok(0) | Err(_) => break,
+                Ok(n) => n,
+            };
+            stream.push(buf.get(..n).unwrap_or_default(), |line| {
+                crash_logged |= is_crash_line(&line);
+                let _ = writeln!(out, "{line}");
+            });
+            let _ = out.flush();
+        }
+    }
+    if let Some(note) = stream.finish().note() {
+        let _ = writeln!(out, "{note}");
+    }
+    let status = child
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .wait()
+        .map_err(|e| format!("waiting for QEMU: {e}"))?;
+    let _ = uart.join();
+    let _ = std::fs::remove_dir_all(&dir);
+    if *fired.lock().unwrap_or_else(PoisonError::into_inner) {
+        return Err(format!(
+            "QEMU ran past QEMU_TIMEOUT = {limit_s} s and was stopped"
+        ));
+    }
+    let code = status.code();
+    if args.expect_crash {
+        let verdict = expected_crash_status(code, crash_logged);
+        if verdict == 0 {
+            let _ = writeln!(out, "expected crash: exit status 1 with the fault logged");
+        } else {
+            eprintln!(
+                "fw-runner: expected a logged crash with exit status 1, got status {code:?}, \
+                 crash logged: {crash_logged}"
+            );
+        }
+        return Ok(verdict);
+    }
+    Ok(code.unwrap_or(1))
+}
+
+/// A fresh private directory for the UART socket.
+fn tempfile_dir() -> Result<PathBuf, String> {
+    static N: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("stiffdrive-fw-runner-{}-{n}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    Ok(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn os(v: &[&str]) -> Vec<OsString> {
+        v.iter().map(OsString::from).collect()
+    }
+
+    #[test]
+    fn runner_options_come_first_and_the_rest_goes_to_qemu() {
+        let a = parse_args(os(&["fw.elf", "--plain-log", "-d", "int", "--plain-log"]))
+            .unwrap_or_else(|e| unreachable!("{e}"));
+        assert_eq!(a.elf, PathBuf::from("fw.elf"));
+        assert_eq!(a.format, LineFormat::Plain);
+        assert!(!a.expect_crash);
+        assert_eq!(a.qemu_args, os(&["-d", "int", "--plain-log"]));
+        let b =
+            parse_args(os(&["fw.elf", "--expect-crash"])).unwrap_or_else(|e| unreachable!("{e}"));
+        assert!(b.expect_crash && b.format == LineFormat::Full && b.qemu_args.is_empty());
+        assert!(parse_args(os(&[])).is_err());
+    }
+
+    #[test]
+    fn a_crash_passes_only_with_status_one_and_a_logged_fault() {
+        assert_eq!(expected_crash_status(Some(1), true), 0);
+        assert_eq!(expected_crash_status(Some(1), false), 1);
+        assert_eq!(expected_crash_status(Some(0), true), 1);
+        assert_eq!(expected_crash_status(None, true), 1);
+        assert!(is_crash_line("ERROR HardFault at 0x0000_1234"));
+        assert!(is_crash_line("panicked: index"));
+        assert!(!is_crash_line("current_tick_instructions: 542"));
+    }
+}
