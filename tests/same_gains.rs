@@ -134,3 +134,40 @@ fn a_different_drive_cannot_borrow_the_gains() {
     .to_string();
     assert!(e.contains("scenario.comparison.gains_of"), "{e}");
 }
+
+/// The run a comparison names must design its own gains: a chain or a cycle of
+/// `gains_of` is an error naming the key, not a recursion.
+#[test]
+fn gains_of_must_name_a_run_that_designs_its_own_gains() {
+    let e = resolve(
+        "shock-50-no-afb",
+        None,
+        &["scenario.comparison.gains_of=fig6-no-afb".to_string()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("scenario.comparison.gains_of") && e.contains("itself borrows"),
+        "{e}"
+    );
+    let e = resolve(
+        "fig6-no-afb",
+        None,
+        &["scenario.comparison.gains_of=fig6-no-afb".to_string()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("scenario.comparison.gains_of"), "{e}");
+    // An AFB run without AFB has no gains to lend.
+    let e = resolve(
+        "shock-50-no-afb",
+        None,
+        &["scenario.comparison.gains_of=fig6-low-bw".to_string()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("no AFB gains to borrow") || e.contains("acceleration feedback off"),
+        "{e}"
+    );
+}
