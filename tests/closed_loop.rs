@@ -142,15 +142,19 @@ fn measured_stiffness_matches_eq1_below_the_resonance() {
     }
 }
 
-/// Every scenario file under configs/scenarios/ resolves against its config and runs
-/// (shortened to 0.3 s), so a broken scenario or config is caught by `cargo test`.
+/// Every scenario file under configs/scenarios/ resolves against its config and runs its
+/// full length (a scenario's metric windows must lie inside its run, so it is not
+/// shortened), so a broken scenario or config is caught by `cargo test`.
 #[test]
 fn every_scenario_file_resolves_and_runs() {
     let names = hil_harness::scenario::known_scenarios();
     assert!(names.len() >= 16, "{names:?}");
     for name in names {
-        let out = run(&name, &["scenario.duration_s=0.3"]);
-        assert_eq!(out.ticks, 1200, "{name}");
+        let cfg = resolve(&name, None, &[]).expect("scenario resolves");
+        let expect_ticks =
+            (cfg.scenario.duration_s * f64::from(cfg.drive.current_rate_hz)).round() as u64;
+        let out = run_scenario(&cfg).expect("scenario runs");
+        assert_eq!(out.ticks as u64, expect_ticks, "{name}");
         assert!(
             out.trace
                 .rows

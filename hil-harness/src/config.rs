@@ -122,8 +122,21 @@ pub fn machine_defaults(plant: &PlantConfig) -> MachineDefaults {
     }
 }
 
-/// Parses plant and drive from a (merged) document.
+/// The tables a machine config may hold: plant-host's and the drive's.
+pub const CONFIG_TABLES: [&str; 5] = ["plant", "electrics", "sensors", "lost_motion", "drive"];
+
+/// Parses plant and drive from a (merged) document. A top-level key that is not one of
+/// [`CONFIG_TABLES`] (a misspelt table) is an error: nothing would read it.
 pub fn plant_and_drive(doc: &Table) -> Result<(PlantConfig, DriveConfig)> {
+    if let Some(k) = doc.keys().find(|k| !CONFIG_TABLES.contains(&k.as_str())) {
+        return Err(HarnessError::config(
+            k.as_str(),
+            format!(
+                "unknown table `[{k}]`: nothing reads it (a config has {})",
+                CONFIG_TABLES.map(|t| format!("[{t}]")).join(", ")
+            ),
+        ));
+    }
     let text = toml::to_string(doc).map_err(|e| HarnessError::config("config", e.to_string()))?;
     let plant = PlantConfig::from_toml_str(&text).map_err(plant_error)?;
     let drive = drive_config(doc, &machine_defaults(&plant))?;

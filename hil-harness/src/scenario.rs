@@ -218,36 +218,122 @@ impl ScenarioSpec {
         step + sine
     }
 
-    /// Checks ranges; errors name the key.
+    /// Checks every key against its range (times within the run); errors name the key and
+    /// the range. A key the scenario's other settings make meaningless is an error too.
     pub fn validate(&self) -> Result<()> {
-        let bad =
-            |key: &str, reason: &str| Err(HarnessError::config(format!("scenario.{key}"), reason));
-        if !(self.duration_s > 0.0 && self.duration_s <= 1000.0) {
-            return bad("duration_s", "must be in (0, 1000] s");
+        let end = self.duration_s;
+        in_range("duration_s", end, (0.0, false), MAX_DURATION_S, "s")?;
+        let p = &self.profile;
+        in_range("profile.speed_pu", p.speed_pu, (-3.0, true), 3.0, "pu")?;
+        in_range("profile.accel_s", p.accel_s, (0.0, true), 100.0, "s")?;
+        in_range(
+            "profile.start_s",
+            p.start_s,
+            (0.0, true),
+            MAX_DURATION_S,
+            "s",
+        )?;
+        if let Some(h) = p.hold_s {
+            in_range("profile.hold_s", h, (0.0, true), 1000.0, "s")?;
         }
-        if self.profile.speed_pu.is_nan() || self.profile.speed_pu.abs() > 3.0 {
-            return bad("profile.speed_pu", "must be in [-3, 3] pu");
-        }
-        if !(self.profile.accel_s >= 0.0 && self.profile.accel_s <= 100.0) {
-            return bad("profile.accel_s", "must be in [0, 100] s");
-        }
-        if self.profile.start_s.is_nan() || self.profile.start_s < 0.0 {
-            return bad("profile.start_s", "must be >= 0 s");
-        }
-        for (i, l) in self.load.iter().enumerate() {
-            if !(l.t_s >= 0.0 && l.torque_pu.abs() <= 10.0) {
-                return bad(
-                    &format!("load[{i}]"),
-                    "t_s must be >= 0 and |torque_pu| <= 10",
-                );
+        if let Some(d) = p.decel_s {
+            in_range("profile.decel_s", d, (0.0, true), 100.0, "s")?;
+            if p.hold_s.is_none() {
+                return Err(HarnessError::config(
+                    "scenario.profile.decel_s",
+                    "is used only with profile.hold_s (without it the plateau lasts to the end)",
+                ));
             }
         }
-        if let Some(s) = self.sine_load {
-            if !(s.freq_rad_s > 0.0 && s.freq_rad_s < 20_000.0 && s.amplitude_pu.abs() <= 10.0) {
-                return bad(
-                    "sine_load",
-                    "freq_rad_s must be in (0, 20000) and |amplitude_pu| <= 10",
-                );
+        for (i, l) in self.load.iter().enumerate() {
+            // A step after the end of a shortened run never acts: allowed, but bounded.
+            in_range(
+                &format!("load[{i}].t_s"),
+                l.t_s,
+                (0.0, true),
+                MAX_DURATION_S,
+                "s",
+            )?;
+            in_range(
+                &format!("load[{i}].torque_pu"),
+                l.torque_pu,
+                (-10.0, true),
+                10.0,
+                "pu",
+            )?;
+        }
+        if let Some(sl) = self.sine_load {
+            in_range("sine_load.bias_pu", sl.bias_pu, (-10.0, true), 10.0, "pu")?;
+            in_range(
+                "sine_load.amplitude_pu",
+                sl.amplitude_pu,
+                (0.0, true),
+                10.0,
+                "pu",
+            )?;
+            in_range(
+                "sine_load.freq_rad_s",
+                sl.freq_rad_s,
+                (0.0, false),
+                20_000.0,
+                "rad/s",
+            )?;
+            in_range(
+                "sine_load.start_s",
+                sl.start_s,
+                (0.0, true),
+                MAX_DURATION_S,
+                "s",
+            )?;
+        }
+        let m = &self.metrics;
+        for (key, w) in [
+            ("metrics.ripple_window_s", m.ripple_window_s),
+            ("metrics.overshoot_window_s", m.overshoot_window_s),
+            ("metrics.stable_window_s", m.stable_window_s),
+        ] {
+            if let Some([a, b]) = w {
+                let ok = a.is_finite() && b.is_finite() && 0.0 <= a && a < b && b <= end;
+                if !ok {
+                    return Err(HarnessError::config(
+                        format!("scenario.{key}"),
+                        format!("[{a}, {b}] must be [start, end] with 0 <= start < end <= duration_s = {end} s"),
+                    ));
+                }
+            }
+        }
+        for (key, v, lo, hi, unit) in [
+            (
+                "metrics.ripple_average_s",
+                m.ripple_average_s,
+                (0.0, false),
+                end,
+                "s",
+            ),
+            (
+                "metrics.settle_band_pu",
+                m.settle_band_pu,
+                (0.0, false),
+                10.0,
+                "pu",
+            ),
+            (
+                "metrics.stable_oscillation_pu",
+                m.stable_oscillation_pu,
+                (0.0, false),
+                10.0,
+                "pu",
+            ),
+            (
+                "metrics.stable_saturation_fraction",
+                m.stable_saturation_fraction,
+                (0.0, true),
+                1.0,
+                "",
+            ),
+        ] {
+            if let Some(v) = v {
+                in_range(key, v, lo, hi, unit)?;
             }
         }
         Ok(())
@@ -279,6 +365,25 @@ impl ScenarioSpec {
             torque_limit_pu,
         }
     }
+}
+
+/// The longest run a scenario may ask for (s); every scenario time is bounded by it.
+pub const MAX_DURATION_S: f64 = 1000.0;
+
+/// `scenario.KEY` must be finite and within (lo, hi] or [lo, hi] (`lo.1` = inclusive).
+fn in_range(key: &str, v: f64, lo: (f64, bool), hi: f64, unit: &str) -> Result<()> {
+    let (lo, lo_inclusive) = lo;
+    let above_lo = if lo_inclusive { v >= lo } else { v > lo };
+    if v.is_finite() && above_lo && v <= hi {
+        return Ok(());
+    }
+    let open = if lo_inclusive { '[' } else { '(' };
+    Err(HarnessError::config(
+        format!("scenario.{key}"),
+        format!("{v} is outside {open}{lo}, {hi}] {unit}")
+            .trim_end()
+            .to_string(),
+    ))
 }
 
 /// The `configs/` directory: `$STIFFDRIVE_CONFIGS`, else the first `configs/scenarios`

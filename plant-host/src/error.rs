@@ -29,6 +29,13 @@ pub enum ConfigError {
         /// The allowed range, as text with units.
         allowed: String,
     },
+    /// A required key is absent and a key nothing reads looks like it misspelt.
+    Misspelt {
+        /// `table.key` as written (nothing reads it).
+        key: String,
+        /// `table.key` that is required.
+        expected: String,
+    },
     /// A key this crate does not know, inside one of its own tables.
     Unknown {
         /// `table.key`.
@@ -77,6 +84,11 @@ impl fmt::Display for ConfigError {
             Self::Missing { key, allowed } => {
                 write!(f, "missing key `{key}` (allowed: {allowed})")
             }
+            Self::Misspelt { key, expected } => write!(
+                f,
+                "unknown key `{key}` (nothing reads it); the required key `{expected}` is \
+                 missing: a misspelling?"
+            ),
             Self::Unknown { key, allowed } => {
                 write!(f, "unknown key `{key}` (allowed keys: {allowed})")
             }

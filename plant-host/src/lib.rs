@@ -31,6 +31,6 @@ pub use load::{for_each_load_piece, LoadTorque, TimeSeries, SMOOTH_LOAD_STEP_S};
 pub use piecewise::Contact;
 pub use replay::{
     parse_torque_csv, replay, simulate, write_atomically, ReplaySummary, StateRow, TorqueRow,
-    REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER,
+    COLUMN_RANGES, MAX_SPAN_S, REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER,
 };
 pub use two_inertia::TwoInertiaPlant;

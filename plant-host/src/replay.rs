@@ -11,6 +11,17 @@ use crate::two_inertia::TwoInertiaPlant;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// Largest time span of a replay, s (10 simulated minutes; about 2.4 million sub-steps).
+pub const MAX_SPAN_S: f64 = 600.0;
+/// Allowed range of each input column: time in s, torques in pu (the drive's torque limit
+/// is at most 1000 pu, and the plant's state stays finite for any torque in this range over
+/// [`MAX_SPAN_S`]).
+pub const COLUMN_RANGES: [(&str, f64, f64); 3] = [
+    ("t_s", -1.0e6, 1.0e6),
+    ("motor_torque_pu", -1000.0, 1000.0),
+    ("load_torque_pu", -1000.0, 1000.0),
+];
+
 /// The input header, exactly.
 pub const REPLAY_INPUT_HEADER: &str = "t_s,motor_torque_pu,load_torque_pu";
 /// The output header, exactly.
@@ -69,6 +80,16 @@ pub fn replay(
     let text = std::fs::read_to_string(torque_csv).map_err(|e| io_err(torque_csv, &e))?;
     let rows = parse_torque_csv(&text, torque_csv)?;
     let (states, crossings) = simulate(&config, &rows);
+    if let Some(bad) = states.iter().find(|s| !state_is_finite(s)) {
+        return Err(PlantError::Csv {
+            path: torque_csv.to_path_buf(),
+            line: 0,
+            message: format!(
+                "the plant state is not finite at t_s = {} (nothing written)",
+                bad.t_s
+            ),
+        });
+    }
     let mut out = String::with_capacity(states.len() * 120);
     out.push_str(REPLAY_OUTPUT_HEADER);
     out.push('\n');
@@ -95,6 +116,18 @@ pub fn replay(
         },
         edge_crossings: crossings,
     })
+}
+
+fn state_is_finite(s: &StateRow) -> bool {
+    [
+        s.motor_pos_rad,
+        s.load_pos_rad,
+        s.motor_vel_pu,
+        s.load_vel_pu,
+        s.shaft_torque_pu,
+    ]
+    .iter()
+    .all(|x| x.is_finite())
 }
 
 /// Simulates the rows (already validated) through the mechanics of `config`.
@@ -146,7 +179,6 @@ pub fn parse_torque_csv(text: &str, path: &Path) -> Result<Vec<TorqueRow>, Plant
             ))
         }
     }
-    let names = ["t_s", "motor_torque_pu", "load_torque_pu"];
     let mut rows = Vec::new();
     let mut prev_t = f64::NEG_INFINITY;
     for (n, line) in lines.filter(|(_, l)| !l.is_empty()) {
@@ -161,12 +193,19 @@ pub fn parse_torque_csv(text: &str, path: &Path) -> Result<Vec<TorqueRow>, Plant
             ));
         }
         let mut v = [0.0; 3];
-        for ((slot, field), name) in v.iter_mut().zip(&fields).zip(names) {
-            *slot = field
+        for ((slot, field), (name, lo, hi)) in v.iter_mut().zip(&fields).zip(COLUMN_RANGES) {
+            let x = field
                 .parse::<f64>()
                 .ok()
                 .filter(|x| x.is_finite())
                 .ok_or_else(|| err(n, format!("{name} = `{field}` is not a finite number")))?;
+            if !(lo..=hi).contains(&x) {
+                return Err(err(
+                    n,
+                    format!("{name} = {x} is outside its allowed range [{lo}, {hi}]"),
+                ));
+            }
+            *slot = x;
         }
         let [t_s, motor_torque_pu, load_torque_pu] = v;
         if t_s <= prev_t {
@@ -182,8 +221,18 @@ pub fn parse_torque_csv(text: &str, path: &Path) -> Result<Vec<TorqueRow>, Plant
             load_torque_pu,
         });
     }
-    if rows.is_empty() {
+    let (Some(first), Some(last)) = (rows.first(), rows.last()) else {
         return Err(err(0, "no data rows".into()));
+    };
+    let span = last.t_s - first.t_s;
+    if span > MAX_SPAN_S {
+        return Err(err(
+            0,
+            format!(
+                "t_s spans {span} s (from {} to {}); a replay is bounded to {MAX_SPAN_S} s",
+                first.t_s, last.t_s
+            ),
+        ));
     }
     Ok(rows)
 }

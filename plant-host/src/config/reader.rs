@@ -74,10 +74,7 @@ impl<'a> TableReader<'a> {
     pub fn real(&mut self, spec: RealSpec) -> Result<f64, ConfigError> {
         match self.real_opt(spec)? {
             Some(v) => Ok(v),
-            None => Err(ConfigError::Missing {
-                key: self.key(spec.name),
-                allowed: spec.allowed(),
-            }),
+            None => Err(self.missing(spec.name, spec.allowed())),
         }
     }
 
@@ -120,10 +117,7 @@ impl<'a> TableReader<'a> {
     pub fn int(&mut self, spec: IntSpec) -> Result<i64, ConfigError> {
         match self.int_opt(spec)? {
             Some(v) => Ok(v),
-            None => Err(ConfigError::Missing {
-                key: self.key(spec.name),
-                allowed: spec.allowed(),
-            }),
+            None => Err(self.missing(spec.name, spec.allowed())),
         }
     }
 
@@ -186,6 +180,25 @@ impl<'a> TableReader<'a> {
         }
     }
 
+    /// A required key is absent. If the table holds a key that nothing reads and that is
+    /// within two edits of it (a misspelling), that key is named first.
+    fn missing(&self, name: &'static str, allowed: String) -> ConfigError {
+        let near = self.table.and_then(|t| {
+            t.keys()
+                .find(|k| k.as_str() != name && edit_distance(k, name) <= 2)
+        });
+        match near {
+            Some(k) => ConfigError::Misspelt {
+                key: self.key(k),
+                expected: self.key(name),
+            },
+            None => ConfigError::Missing {
+                key: self.key(name),
+                allowed,
+            },
+        }
+    }
+
     /// Rejects any key of the table that no getter asked for.
     pub fn finish(self) -> Result<(), ConfigError> {
         let Some(table) = self.table else {
@@ -202,10 +215,46 @@ impl<'a> TableReader<'a> {
     }
 }
 
+/// Levenshtein distance of two short keys.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diag = row.first().copied().unwrap_or(0);
+        if let Some(first) = row.first_mut() {
+            *first = i + 1;
+        }
+        for (j, cb) in b.iter().enumerate() {
+            let up = row.get(j + 1).copied().unwrap_or(usize::MAX);
+            let left = row.get(j).copied().unwrap_or(usize::MAX);
+            let next = (diag + usize::from(ca != *cb)).min(up + 1).min(left + 1);
+            diag = up;
+            if let Some(cell) = row.get_mut(j + 1) {
+                *cell = next;
+            }
+        }
+    }
+    row.last().copied().unwrap_or(0)
+}
+
 fn quoted(choices: &[&str]) -> String {
     choices
         .iter()
         .map(|c| format!("\"{c}\""))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::edit_distance;
+
+    #[test]
+    fn edit_distance_counts_insertions_deletions_and_swaps() {
+        assert_eq!(edit_distance("anti_resonance_hz", "anti_resonance_hz"), 0);
+        assert_eq!(edit_distance("anti_resonance_hzx", "anti_resonance_hz"), 1);
+        assert_eq!(edit_distance("encodr_cpr", "encoder_cpr"), 1);
+        assert_eq!(edit_distance("motor_inertia_s", "load_inertia_s"), 4);
+        assert_eq!(edit_distance("", "abc"), 3);
+    }
 }
