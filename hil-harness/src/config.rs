@@ -211,7 +211,15 @@ fn resolve_with(
         }
         // The AFB run under the same config file and command-line settings (scenario.*
         // settings belong to this scenario only).
-        let afb = resolve_with(&c.gains_of, config_override, &config_sets, false)?;
+        let afb =
+            resolve_with(&c.gains_of, config_override, &config_sets, false).map_err(
+                |e| match e {
+                    HarnessError::UnknownScenario { .. } => {
+                        HarnessError::config("scenario.comparison.gains_of", e.to_string())
+                    }
+                    other => other,
+                },
+            )?;
         borrow_gains(&mut cfg, &c.gains_of, &afb.drive)?;
     }
     Ok(cfg)
