@@ -132,23 +132,13 @@ fn stiff_dyno_loop_is_stable_and_carries_the_shock() {
 
 /// Eq. 1: without acceleration feedback the measured stiffness of the PI-regulated
 /// inertia matches J·s² + Kp·s + Ki within 5 % at low frequency (here 1 and 4 rad/s,
-/// well below the coupling resonance), and the drive's acceleration feedback (which also
-/// designs the PI for J + Ka) raises it.
+/// well below the coupling resonance).
 #[test]
 fn measured_stiffness_matches_eq1_below_the_resonance() {
     let pts = hil_harness::stiffness::measure_all(&[1.0, 4.0]).unwrap();
     for p in pts.iter().filter(|p| p.source == "none") {
         let rel = p.measured / p.analytic;
         assert!((rel - 1.0).abs() < 0.05, "{p:?}");
-    }
-    for w in [1.0, 4.0] {
-        let get = |afb: bool| {
-            pts.iter()
-                .find(|p| p.afb == afb && p.freq_rad_s == w)
-                .unwrap()
-                .measured
-        };
-        assert!(get(true) > 1.2 * get(false), "AFB stiffness at {w} rad/s");
     }
 }
 
@@ -158,7 +148,7 @@ fn measured_stiffness_matches_eq1_below_the_resonance() {
 #[test]
 fn every_scenario_file_resolves_and_runs() {
     let names = hil_harness::scenario::known_scenarios();
-    assert!(names.len() >= 12, "{names:?}");
+    assert!(names.len() >= 16, "{names:?}");
     for name in names {
         let cfg = resolve(&name, None, &[]).expect("scenario resolves");
         let expect_ticks =

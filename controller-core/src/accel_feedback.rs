@@ -1,15 +1,52 @@
 //! Acceleration feedback ("inertia stabilization", paper Fig. 5 and 7).
 //!
 //! ```text
-//! Plain:  afb = −Ka·LPF(a_meas)
-//! Error:  afb = +Ka·LPF(a_cmd − a_meas)      (Rockwell US 7,141,946)
+//! Plain:  afb = −Ka·F(â)
+//! Error:  afb = +Ka·F(a_cmd − â)      (Rockwell US 7,141,946)
 //! ```
-//! `afb` \[pu torque\] is added to the torque reference and clamped to ±torque limit.
-//! Ka \[s\] is Q16.16, the filter Q2.30 (see [`crate::filter`]).
+//! `afb` \[pu torque\] is added to the torque reference P (velocity PI plus feed-forward),
+//! T = clamp(P + afb, ±limit), and is itself clamped to ±limit. Ka \[s\] is Q16.16, the
+//! filter F Q2.30 (see [`crate::filter`]).
+//!
+//! # The loop inside the controller, solved in closed form
+//!
+//! With the acceleration from the state observer, â contains the model's own response to
+//! the torque command: â = u + r with u = T/J_model (T the torque applied over the tick)
+//! and r the residual the measurement drives ([`crate::observer`]). Fed back with Ka, the
+//! command T enters its own estimate: T → u → â → F → T. Evaluated one tick late (the
+//! torque of the last tick in â, as the first version did) this loop is closed inside the
+//! controller, whatever the machine does, and with a first-order F (y ← y + α·(x − y)) it is
+//! y\[n\] = (1 − α − α·Ka/J)·y\[n−1\]: stable only for Ka/J_model < (2 − α)/α (3.04, 1.52,
+//! 0.77 × J_total at 50, 100, 200 Hz and 4 kHz with J_model = Jm).
+//!
+//! Here the estimate is taken for the torque being commanded now, â⁺ = T/J_model + r
+//! ([`crate::observer::Observer::predicted_acceleration_pu_s`]), and the equation is solved
+//! for T. Every filter here has a direct feed-through b0 (1 for none, α for the first
+//! order, b0 for the biquad): F(x)\[n\] = b0·x\[n\] + h\[n\], with h\[n\] from the past only
+//! ([`crate::filter::LowPass::free_response`]). With c = 0 (plain) or c = a_cmd (error) and
+//! k = Ka/J_model:
+//!
+//! ```text
+//! T = P + Ka·(h + b0·(c − r − T/J_model))
+//! ⇒ T = P + afb,   afb = g·Ka·(h + b0·(c − r)) − (1 − g)·P,   g = 1/(1 + b0·k)
+//! ```
+//! For F = 1 (b0 = 1, h = 0) and the plain form this is the disturbance-observer form
+//! T = J/(J + Ka)·P − Ka/(J + Ka)·J·r (Hori's resonance-ratio control). Afterwards the
+//! filter state advances with x = c − â⁺(T) for the T actually applied (after the clamps),
+//! so the estimate and the filter always describe the torque that was commanded.
+//!
+//! What is left is the loop through the machine. With a rigid body whose inertia is the
+//! model's, r is independent of T (the model and the measurement cancel) and
+//! T = P/(1 + k·F): a stable filter for every Ka ≥ 0 (pole (1 − α)/(1 + α·k) for the first
+//! order). With the gears engaged (plant J_total, model Jm) r = G·(a − u) still depends on
+//! T, and that loop, through the plant, is what limits Ka (`tests/afb_state_space.rs`).
+//!
+//! With the acceleration from differentiation there is no model term, and the plain update
+//! [`AccelerationFeedback::update`] is used.
 
 use crate::config::AfbMode;
 use crate::filter::{LowPass, LowPassState};
-use crate::per_unit::{mul_gain, Gain, Pu, PuPerS};
+use crate::per_unit::{mul_coef, mul_gain, Coef, Gain, Pu, PuPerS};
 
 /// Acceleration feedback coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,20 +57,25 @@ pub struct AccelerationFeedback {
     pub ka: Gain,
     /// Low-pass filter on the acceleration or acceleration error.
     pub filter: LowPass,
-    /// Output limit \[pu torque\].
+    /// Output limit \[pu torque\]; also the limit of the torque reference T = P + afb.
     pub limit: Pu,
+    /// Closed form: g·Ka with g = 1/(1 + b0·Ka/J_model) \[pu torque per pu/s\], Q16.16.
+    pub ka_closed: Gain,
+    /// Closed form: 1 − g = b0·k/(1 + b0·k), the share of P the loop takes back, Q2.30.
+    pub p_share: Coef,
 }
 
 impl AccelerationFeedback {
-    /// One step: returns the torque term \[pu\] to add to the torque reference.
+    /// One step with an acceleration `a_meas` that does not contain the torque command
+    /// (differentiation): returns the torque term \[pu\] to add to the torque reference.
     ///
     /// ```
     /// use controller_core::accel_feedback::AccelerationFeedback;
     /// use controller_core::filter::{LowPass, LowPassState};
-    /// use controller_core::per_unit::{Gain, Pu};
+    /// use controller_core::per_unit::{Coef, Gain, Pu};
     /// use controller_core::AfbMode;
     /// let afb = AccelerationFeedback { mode: AfbMode::Plain, ka: Gain::from_num(0.5),
-    ///     filter: LowPass::None, limit: Pu::from_num(2) };
+    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::ZERO, p_share: Coef::ZERO };
     /// let mut s = LowPassState::default();
     /// assert_eq!(afb.update(&mut s, Pu::from_num(1), Pu::ZERO), Pu::from_num(-0.5));
     /// ```
@@ -47,5 +89,53 @@ impl AccelerationFeedback {
         let filtered = self.filter.process(s, x);
         let lim = self.limit.saturating_abs();
         mul_gain(filtered, self.ka).max(-lim).min(lim)
+    }
+
+    /// One step in closed form with the observer's acceleration (module docs): `p` is the
+    /// torque reference without the AFB term \[pu\], `residual` the observer's r \[pu/s\],
+    /// `predict(T)` its â⁺ for a torque T \[pu/s\]. Returns the AFB term; T = clamp(p + afb).
+    ///
+    /// ```
+    /// use controller_core::accel_feedback::AccelerationFeedback;
+    /// use controller_core::filter::{LowPass, LowPassState};
+    /// use controller_core::per_unit::{Coef, Gain, Pu};
+    /// use controller_core::AfbMode;
+    /// // Ka = J_model = 0.5, F = 1: g = 1/2, the loop takes back half of P.
+    /// let afb = AccelerationFeedback { mode: AfbMode::Plain, ka: Gain::from_num(0.5),
+    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::from_num(0.25),
+    ///     p_share: Coef::from_num(0.5) };
+    /// let mut s = LowPassState::default();
+    /// let a = afb.update_closed(&mut s, Pu::from_num(1), Pu::ZERO, Pu::ZERO, |t| t * 2);
+    /// assert_eq!(a, Pu::from_num(-0.5)); // T = 0.5: â⁺ = 1 pu/s, −Ka·â⁺ = −0.5 ✓
+    /// ```
+    #[inline]
+    pub fn update_closed(
+        &self,
+        s: &mut LowPassState,
+        p: Pu,
+        residual: PuPerS,
+        a_cmd: PuPerS,
+        predict: impl Fn(Pu) -> PuPerS,
+    ) -> Pu {
+        let c = match self.mode {
+            AfbMode::Off => return Pu::ZERO,
+            AfbMode::Plain => PuPerS::ZERO,
+            AfbMode::Error => a_cmd,
+        };
+        let lim = self.limit.saturating_abs();
+        // afb = g·Ka·(h + b0·(c − r)) − (1 − g)·P; all Q16.16, b0 and 1 − g Q2.30.
+        let h = self.filter.free_response(s);
+        let inner = h.saturating_add(mul_coef(
+            c.saturating_sub(residual),
+            self.filter.feedthrough(),
+        ));
+        let afb = mul_gain(inner, self.ka_closed)
+            .saturating_sub(mul_coef(p, self.p_share))
+            .max(-lim)
+            .min(lim);
+        // Advance the filter with the acceleration the applied torque is expected to give.
+        let t = p.saturating_add(afb).max(-lim).min(lim);
+        self.filter.process(s, c.saturating_sub(predict(t)));
+        afb
     }
 }

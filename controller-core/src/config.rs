@@ -75,6 +75,27 @@ pub enum ObserverInertia {
     Motor,
 }
 
+/// Inertia the velocity PI is sized for (Kp = ω_v·J, Ki = Kp·ω_v/(4ζ²)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PiInertia {
+    /// J = J_total: the regulator is tuned for the machine and acceleration feedback adds
+    /// inertia electrically on top of it (the paper's reading, Fig. 2). With AFB off or on,
+    /// the velocity gains are the same.
+    Total,
+    /// J = J_total + Ka: the velocity loop keeps its bandwidth with AFB on, at the price of
+    /// most of the disturbance benefit (the regulator gains grow with Ka).
+    TotalPlusAfb,
+}
+
+/// Torque the observer's model is driven with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ObserverTorque {
+    /// The torque (current) reference of the last current tick.
+    Command,
+    /// The measured current: the mean of this and the last current tick's sample.
+    MeasuredCurrent,
+}
+
 /// Luenberger observer settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ObserverConfig {
@@ -83,6 +104,9 @@ pub struct ObserverConfig {
     pub bandwidth_hz: f32,
     /// Model inertia.
     pub model_inertia: ObserverInertia,
+    /// Torque input of the model (see `controller-core/README.md` for the measurement
+    /// behind the default, `Command`).
+    pub torque_input: ObserverTorque,
 }
 
 /// Fault thresholds.
@@ -121,6 +145,8 @@ pub struct DriveConfig {
     pub velocity_bandwidth_rad_s: f32,
     /// Velocity-loop damping ζ, 0.1..=10 (1 = Ki = Kp·ω/4).
     pub velocity_damping: f32,
+    /// Inertia the velocity PI is sized for (`[drive] velocity_pi_inertia`).
+    pub velocity_pi_inertia: PiInertia,
     /// Current-loop bandwidth \[rad/s\]: Kp = L·ω_c, Ki = R·ω_c. > 0, below π·current_rate_hz.
     pub current_bandwidth_rad_s: f32,
     /// Winding resistance \[pu voltage per pu current\], > 0.
@@ -151,7 +177,7 @@ pub struct DriveConfig {
 impl DriveConfig {
     /// The paper's Table 1 drive: 1000 rpm, 4096 CPR, 4 kHz current / 2 kHz velocity ticks,
     /// Jm = 0.117 s, Jl = 0.863 s, bandwidths 3 Hz (position), 15 Hz (velocity),
-    /// 318 Hz (current), with acceleration feedback on in the default design of
+    /// 318 Hz (current), velocity PI sized for J_total, with acceleration feedback on in the default design of
     /// `controller-core/README.md` (chosen by the closed-loop sweep in
     /// `tests/afb_design.rs`): error form, Ka = 0.5·J_total, acceleration from the observer
     /// (motor-inertia model, 75 Hz), first-order filter at 100 Hz, run every current tick;
@@ -174,6 +200,7 @@ impl DriveConfig {
             position_bandwidth_rad_s: 2.0 * core::f32::consts::PI * 3.0,
             velocity_bandwidth_rad_s: 2.0 * core::f32::consts::PI * 15.0,
             velocity_damping: 1.0,
+            velocity_pi_inertia: PiInertia::Total,
             current_bandwidth_rad_s: 2.0 * core::f32::consts::PI * 318.0,
             winding_resistance_pu: 0.05,
             winding_inductance_pu_s: 0.0006,
@@ -193,6 +220,7 @@ impl DriveConfig {
             observer: ObserverConfig {
                 bandwidth_hz: 75.0,
                 model_inertia: ObserverInertia::Motor,
+                torque_input: ObserverTorque::Command,
             },
             faults: FaultLimits {
                 overspeed_pu: 1.5,

@@ -3,8 +3,9 @@
 //! Current tick (every 1/current_rate_hz):
 //! ```text
 //! position ← unwrap(encoder_count)                       (encoder-jump check)
-//! observer ← (position, torque command of the last tick)
-//! afb      ← AccelerationFeedback(a_meas, a_cmd)          (if AFB runs at this rate)
+//! observer ← (position, torque of the last tick: command or measured current)
+//! afb      ← AccelerationFeedback(â, a_cmd)               (if AFB runs at this rate;
+//!            with the observer's â solved in closed form for this tick's torque)
 //! i_ref    = clamp(i_vel + afb, ±torque_limit)            (0 when faulted)
 //! v_cmd    = CurrentRegulator(i_ref − i_meas)             (PI, ±voltage_limit)
 //! ```
@@ -20,7 +21,7 @@
 //! reads the observer state left by the latest current tick.
 
 use crate::accel_feedback::AccelerationFeedback;
-use crate::config::{AfbMode, AfbRate, DriveConfig, Estimator};
+use crate::config::{AfbMode, AfbRate, DriveConfig, Estimator, ObserverTorque};
 use crate::design::{design, Gains};
 use crate::differentiator::{Differentiator, DifferentiatorState};
 use crate::error::ConfigError;
@@ -116,6 +117,7 @@ struct Coefficients {
     afb: AccelerationFeedback,
     afb_source: Estimator,
     velocity_source: Estimator,
+    observer_torque: ObserverTorque,
     /// AFB runs in the current tick (mode on and rate Current).
     afb_in_current_tick: bool,
     /// AFB runs in the velocity tick (mode on and rate Velocity).
@@ -146,6 +148,8 @@ struct State {
     i_vel: Pu,
     afb: Pu,
     current_ref: Pu,
+    /// Measured current of the last current tick \[pu\] (observer torque input).
+    last_current: Pu,
     accel_cmd: PuPerS,
     fault: Option<Fault>,
 }
@@ -185,6 +189,29 @@ impl Coefficients {
     fn from_gains(cfg: &DriveConfig, g: &Gains) -> Result<Self, ConfigError> {
         let lim: Pu = q(cfg.torque_limit_pu, "torque_limit_pu", "Q16.16")?;
         let vlim: Pu = q(cfg.voltage_limit_pu, "voltage_limit_pu", "Q16.16")?;
+        let filter = LowPass::quantize(&g.afb_filter, "accel_feedback.filter coefficients")?;
+        // Closed form of the loop through the observer's model (accel_feedback module docs):
+        // g = 1/(1 + b0·Ka/J_model); b0 from the quantized filter, so that the solved loop
+        // is the one the tick runs.
+        let (ka_closed, p_share) = if cfg.accel_feedback.source == Estimator::Observer {
+            let b0: f32 = filter.feedthrough().to_num();
+            let bk = b0 * g.ka / g.observer_inertia_s;
+            let gain = 1.0 / (1.0 + bk);
+            (
+                q::<Gain>(
+                    g.ka * gain,
+                    "ka/(1 + b0·Ka/J_model) (accel_feedback.gain_fraction, filter, observer inertia)",
+                    "Q16.16",
+                )?,
+                q::<Coef>(
+                    bk * gain,
+                    "b0·k/(1 + b0·k), k = Ka/J_model (accel_feedback, observer inertia)",
+                    "Q2.30",
+                )?,
+            )
+        } else {
+            (Gain::ZERO, Coef::ZERO)
+        };
         let afb = AccelerationFeedback {
             mode: cfg.accel_feedback.mode,
             ka: q(
@@ -192,8 +219,10 @@ impl Coefficients {
                 "ka (accel_feedback.gain_fraction × total inertia)",
                 "Q16.16",
             )?,
-            filter: LowPass::quantize(&g.afb_filter, "accel_feedback.filter coefficients")?,
+            filter,
             limit: lim,
+            ka_closed,
+            p_share,
         };
         let diff = |v: f32,
                     a: f32,
@@ -289,6 +318,7 @@ impl Coefficients {
             afb,
             afb_source: cfg.accel_feedback.source,
             velocity_source: cfg.velocity_estimator,
+            observer_torque: cfg.observer.torque_input,
             afb_in_current_tick: afb_on && cfg.accel_feedback.rate == AfbRate::Current,
             afb_in_velocity_tick: afb_on && cfg.accel_feedback.rate == AfbRate::Velocity,
             diff_in_current_tick: afb_on
@@ -322,14 +352,32 @@ impl Controller {
     /// ```
     pub fn new(cfg: &DriveConfig) -> Result<Self, ConfigError> {
         let gains = design(cfg)?;
-        Self::with_gains(cfg, &gains)
+        Self::build(cfg, &gains)
     }
 
     /// Build a controller from explicitly given gains (e.g. [`design()`] output with some
-    /// gains changed, to run "the same gains" with acceleration feedback off). The settings
-    /// still supply limits, filters, modes and rates; `design(cfg)` must succeed too.
+    /// gains changed; for "the same gains" with acceleration feedback off use
+    /// [`Gains::without_afb`] with a config whose `accel_feedback.mode` is `Off`). The
+    /// settings still supply limits, modes and rates and are validated (`design(cfg)` must
+    /// succeed); every coefficient is taken from `gains` and checked against its Q-format.
+    ///
+    /// ```
+    /// use controller_core::{design, AfbMode, Controller, DriveConfig};
+    /// let cfg = DriveConfig::table1();
+    /// let mut off = cfg;
+    /// off.accel_feedback.mode = AfbMode::Off;
+    /// let g = design(&cfg).unwrap().without_afb();
+    /// let c = Controller::with_gains(&off, &g).unwrap();
+    /// assert_eq!(c.gains(), &g);
+    /// ```
     pub fn with_gains(cfg: &DriveConfig, gains: &Gains) -> Result<Self, ConfigError> {
+        // Validation only: the designed gains themselves are not used.
         design(cfg)?;
+        Self::build(cfg, gains)
+    }
+
+    /// Quantize `gains` for the (already validated) settings `cfg`.
+    fn build(cfg: &DriveConfig, gains: &Gains) -> Result<Self, ConfigError> {
         let coef = Coefficients::from_gains(cfg, gains)?;
         Ok(Self {
             gains: *gains,
@@ -385,7 +433,7 @@ impl Controller {
         self.state.last_raw = raw;
     }
 
-    /// Acceleration-feedback step at the current rate with acceleration from `source`.
+    /// Acceleration-feedback step with a measured acceleration (differentiation).
     #[inline]
     fn afb_step(&mut self, a_meas: PuPerS) {
         if self.state.fault.is_none() {
@@ -394,6 +442,23 @@ impl Controller {
                 .coef
                 .afb
                 .update(&mut self.state.afb_filter, a_meas, a_cmd);
+        }
+    }
+
+    /// Acceleration-feedback step with the observer's acceleration, the loop through its
+    /// model solved in closed form for the torque reference `i_vel` + afb.
+    #[inline]
+    fn afb_closed_step(&mut self) {
+        if self.state.fault.is_none() {
+            let obs = &self.coef.observer;
+            let os = &self.state.observer;
+            self.state.afb = self.coef.afb.update_closed(
+                &mut self.state.afb_filter,
+                self.state.i_vel,
+                obs.residual_acceleration_pu_s(os),
+                self.state.accel_cmd,
+                |t| obs.predicted_acceleration_pu_s(os, t),
+            );
         }
     }
 
@@ -421,20 +486,31 @@ impl Controller {
     pub fn current_tick(&mut self, inp: CurrentInputs) -> CurrentOutputs {
         self.read_encoder(inp.encoder_count);
         let position = self.state.position;
-        // The observer sees the torque command that acted over the last tick.
+        // The observer sees the torque that acted over the last tick: the command, or the
+        // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
+        let torque = match self.coef.observer_torque {
+            ObserverTorque::Command => self.state.current_ref,
+            ObserverTorque::MeasuredCurrent => Pu::from_bits(sat_i32(
+                (i64::from(self.state.last_current.to_bits())
+                    + i64::from(inp.current_pu.to_bits()))
+                    >> 1,
+            )),
+        };
+        self.state.last_current = inp.current_pu;
         self.coef
             .observer
-            .update(&mut self.state.observer, position, self.state.current_ref);
+            .update(&mut self.state.observer, position, torque);
         if self.coef.afb_in_current_tick {
-            let a_meas = if self.coef.diff_in_current_tick {
-                self.coef
+            if self.coef.diff_in_current_tick {
+                let a_meas = self
+                    .coef
                     .diff_current_rate
                     .update(&mut self.state.diff_current_rate, position)
-                    .1
+                    .1;
+                self.afb_step(a_meas);
             } else {
-                self.coef.observer.acceleration_pu_s(&self.state.observer)
-            };
-            self.afb_step(a_meas);
+                self.afb_closed_step();
+            }
         }
         let i_ref = self.total_ref();
         self.state.current_ref = i_ref;
@@ -523,7 +599,10 @@ impl Controller {
                 self.state.afb,
             );
             if self.coef.afb_in_velocity_tick {
-                self.afb_step(a_est);
+                match self.coef.afb_source {
+                    Estimator::Differentiation => self.afb_step(a_est),
+                    Estimator::Observer => self.afb_closed_step(),
+                }
             }
         }
         VelocityOutputs {

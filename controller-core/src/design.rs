@@ -1,13 +1,21 @@
 //! Gain design from drive settings (f32, once, at configuration), with validation.
 //!
-//! * Velocity PI: Kp = ω_v·J_loop, Ki = Kp·ω_v/(4ζ²), J_loop = J_total + Ka (with
-//!   acceleration feedback on, the loop sees J_total + Ka below the filter corner, so the
-//!   velocity bandwidth setting is honoured while the gears are engaged).
+//! * Velocity PI: Kp = ω_v·J_loop, Ki = Kp·ω_v/(4ζ²), with J_loop chosen by
+//!   [`DriveConfig::velocity_pi_inertia`]: [`PiInertia::Total`] J_loop = J_total (the
+//!   regulator is tuned for the machine; AFB adds inertia electrically on top, and the
+//!   velocity gains do not depend on Ka), [`PiInertia::TotalPlusAfb`]
+//!   J_loop = J_total + Ka (below the filter corner the loop sees J_total + Ka, so the
+//!   velocity bandwidth is kept with the gears engaged, at the price of most of the
+//!   disturbance benefit).
+//! * Acceleration feed-forward: k_aff = aff·J_ff with J_ff the inertia the commanded
+//!   acceleration actually meets: J_total in the error form (the AFB itself supplies
+//!   Ka·a_sp) and with AFB off, J_total + Ka in the plain form. It does not depend on
+//!   `velocity_pi_inertia`.
 //! * Position P: Kpp = ω_pos \[rad/s\] → k_pos = Kpp/counts_per_pu_s \[pu per count\].
 //! * Current PI: Kp = L·ω_c, Ki = R·ω_c.
 //! * Filters and observer from their corners (see [`crate::filter`], [`crate::observer`]).
 
-use crate::config::{AfbMode, AfbRate, DriveConfig, ObserverInertia};
+use crate::config::{AfbMode, AfbRate, DriveConfig, ObserverInertia, PiInertia};
 use crate::error::ConfigError;
 use crate::filter::{design_low_pass, LowPassDesign};
 use crate::per_unit::counts_per_pu_s;
@@ -17,7 +25,8 @@ use crate::per_unit::counts_per_pu_s;
 pub struct Gains {
     /// Total inertia J_total = Jm + Jl \[s\].
     pub j_total_s: f32,
-    /// Inertia the velocity PI is designed for, J_total + Ka \[s\].
+    /// Inertia the velocity PI is designed for \[s\]: J_total, or J_total + Ka
+    /// (`DriveConfig::velocity_pi_inertia`).
     pub j_loop_s: f32,
     /// Position gain Kpp \[rad/s = pu speed per pu·s of position error\]; 0 = velocity mode.
     pub kpp: f32,
@@ -35,6 +44,9 @@ pub struct Gains {
     pub ka: f32,
     /// Acceleration feed-forward \[pu torque per pu/s of commanded acceleration\].
     pub k_accel_ff: f32,
+    /// The feed-forward fraction `accel_ff_gain` k_accel_ff was made from (kept so that
+    /// [`Gains::without_afb`] can give the AFB-off feed-forward).
+    pub accel_ff_gain: f32,
     /// Velocity per count of position change per velocity tick \[pu\].
     pub vel_tick_pu_per_count: f32,
     /// Acceleration per count of second difference per velocity tick \[pu/s\].
@@ -61,6 +73,36 @@ pub struct Gains {
     pub max_count_step: f32,
     /// Current ticks per velocity tick.
     pub ticks_per_velocity: u32,
+}
+
+impl Gains {
+    /// These gains with the acceleration feedback taken out, for "the same gains without
+    /// AFB": `ka = 0` and the acceleration feed-forward as `design()` gives it with AFB off
+    /// (`accel_ff_gain·J_total`, the inertia the commanded acceleration then meets); every
+    /// other field (the velocity and current PI, position gain, filters, observer, scales,
+    /// limits) is bit-identical. In the error form and with AFB off the feed-forward is
+    /// unchanged too, so the result differs from `self` only in `ka`. Build the comparison
+    /// drive with [`crate::Controller::with_gains`] and the config with
+    /// `accel_feedback.mode = AfbMode::Off`.
+    ///
+    /// ```
+    /// use controller_core::{design, AfbMode, Controller, DriveConfig};
+    /// let cfg = DriveConfig::table1();
+    /// let g = design(&cfg).unwrap();
+    /// let off_gains = g.without_afb();
+    /// assert_eq!((off_gains.ka, off_gains.kp_vel.to_bits()), (0.0, g.kp_vel.to_bits()));
+    /// let mut off = cfg;
+    /// off.accel_feedback.mode = AfbMode::Off;
+    /// assert!(Controller::with_gains(&off, &off_gains).is_ok());
+    /// ```
+    #[must_use]
+    pub fn without_afb(&self) -> Self {
+        Self {
+            ka: 0.0,
+            k_accel_ff: self.accel_ff_gain * self.j_total_s,
+            ..*self
+        }
+    }
 }
 
 fn finite(v: f32, param: &'static str) -> Result<f32, ConfigError> {
@@ -279,14 +321,16 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
             min_exclusive: false,
         });
     }
-    let j_loop = j_total + ka;
+    let j_loop = match cfg.velocity_pi_inertia {
+        PiInertia::Total => j_total,
+        PiInertia::TotalPlusAfb => j_total + ka,
+    };
     let kp_vel = w_vel * j_loop;
     let ki_vel = kp_vel * w_vel / (4.0 * zeta * zeta);
     let k_accel_ff = aff
-        * if afb.mode == AfbMode::Error {
-            j_total
-        } else {
-            j_loop
+        * match afb.mode {
+            AfbMode::Plain => j_total + ka,
+            AfbMode::Off | AfbMode::Error => j_total,
         };
 
     Ok(Gains {
@@ -300,6 +344,7 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
         ki_cur: r * w_cur,
         ka,
         k_accel_ff,
+        accel_ff_gain: aff,
         vel_tick_pu_per_count: 1.0 / (cpps * ts_vel),
         vel_tick_pu_s_per_count: 1.0 / (cpps * ts_vel * ts_vel),
         cur_tick_pu_per_count: 1.0 / (cpps * ts_cur),

@@ -153,6 +153,64 @@ impl LowPass {
         })
     }
 
+    /// The direct feed-through b0 of the filter, y\[n\] = b0·x\[n\] + h\[n\] (1 for
+    /// [`LowPass::None`], α for the first order, b0 for the biquad), Q2.30.
+    ///
+    /// ```
+    /// use controller_core::filter::LowPass;
+    /// use controller_core::per_unit::Coef;
+    /// assert_eq!(LowPass::None.feedthrough(), Coef::ONE);
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn feedthrough(&self) -> Coef {
+        match *self {
+            Self::None => Coef::ONE,
+            Self::FirstOrder { alpha } => alpha,
+            Self::SecondOrder { b0, .. } => b0,
+        }
+    }
+
+    /// The part h\[n\] of this step's output that does not depend on this step's input:
+    /// the output [`LowPass::process`] would give for x\[n\] = 0 (the state is not changed).
+    /// Together with [`LowPass::feedthrough`], y\[n\] = b0·x\[n\] + h\[n\] (to the output LSB).
+    ///
+    /// ```
+    /// use controller_core::filter::{LowPass, LowPassState};
+    /// use controller_core::per_unit::{Coef, Pu};
+    /// let f = LowPass::FirstOrder { alpha: Coef::from_num(0.5) };
+    /// let mut s = LowPassState::default();
+    /// f.process(&mut s, Pu::from_num(1));
+    /// assert_eq!(f.free_response(&s), Pu::from_num(0.25));
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn free_response(&self, s: &LowPassState) -> Pu {
+        match *self {
+            Self::None => Pu::ZERO,
+            Self::FirstOrder { alpha } => {
+                // h = y + α·(0 − y), as in `process` (Q.46 → Q.32, then rounded to Q16.16).
+                let y16 = sat_i32(s.y_q32 >> 16);
+                let inc = (-i64::from(y16)).saturating_mul(i64::from(alpha.to_bits())) >> 14;
+                Pu::from_bits(sat_i32(
+                    s.y_q32.saturating_add(inc).saturating_add(1 << 15) >> 16,
+                ))
+            }
+            Self::SecondOrder { b0, a1, a2 } => {
+                // h = b0·(2·x1 + x2) − a1·y1 − a2·y2 + residual, Q.46 → Q16.16.
+                let [x1, x2] = s.x;
+                let [y1, y2] = s.y;
+                let xs = 2 * i64::from(x1) + i64::from(x2);
+                let acc = i64::from(b0.to_bits())
+                    .saturating_mul(xs)
+                    .saturating_sub(i64::from(a1.to_bits()) * i64::from(y1))
+                    .saturating_sub(i64::from(a2.to_bits()) * i64::from(y2))
+                    .saturating_add(s.residual);
+                Pu::from_bits(sat_i32(acc >> 30))
+            }
+        }
+    }
+
     /// Filter one sample.
     ///
     /// ```

@@ -24,7 +24,7 @@ pub mod profile;
 
 pub use config::{
     AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
-    ObserverConfig, ObserverInertia,
+    ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
 };
 pub use controller::{
     Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs,

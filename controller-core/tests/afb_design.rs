@@ -53,10 +53,12 @@ fn default_table1_design_and_its_ka_neighbours_are_stable() {
 }
 
 /// Trap 2 in numbers: with raw differentiation as the velocity feedback at 4096 CPR the
-/// Table 1 velocity loop (one count = 2.7 pu of torque) cannot hold the Fig. 6 command
-/// without riding the torque limit, with or without acceleration feedback.
+/// Table 1 velocity loop (one count = 2.7 pu of torque) without acceleration feedback
+/// cannot hold the Fig. 6 command without riding the torque limit. With the default AFB
+/// (observer, closed form) at the same velocity gains (PI sized for J_total) it no longer
+/// rides the limit, though the count chatter stays large (printed ripple ≈ 0.6 pu RMS).
 #[test]
-fn raw_differentiated_velocity_feedback_is_unusable_at_4096_cpr() {
+fn raw_differentiated_velocity_feedback_at_4096_cpr() {
     let plant = PlantParams::table1();
     for mode in [AfbMode::Off, AfbMode::Error] {
         let mut cfg = DriveConfig::table1();
@@ -64,7 +66,7 @@ fn raw_differentiated_velocity_feedback_is_unusable_at_4096_cpr() {
         cfg.accel_feedback.mode = mode;
         let r = run_fig6(&cfg, &plant, 2.0);
         println!("{mode:?}: {r:?}");
-        assert!(!r.stable(), "{r:?}");
+        assert_eq!(r.stable(), mode != AfbMode::Off, "{mode:?}: {r:?}");
     }
 }
 
@@ -136,11 +138,12 @@ fn afb_design_sweep() {
 }
 
 /// At 10⁶ CPR (the printing-press encoder) the quantization that ruins differentiation at
-/// 4096 CPR falls by 244×, and the acceleration loop's own limit (trap 1) shows cleanly:
-/// with differentiated acceleration, Ka = 0.5·J_total (Ka/Jm = 4.2) and a first-order filter,
-/// 25 Hz at 4 kHz is stable (Ka/Jm·f_c ≈ 105 Hz), 50 Hz at 4 kHz (≈ 210 Hz) and 25 Hz at 2 kHz
-/// are not. The default (observer) design is stable too. This also exercises every Q-format
-/// at the high count rate.
+/// 4096 CPR falls by 244×, and the differentiated acceleration loop's limit shows: with
+/// differentiated velocity and acceleration, Ka = 0.5·J_total and a first-order filter,
+/// the linear analysis (`tests/afb_state_space.rs`, gears separated) allows 95 Hz at 4 kHz
+/// and 46 Hz at 2 kHz. The simulation must be stable at about half of each (45 Hz, 23 Hz)
+/// and unstable at about twice (190 Hz, 93 Hz). The default (observer) design is stable
+/// too. This also exercises every Q-format at the high count rate.
 #[test]
 fn high_resolution_encoder_and_the_acceleration_loop_limit() {
     let plant = PlantParams::table1();
@@ -164,7 +167,8 @@ fn high_resolution_encoder_and_the_acceleration_loop_limit() {
     };
     use Estimator::{Differentiation as D, Observer as O};
     assert!(run(O, O, 100.0, AfbRate::Current), "default estimators");
-    assert!(run(D, D, 25.0, AfbRate::Current));
-    assert!(!run(D, D, 50.0, AfbRate::Current));
-    assert!(!run(D, D, 25.0, AfbRate::Velocity));
+    assert!(run(D, D, 45.0, AfbRate::Current));
+    assert!(!run(D, D, 190.0, AfbRate::Current));
+    assert!(run(D, D, 23.0, AfbRate::Velocity));
+    assert!(!run(D, D, 93.0, AfbRate::Velocity));
 }

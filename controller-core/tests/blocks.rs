@@ -311,9 +311,10 @@ fn observer_matches_f64_reference_and_tracks_a_rigid_body() {
         let e = counts as f64 - pp;
         p = pp + l1 * e;
         v = vp + l2 * e;
+        // Ellis: â = v[n] − v[n−1] = u + d⁻ + l2·e.
+        let a_ref = (u + d + l2 * e) / (cpps * ts * ts);
         d += l3 * e;
         let v_ref = v / (cpps * ts);
-        let a_ref = (u + d) / (cpps * ts * ts);
         worst_v = worst_v.max((est.velocity_pu.to_num::<f64>() - v_ref).abs());
         worst_a = worst_a.max((est.acceleration_pu_s.to_num::<f64>() - a_ref).abs());
         if k > 8000 {

@@ -263,11 +263,13 @@ fn afb_output_is_a_named_signal_and_follows_the_mode() {
     }
 }
 
-/// "The same gains without acceleration feedback": design with AFB on, then build with AFB
-/// off from those gains; the velocity regulator keeps Kp = ω·(J_total + Ka).
+/// "The same gains without acceleration feedback": design with AFB on, take the AFB out of
+/// those gains and build with AFB off; the regulator gains stay bit-identical, also when the
+/// PI is sized for J_total + Ka (where AFB off would design a smaller Kp of its own).
 #[test]
 fn with_gains_runs_the_same_gains_with_afb_off() {
-    let on = DriveConfig::table1();
+    let mut on = DriveConfig::table1();
+    on.velocity_pi_inertia = controller_core::PiInertia::TotalPlusAfb;
     let gains = controller_core::design(&on).unwrap();
     let w = on.velocity_bandwidth_rad_s;
     assert!(
@@ -280,8 +282,9 @@ fn with_gains_runs_the_same_gains_with_afb_off() {
     off.accel_feedback.mode = controller_core::AfbMode::Off;
     let own = controller_core::design(&off).unwrap();
     assert!((own.kp_vel - w * 0.98).abs() < 1e-3);
-    let c = Controller::with_gains(&off, &gains).unwrap();
-    assert_eq!(c.gains().kp_vel, gains.kp_vel);
+    let c = Controller::with_gains(&off, &gains.without_afb()).unwrap();
+    assert_eq!(c.gains().kp_vel.to_bits(), gains.kp_vel.to_bits());
+    assert_eq!(c.gains().ka, 0.0);
     // Bad gains are still validated against their Q-formats.
     let mut bad = gains;
     bad.kp_vel = 1e9;
@@ -289,6 +292,15 @@ fn with_gains_runs_the_same_gains_with_afb_off() {
         .unwrap_err()
         .param()
         .starts_with("kp_vel"));
+    // And the settings are still validated.
+    let mut bad_cfg = off;
+    bad_cfg.motor_inertia_s = -1.0;
+    assert_eq!(
+        Controller::with_gains(&bad_cfg, &gains)
+            .unwrap_err()
+            .param(),
+        "motor_inertia_s"
+    );
 }
 
 /// Anti-windup on the final torque reference: when the velocity regulator's output plus the

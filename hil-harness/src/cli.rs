@@ -42,6 +42,13 @@ pub enum Command {
         #[arg(long, default_value = "out/stiffness")]
         out: PathBuf,
     },
+    /// The paper's Sec. II claim with its own estimator: fig6 with differentiated velocity
+    /// and acceleration over a grid of filter corners, with and without AFB at the same gains.
+    Sec2Map {
+        /// Output directory.
+        #[arg(long, default_value = "out/sec2")]
+        out: PathBuf,
+    },
     /// Everything above, and out/REPORT.md (what `cargo run --release` does).
     Reproduce {
         /// Output directory.

@@ -6,7 +6,7 @@ use crate::drive::{drive_config, MachineDefaults};
 use crate::error::{HarnessError, Result};
 use crate::overrides;
 use crate::scenario::{configs_dir, ScenarioFile, ScenarioSpec};
-use controller_core::DriveConfig;
+use controller_core::{AfbMode, DriveConfig};
 use plant_host::PlantConfig;
 use std::path::{Path, PathBuf};
 use toml::Table;
@@ -24,6 +24,58 @@ pub struct RunConfig {
     pub drive: DriveConfig,
     /// The config file used.
     pub config_path: PathBuf,
+    /// Where this run's regulator gains come from when it is a comparison "without AFB":
+    /// the AFB run whose design it borrows ([`GainsOf`]); `None` = its own design.
+    pub gains_of: Option<GainsOf>,
+}
+
+/// The AFB run a comparison run takes its regulator gains from. "The same gains without
+/// AFB" means bit-identical gains: the run builds its controller with
+/// `Controller::with_gains(own drive, design(AFB drive) with Ka = 0)`
+/// ([`crate::runner::regulator_gains`]), never by designing its own.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GainsOf {
+    /// What the gains are: a scenario name (`scenario.comparison.gains_of`) or the
+    /// experiment's name for its AFB design (sweep, stiffness, Sec. II map).
+    pub source: String,
+    /// The AFB run's drive; its `design()` with Ka = 0 gives the gains.
+    pub drive: DriveConfig,
+}
+
+/// Makes `cfg` (acceleration feedback off) a comparison run at the gains of `afb_drive`
+/// (acceleration feedback on). The two drives may differ only in `[drive.accel_feedback]`:
+/// anything else would not be "the same drive without AFB".
+pub fn borrow_gains(cfg: &mut RunConfig, source: &str, afb_drive: &DriveConfig) -> Result<()> {
+    let key = "scenario.comparison.gains_of";
+    if cfg.drive.accel_feedback.mode != AfbMode::Off {
+        return Err(HarnessError::config(
+            key,
+            format!("a run at the gains of {source} must have drive.accel_feedback.mode = \"off\""),
+        ));
+    }
+    if afb_drive.accel_feedback.mode == AfbMode::Off {
+        return Err(HarnessError::config(
+            key,
+            format!("{source} has acceleration feedback off: there are no AFB gains to borrow"),
+        ));
+    }
+    let mut same = afb_drive.to_owned();
+    same.accel_feedback = cfg.drive.accel_feedback;
+    if same != cfg.drive {
+        return Err(HarnessError::config(
+            key,
+            format!(
+                "the drive of {} differs from that of {source} in more than \
+                 [drive.accel_feedback]; a comparison without AFB must be the same drive",
+                cfg.name
+            ),
+        ));
+    }
+    cfg.gains_of = Some(GainsOf {
+        source: source.to_string(),
+        drive: *afb_drive,
+    });
+    Ok(())
 }
 
 /// Finds a config by path, or by name as `configs/NAME.toml`.
@@ -61,7 +113,8 @@ pub fn read_table(path: &Path) -> Result<Table> {
 pub fn machine_defaults(plant: &PlantConfig) -> MachineDefaults {
     MachineDefaults {
         base_speed_rpm: plant.mechanics.base_speed_rpm as f32,
-        encoder_cpr: plant.sensors.encoder_cpr,
+        // The drive counts what the interpolator delivers.
+        encoder_cpr: plant.sensors.counts_per_rev(),
         motor_inertia_s: plant.mechanics.motor_inertia_s as f32,
         load_inertia_s: plant.mechanics.load_inertia_s as f32,
         winding_resistance_pu: plant.electrics.winding_resistance_pu as f32,
@@ -104,6 +157,17 @@ fn plant_error(e: plant_host::ConfigError) -> HarnessError {
 /// Loads scenario `name` and its config (or `config_override`), applying the scenario's
 /// `set` table and then `sets` (`section.key=value`).
 pub fn resolve(name: &str, config_override: Option<&str>, sets: &[String]) -> Result<RunConfig> {
+    resolve_with(name, config_override, sets, true)
+}
+
+/// [`resolve`]; `borrow` = false for the AFB run a comparison names (it must design its
+/// own gains, so a chain or a cycle of `gains_of` is an error, not a recursion).
+fn resolve_with(
+    name: &str,
+    config_override: Option<&str>,
+    sets: &[String],
+    borrow: bool,
+) -> Result<RunConfig> {
     // Validates the name and lists the known scenarios if it does not exist.
     crate::scenario::load_scenario(name)?;
     let scenario_path = configs_dir().join("scenarios").join(format!("{name}.toml"));
@@ -130,11 +194,33 @@ pub fn resolve(name: &str, config_override: Option<&str>, sets: &[String]) -> Re
     }
     overrides::apply_all(&mut doc, &config_sets)?;
     let (plant, drive) = plant_and_drive(&doc)?;
-    Ok(RunConfig {
+    let mut cfg = RunConfig {
         name: name.to_string(),
         scenario,
         plant,
         drive,
         config_path,
-    })
+        gains_of: None,
+    };
+    if let Some(c) = cfg.scenario.comparison.clone() {
+        if !borrow {
+            return Err(HarnessError::config(
+                "scenario.comparison.gains_of",
+                format!("{name} itself borrows its gains; name the AFB run that designs them"),
+            ));
+        }
+        // The AFB run under the same config file and command-line settings (scenario.*
+        // settings belong to this scenario only).
+        let afb =
+            resolve_with(&c.gains_of, config_override, &config_sets, false).map_err(
+                |e| match e {
+                    HarnessError::UnknownScenario { .. } => {
+                        HarnessError::config("scenario.comparison.gains_of", e.to_string())
+                    }
+                    other => other,
+                },
+            )?;
+        borrow_gains(&mut cfg, &c.gains_of, &afb.drive)?;
+    }
+    Ok(cfg)
 }

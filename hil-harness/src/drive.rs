@@ -5,7 +5,10 @@
 //! there is one source of truth; set them here only to model a mis-tuned drive.
 
 use crate::error::{HarnessError, Result};
-use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, ObserverInertia};
+use controller_core::{
+    AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, ObserverInertia, ObserverTorque,
+    PiInertia,
+};
 use toml::{Table, Value};
 
 /// What the plant tells the drive by default.
@@ -291,11 +294,20 @@ pub fn drive_config(doc: &Table, machine: &MachineDefaults) -> Result<DriveConfi
                 c.velocity_filter = filter_kind(c.velocity_filter, w).unwrap_or(FilterConfig::None);
                 Ok(true)
             }
+            // The inertia the velocity PI is sized for: J_total, or J_total + Ka.
+            "velocity_pi_inertia" => {
+                c.velocity_pi_inertia = match word(key, v, &["total", "total_plus_afb"])? {
+                    "total_plus_afb" => PiInertia::TotalPlusAfb,
+                    _ => PiInertia::Total,
+                };
+                Ok(true)
+            }
             _ => Ok(false),
         },
         &[
             "velocity_estimator",
             "velocity_filter",
+            "velocity_pi_inertia",
             "[accel_feedback]",
             "[observer]",
             "[faults]",
@@ -354,9 +366,17 @@ pub fn drive_config(doc: &Table, machine: &MachineDefaults) -> Result<DriveConfi
                         };
                         Ok(true)
                     }
+                    "torque_input" => {
+                        c.observer.torque_input =
+                            match word(key, v, &["command", "measured_current"])? {
+                                "measured_current" => ObserverTorque::MeasuredCurrent,
+                                _ => ObserverTorque::Command,
+                            };
+                        Ok(true)
+                    }
                     _ => Ok(false),
                 },
-                &["model_inertia"],
+                &["model_inertia", "torque_input"],
             )?,
             "faults" => apply_table(
                 &mut cfg,
@@ -425,6 +445,42 @@ mod tests {
             FilterConfig::SecondOrder { corner_hz, .. } if corner_hz == 40.0
         ));
         assert_eq!(cfg.observer.model_inertia, ObserverInertia::Total);
+        assert_eq!(cfg.observer.torque_input, ObserverTorque::Command);
+        let cfg = parse("[drive.observer]\ntorque_input = \"measured_current\"\n").unwrap();
+        assert_eq!(cfg.observer.torque_input, ObserverTorque::MeasuredCurrent);
+        let e = parse("[drive.observer]\ntorque_input = \"current\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.observer.torque_input") && e.contains("command, measured_current"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn velocity_pi_inertia_is_total_unless_set_and_sizes_the_pi() {
+        assert_eq!(parse("").unwrap().velocity_pi_inertia, PiInertia::Total);
+        let plus = parse("[drive]\nvelocity_pi_inertia = \"total_plus_afb\"\n").unwrap();
+        assert_eq!(plus.velocity_pi_inertia, PiInertia::TotalPlusAfb);
+        let total = parse("[drive]\nvelocity_pi_inertia = \"total\"\n").unwrap();
+        let (gt, gp) = (
+            controller_core::design(&total).unwrap(),
+            controller_core::design(&plus).unwrap(),
+        );
+        assert_eq!(
+            gt.kp_vel,
+            total.velocity_bandwidth_rad_s * total.total_inertia_s()
+        );
+        assert!(gp.kp_vel > gt.kp_vel, "Ka adds to the PI's inertia");
+        for bad in ["\"motor\"", "1", "\"Total\""] {
+            let e = parse(&format!("[drive]\nvelocity_pi_inertia = {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("drive.velocity_pi_inertia") && e.contains("total, total_plus_afb"),
+                "{bad}: {e}"
+            );
+        }
     }
 
     #[test]

@@ -22,6 +22,7 @@ pub mod replay;
 pub mod report;
 pub mod runner;
 pub mod scenario;
+pub mod sec2;
 pub mod stiffness;
 pub mod sweep;
 pub mod trace;
@@ -74,6 +75,7 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
         } => commands::run(&scenario, config.as_deref(), &set, &out),
         Command::Sweep { out } => sweep::sweep(&out),
         Command::Stiffness { out } => stiffness::stiffness(&out),
+        Command::Sec2Map { out } => sec2::sec2(&out),
         Command::Reproduce { out } => report::reproduce(&out),
         Command::Replay {
             config,

@@ -27,9 +27,7 @@ use crate::error::{HarnessError, Result};
 use crate::metrics::compute;
 use crate::output::Staging;
 use crate::runner::{run_with_backend, ControlBackend, RunOutput};
-use controller_core::{
-    Controller, CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs,
-};
+use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
 use pil_link::host::{FaultPlan, HostError, HostLink};
@@ -404,6 +402,20 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         ));
     }
     let cfg = resolve(&args.scenario, args.config.as_deref(), &args.set)?;
+    // The link carries drive settings, not gains: the firmware designs its own. A
+    // comparison run whose borrowed gains differ from its own design cannot run there.
+    let own = controller_core::design(&cfg.drive)
+        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
+    if crate::runner::regulator_gains(&cfg)? != own {
+        return Err(HarnessError::config(
+            "scenario.comparison.gains_of",
+            format!(
+                "{} borrows gains that differ from its own design; the firmware designs its \
+                 gains from the drive settings, so this run cannot go through PIL",
+                cfg.name
+            ),
+        ));
+    }
     let plan: Option<FaultPlan> = args
         .inject
         .as_deref()
@@ -523,8 +535,7 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
 
     let comparison = if link_report.fault.is_none() && !args.no_compare {
         let mut host = Recorder {
-            inner: Controller::new(&cfg.drive)
-                .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?,
+            inner: crate::runner::controller(&cfg)?,
             log: TickLog::default(),
         };
         let host_run = run_with_backend(&cfg, &mut host)?;

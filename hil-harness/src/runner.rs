@@ -16,7 +16,7 @@ use crate::error::{HarnessError, Result};
 use crate::metrics::{compute, Metrics};
 use crate::trace::{Trace, TraceRow};
 use controller_core::{
-    per_unit::Counts, Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs,
+    per_unit::Counts, Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs,
     VelocityOutputs,
 };
 use serde::Serialize;
@@ -88,11 +88,21 @@ pub struct Summary {
     pub velocity_bandwidth_rad_s: f64,
     /// Acceleration feedback mode used.
     pub accel_feedback: String,
+    /// Whose designed regulator gains this run uses (`null` = its own design).
+    pub gains_of: Option<String>,
+    /// Velocity Kp used (pu torque per pu speed).
+    pub kp_vel: f64,
+    /// Velocity Ki used (pu torque per pu speed per s).
+    pub ki_vel: f64,
+    /// Ka used (s); 0 without acceleration feedback.
+    pub ka_s: f64,
 }
 
 impl RunOutput {
     /// The summary of this run under `cfg`.
     pub fn summary(&self, cfg: &RunConfig) -> Summary {
+        let gains = regulator_gains(cfg).ok();
+        let g = |f: fn(&Gains) -> f32| gains.as_ref().map_or(f64::NAN, |x| f64::from(f(x)));
         Summary {
             scenario: cfg.name.clone(),
             description: cfg.scenario.description.clone(),
@@ -109,6 +119,10 @@ impl RunOutput {
             },
             velocity_bandwidth_rad_s: f64::from(cfg.drive.velocity_bandwidth_rad_s),
             accel_feedback: format!("{:?}", cfg.drive.accel_feedback.mode),
+            gains_of: cfg.gains_of.as_ref().map(|o| o.source.clone()),
+            kp_vel: g(|x| x.kp_vel),
+            ki_vel: g(|x| x.ki_vel),
+            ka_s: g(|x| x.ka),
         }
     }
 }
@@ -159,10 +173,44 @@ impl DelayLine {
     }
 }
 
+fn drive_error(e: controller_core::ConfigError) -> HarnessError {
+    HarnessError::config(format!("drive.{}", e.param()), e.to_string())
+}
+
+/// The gains the controller of `cfg` runs with: its own `design()`, or, for a comparison
+/// run without AFB ([`RunConfig::gains_of`]), the AFB run's `design()` without its AFB
+/// (`Gains::without_afb`: Ka = 0, every regulator gain bit-identical to the AFB run's).
+pub fn regulator_gains(cfg: &RunConfig) -> Result<Gains> {
+    match &cfg.gains_of {
+        None => controller_core::design(&cfg.drive).map_err(drive_error),
+        Some(of) => Ok(controller_core::design(&of.drive)
+            .map_err(drive_error)?
+            .without_afb()),
+    }
+}
+
+/// Whether `a` and `b` are the same regulator gains, bit for bit: every field of [`Gains`]
+/// except those of the acceleration-feedback path itself (Ka, its filter and its rate) and
+/// the acceleration feed-forward, which `Gains::without_afb` sets to the inertia the
+/// commanded acceleration meets without AFB (unchanged in the error form), compared
+/// through their exact (shortest round-trip) decimal form.
+pub fn same_regulator_gains(a: &Gains, b: &Gains) -> bool {
+    let mut b = *b;
+    b.ka = a.ka;
+    b.k_accel_ff = a.k_accel_ff;
+    b.afb_filter = a.afb_filter;
+    b.afb_rate_hz = a.afb_rate_hz;
+    format!("{a:?}") == format!("{b:?}")
+}
+
+/// The host controller of `cfg`: `Controller::with_gains(drive, regulator_gains(cfg))`.
+pub fn controller(cfg: &RunConfig) -> Result<Controller> {
+    Controller::with_gains(&cfg.drive, &regulator_gains(cfg)?).map_err(drive_error)
+}
+
 /// Runs `cfg` with the host controller (`controller_core::Controller`).
 pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
-    let mut controller = Controller::new(&cfg.drive)
-        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
+    let mut controller = controller(cfg)?;
     run_with_backend(cfg, &mut controller)
 }
 
@@ -182,10 +230,11 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
     let delay_s = delay_line.remainder_s();
     let ticks = (scenario.duration_s * current_rate_hz).round() as u64;
 
-    // Position command: counts = pu·s · (base rpm / 60) · cpr.
-    let counts_per_pu_s =
-        cfg.plant.mechanics.base_speed_rpm / 60.0 * f64::from(cfg.plant.sensors.encoder_cpr);
-    let counts_per_rad = f64::from(cfg.plant.sensors.encoder_cpr) / std::f64::consts::TAU;
+    // Position command: counts = pu·s · (base rpm / 60) · cpr, in the counts the drive
+    // reads (after sin/cos interpolation).
+    let cpr = f64::from(cfg.plant.sensors.counts_per_rev());
+    let counts_per_pu_s = cfg.plant.mechanics.base_speed_rpm / 60.0 * cpr;
+    let counts_per_rad = cpr / std::f64::consts::TAU;
     let mask: u64 = if drive.counter_bits >= 32 {
         u64::from(u32::MAX)
     } else {

@@ -40,10 +40,24 @@ pub struct ScenarioSpec {
     /// Metric windows.
     #[serde(default)]
     pub metrics: MetricSpec,
+    /// A comparison run: whose regulator gains it uses instead of designing its own.
+    #[serde(default)]
+    pub comparison: Option<ComparisonSpec>,
     /// Configuration overrides (`"drive.velocity_bandwidth_rad_s" = 50.0`), applied on top
     /// of the config file and below the command line's `--set`.
     #[serde(default)]
     pub set: BTreeMap<String, toml::Value>,
+}
+
+/// `[scenario.comparison]`: what makes a run "the same drive without acceleration
+/// feedback". Without this table a scenario designs its own gains.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ComparisonSpec {
+    /// The scenario (with acceleration feedback on) whose designed regulator gains this run
+    /// uses bit for bit, with Ka = 0. This run must have acceleration feedback off, and its
+    /// drive may differ from that scenario's only in `[drive.accel_feedback]`.
+    pub gains_of: String,
 }
 
 /// A trapezoidal velocity command: 0 → `speed_pu` in `accel_s` from `start_s`, hold,

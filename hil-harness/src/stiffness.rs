@@ -5,19 +5,26 @@
 //! Measured: at each frequency ω the run `configs/scenarios/stiffness.toml` is repeated
 //! with `sine_load.freq_rad_s = ω`; after the transient has died out (5 s) the load speed
 //! and the load torque are correlated with sin/cos over a whole number of periods, and
-//! |τ_L/θ| = ω·|T̂_L|/|Ω̂_l| (θ in pu·s, the integral of pu speed). Analytic: Eq. 1,
-//! |J·s² + Kp·s + Ki| at s = jω with J = J_total and the drive's designed Kp, Ki
-//! (controller-core: Kp = ω_bw·J_loop, Ki = Kp·ω_bw/(4ζ²), J_loop = J_total + Ka with AFB
-//! on); with acceleration feedback the inertia term becomes J + Ka·F(jω), F the feedback
-//! filter (delays ignored: this is the idealised curve the measurement is compared with).
+//! |τ_L/θ| = ω·|T̂_L|/|Ω̂_l| (θ in pu·s, the integral of pu speed).
+//!
+//! The run without AFB uses the regulator gains of the default AFB design bit for bit
+//! ([`crate::config::borrow_gains`]): the comparison is AFB on against AFB off at the same
+//! Kp and Ki.
+//!
+//! Analytic: Eq. 1, |J·s² + Kp·s + Ki| at s = jω with J = J_total and the gains the run
+//! uses; with acceleration feedback the inertia term becomes J + Ka·F(jω)·G(jω), F the
+//! feedback filter and G the acceleration estimator's transfer function from the true
+//! motor acceleration to the estimate ([`estimator_response`]). Delays are ignored: this
+//! is the idealised curve the measurement is compared with, and it holds only below the
+//! observer bandwidth.
 
-use crate::config::{resolve, RunConfig};
+use crate::config::{borrow_gains, resolve, RunConfig};
 use crate::error::Result;
 use crate::output::Staging;
 use crate::plot::{save, Figure, Legend, Panel, Series};
 use crate::runner::run_scenario;
 use crate::trace::Trace;
-use controller_core::{AfbMode, FilterConfig};
+use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -87,21 +94,40 @@ fn filter_response(f: FilterConfig, w: f64) -> (f64, f64) {
     }
 }
 
-/// Eq. 1 at ω for the drive of `cfg` (with AFB's J + Ka·F(jω) if it is on).
+/// G(jω): the acceleration estimate over the true motor acceleration, for the AFB source
+/// of `d`. Observer: the Ellis estimate (the change of the velocity estimate over the tick,
+/// correction included) of a three-pole observer at ω_o = 2π·bandwidth_hz,
+/// G(s) = (3ω_o²·s + ω_o³)/(s + ω_o)³. Differentiation: 1 (its delay is ignored).
+pub fn estimator_response(d: &DriveConfig, w: f64) -> (f64, f64) {
+    match d.accel_feedback.source {
+        Estimator::Differentiation => (1.0, 0.0),
+        Estimator::Observer => {
+            let wo = 2.0 * PI * f64::from(d.observer.bandwidth_hz);
+            let s_plus = (wo, w);
+            let den = cmul(cmul(s_plus, s_plus), s_plus);
+            cdiv((wo * wo * wo, 3.0 * wo * wo * w), den)
+        }
+    }
+}
+
+/// Eq. 1 at ω for the run `cfg` (with AFB's J + Ka·F(jω)·G(jω) if it is on), with the
+/// gains the run uses ([`crate::runner::regulator_gains`]).
 pub fn analytic(cfg: &RunConfig, w: f64) -> f64 {
     let d = &cfg.drive;
     let j = f64::from(d.total_inertia_s());
-    // The drive's own gains: with AFB on, controller-core designs the PI for J_total + Ka.
-    let (kp, ki) = match controller_core::design(d) {
-        Ok(g) => (f64::from(g.kp_vel), f64::from(g.ki_vel)),
-        Err(_) => return f64::NAN,
+    let Ok(g) = crate::runner::regulator_gains(cfg) else {
+        return f64::NAN;
     };
+    let (kp, ki) = (f64::from(g.kp_vel), f64::from(g.ki_vel));
     let j_eff = if d.accel_feedback.mode == AfbMode::Off {
         (j, 0.0)
     } else {
-        let ka = f64::from(d.accel_feedback.gain_fraction) * j;
-        let fr = filter_response(d.accel_feedback.filter, w);
-        (j + ka * fr.0, ka * fr.1)
+        let ka = f64::from(g.ka);
+        let fg = cmul(
+            filter_response(d.accel_feedback.filter, w),
+            estimator_response(d, w),
+        );
+        (j + ka * fg.0, ka * fg.1)
     };
     let s = (0.0, w);
     let s2 = cmul(s, s);
@@ -109,6 +135,23 @@ pub fn analytic(cfg: &RunConfig, w: f64) -> f64 {
     let re = js2.0 + ki;
     let im = js2.1 + kp * w;
     (re * re + im * im).sqrt()
+}
+
+/// The stiffness run for `source` (`none`, `observer`, `differentiation`) with `sets`:
+/// the default AFB design with that acceleration source, or, for `none`, the same drive
+/// with AFB off at the default AFB design's gains.
+pub fn stiffness_config(source: &str, sets: &[String]) -> Result<RunConfig> {
+    let mut sets = sets.to_vec();
+    if source == "none" {
+        let afb = resolve("stiffness", None, &sets)?;
+        sets.push("drive.accel_feedback.mode=off".into());
+        let mut cfg = resolve("stiffness", None, &sets)?;
+        borrow_gains(&mut cfg, "stiffness (its default AFB design)", &afb.drive)?;
+        Ok(cfg)
+    } else {
+        sets.push(format!("drive.accel_feedback.source={source}"));
+        resolve("stiffness", None, &sets)
+    }
 }
 
 /// Fundamental phasor (re, im) of `f(row)` at ω over the rows in [t0, t1).
@@ -150,16 +193,11 @@ fn measure(source: &'static str, w: f64) -> Result<StiffnessPoint> {
     let window = periods * period;
     let start = 0.5;
     let duration = start + SETTLE_S + window;
-    let mut sets = vec![
+    let sets = vec![
         format!("scenario.sine_load.freq_rad_s={w}"),
         format!("scenario.duration_s={duration}"),
     ];
-    if afb {
-        sets.push(format!("drive.accel_feedback.source={source}"));
-    } else {
-        sets.push("drive.accel_feedback.mode=off".into());
-    }
-    let cfg = resolve("stiffness", None, &sets)?;
+    let cfg = stiffness_config(source, &sets)?;
     let out = run_scenario(&cfg)?;
     let (t1, t0) = (duration, duration - window);
     let torque = phasor(&out.trace, |r| r.load_torque_pu, w, t0, t1);
@@ -198,15 +236,10 @@ pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
     points
 }
 
-/// Eq. 1 for the stiffness scenario's drive, with AFB on or off, on a dense log grid
-/// from 0.2 to 2000 rad/s.
+/// Eq. 1 for the stiffness scenario's drive, with the default AFB (observer) or without
+/// it at the same gains, on a dense log grid from 0.2 to 2000 rad/s.
 pub fn analytic_curve(afb: bool) -> Result<Vec<(f64, f64)>> {
-    let sets: Vec<String> = if afb {
-        Vec::new()
-    } else {
-        vec!["drive.accel_feedback.mode=off".into()]
-    };
-    let cfg = resolve("stiffness", None, &sets)?;
+    let cfg = stiffness_config(if afb { "observer" } else { "none" }, &[])?;
     Ok((0..=120)
         .map(|i| {
             let w = 0.2 * 10f64.powf(f64::from(i) / 30.0);
@@ -266,7 +299,7 @@ pub fn figure(points: &[StiffnessPoint]) -> Figure {
                     ),
                     Series::markers("measured, no AFB", pick("none", true)),
                     Series::line(
-                        "Eq. 1 with J + Ka*F, AFB",
+                        "Eq. 1 with J + Ka*F*G, AFB",
                         analytic_curve(true).unwrap_or_else(|_| pick("observer", false)),
                     ),
                     Series::markers("measured, AFB (observer)", pick("observer", true)),
@@ -280,7 +313,7 @@ pub fn figure(points: &[StiffnessPoint]) -> Figure {
                 title: "Stiffness with AFB / without".into(),
                 y_label: "ratio".into(),
                 series: vec![
-                    Series::line("ideal (Eq. 1 with J + Ka*F)", ideal_ratio),
+                    Series::line("ideal (Eq. 1 with J + Ka*F*G)", ideal_ratio),
                     Series::markers("measured, observer acceleration", ratio_of("observer")),
                     Series::markers(
                         "measured, differentiated acceleration (stable points)",

@@ -58,7 +58,9 @@ impl AfbDesign {
 
     /// Short label.
     pub fn label(&self) -> String {
-        if self.mode == "off" {
+        if self.mode == "off" && self.observer_hz > 0.0 {
+            format!("no AFB, observer {}Hz", self.observer_hz)
+        } else if self.mode == "off" {
             "no AFB".into()
         } else {
             let observer = if self.observer_hz > 0.0 {
@@ -95,9 +97,10 @@ impl AfbDesign {
                 self.filter_corner_hz
             ));
             s.push(format!("drive.accel_feedback.source={}", self.source));
-            if self.observer_hz > 0.0 {
-                s.push(format!("drive.observer.bandwidth_hz={}", self.observer_hz));
-            }
+        }
+        // The observer also gives the velocity feedback, with AFB or without.
+        if self.observer_hz > 0.0 {
+            s.push(format!("drive.observer.bandwidth_hz={}", self.observer_hz));
         }
         s
     }
@@ -119,10 +122,35 @@ pub const GAINS: [f64; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
 /// Observer bandwidths tried when the observer is the acceleration source (Hz).
 pub const OBSERVER_HZ: [f64; 2] = [75.0, 150.0];
 
-/// The grid of designs: off, and error-form AFB over source (differentiation, or the
-/// observer at each bandwidth) × gain × filter.
+/// The run without AFB that is the same drive as `d` without its AFB: the observer (which
+/// also gives the velocity feedback) at `d`'s bandwidth, or at the drive's default.
+pub fn without_afb_of(d: &AfbDesign) -> AfbDesign {
+    let default_hz = f64::from(controller_core::DriveConfig::table1().observer.bandwidth_hz);
+    let hz = if d.observer_hz > 0.0 && d.observer_hz != default_hz {
+        d.observer_hz
+    } else {
+        0.0
+    };
+    AfbDesign {
+        observer_hz: hz,
+        ..AfbDesign::OFF
+    }
+}
+
+/// The grid of designs: error-form AFB over source (differentiation, or the observer at
+/// each bandwidth) × gain × filter, and without AFB at each observer bandwidth the AFB
+/// designs use ([`without_afb_of`]).
 pub fn designs() -> Vec<AfbDesign> {
     let mut v = vec![AfbDesign::OFF];
+    for hz in OBSERVER_HZ {
+        let off = without_afb_of(&AfbDesign {
+            observer_hz: hz,
+            ..AfbDesign::OFF
+        });
+        if !v.contains(&off) {
+            v.push(off);
+        }
+    }
     let sources = [("differentiation", 0.0)]
         .into_iter()
         .chain(OBSERVER_HZ.iter().map(|hz| ("observer", *hz)));
@@ -221,11 +249,40 @@ pub fn largest_stable(points: &[&SweepPoint]) -> f64 {
     largest(points, |p| p.stable)
 }
 
-fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> SweepPoint {
+/// The probe run of one grid point. A run without AFB uses the regulator gains of the
+/// plant's default AFB design at the same bandwidth and observer bandwidth, bit for bit;
+/// with the PI sized for J_total (`velocity_pi_inertia = "total"`) those are the gains of
+/// every design of the grid with that observer (`the_run_without_afb_has_the_gains_of_
+/// every_design` below), so one run without AFB per bandwidth and observer is the
+/// same-gains comparison for all of them.
+pub fn point_config(
+    plant: &str,
+    design: &AfbDesign,
+    bw: f64,
+    base_sets: &[String],
+) -> Result<crate::config::RunConfig> {
     let mut sets = base_sets.to_vec();
     sets.push("drive.position_bandwidth_rad_s=0".into());
     sets.push(format!("drive.velocity_bandwidth_rad_s={bw}"));
-    sets.extend(design.sets());
+    if design.mode == "off" {
+        let mut afb_sets = sets.clone();
+        afb_sets.extend(design.sets().into_iter().filter(|s| s.contains("observer")));
+        let afb = resolve("sweep", Some(plant), &afb_sets)?;
+        sets.extend(design.sets());
+        let mut cfg = resolve("sweep", Some(plant), &sets)?;
+        crate::config::borrow_gains(
+            &mut cfg,
+            &format!("{plant}'s default AFB design at {bw} rad/s"),
+            &afb.drive,
+        )?;
+        Ok(cfg)
+    } else {
+        sets.extend(design.sets());
+        resolve("sweep", Some(plant), &sets)
+    }
+}
+
+fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> SweepPoint {
     let mut point = SweepPoint {
         plant: plant.into(),
         design: design.label(),
@@ -245,7 +302,7 @@ fn run_point(plant: &str, design: &AfbDesign, bw: f64, base_sets: &[String]) -> 
         faulted: false,
         error: String::new(),
     };
-    match resolve("sweep", Some(plant), &sets).and_then(|cfg| run_scenario(&cfg)) {
+    match point_config(plant, design, bw, base_sets).and_then(|cfg| run_scenario(&cfg)) {
         Ok(out) => {
             point.stable = out.metrics.stable;
             point.oscillation_pu = out.metrics.oscillation_pu;
@@ -298,8 +355,15 @@ pub fn results(points: &[SweepPoint], plants: &[&str], designs: &[AfbDesign]) ->
                     .filter(|p| p.plant == *plant && p.afb == *d)
                     .collect()
             };
-            let without = largest_stable(&of(&AfbDesign::OFF));
-            let quiet_without = largest(&of(&AfbDesign::OFF), |p| p.quiet);
+            // Without AFB: the best of the runs without AFB (one per observer bandwidth).
+            let offs = designs.iter().filter(|d| d.mode == "off");
+            let without = offs
+                .clone()
+                .map(|d| largest_stable(&of(d)))
+                .fold(0.0, f64::max);
+            let quiet_without = offs
+                .map(|d| largest(&of(d), |p| p.quiet))
+                .fold(0.0, f64::max);
             let mut best = (0.0, String::from("none"));
             let mut best_quiet = (0.0, String::from("none"));
             for d in designs.iter().filter(|d| d.mode != "off") {
@@ -435,6 +499,7 @@ pub fn sweep(out: &Path) -> Result<String> {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
 
     fn point(bw: f64, stable: bool) -> SweepPoint {
@@ -475,13 +540,38 @@ mod tests {
     }
 
     #[test]
+    fn the_run_without_afb_has_the_gains_of_every_design() {
+        for plant in PLANTS {
+            for bw in [10.0, 94.2] {
+                for d in designs().iter().filter(|d| d.mode != "off") {
+                    let off = point_config(plant, &without_afb_of(d), bw, &[]).unwrap();
+                    let g_off = crate::runner::regulator_gains(&off).unwrap();
+                    assert_eq!(g_off.ka, 0.0);
+                    let Ok(on) = point_config(plant, d, bw, &[]) else {
+                        continue; // rejected by the configuration checks (see sweep.csv)
+                    };
+                    let g = crate::runner::regulator_gains(&on).unwrap();
+                    assert!(
+                        crate::runner::same_regulator_gains(&g_off, &g),
+                        "{plant} {bw} rad/s {}:\n{g_off:?}\n{g:?}",
+                        d.label()
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn the_design_grid_holds_off_and_every_combination() {
         let d = designs();
+        let offs = d.iter().filter(|x| x.mode == "off").count();
+        assert_eq!(offs, OBSERVER_HZ.len(), "one per observer bandwidth");
         assert_eq!(
             d.len(),
-            1 + (1 + OBSERVER_HZ.len()) * GAINS.len() * FILTERS.len()
+            offs + (1 + OBSERVER_HZ.len()) * GAINS.len() * FILTERS.len()
         );
-        assert_eq!(d.iter().filter(|x| x.mode == "off").count(), 1);
+        // Every AFB design has its run without AFB in the grid.
+        assert!(d.iter().all(|x| d.contains(&without_afb_of(x))));
         let labels: std::collections::BTreeSet<String> = d.iter().map(AfbDesign::label).collect();
         assert_eq!(labels.len(), d.len(), "labels must be unique");
     }

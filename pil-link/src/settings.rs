@@ -3,14 +3,14 @@
 //! comparison also checks that `design` (the one place floats are used) gives the same
 //! fixed-point coefficients on the Cortex-M4F as on the host.
 //!
-//! Layout (108 bytes): the scalar fields in declaration order, each filter as
+//! Layout (110 bytes): the scalar fields in declaration order, each filter as
 //! `tag u8 (0 none, 1 first order, 2 second order) | corner_hz f32 | q f32`, each enum as u8.
 
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 use controller_core::{
     AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
-    ObserverConfig, ObserverInertia,
+    ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
 };
 
 /// Payload bytes of a [`DriveConfig`].
@@ -37,6 +37,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         position_bandwidth_rad_s,
         velocity_bandwidth_rad_s,
         velocity_damping,
+        velocity_pi_inertia,
         current_bandwidth_rad_s,
         winding_resistance_pu,
         winding_inductance_pu_s,
@@ -60,6 +61,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
     let ObserverConfig {
         bandwidth_hz,
         model_inertia,
+        torque_input,
     } = observer;
     let FaultLimits {
         overspeed_pu,
@@ -77,6 +79,14 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         position_bandwidth_rad_s,
         velocity_bandwidth_rad_s,
         velocity_damping,
+    ] {
+        w.u32(x.to_bits())?;
+    }
+    w.u8(match velocity_pi_inertia {
+        PiInertia::Total => 0,
+        PiInertia::TotalPlusAfb => 1,
+    })?;
+    for x in [
         current_bandwidth_rad_s,
         winding_resistance_pu,
         winding_inductance_pu_s,
@@ -106,6 +116,10 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         ObserverInertia::Total => 0,
         ObserverInertia::Motor => 1,
     })?
+    .u8(match torque_input {
+        ObserverTorque::Command => 0,
+        ObserverTorque::MeasuredCurrent => 1,
+    })?
     .u32(overspeed_pu.to_bits())?
     .u32(following_error_counts.to_bits())?
     .u32(encoder_jump_margin.to_bits())?;
@@ -113,7 +127,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 108;
+pub const LEN: usize = 110;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -132,6 +146,11 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
     let position_bandwidth_rad_s = f(&mut r)?;
     let velocity_bandwidth_rad_s = f(&mut r)?;
     let velocity_damping = f(&mut r)?;
+    let velocity_pi_inertia = match r.u8()? {
+        0 => PiInertia::Total,
+        1 => PiInertia::TotalPlusAfb,
+        _ => return Err(bad),
+    };
     let current_bandwidth_rad_s = f(&mut r)?;
     let winding_resistance_pu = f(&mut r)?;
     let winding_inductance_pu_s = f(&mut r)?;
@@ -161,6 +180,11 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         1 => ObserverInertia::Motor,
         _ => return Err(bad),
     };
+    let torque_input = match r.u8()? {
+        0 => ObserverTorque::Command,
+        1 => ObserverTorque::MeasuredCurrent,
+        _ => return Err(bad),
+    };
     let faults = FaultLimits {
         overspeed_pu: f(&mut r)?,
         following_error_counts: f(&mut r)?,
@@ -178,6 +202,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         position_bandwidth_rad_s,
         velocity_bandwidth_rad_s,
         velocity_damping,
+        velocity_pi_inertia,
         current_bandwidth_rad_s,
         winding_resistance_pu,
         winding_inductance_pu_s,
@@ -197,6 +222,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         observer: ObserverConfig {
             bandwidth_hz,
             model_inertia,
+            torque_input,
         },
         faults,
     })

@@ -319,6 +319,12 @@ mod payloads {
             cfg.velocity_filter = FilterConfig::FirstOrder { corner_hz: f32::from_bits(bits[2]) };
             cfg.accel_feedback.gain_fraction = f32::from_bits(bits[3]);
             cfg.faults.encoder_jump_margin = f32::from_bits(bits[4]);
+            if bits[5] % 2 == 1 {
+                cfg.velocity_pi_inertia = controller_core::PiInertia::TotalPlusAfb;
+            }
+            if bits[5] & 2 == 2 {
+                cfg.observer.torque_input = controller_core::ObserverTorque::MeasuredCurrent;
+            }
             let mut w = Writer::new();
             settings::encode(&cfg, &mut w).unwrap();
             prop_assert_eq!(w.as_slice().len(), settings::LEN);
@@ -339,7 +345,10 @@ mod payloads {
         let mut w = Writer::new();
         settings::encode(&DriveConfig::table1(), &mut w).unwrap();
         let mut bytes = w.as_slice().to_vec();
-        bytes[65] = 7; // velocity filter tag
+        bytes[66] = 7; // velocity filter tag
+        assert!(settings::decode(&bytes).is_err());
+        let mut bytes = w.as_slice().to_vec();
+        bytes[37] = 2; // velocity_pi_inertia
         assert!(settings::decode(&bytes).is_err());
     }
 }

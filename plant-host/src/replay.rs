@@ -133,7 +133,7 @@ fn state_is_finite(s: &StateRow) -> bool {
 /// Simulates the rows (already validated) through the mechanics of `config`.
 pub fn simulate(config: &PlantConfig, rows: &[TorqueRow]) -> (Vec<StateRow>, u64) {
     let mut plant = TwoInertiaPlant::new(&config.mechanics, config.backlash);
-    let cpr = config.sensors.encoder_cpr;
+    let cpr = config.sensors.counts_per_rev();
     let mut out = Vec::with_capacity(rows.len());
     let mut prev: Option<&TorqueRow> = None;
     for row in rows {

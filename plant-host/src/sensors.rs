@@ -94,18 +94,23 @@ impl Sensors {
         }
     }
 
-    /// Motor encoder count at `time_s` (noise, if any, is added before the floor).
+    /// Motor encoder count at `time_s` as the drive reads it: with sin/cos interpolation
+    /// the angle is resolved into `encoder_cpr × encoder_interpolation` counts per
+    /// revolution and floored like a plain count (an ideal interpolator: no amplitude or
+    /// phase error of the sin/cos tracks). Noise, if any, is in those counts and is added
+    /// before the floor.
     pub fn motor_count(&self, motor_pos_rad: f64, time_s: f64) -> i64 {
         let c = &self.config;
+        let cpr = c.counts_per_rev();
         if c.encoder_noise_counts > 0.0 {
             let noise_rad = c.encoder_noise_counts
                 * gaussian(c.noise_seed, Channel::MotorEncoder, time_s)
                 * 2.0
                 * PI
-                / f64::from(c.encoder_cpr);
-            encoder_count(motor_pos_rad + noise_rad, c.encoder_cpr)
+                / f64::from(cpr);
+            encoder_count(motor_pos_rad + noise_rad, cpr)
         } else {
-            encoder_count(motor_pos_rad, c.encoder_cpr)
+            encoder_count(motor_pos_rad, cpr)
         }
     }
 
@@ -141,6 +146,24 @@ mod tests {
         assert_eq!(encoder_count(1.001 * one, 4096), 1);
         assert_eq!(encoder_count(-0.001 * one, 4096), -1);
         assert_eq!(encoder_count(2.0 * PI, 1_000_000), 1_000_000);
+    }
+
+    #[test]
+    fn interpolation_multiplies_the_counts_and_keeps_the_floor() {
+        let mut s = SensorsConfig::with_cpr(4096);
+        s.encoder_interpolation = 16;
+        let sensors = Sensors::new(&s, &ElectricsConfig::default());
+        assert_eq!(s.counts_per_rev(), 65_536);
+        let fine = 2.0 * PI / 65_536.0;
+        // One plain count is 16 interpolated counts; a sixteenth of a count is resolved.
+        assert_eq!(sensors.motor_count(2.0 * PI / 4096.0 + 0.5 * fine, 0.0), 16);
+        assert_eq!(sensors.motor_count(1.001 * fine, 0.0), 1);
+        assert_eq!(sensors.motor_count(0.999 * fine, 0.0), 0);
+        assert_eq!(sensors.motor_count(-0.001 * fine, 0.0), -1);
+        // Factor 1 is the plain encoder.
+        let plain = Sensors::new(&SensorsConfig::with_cpr(4096), &ElectricsConfig::default());
+        assert_eq!(plain.motor_count(1.001 * fine, 0.0), 0);
+        assert_eq!(plain.motor_count(2.0 * PI, 0.0), 4096);
     }
 
     #[test]

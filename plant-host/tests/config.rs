@@ -224,12 +224,46 @@ fn electrics_sensors_and_lost_motion_ranges() {
             "sensors.current_noise_pu",
         ),
         ("sensors", "noise_seed = -1", "sensors.noise_seed"),
+        (
+            "sensors",
+            "encoder_interpolation = 0",
+            "sensors.encoder_interpolation",
+        ),
+        (
+            "sensors",
+            "encoder_interpolation = 8192",
+            "sensors.encoder_interpolation",
+        ),
+        (
+            "sensors",
+            "encoder_interpolation = 16.5",
+            "sensors.encoder_interpolation",
+        ),
         ("lost_motion", "model = \"hysteresis\"", "lost_motion.model"),
         ("lost_motion", "model = 1", "lost_motion.model"),
     ] {
         let e = err(&format!("{base}[{table}]\n{kv}\n"));
         assert!(e.to_string().contains(key), "{kv}: {e}");
     }
+}
+
+#[test]
+fn encoder_interpolation_defaults_to_plain_counts_and_bounds_the_product() {
+    let base = plant_table(None, None);
+    let plain = PlantConfig::from_toml_str(&base).unwrap();
+    assert_eq!(plain.sensors.encoder_interpolation, 1);
+    assert_eq!(plain.sensors.counts_per_rev(), 4096);
+    let c = PlantConfig::from_toml_str(&format!("{base}[sensors]\nencoder_interpolation = 16\n"))
+        .unwrap();
+    assert_eq!(c.sensors.counts_per_rev(), 65_536);
+    // 1e6 counts x 4096 exceeds the 2^31 counts a revolution may have.
+    let big = plant_table(None, Some(("encoder_cpr", "1000000")));
+    let e = err(&format!("{big}[sensors]\nencoder_interpolation = 4096\n"));
+    let text = e.to_string();
+    assert!(
+        text.contains("sensors.encoder_interpolation") && text.contains("2147483648"),
+        "{text}"
+    );
 }
 
 #[test]

@@ -91,6 +91,12 @@ pub struct RunSummary {
     pub torque_ripple_rms_pu: f64,
     /// RMS of (load speed − commanded speed) over the window [pu].
     pub load_speed_err_rms_pu: f64,
+    /// Largest |motor speed − commanded speed| in the 0.3 s after the load step [pu]
+    /// (the speed dip: the inverse of the drive's stiffness against the step).
+    pub speed_dip_pu: f64,
+    /// RMS of the controller's acceleration estimate (velocity-tick output) minus the
+    /// motor's true mean acceleration over the same current tick, over the window [pu/s].
+    pub accel_est_err_rms_pu_s: f64,
 }
 
 impl RunSummary {
@@ -181,6 +187,10 @@ pub fn run_scenario(
     let mut hist: std::collections::VecDeque<f64> = std::collections::VecDeque::new();
     let mut hist_sum = 0.0f64;
     let (mut rip_sq, mut rip_n, mut lsq) = (0.0f64, 0u64, 0.0f64);
+    let mut dip = 0.0f64;
+    // Motor speed at the start of the last two current ticks (true mean accelerations).
+    let (mut w_prev, mut w_prev2) = (0.0f64, 0.0f64);
+    let (mut aerr_sq, mut aerr_n) = (0.0f64, 0u64);
     for k in 0..n_ticks {
         let t = k as f64 * ts;
         let counts =
@@ -195,7 +205,17 @@ pub fn run_scenario(
                 fault_input: false,
             });
             faulted |= out.fault.is_some();
+            // The velocity tick reads the observer of the last current tick (k − 1), whose
+            // estimate covers the tick from k − 2 to k − 1.
+            if k >= judge_from.max(2) {
+                let a_true = (w_prev - w_prev2) / ts;
+                let ea = out.acceleration_est_pu_s.to_num::<f64>() - a_true;
+                aerr_sq += ea * ea;
+                aerr_n += 1;
+            }
         }
+        w_prev2 = w_prev;
+        w_prev = x.w_m;
         let out = ctl.current_tick(CurrentInputs {
             encoder_count: raw,
             current_pu: Pu::saturating_from_num(x.i),
@@ -208,6 +228,9 @@ pub fn run_scenario(
                 v_applied = v_pending;
             }
             x.step(plant, v_applied, tl, dt);
+        }
+        if t >= sc.load_step_s && t < sc.load_step_s + 0.3 {
+            dip = dip.max((x.w_m - v_cmd_now).abs());
         }
         if k >= judge_from {
             let e = x.w_m - v_cmd_now;
@@ -243,5 +266,7 @@ pub fn run_scenario(
         max_load_speed_err_pu: max_ls,
         torque_ripple_rms_pu: (rip_sq / rip_n.max(1) as f64).sqrt(),
         load_speed_err_rms_pu: (lsq / nf).sqrt(),
+        speed_dip_pu: dip,
+        accel_est_err_rms_pu_s: (aerr_sq / aerr_n.max(1) as f64).sqrt(),
     }
 }

@@ -77,13 +77,19 @@ impl Default for ElectricsConfig {
 /// Position and current sensors (the `[sensors]` table, plus `plant.encoder_cpr`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorsConfig {
-    /// Motor encoder counts per motor revolution (from `plant.encoder_cpr`).
+    /// Motor encoder counts per motor revolution (from `plant.encoder_cpr`): lines × 4 of a
+    /// square-wave encoder, or the sin/cos periods × 4 of an analog one.
     pub encoder_cpr: u32,
+    /// Sin/cos interpolation factor of the motor encoder (`sensors.encoder_interpolation`):
+    /// the drive resolves each count into this many (1 = plain counts). The drive sees
+    /// [`SensorsConfig::counts_per_rev`] = `encoder_cpr × encoder_interpolation` counts.
+    pub encoder_interpolation: u32,
     /// Optional load-side encoder, counts per revolution of the physical load shaft.
     pub load_encoder_cpr: Option<u32>,
     /// Motor revolutions per load revolution (only the load encoder uses it).
     pub gear_ratio: f64,
-    /// Standard deviation of Gaussian noise added to the motor encoder, in counts.
+    /// Standard deviation of Gaussian noise added to the motor encoder, in the counts the
+    /// drive sees (after interpolation).
     pub encoder_noise_counts: f64,
     /// Standard deviation of Gaussian noise added to the current before the ADC, in pu.
     pub current_noise_pu: f64,
@@ -96,12 +102,19 @@ impl SensorsConfig {
     pub fn with_cpr(encoder_cpr: u32) -> Self {
         Self {
             encoder_cpr,
+            encoder_interpolation: 1,
             load_encoder_cpr: None,
             gear_ratio: 1.0,
             encoder_noise_counts: 0.0,
             current_noise_pu: 0.0,
             noise_seed: 1,
         }
+    }
+
+    /// Counts per motor revolution as the drive sees them: `encoder_cpr ×
+    /// encoder_interpolation` (the config check keeps the product within 2^31).
+    pub fn counts_per_rev(&self) -> u32 {
+        self.encoder_cpr.saturating_mul(self.encoder_interpolation)
     }
 }
 
@@ -208,6 +221,14 @@ const FS_SPEC: RealSpec = RealSpec {
     unit: "pu",
 };
 
+/// Sin/cos interpolation: 1 (a square-wave encoder) up to 4096, a 12-bit interpolator.
+const INTERPOLATION_SPEC: IntSpec = IntSpec {
+    name: "encoder_interpolation",
+    min: 1,
+    max: 4096,
+    unit: "interpolated counts per encoder count",
+};
+
 const LOAD_CPR_SPEC: IntSpec = IntSpec {
     name: "load_encoder_cpr",
     min: 0,
@@ -303,8 +324,21 @@ impl PlantConfig {
                 allowed: "0 (no load encoder) or an integer in 4..=2147483648 counts/rev".into(),
             });
         }
+        let interpolation = se.int_or(INTERPOLATION_SPEC, 1)?;
+        if i64::from(encoder_cpr) * interpolation > CPR_SPEC.max {
+            return Err(ConfigError::OutOfRange {
+                key: "sensors.encoder_interpolation".into(),
+                value: interpolation.to_string(),
+                allowed: format!(
+                    "an integer in {}..={} with plant.encoder_cpr × encoder_interpolation \
+                     <= {} counts/rev (plant.encoder_cpr = {encoder_cpr})",
+                    INTERPOLATION_SPEC.min, INTERPOLATION_SPEC.max, CPR_SPEC.max
+                ),
+            });
+        }
         let sensors = SensorsConfig {
             encoder_cpr,
+            encoder_interpolation: to_u32(interpolation),
             load_encoder_cpr: (load_cpr > 0).then(|| to_u32(load_cpr)),
             gear_ratio: se.real_or(GEAR_SPEC, s0.gear_ratio)?,
             encoder_noise_counts: se.real_or(ENC_NOISE_SPEC, 0.0)?,

@@ -1,0 +1,424 @@
+//! The paper's Sec. II claim with the paper's own estimator: "the velocity and
+//! acceleration signals were found by differentiation", and "if the acceleration signal
+//! was not fed back to the controller, the system would become unstable".
+//!
+//! The map, once per encoder resolution of [`ENCODER_INTERPOLATIONS`] (Table 1's 4096
+//! counts, and the same encoder interpolated): `fig6` with differentiated velocity (first-order filter at each corner of
+//! [`VELOCITY_CORNERS_HZ`]) and differentiated acceleration for the AFB path (first-order
+//! filter at each corner of [`AFB_CORNERS_HZ`]), the drive's default AFB gain and form.
+//! At each velocity corner the loop runs without AFB at the regulator gains of the AFB
+//! design (bit for bit, [`crate::config::borrow_gains`]); with AFB off the AFB filter is
+//! not used, so one run without AFB per velocity corner covers every AFB corner. "Stable"
+//! is fig6's `stable` metric. Every cell is reported; no point is picked from the map.
+
+use crate::config::{borrow_gains, resolve, RunConfig};
+use crate::error::{HarnessError, Result};
+use crate::plot::{save, Figure, Legend, Panel, Series};
+use crate::runner::run_scenario;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Velocity-feedback filter corners (Hz, first order at the velocity rate).
+pub const VELOCITY_CORNERS_HZ: [f64; 9] = [10.0, 15.0, 25.0, 35.0, 50.0, 75.0, 100.0, 150.0, 250.0];
+
+/// Acceleration-feedback filter corners (Hz, first order at the AFB rate).
+pub const AFB_CORNERS_HZ: [f64; 6] = [10.0, 25.0, 50.0, 100.0, 200.0, 400.0];
+
+/// Sin/cos interpolation factors of the 4096-count encoder (1 = Table 1's plain counts).
+/// The following-error trip is kept at the same angle (Table 1's counts × factor).
+pub const ENCODER_INTERPOLATIONS: [u32; 2] = [1, 16];
+
+/// The scenario the map repeats.
+pub const SCENARIO: &str = "fig6";
+
+/// One cell of the map (or, with `afb = false`, the row's run without AFB).
+#[derive(Clone, Debug, Serialize)]
+pub struct MapPoint {
+    /// Encoder interpolation factor.
+    pub encoder_interpolation: u32,
+    /// Acceleration feedback on.
+    pub afb: bool,
+    /// Velocity filter corner (Hz).
+    pub velocity_corner_hz: f64,
+    /// AFB filter corner (Hz); 0 for the run without AFB.
+    pub afb_corner_hz: f64,
+    /// fig6's `stable` metric.
+    pub stable: bool,
+    /// Speed-error oscillation in the stability window (pu).
+    pub oscillation_pu: f64,
+    /// Motor-torque chatter in the stability window (pu).
+    pub limit_cycle_torque_pu: f64,
+    /// Shaft-torque ripple after the load step (pu).
+    pub shaft_torque_ripple_rms_pu: f64,
+    /// Time the torque command spent at its limit (s).
+    pub torque_saturated_s: f64,
+    /// The controller faulted.
+    pub faulted: bool,
+    /// Velocity Kp the run used (identical with and without AFB).
+    pub kp_vel: f64,
+    /// Error text if the configuration was rejected.
+    pub error: String,
+}
+
+/// `--set` overrides of one cell (AFB on).
+pub fn sets(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: f64) -> Vec<String> {
+    let trip = controller_core::DriveConfig::table1()
+        .faults
+        .following_error_counts
+        * interpolation as f32;
+    vec![
+        format!("sensors.encoder_interpolation={interpolation}"),
+        format!("drive.faults.following_error_counts={trip}"),
+        "drive.velocity_estimator=differentiation".into(),
+        "drive.velocity_filter=first_order".into(),
+        format!("drive.velocity_filter_corner_hz={velocity_corner_hz}"),
+        "drive.accel_feedback.source=differentiation".into(),
+        "drive.accel_feedback.filter=first_order".into(),
+        format!("drive.accel_feedback.filter_corner_hz={afb_corner_hz}"),
+    ]
+}
+
+/// The AFB run of a cell.
+pub fn afb_config(
+    interpolation: u32,
+    velocity_corner_hz: f64,
+    afb_corner_hz: f64,
+) -> Result<RunConfig> {
+    resolve(
+        SCENARIO,
+        None,
+        &sets(interpolation, velocity_corner_hz, afb_corner_hz),
+    )
+}
+
+/// The run without AFB of a row, at the gains of the row's AFB design.
+pub fn no_afb_config(interpolation: u32, velocity_corner_hz: f64) -> Result<RunConfig> {
+    let first = AFB_CORNERS_HZ.first().copied().unwrap_or(100.0);
+    let afb = afb_config(interpolation, velocity_corner_hz, first)?;
+    let mut s = sets(interpolation, velocity_corner_hz, first);
+    s.push("drive.accel_feedback.mode=off".into());
+    let mut cfg = resolve(SCENARIO, None, &s)?;
+    borrow_gains(
+        &mut cfg,
+        &format!("{SCENARIO} with differentiation, velocity filter {velocity_corner_hz} Hz"),
+        &afb.drive,
+    )?;
+    Ok(cfg)
+}
+
+fn run_cell(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
+    let mut p = MapPoint {
+        encoder_interpolation: interpolation,
+        afb: afb_corner_hz.is_some(),
+        velocity_corner_hz,
+        afb_corner_hz: afb_corner_hz.unwrap_or(0.0),
+        stable: false,
+        oscillation_pu: f64::NAN,
+        limit_cycle_torque_pu: f64::NAN,
+        shaft_torque_ripple_rms_pu: f64::NAN,
+        torque_saturated_s: f64::NAN,
+        faulted: false,
+        kp_vel: f64::NAN,
+        error: String::new(),
+    };
+    let cfg = match afb_corner_hz {
+        Some(fa) => afb_config(interpolation, velocity_corner_hz, fa),
+        None => no_afb_config(interpolation, velocity_corner_hz),
+    };
+    let run = cfg.and_then(|c| {
+        let g = crate::runner::regulator_gains(&c)?;
+        run_scenario(&c).map(|o| (g, o))
+    });
+    match run {
+        Ok((g, out)) => {
+            let m = &out.metrics;
+            p.stable = m.stable;
+            p.oscillation_pu = m.oscillation_pu;
+            p.limit_cycle_torque_pu = m.limit_cycle_torque_pu;
+            p.shaft_torque_ripple_rms_pu = m.shaft_torque_ripple_rms_pu;
+            p.faulted = m.faulted;
+            p.torque_saturated_s = m.torque_saturated_s;
+            p.kp_vel = f64::from(g.kp_vel);
+        }
+        Err(e) => p.error = e.to_string(),
+    }
+    p
+}
+
+/// Runs the whole map in parallel.
+pub fn map_points() -> Vec<MapPoint> {
+    let jobs: Vec<(u32, f64, Option<f64>)> = ENCODER_INTERPOLATIONS
+        .iter()
+        .flat_map(|n| {
+            VELOCITY_CORNERS_HZ.iter().flat_map(move |fv| {
+                std::iter::once((*n, *fv, None))
+                    .chain(AFB_CORNERS_HZ.iter().map(move |fa| (*n, *fv, Some(*fa))))
+            })
+        })
+        .collect();
+    let pb = crate::progress::bar(jobs.len() as u64, "sec2 map");
+    let points = jobs
+        .par_iter()
+        .map(|(n, fv, fa)| {
+            let r = run_cell(*n, *fv, *fa);
+            pb.inc(1);
+            r
+        })
+        .collect();
+    pb.finish_and_clear();
+    points
+}
+
+/// What the map says, counted.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MapSummary {
+    /// Velocity corners at which the loop without AFB is unstable.
+    pub unstable_without_hz: Vec<f64>,
+    /// AFB cells in those rows, and how many of them are stable.
+    pub cells_where_unstable_without: usize,
+    /// Of those, stable with AFB.
+    pub stable_with_where_unstable_without: usize,
+    /// AFB cells in rows where the loop without AFB is stable.
+    pub cells_where_stable_without: usize,
+    /// Of those, unstable with AFB (AFB makes a stable loop unstable).
+    pub unstable_with_where_stable_without: usize,
+}
+
+/// The points of the map at one encoder interpolation factor.
+pub fn at(points: &[MapPoint], interpolation: u32) -> Vec<MapPoint> {
+    points
+        .iter()
+        .filter(|p| p.encoder_interpolation == interpolation)
+        .cloned()
+        .collect()
+}
+
+/// Counts one map (the points of one encoder, [`at`]).
+pub fn summarize(points: &[MapPoint]) -> MapSummary {
+    let mut s = MapSummary::default();
+    for fv in VELOCITY_CORNERS_HZ {
+        let without = points
+            .iter()
+            .find(|p| !p.afb && p.velocity_corner_hz == fv)
+            .is_some_and(|p| p.stable);
+        if !without {
+            s.unstable_without_hz.push(fv);
+        }
+        for p in points
+            .iter()
+            .filter(|p| p.afb && p.velocity_corner_hz == fv)
+        {
+            if without {
+                s.cells_where_stable_without += 1;
+                s.unstable_with_where_stable_without += usize::from(!p.stable);
+            } else {
+                s.cells_where_unstable_without += 1;
+                s.stable_with_where_unstable_without += usize::from(p.stable);
+            }
+        }
+    }
+    s
+}
+
+fn cell(p: Option<&MapPoint>) -> String {
+    match p {
+        None => "-".into(),
+        Some(p) if !p.error.is_empty() => "rejected".into(),
+        Some(p) if p.stable => format!("stable ({:.3})", p.oscillation_pu),
+        Some(p) => format!(
+            "**unstable** ({:.3}{}, {:.2} s at the limit)",
+            p.oscillation_pu,
+            if p.faulted { ", tripped" } else { "" },
+            p.torque_saturated_s
+        ),
+    }
+}
+
+/// The map as a Markdown table: one row per velocity corner, the run without AFB first.
+pub fn table(points: &[MapPoint]) -> String {
+    let mut t = String::from("| velocity filter (Hz) | without AFB |");
+    for fa in AFB_CORNERS_HZ {
+        let _ = write!(t, " AFB filter {fa} Hz |");
+    }
+    t.push_str("\n|---|---|");
+    for _ in AFB_CORNERS_HZ {
+        t.push_str("---|");
+    }
+    for fv in VELOCITY_CORNERS_HZ {
+        let _ = write!(
+            t,
+            "\n| {fv} | {} |",
+            cell(points.iter().find(|p| !p.afb && p.velocity_corner_hz == fv))
+        );
+        for fa in AFB_CORNERS_HZ {
+            let _ = write!(
+                t,
+                " {} |",
+                cell(
+                    points
+                        .iter()
+                        .find(|p| p.afb && p.velocity_corner_hz == fv && p.afb_corner_hz == fa)
+                )
+            );
+        }
+    }
+    t.push('\n');
+    t
+}
+
+/// One map as a chart panel: each AFB cell by the stability with and without AFB.
+fn panel(points: &[MapPoint], interpolation: u32) -> Panel {
+    let without = |fv: f64| {
+        points
+            .iter()
+            .find(|p| !p.afb && p.velocity_corner_hz == fv)
+            .is_some_and(|p| p.stable)
+    };
+    let pick = |with: bool, wo: bool| -> Vec<(f64, f64)> {
+        points
+            .iter()
+            .filter(|p| p.afb && p.stable == with && without(p.velocity_corner_hz) == wo)
+            .map(|p| (p.velocity_corner_hz, p.afb_corner_hz))
+            .collect()
+    };
+    Panel {
+            title: format!(
+                "Sec. II map: {SCENARIO}, differentiated velocity and acceleration, same gains, encoder x{interpolation}"
+            ),
+            y_label: "AFB filter corner (Hz)".into(),
+            series: vec![
+                Series::markers("unstable without AFB, stable with", pick(true, false)),
+                Series::markers("unstable without AFB, unstable with", pick(false, false)),
+                Series::markers("stable without AFB, stable with", pick(true, true)),
+                Series::markers("stable without AFB, unstable with", pick(false, true)),
+            ],
+            log_x: true,
+            log_y: true,
+            legend: Legend::UpperLeft,
+    }
+}
+
+/// The maps as a chart, one panel per encoder.
+pub fn figure(points: &[MapPoint]) -> Figure {
+    Figure {
+        x_label: "velocity filter corner (Hz)".into(),
+        panels: ENCODER_INTERPOLATIONS
+            .iter()
+            .map(|n| panel(&at(points, *n), *n))
+            .collect(),
+    }
+}
+
+/// Runs the map into `dir` (`sec2.csv`, `sec2-map.png|svg`); returns the points.
+pub fn map_into(dir: &Path) -> Result<Vec<MapPoint>> {
+    let points = map_points();
+    let path = dir.join("sec2.csv");
+    let mut w = csv::Writer::from_path(&path).map_err(|e| HarnessError::io(&path, e))?;
+    for p in &points {
+        w.serialize(p).map_err(|e| HarnessError::io(&path, e))?;
+    }
+    w.flush().map_err(|e| HarnessError::io(&path, e))?;
+    save(&figure(&points), &dir.join("sec2-map"))?;
+    Ok(points)
+}
+
+/// One paragraph of what the map of one encoder shows, counted from its points.
+pub fn summary_text(points: &[MapPoint]) -> String {
+    let s = summarize(points);
+    format!(
+        "Without AFB the loop is unstable at velocity-filter corners {:?} Hz (of {:?} Hz). \
+         In those rows the loop with AFB is stable in {} of {} cells; in the rows where the \
+         loop without AFB is stable, AFB makes it unstable in {} of {} cells.",
+        s.unstable_without_hz,
+        VELOCITY_CORNERS_HZ,
+        s.stable_with_where_unstable_without,
+        s.cells_where_unstable_without,
+        s.unstable_with_where_stable_without,
+        s.cells_where_stable_without
+    )
+}
+
+/// `hil-harness sec2-map`.
+pub fn sec2(out: &Path) -> Result<String> {
+    let staging = crate::output::Staging::new(out)?;
+    let points = map_into(staging.dir())?;
+    let mut text = String::new();
+    for n in ENCODER_INTERPOLATIONS {
+        let m = at(&points, n);
+        let _ = write!(
+            text,
+            "\nEncoder 4096 counts x {n}:\n\n{}\n{}\n",
+            table(&m),
+            summary_text(&m)
+        );
+    }
+    staging.write("sec2-map.md", &text)?;
+    staging.commit()?;
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn p(afb: bool, fv: f64, fa: f64, stable: bool) -> MapPoint {
+        MapPoint {
+            encoder_interpolation: 1,
+            afb,
+            velocity_corner_hz: fv,
+            afb_corner_hz: fa,
+            stable,
+            oscillation_pu: 0.0,
+            limit_cycle_torque_pu: 0.0,
+            shaft_torque_ripple_rms_pu: 0.0,
+            torque_saturated_s: 0.0,
+            faulted: false,
+            kp_vel: 0.0,
+            error: String::new(),
+        }
+    }
+
+    #[test]
+    fn the_summary_counts_both_directions() {
+        let pts = [
+            p(false, 10.0, 0.0, false),
+            p(true, 10.0, 10.0, true),
+            p(true, 10.0, 25.0, false),
+            p(false, 15.0, 0.0, true),
+            p(true, 15.0, 10.0, false),
+        ];
+        let s = summarize(&pts);
+        // 25 Hz onwards have no run at all: unstable without (a missing run is no evidence
+        // of stability), with no AFB cells.
+        assert_eq!(s.unstable_without_hz.first(), Some(&10.0));
+        assert!(!s.unstable_without_hz.contains(&15.0));
+        assert_eq!(s.cells_where_unstable_without, 2);
+        assert_eq!(s.stable_with_where_unstable_without, 1);
+        assert_eq!(s.cells_where_stable_without, 1);
+        assert_eq!(s.unstable_with_where_stable_without, 1);
+    }
+
+    #[test]
+    fn the_run_without_afb_has_the_gains_of_its_afb_design() {
+        for (n, fv) in ENCODER_INTERPOLATIONS
+            .iter()
+            .flat_map(|n| VELOCITY_CORNERS_HZ.iter().map(move |fv| (*n, *fv)))
+        {
+            let off = no_afb_config(n, fv).unwrap();
+            let g_off = crate::runner::regulator_gains(&off).unwrap();
+            assert_eq!(g_off.ka, 0.0);
+            for fa in AFB_CORNERS_HZ {
+                let on = afb_config(n, fv, fa).unwrap();
+                let g_on = crate::runner::regulator_gains(&on).unwrap();
+                assert!(g_on.ka > 0.0);
+                assert!(
+                    crate::runner::same_regulator_gains(&g_off, &g_on),
+                    "{fv} Hz / {fa} Hz"
+                );
+            }
+        }
+    }
+}
