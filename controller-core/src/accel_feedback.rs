@@ -19,34 +19,44 @@
 //! y\[n\] = (1 − α − α·Ka/J)·y\[n−1\]: stable only for Ka/J_model < (2 − α)/α (3.04, 1.52,
 //! 0.77 × J_total at 50, 100, 200 Hz and 4 kHz with J_model = Jm).
 //!
-//! Here the estimate is taken for the torque being commanded now, â⁺ = T/J_model + r
-//! ([`crate::observer::Observer::predicted_acceleration_pu_s`]), and the equation is solved
-//! for T. Every filter here has a direct feed-through b0 (1 for none, α for the first
-//! order, b0 for the biquad): F(x)\[n\] = b0·x\[n\] + h\[n\], with h\[n\] from the past only
-//! ([`crate::filter::LowPass::free_response`]). With c = 0 (plain) or c = a_cmd (error) and
-//! k = Ka/J_model:
+//! Here the estimate is taken for the torque being commanded now, â⁺(T) = T/J_model + r
+//! ([`crate::observer::Observer::predicted_acceleration_pu_s`], r the residual the
+//! measurement drives), and the equation is solved for T. Every filter here has a direct
+//! feed-through b0 (1 for none, α for the first order, b0 for the biquad):
+//! F(x)\[n\] = b0·x\[n\] + h\[n\], with h\[n\] from the past only
+//! ([`crate::filter::LowPass::begin`]). With c = 0 (plain) or c = a_cmd (error),
+//! k = Ka/J_model, and x(T) = c − â⁺(T) the filter input for a torque T, so that
+//! x(T) = x(P) − (T − P)/J_model:
 //!
 //! ```text
-//! T = P + Ka·(h + b0·(c − r − T/J_model))
-//! ⇒ T = P + afb,   afb = g·Ka·(h + b0·(c − r)) − (1 − g)·P,   g = 1/(1 + b0·k)
+//! T − P = Ka·(h + b0·x(T)) = Ka·(h + b0·x(P)) − b0·k·(T − P)
+//! ⇒ afb = T − P = g·Ka·(h + b0·x(P)),     g = 1/(1 + b0·k)
 //! ```
-//! For F = 1 (b0 = 1, h = 0) and the plain form this is the disturbance-observer form
-//! T = J/(J + Ka)·P − Ka/(J + Ka)·J·r (Hori's resonance-ratio control). Afterwards the
-//! filter state advances with x = c − â⁺(T) for the T actually applied (after the clamps),
-//! so the estimate and the filter always describe the torque that was commanded.
+//! i.e. evaluate the filter input at the torque P without the AFB term, and scale by
+//! g·Ka instead of Ka. For F = 1 (b0 = 1, h = 0) and the plain form this is the
+//! disturbance-observer form T = J/(J + Ka)·P − Ka/(J + Ka)·J·r (Hori's resonance-ratio
+//! control). For the first order: afb = Ka·((1 − α)·y\[n−1\] + α·x(P))/(1 + α·k). Afterwards
+//! the filter step is completed with x(T) for the T actually applied (after the clamps), so
+//! the estimate and the filter always describe the torque that was commanded.
 //!
 //! What is left is the loop through the machine. With a rigid body whose inertia is the
 //! model's, r is independent of T (the model and the measurement cancel) and
 //! T = P/(1 + k·F): a stable filter for every Ka ≥ 0 (pole (1 − α)/(1 + α·k) for the first
-//! order). With the gears engaged (plant J_total, model Jm) r = G·(a − u) still depends on
-//! T, and that loop, through the plant, is what limits Ka (`tests/afb_state_space.rs`).
+//! order). With the gears engaged (plant J_total or the two-mass shaft, model Jm)
+//! r = G·(a − u) still depends on T; that loop runs through the plant. The linear analysis
+//! (`tests/afb_state_space.rs`) finds it stable up to Ka = 1000·J_total for rigid Jm, rigid
+//! J_total and the Table 1 two-mass shaft, with the real current loop and delay: as Ka
+//! grows, g·Ka → J_model/b0 and the closed form tends to a fixed controller, so Ka buys
+//! inertia, not instability, as long as J_model is at most the inertia the motor drives
+//! (a J_total model on the separated motor is unstable). In practice Ka is limited by the
+//! count noise the estimate passes (`tests/accel_loop.rs`).
 //!
 //! With the acceleration from differentiation there is no model term, and the plain update
 //! [`AccelerationFeedback::update`] is used.
 
 use crate::config::AfbMode;
 use crate::filter::{LowPass, LowPassState};
-use crate::per_unit::{mul_coef, mul_gain, Coef, Gain, Pu, PuPerS};
+use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, PuPerS};
 
 /// Acceleration feedback coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,8 +71,6 @@ pub struct AccelerationFeedback {
     pub limit: Pu,
     /// Closed form: g·Ka with g = 1/(1 + b0·Ka/J_model) \[pu torque per pu/s\], Q16.16.
     pub ka_closed: Gain,
-    /// Closed form: 1 − g = b0·k/(1 + b0·k), the share of P the loop takes back, Q2.30.
-    pub p_share: Coef,
 }
 
 impl AccelerationFeedback {
@@ -72,10 +80,10 @@ impl AccelerationFeedback {
     /// ```
     /// use controller_core::accel_feedback::AccelerationFeedback;
     /// use controller_core::filter::{LowPass, LowPassState};
-    /// use controller_core::per_unit::{Coef, Gain, Pu};
+    /// use controller_core::per_unit::{Gain, Pu};
     /// use controller_core::AfbMode;
     /// let afb = AccelerationFeedback { mode: AfbMode::Plain, ka: Gain::from_num(0.5),
-    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::ZERO, p_share: Coef::ZERO };
+    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::ZERO };
     /// let mut s = LowPassState::default();
     /// assert_eq!(afb.update(&mut s, Pu::from_num(1), Pu::ZERO), Pu::from_num(-0.5));
     /// ```
@@ -92,20 +100,19 @@ impl AccelerationFeedback {
     }
 
     /// One step in closed form with the observer's acceleration (module docs): `p` is the
-    /// torque reference without the AFB term \[pu\], `residual` the observer's r \[pu/s\],
-    /// `predict(T)` its â⁺ for a torque T \[pu/s\]. Returns the AFB term; T = clamp(p + afb).
+    /// torque reference without the AFB term \[pu\], `predict(T)` the observer's â⁺ for a
+    /// torque T \[pu/s\]. Returns the AFB term; T = clamp(p + afb).
     ///
     /// ```
     /// use controller_core::accel_feedback::AccelerationFeedback;
     /// use controller_core::filter::{LowPass, LowPassState};
-    /// use controller_core::per_unit::{Coef, Gain, Pu};
+    /// use controller_core::per_unit::{Gain, Pu};
     /// use controller_core::AfbMode;
-    /// // Ka = J_model = 0.5, F = 1: g = 1/2, the loop takes back half of P.
+    /// // Ka = J_model = 0.5, F = 1: g = 1/2, g·Ka = 0.25.
     /// let afb = AccelerationFeedback { mode: AfbMode::Plain, ka: Gain::from_num(0.5),
-    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::from_num(0.25),
-    ///     p_share: Coef::from_num(0.5) };
+    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::from_num(0.25) };
     /// let mut s = LowPassState::default();
-    /// let a = afb.update_closed(&mut s, Pu::from_num(1), Pu::ZERO, Pu::ZERO, |t| t * 2);
+    /// let a = afb.update_closed(&mut s, Pu::from_num(1), Pu::ZERO, |t| t * 2);
     /// assert_eq!(a, Pu::from_num(-0.5)); // T = 0.5: â⁺ = 1 pu/s, −Ka·â⁺ = −0.5 ✓
     /// ```
     #[inline]
@@ -113,7 +120,6 @@ impl AccelerationFeedback {
         &self,
         s: &mut LowPassState,
         p: Pu,
-        residual: PuPerS,
         a_cmd: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
     ) -> Pu {
@@ -123,19 +129,16 @@ impl AccelerationFeedback {
             AfbMode::Error => a_cmd,
         };
         let lim = self.limit.saturating_abs();
-        // afb = g·Ka·(h + b0·(c − r)) − (1 − g)·P; all Q16.16, b0 and 1 − g Q2.30.
-        let h = self.filter.free_response(s);
-        let inner = h.saturating_add(mul_coef(
-            c.saturating_sub(residual),
-            self.filter.feedthrough(),
-        ));
-        let afb = mul_gain(inner, self.ka_closed)
-            .saturating_sub(mul_coef(p, self.p_share))
-            .max(-lim)
-            .min(lim);
-        // Advance the filter with the acceleration the applied torque is expected to give.
+        // afb = g·Ka·(h + b0·x(P)): h and b0·x in Q.46 (Q16.16 · Q2.30), rounded to Q16.16,
+        // times g·Ka (Q16.16).
+        let (h46, b0) = self.filter.begin(s);
+        let x_p = c.saturating_sub(predict(p));
+        let inner46 = h46.saturating_add(i64::from(x_p.to_bits()) * i64::from(b0.to_bits()));
+        let inner = Pu::from_bits(sat_i32(inner46.saturating_add(1 << 29) >> 30));
+        let afb = mul_gain(inner, self.ka_closed).max(-lim).min(lim);
+        // Complete the filter step with the input for the torque actually applied.
         let t = p.saturating_add(afb).max(-lim).min(lim);
-        self.filter.process(s, c.saturating_sub(predict(t)));
+        self.filter.finish(s, h46, c.saturating_sub(predict(t)));
         afb
     }
 }

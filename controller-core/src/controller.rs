@@ -191,26 +191,18 @@ impl Coefficients {
         let vlim: Pu = q(cfg.voltage_limit_pu, "voltage_limit_pu", "Q16.16")?;
         let filter = LowPass::quantize(&g.afb_filter, "accel_feedback.filter coefficients")?;
         // Closed form of the loop through the observer's model (accel_feedback module docs):
-        // g = 1/(1 + b0·Ka/J_model); b0 from the quantized filter, so that the solved loop
-        // is the one the tick runs.
-        let (ka_closed, p_share) = if cfg.accel_feedback.source == Estimator::Observer {
+        // g·Ka with g = 1/(1 + b0·Ka/J_model); b0 from the quantized filter, so that the
+        // solved loop is the one the tick runs.
+        let ka_closed = if cfg.accel_feedback.source == Estimator::Observer {
             let b0: f32 = filter.feedthrough().to_num();
-            let bk = b0 * g.ka / g.observer_inertia_s;
-            let gain = 1.0 / (1.0 + bk);
-            (
-                q::<Gain>(
-                    g.ka * gain,
-                    "ka/(1 + b0·Ka/J_model) (accel_feedback.gain_fraction, filter, observer inertia)",
-                    "Q16.16",
-                )?,
-                q::<Coef>(
-                    bk * gain,
-                    "b0·k/(1 + b0·k), k = Ka/J_model (accel_feedback, observer inertia)",
-                    "Q2.30",
-                )?,
-            )
+            let gain = 1.0 / (1.0 + b0 * g.ka / g.observer_inertia_s);
+            q::<Gain>(
+                g.ka * gain,
+                "ka/(1 + b0·Ka/J_model) (accel_feedback.gain_fraction, filter, observer inertia)",
+                "Q16.16",
+            )?
         } else {
-            (Gain::ZERO, Coef::ZERO)
+            Gain::ZERO
         };
         let afb = AccelerationFeedback {
             mode: cfg.accel_feedback.mode,
@@ -222,7 +214,6 @@ impl Coefficients {
             filter,
             limit: lim,
             ka_closed,
-            p_share,
         };
         let diff = |v: f32,
                     a: f32,
@@ -455,7 +446,6 @@ impl Controller {
             self.state.afb = self.coef.afb.update_closed(
                 &mut self.state.afb_filter,
                 self.state.i_vel,
-                obs.residual_acceleration_pu_s(os),
                 self.state.accel_cmd,
                 |t| obs.predicted_acceleration_pu_s(os, t),
             );

@@ -171,9 +171,10 @@ impl LowPass {
         }
     }
 
-    /// The part h\[n\] of this step's output that does not depend on this step's input:
-    /// the output [`LowPass::process`] would give for x\[n\] = 0 (the state is not changed).
-    /// Together with [`LowPass::feedthrough`], y\[n\] = b0·x\[n\] + h\[n\] (to the output LSB).
+    /// First half of a step: the part h\[n\] of this step's output that does not depend on
+    /// this step's input, as raw Q.46 bits (Q16.16 signal × Q2.30 coefficient), and the
+    /// feed-through b0. The state is not changed; [`LowPass::finish`] completes the step,
+    /// y\[n\] = h\[n\] + b0·x\[n\], exactly as [`LowPass::process`] (which is the two halves).
     ///
     /// ```
     /// use controller_core::filter::{LowPass, LowPassState};
@@ -181,32 +182,62 @@ impl LowPass {
     /// let f = LowPass::FirstOrder { alpha: Coef::from_num(0.5) };
     /// let mut s = LowPassState::default();
     /// f.process(&mut s, Pu::from_num(1));
-    /// assert_eq!(f.free_response(&s), Pu::from_num(0.25));
+    /// let (h46, b0) = f.begin(&s);
+    /// assert_eq!((h46 as f64) / 2f64.powi(46), 0.25); // (1 − α)·0.5
+    /// assert_eq!(b0, Coef::from_num(0.5));
     /// ```
     #[inline]
     #[must_use]
-    pub fn free_response(&self, s: &LowPassState) -> Pu {
+    pub fn begin(&self, s: &LowPassState) -> (i64, Coef) {
         match *self {
-            Self::None => Pu::ZERO,
+            Self::None => (0, Coef::ONE),
             Self::FirstOrder { alpha } => {
-                // h = y + α·(0 − y), as in `process` (Q.46 → Q.32, then rounded to Q16.16).
-                let y16 = sat_i32(s.y_q32 >> 16);
-                let inc = (-i64::from(y16)).saturating_mul(i64::from(alpha.to_bits())) >> 14;
-                Pu::from_bits(sat_i32(
-                    s.y_q32.saturating_add(inc).saturating_add(1 << 15) >> 16,
-                ))
+                // h = y − α·y16 in Q.46 (y Q32.32 ≪ 14; y16 = y in Q16.16, truncated). `finish`
+                // stores y46 ≫ 14, so |y| < 2^49 and the shift cannot overflow; the bound
+                // only matters for hand-made state. |α·y16| < 2^62.
+                // max/min rather than clamp: clamp carries a (never taken) panic branch.
+                #[allow(clippy::manual_clamp)]
+                let y = s.y_q32.max(-(1 << 48)).min(1 << 48);
+                let y16 = sat_i32(y >> 16);
+                let h = (y << 14) - i64::from(y16) * i64::from(alpha.to_bits());
+                (h, alpha)
             }
             Self::SecondOrder { b0, a1, a2 } => {
-                // h = b0·(2·x1 + x2) − a1·y1 − a2·y2 + residual, Q.46 → Q16.16.
+                // h = b0·(2·x1 + x2) − a1·y1 − a2·y2 + residual, Q.46.
                 let [x1, x2] = s.x;
                 let [y1, y2] = s.y;
                 let xs = 2 * i64::from(x1) + i64::from(x2);
-                let acc = i64::from(b0.to_bits())
+                let h = i64::from(b0.to_bits())
                     .saturating_mul(xs)
                     .saturating_sub(i64::from(a1.to_bits()) * i64::from(y1))
                     .saturating_sub(i64::from(a2.to_bits()) * i64::from(y2))
                     .saturating_add(s.residual);
-                Pu::from_bits(sat_i32(acc >> 30))
+                (h, b0)
+            }
+        }
+    }
+
+    /// Second half of a step begun with [`LowPass::begin`] on the same state: adds b0·x,
+    /// advances the state and returns y\[n\] (Q16.16).
+    #[inline]
+    pub fn finish(&self, s: &mut LowPassState, h46: i64, x: Pu) -> Pu {
+        match *self {
+            Self::None => x,
+            Self::FirstOrder { alpha } => {
+                // y (Q.46) = h + α·x; the state keeps Q32.32 (≫ 14, the old y + (α·(x − y16) ≫ 14)).
+                let y46 = h46.saturating_add(i64::from(x.to_bits()) * i64::from(alpha.to_bits()));
+                s.y_q32 = y46 >> 14;
+                Pu::from_bits(sat_i32(s.y_q32.saturating_add(1 << 15) >> 16))
+            }
+            Self::SecondOrder { b0, .. } => {
+                // DF1 in Q.46 with error feedback of the truncated bits.
+                let x0 = x.to_bits();
+                let acc = h46.saturating_add(i64::from(b0.to_bits()) * i64::from(x0));
+                let y0 = sat_i32(acc >> 30);
+                s.residual = acc & ((1 << 30) - 1);
+                s.x = [x0, s.x[0]];
+                s.y = [y0, s.y[0]];
+                Pu::from_bits(y0)
             }
         }
     }
@@ -223,33 +254,7 @@ impl LowPass {
     /// ```
     #[inline]
     pub fn process(&self, s: &mut LowPassState, x: Pu) -> Pu {
-        match *self {
-            Self::None => x,
-            Self::FirstOrder { alpha } => {
-                // y ← y + α·(x − y); (x − y) Q16.16 · α Q2.30 = Q.46 → Q.32.
-                let y16 = sat_i32(s.y_q32 >> 16);
-                let e = i64::from(x.to_bits()) - i64::from(y16);
-                let inc = e.saturating_mul(i64::from(alpha.to_bits())) >> 14;
-                s.y_q32 = s.y_q32.saturating_add(inc);
-                Pu::from_bits(sat_i32(s.y_q32.saturating_add(1 << 15) >> 16))
-            }
-            Self::SecondOrder { b0, a1, a2 } => {
-                // DF1 in Q.46 with error feedback of the truncated bits.
-                let [x1, x2] = s.x;
-                let [y1, y2] = s.y;
-                let x0 = x.to_bits();
-                let xs = i64::from(x0) + 2 * i64::from(x1) + i64::from(x2);
-                let acc = i64::from(b0.to_bits())
-                    .saturating_mul(xs)
-                    .saturating_sub(i64::from(a1.to_bits()) * i64::from(y1))
-                    .saturating_sub(i64::from(a2.to_bits()) * i64::from(y2))
-                    .saturating_add(s.residual);
-                let y0 = sat_i32(acc >> 30);
-                s.residual = acc & ((1 << 30) - 1);
-                s.x = [x0, x1];
-                s.y = [y0, y1];
-                Pu::from_bits(y0)
-            }
-        }
+        let (h46, _) = self.begin(s);
+        self.finish(s, h46, x)
     }
 }

@@ -101,12 +101,15 @@ pub fn count_signed(raw: u32, counter_bits: u8) -> i32 {
 /// Saturate an `i64` to `i32`.
 #[inline]
 pub(crate) fn sat_i32(x: i64) -> i32 {
-    if x > i64::from(i32::MAX) {
-        i32::MAX
-    } else if x < i64::from(i32::MIN) {
+    // In range exactly when the high word is the sign extension of the low word: one
+    // compare on a 32-bit core instead of two 64-bit range compares.
+    let lo = x as i32;
+    if i64::from(lo) == x {
+        lo
+    } else if x < 0 {
         i32::MIN
     } else {
-        x as i32
+        i32::MAX
     }
 }
 
@@ -154,5 +157,26 @@ pub fn checked_q<T: fixed::traits::Fixed>(value: f32) -> Option<T> {
         T::checked_from_num(value)
     } else {
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// `sat_i32` against the plain range comparison, at and around every boundary.
+    #[test]
+    fn sat_i32_matches_the_range_definition() {
+        let lim = |x: i64| x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        let mut xs = vec![0i64, 1, -1, i64::MAX, i64::MIN, 1 << 32, -(1 << 32)];
+        for b in [i64::from(i32::MAX), i64::from(i32::MIN)] {
+            for d in -3..=3 {
+                xs.push(b + d);
+            }
+        }
+        for k in 0..2000i64 {
+            xs.push(k.wrapping_mul(0x9E37_79B9_7F4A_7C15u64 as i64));
+        }
+        for x in xs {
+            assert_eq!(super::sat_i32(x), lim(x), "{x}");
+        }
     }
 }
