@@ -356,6 +356,35 @@ fn every_malformed_input_is_refused_cleanly() {
             &[],
         ));
     }
+    // Settings the chosen mode does not read: an error that says why, not a no-op.
+    let table1 = std::fs::read_to_string(configs().join("table1.toml")).unwrap();
+    for (extra, key) in [
+        ("velocity_filter_corner_hz = 50.0\n", "velocity_filter_corner_hz"),
+        (
+            "velocity_filter = \"first_order\"\nvelocity_filter_q = 0.7\n",
+            "velocity_filter_q",
+        ),
+    ] {
+        let mut doc: Table = table1.parse().unwrap();
+        let extra: Table = extra.parse().unwrap();
+        let drive = doc.get_mut("drive").and_then(Value::as_table_mut).unwrap();
+        drive.extend(extra);
+        cases.push(Case {
+            label: format!("table1.toml: ignored setting {key}"),
+            file: "table1.toml".into(),
+            text: toml::to_string(&doc).unwrap(),
+            args: s(&["run", "--scenario", "fig6"]),
+            must_name: key.into(),
+        });
+    }
+    // The default acceleration-feedback filter is first order: a q does nothing.
+    cases.push(Case {
+        label: "table1.toml: ignored setting drive.accel_feedback.filter_q".into(),
+        file: "table1.toml".into(),
+        text: format!("{table1}\n[drive.accel_feedback]\nfilter_q = 0.7\n"),
+        args: s(&["run", "--scenario", "fig6"]),
+        must_name: "filter_q".into(),
+    });
     cases.extend(csv_cases());
 
     let bin = PathBuf::from(env!("CARGO_BIN_EXE_stiffdrive"));

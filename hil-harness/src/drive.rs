@@ -248,9 +248,45 @@ fn apply_table(
                 ));
             }
             (r.set)(cfg, x);
+            if let Some(why) = ignored_filter_setting(cfg, &key) {
+                return Err(HarnessError::config(&key, why));
+            }
         }
     }
     Ok(())
+}
+
+/// A filter corner or q that the chosen filter kind does not read: an error, not a no-op.
+fn ignored_filter_setting(cfg: &DriveConfig, key: &str) -> Option<String> {
+    let (filter, kind_key) = match key {
+        "drive.velocity_filter_corner_hz" | "drive.velocity_filter_q" => {
+            (cfg.velocity_filter, "drive.velocity_filter")
+        }
+        "drive.accel_feedback.filter_corner_hz" | "drive.accel_feedback.filter_q" => {
+            (cfg.accel_feedback.filter, "drive.accel_feedback.filter")
+        }
+        _ => return None,
+    };
+    let kind = match filter {
+        FilterConfig::None => "none",
+        FilterConfig::FirstOrder { .. } => "first_order",
+        FilterConfig::SecondOrder { .. } => return None,
+    };
+    let reads = if key.ends_with("_q") {
+        kind == "second_order"
+    } else {
+        kind != "none"
+    };
+    (!reads).then(|| {
+        format!(
+            "is set, but {kind_key} = \"{kind}\" does not read it (only {} filters do)",
+            if key.ends_with("_q") {
+                "\"second_order\""
+            } else {
+                "\"first_order\" and \"second_order\""
+            }
+        )
+    })
 }
 
 fn unknown(key: &str, reals: &[Real], extra: &[&str]) -> HarnessError {

@@ -256,12 +256,12 @@ fn encoder_interpolation_defaults_to_plain_counts_and_bounds_the_product() {
     let c = PlantConfig::from_toml_str(&format!("{base}[sensors]\nencoder_interpolation = 16\n"))
         .unwrap();
     assert_eq!(c.sensors.counts_per_rev(), 65_536);
-    // 1e6 counts x 4096 exceeds the 2^31 counts a revolution may have.
+    // 1e6 counts x 4096 exceeds the 2^30 counts a revolution may have (the drive's range).
     let big = plant_table(None, Some(("encoder_cpr", "1000000")));
     let e = err(&format!("{big}[sensors]\nencoder_interpolation = 4096\n"));
     let text = e.to_string();
     assert!(
-        text.contains("sensors.encoder_interpolation") && text.contains("2147483648"),
+        text.contains("sensors.encoder_interpolation") && text.contains("1073741824"),
         "{text}"
     );
 }

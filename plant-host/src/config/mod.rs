@@ -112,7 +112,7 @@ impl SensorsConfig {
     }
 
     /// Counts per motor revolution as the drive sees them: `encoder_cpr ×
-    /// encoder_interpolation` (the config check keeps the product within 2^31).
+    /// encoder_interpolation` (the config check keeps the product within 2^30, the drive's range).
     pub fn counts_per_rev(&self) -> u32 {
         self.encoder_cpr.saturating_mul(self.encoder_interpolation)
     }
