@@ -359,7 +359,10 @@ fn every_malformed_input_is_refused_cleanly() {
     // Settings the chosen mode does not read: an error that says why, not a no-op.
     let table1 = std::fs::read_to_string(configs().join("table1.toml")).unwrap();
     for (extra, key) in [
-        ("velocity_filter_corner_hz = 50.0\n", "velocity_filter_corner_hz"),
+        (
+            "velocity_filter_corner_hz = 50.0\n",
+            "velocity_filter_corner_hz",
+        ),
         (
             "velocity_filter = \"first_order\"\nvelocity_filter_q = 0.7\n",
             "velocity_filter_q",

@@ -19,7 +19,11 @@ fn voltages(delay_s: f64) -> Vec<f64> {
 fn delays_past_one_current_period_change_the_run() {
     let base = voltages(250e-6);
     for d in [0.5e-3, 5e-3, 10e-3] {
-        assert_ne!(voltages(d), base, "a delay of {d} s gave the trace of 250 µs");
+        assert_ne!(
+            voltages(d),
+            base,
+            "a delay of {d} s gave the trace of 250 µs"
+        );
     }
     // Two different long delays differ from each other too.
     assert_ne!(voltages(5e-3), voltages(10e-3));

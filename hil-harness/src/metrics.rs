@@ -69,6 +69,9 @@ pub struct Metrics {
     pub max_following_error_counts: f64,
     /// Largest |motor − load position| (counts).
     pub max_twist_counts: f64,
+    /// Why the value metrics above are not finite (`null` in JSON), when they are not: the
+    /// trace holds non-finite values from the time named. `None` for a valid run.
+    pub invalid_reason: Option<String>,
 }
 
 fn in_window(r: &TraceRow, w: (f64, f64)) -> bool {
@@ -272,6 +275,36 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
         .map(|r| r.motor_minus_load_counts().abs())
         .fold(0.0, f64::max);
 
+    if let Some(bad) = rows
+        .iter()
+        .find(|r| !r.values().iter().all(|v| v.is_finite()))
+    {
+        // Max/min folds skip NaN, so these figures would read as plain numbers (0.0000):
+        // none of them means anything for this run.
+        let nan = f64::NAN;
+        let some_nan = |o: Option<f64>| o.map(|_| nan);
+        return Metrics {
+            stable: false,
+            faulted,
+            oscillation_pu: nan,
+            limit_cycle_torque_pu: nan,
+            torque_ripple_rms_pu: nan,
+            shaft_torque_ripple_rms_pu: nan,
+            shaft_ripple_freq_hz: nan,
+            load_step_droop_pu: some_nan(load_step_droop_pu),
+            overshoot_pu: some_nan(overshoot_pu),
+            settling_s: None,
+            torque_saturated_s: nan,
+            mean_torque_pu: nan,
+            mean_speed_error_pu: nan,
+            max_following_error_counts: nan,
+            max_twist_counts: nan,
+            invalid_reason: Some(format!(
+                "the trace holds non-finite values from t = {} s; no metric of this run is a number",
+                bad.t_s
+            )),
+        };
+    }
     Metrics {
         stable,
         faulted,
@@ -288,6 +321,7 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
         mean_speed_error_pu,
         max_following_error_counts,
         max_twist_counts,
+        invalid_reason: None,
     }
 }
 
@@ -315,6 +349,35 @@ mod tests {
         Trace {
             rows: (0..4000).map(|i| f(i as f64 * 0.0005)).collect(),
         }
+    }
+
+    #[test]
+    fn a_trace_with_non_finite_values_gives_null_metrics_with_a_reason() {
+        let t = trace(|t| TraceRow {
+            t_s: t,
+            vel_cmd_pu: 1.0,
+            motor_vel_pu: if t > 1.4 { f64::NAN } else { 1.0 },
+            ..Default::default()
+        });
+        let m = compute(&t, &windows());
+        assert!(!m.stable);
+        assert!(m.torque_ripple_rms_pu.is_nan() && m.load_step_droop_pu.unwrap().is_nan());
+        let reason = m.invalid_reason.clone().unwrap();
+        assert!(
+            reason.contains("non-finite") && reason.contains("1.4"),
+            "{reason}"
+        );
+        let json = serde_json::to_value(&m).unwrap();
+        assert!(json["torque_ripple_rms_pu"].is_null() && json["load_step_droop_pu"].is_null());
+        // A finite run has no reason.
+        let ok = compute(
+            &trace(|t| TraceRow {
+                t_s: t,
+                ..Default::default()
+            }),
+            &windows(),
+        );
+        assert_eq!(ok.invalid_reason, None);
     }
 
     #[test]
