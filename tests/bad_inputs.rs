@@ -13,6 +13,7 @@
     clippy::panic
 )]
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Mutex;
@@ -412,7 +413,9 @@ fn every_malformed_input_is_refused_cleanly() {
     });
     let failures = failures.into_inner().unwrap();
     let tried = cases.len();
-    println!(
+    // Straight to stderr, past the test harness's capture, so `cargo test` shows it.
+    let _ = writeln!(
+        std::io::stderr(),
         "bad-input suite: {tried} inputs tried, {} handled cleanly, {} not",
         tried - failures.len(),
         failures.len()
