@@ -32,7 +32,15 @@ pub(crate) fn tan(x: f64) -> f64 {
     s / c
 }
 
-fn sin_cos(x: f64) -> (f64, f64) {
+/// (sin x, cos x) by their Taylor series (30 terms) on x reduced to [−π, π].
+pub(crate) fn sin_cos(x: f64) -> (f64, f64) {
+    // Reduction by whole turns only when needed, so |x| ≤ π (tan's range) is untouched.
+    let x = if x.abs() > core::f64::consts::PI {
+        let turns = round(x / core::f64::consts::TAU);
+        x - turns * core::f64::consts::TAU
+    } else {
+        x
+    };
     let mut s = 0.0;
     let mut c = 0.0;
     let mut term = 1.0; // x^n / n!
@@ -48,6 +56,66 @@ fn sin_cos(x: f64) -> (f64, f64) {
         term *= x / f64::from(n);
     }
     (s, c)
+}
+
+/// √x for x ≥ 0 (0 for anything else), by Newton's iteration from a power-of-two start.
+pub(crate) fn sqrt(x: f64) -> f64 {
+    if x.is_nan() || x <= 0.0 || !x.is_finite() {
+        return 0.0;
+    }
+    // Start at 2^⌈e/2⌉ ≥ √x, so the iteration falls monotonically onto the root.
+    let mut r = 1.0;
+    let mut v = x;
+    while v > 1.0 {
+        v *= 0.25;
+        r *= 2.0;
+    }
+    while v < 0.25 {
+        v *= 4.0;
+        r *= 0.5;
+    }
+    r *= 2.0;
+    let mut i = 0;
+    while i < 8 {
+        r = 0.5 * (r + x / r);
+        i += 1;
+    }
+    r
+}
+
+/// ln x for x > 0 (−∞ for x = 0, NaN below): x = m·2^k with m ∈ [√½, √2), then
+/// ln m = 2·atanh(u), u = (m − 1)/(m + 1), by its series in u².
+pub(crate) fn ln(x: f64) -> f64 {
+    if x.is_nan() || x < 0.0 {
+        return f64::NAN;
+    }
+    if x == 0.0 {
+        return f64::NEG_INFINITY;
+    }
+    if !x.is_finite() {
+        return x;
+    }
+    let mut m = x;
+    let mut k = 0.0;
+    while m >= core::f64::consts::SQRT_2 {
+        m *= 0.5;
+        k += 1.0;
+    }
+    while m < core::f64::consts::FRAC_1_SQRT_2 {
+        m *= 2.0;
+        k -= 1.0;
+    }
+    let u = (m - 1.0) / (m + 1.0);
+    let u2 = u * u;
+    let mut term = u;
+    let mut sum = 0.0;
+    let mut n = 1.0;
+    while n < 60.0 {
+        sum += term / n;
+        term *= u2;
+        n += 2.0;
+    }
+    k * core::f64::consts::LN_2 + 2.0 * sum
 }
 
 fn round(x: f64) -> f64 {
@@ -73,6 +141,23 @@ mod tests {
             assert!(
                 (super::tan(x) - f64::tan(x)).abs() <= 1e-12 * (1.0 + f64::tan(x)),
                 "tan({x})"
+            );
+        }
+        for &x in &[1e-9, 0.01, 0.5, 1.0, 2.0, 17.3, 1e7] {
+            assert!(
+                (super::sqrt(x) - x.sqrt()).abs() <= 1e-15 * x.sqrt(),
+                "sqrt({x})"
+            );
+            assert!(
+                (super::ln(x) - x.ln()).abs() <= 1e-14 * (1.0 + x.ln().abs()),
+                "ln({x})"
+            );
+        }
+        for &x in &[-9.0, -6.0, -1.0, 0.0, 0.3, 3.0, 6.2, 12.5] {
+            let (s, c) = super::sin_cos(x);
+            assert!(
+                (s - x.sin()).abs() < 1e-12 && (c - x.cos()).abs() < 1e-12,
+                "sin_cos({x})"
             );
         }
     }

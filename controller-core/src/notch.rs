@@ -1,0 +1,422 @@
+//! Notch filter on the torque reference, against a resonance the loop cannot damp.
+//!
+//! The analog prototype has a zero pair and a pole pair at the same centre ω0:
+//!
+//!   H(s) = (s² + 2·ζz·ω0·s + ω0²) / (s² + 2·ζp·ω0·s + ω0²)
+//!
+//! - `width_hz` is the distance between the two −3 dB edges of a deep notch. In the
+//!   prototype the edges Ω_lo < Ω0 < Ω_hi satisfy Ω_lo·Ω_hi = Ω0² and
+//!   Ω_hi − Ω_lo = 2·ζp·Ω0;
+//! - `depth_db` is the attenuation at the centre, |H(jω0)| = ζz/ζp, so
+//!   ζz = ζp·10^(−depth/20);
+//! - the DC and high-frequency gains are exactly 1.
+//!
+//! It is discretized by the bilinear transform, pre-warped at the centre and at the edges:
+//! K = tan(π·f0/fs), and the digital edges f_lo, f_hi = f_lo + width are the pair with
+//! tan(π·f_lo/fs)·tan(π·f_hi/fs) = K² (found by bisection at configuration time), so
+//! ζp = (tan(π·f_hi/fs) − tan(π·f_lo/fs))/(2·K). The centre, its depth and the width then
+//! land exactly where configured at the tick rate fs:
+//!
+//!   a0 = 1 + 2·ζp·K + K²
+//!   b0 = (1 + 2·ζz·K + K²)/a0,  b1 = a1 = 2·(K² − 1)/a0,  b2 = (1 − 2·ζz·K + K²)/a0
+//!   a2 = (1 − 2·ζp·K + K²)/a0
+//!
+//! Q-formats: signals Q16.16 ([`Pu`]); coefficients Q2.30 ([`Coef`]); the accumulator is
+//! Q.46 in an `i64`, Direct Form I, with the truncated bits fed back into the next sample
+//! (first-order error feedback), so a slow signal has no dead band and no DC error.
+
+use crate::error::ConfigError;
+use crate::per_unit::{checked_q, sat_i32, Coef, Pu};
+
+/// The settings of a notch (configuration, not state).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NotchConfig {
+    /// Centre frequency f0 \[Hz\], below the tick rate's Nyquist limit.
+    pub centre_hz: f32,
+    /// −3 dB width of the notch \[Hz\], (0, f0].
+    pub width_hz: f32,
+    /// Attenuation at the centre \[dB\], [0, 80]; 0 is a pass-through.
+    pub depth_db: f32,
+}
+
+/// Largest depth accepted \[dB\] (a gain of 1e-4 at the centre).
+pub const MAX_DEPTH_DB: f32 = 80.0;
+
+/// The f64 design of a notch, before quantization (for references and logging).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NotchDesign {
+    /// b0.
+    pub b0: f64,
+    /// b1 (= a1).
+    pub b1: f64,
+    /// b2.
+    pub b2: f64,
+    /// a2.
+    pub a2: f64,
+}
+
+impl NotchDesign {
+    /// Design for a tick rate `rate_hz`. Errors name `param` (e.g. `"notch"`) with the
+    /// field: `notch.centre_hz`, `notch.width_hz`, `notch.depth_db`.
+    pub fn new(cfg: &NotchConfig, rate_hz: f32, param: NotchParams) -> Result<Self, ConfigError> {
+        let nyquist = rate_hz / 2.0;
+        let f0 = cfg.centre_hz;
+        in_range(f0, 0.0, nyquist, true, param.centre_hz)?;
+        if f0 >= nyquist {
+            return Err(ConfigError::AboveNyquist {
+                param: param.centre_hz,
+                value: f0,
+                nyquist,
+            });
+        }
+        in_range(cfg.width_hz, 0.0, f0, true, param.width_hz)?;
+        in_range(cfg.depth_db, 0.0, MAX_DEPTH_DB, false, param.depth_db)?;
+        let warp = |f: f64| crate::cfgmath::tan(core::f64::consts::PI * f / f64::from(rate_hz));
+        let (f0, w) = (f64::from(f0), f64::from(cfg.width_hz));
+        let k = warp(f0);
+        // g(f_lo) = tan·tan − K² rises from −K² at 0 to > 0 at min(f0, fs/2 − w), where
+        // w ≤ f0 < fs/2 keeps both ends inside (0, fs/2).
+        let (mut lo, mut hi) = (0.0, f0.min(f64::from(nyquist) - w));
+        let mut i = 0;
+        while i < 60 {
+            let mid = 0.5 * (lo + hi);
+            if warp(mid) * warp(mid + w) < k * k {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+            i += 1;
+        }
+        let f_lo = 0.5 * (lo + hi);
+        let zeta_p = (warp(f_lo + w) - warp(f_lo)) / (2.0 * k);
+        let zeta_z = zeta_p * crate::cfgmath::exp(-f64::from(cfg.depth_db) / 20.0 * LN_10);
+        let k2 = k * k;
+        let a0 = 1.0 + 2.0 * zeta_p * k + k2;
+        Ok(Self {
+            b0: (1.0 + 2.0 * zeta_z * k + k2) / a0,
+            b1: 2.0 * (k2 - 1.0) / a0,
+            b2: (1.0 - 2.0 * zeta_z * k + k2) / a0,
+            a2: (1.0 - 2.0 * zeta_p * k + k2) / a0,
+        })
+    }
+
+    /// The f64 reference of one step, Direct Form I: `x` = [x0, x1, x2], `y` = [y1, y2].
+    #[must_use]
+    pub fn reference_step(&self, x: [f64; 3], y: [f64; 2]) -> f64 {
+        // y0 = b0·x0 + b1·x1 + b2·x2 − a1·y1 − a2·y2, a1 = b1.
+        self.b0 * x[0] + self.b1 * x[1] + self.b2 * x[2] - self.b1 * y[0] - self.a2 * y[1]
+    }
+
+    /// |H(e^{jωT})| at `freq_hz` for a tick rate `rate_hz`.
+    #[must_use]
+    pub fn gain_at(&self, freq_hz: f64, rate_hz: f64) -> f64 {
+        let w = core::f64::consts::TAU * freq_hz / rate_hz;
+        // |b0 + b1·z⁻¹ + b2·z⁻²| / |1 + a1·z⁻¹ + a2·z⁻²| on the unit circle.
+        let mag = |c0: f64, c1: f64, c2: f64| {
+            let (s1, c1w) = crate::cfgmath::sin_cos(w);
+            let (s2, c2w) = crate::cfgmath::sin_cos(2.0 * w);
+            let re = c0 + c1 * c1w + c2 * c2w;
+            let im = -(c1 * s1 + c2 * s2);
+            crate::cfgmath::sqrt(re * re + im * im)
+        };
+        mag(self.b0, self.b1, self.b2) / mag(1.0, self.b1, self.a2)
+    }
+}
+
+/// ln 10.
+const LN_10: f64 = core::f64::consts::LN_10;
+
+/// The field paths a notch's errors name.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NotchParams {
+    /// Path of `centre_hz`.
+    pub centre_hz: &'static str,
+    /// Path of `width_hz`.
+    pub width_hz: &'static str,
+    /// Path of `depth_db`.
+    pub depth_db: &'static str,
+}
+
+fn in_range(
+    value: f32,
+    min: f32,
+    max: f32,
+    min_exclusive: bool,
+    param: &'static str,
+) -> Result<(), ConfigError> {
+    if !value.is_finite() {
+        return Err(ConfigError::NotFinite { param });
+    }
+    let low = if min_exclusive {
+        value <= min
+    } else {
+        value < min
+    };
+    if low || value > max {
+        return Err(ConfigError::OutOfRange {
+            param,
+            value,
+            min,
+            max,
+            min_exclusive,
+        });
+    }
+    Ok(())
+}
+
+/// A quantized notch: the coefficients, Q2.30.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Notch {
+    b0: Coef,
+    b1: Coef,
+    b2: Coef,
+    a2: Coef,
+}
+
+/// The notch's state (plain data, loggable, reset = default).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NotchState {
+    /// x\[n−1\], x\[n−2\] (Q16.16 bits).
+    pub x: [i32; 2],
+    /// y\[n−1\], y\[n−2\] (Q16.16 bits).
+    pub y: [i32; 2],
+    /// Truncated bits of the last output, below its LSB (Q.46, in [0, 2^30)).
+    pub residual: i64,
+}
+
+impl Notch {
+    /// Quantize a design to Q2.30. `param` names the coefficient set in an error.
+    pub fn quantize(d: &NotchDesign, param: &'static str) -> Result<Self, ConfigError> {
+        let q = |v: f64| {
+            checked_q::<Coef>(v as f32).ok_or(ConfigError::CoefficientOverflow {
+                param,
+                value: v as f32,
+                q_format: "Q2.30",
+            })
+        };
+        Ok(Self {
+            b0: q(d.b0)?,
+            b1: q(d.b1)?,
+            b2: q(d.b2)?,
+            a2: q(d.a2)?,
+        })
+    }
+
+    /// Filter one sample of the torque reference.
+    ///
+    /// ```
+    /// use controller_core::notch::{Notch, NotchConfig, NotchDesign, NotchParams, NotchState};
+    /// use controller_core::Pu;
+    /// let names = NotchParams { centre_hz: "c", width_hz: "w", depth_db: "d" };
+    /// let cfg = NotchConfig { centre_hz: 200.0, width_hz: 60.0, depth_db: 20.0 };
+    /// let n = Notch::quantize(&NotchDesign::new(&cfg, 4000.0, names)?, "notch")?;
+    /// let mut s = NotchState::default();
+    /// let mut y = Pu::ZERO;
+    /// for _ in 0..4000 {
+    ///     y = n.process(&mut s, Pu::from_num(0.5)); // DC passes with gain 1
+    /// }
+    /// assert_eq!(y, Pu::from_num(0.5));
+    /// # Ok::<(), controller_core::ConfigError>(())
+    /// ```
+    #[inline]
+    pub fn process(&self, s: &mut NotchState, x: Pu) -> Pu {
+        // acc = b0·x0 + b1·(x1 − y1) + b2·x2 − a2·y2 + residual, Q.46 (a1 = b1).
+        // Each product of two i32 is below 2^62 in magnitude; the sums saturate, so a
+        // hand-made state or a saturated input gives a clamped output, never a wrap.
+        let x0 = x.to_bits();
+        let [x1, x2] = s.x;
+        let [y1, y2] = s.y;
+        let c = |k: Coef, v: i64| i64::from(k.to_bits()).saturating_mul(v);
+        let acc = c(self.b0, i64::from(x0))
+            .saturating_add(c(self.b1, i64::from(x1) - i64::from(y1)))
+            .saturating_add(c(self.b2, i64::from(x2)))
+            .saturating_sub(c(self.a2, i64::from(y2)))
+            .saturating_add(s.residual);
+        let y0 = sat_i32(acc >> 30);
+        // The residual is the part the output dropped; after a saturation it is zero, so the
+        // clamp does not wind up.
+        s.residual = if i64::from(y0) == acc >> 30 {
+            acc & ((1 << 30) - 1)
+        } else {
+            0
+        };
+        s.x = [x0, x1];
+        s.y = [y0, y1];
+        Pu::from_bits(y0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const RATE: f32 = 4000.0;
+    const NAMES: NotchParams = NotchParams {
+        centre_hz: "notch.centre_hz",
+        width_hz: "notch.width_hz",
+        depth_db: "notch.depth_db",
+    };
+
+    fn design(f0: f32, w: f32, d: f32) -> NotchDesign {
+        let cfg = NotchConfig {
+            centre_hz: f0,
+            width_hz: w,
+            depth_db: d,
+        };
+        match NotchDesign::new(&cfg, RATE, NAMES) {
+            Ok(d) => d,
+            Err(e) => unreachable!("{e}"),
+        }
+    }
+
+    /// Steady-state amplitude of the fixed-point notch for a sine at `f` Hz and amplitude
+    /// `a` pu, over whole periods after a settling time.
+    fn measured_gain(n: &Notch, f: f64, a: f64) -> f64 {
+        let mut s = NotchState::default();
+        let settle = 8000;
+        let len = 8000;
+        let (mut ss, mut sc) = (0.0, 0.0);
+        for k in 0..settle + len {
+            let ph = core::f64::consts::TAU * f * f64::from(k) / f64::from(RATE);
+            let y = n
+                .process(&mut s, Pu::from_num(a * ph.sin()))
+                .to_num::<f64>();
+            if k >= settle {
+                ss += y * ph.sin();
+                sc += y * ph.cos();
+            }
+        }
+        2.0 * (ss * ss + sc * sc).sqrt() / f64::from(len) / a
+    }
+
+    /// The design's own frequency response: the depth exactly at the centre, unit gain at
+    /// DC and Nyquist, and −3 dB edges exactly `width_hz` apart, also close to Nyquist.
+    #[test]
+    fn design_has_the_configured_centre_depth_and_width() {
+        for (f0, w, d) in [
+            (200.0, 60.0, 20.0),
+            (50.0, 10.0, 40.0),
+            (1200.0, 300.0, 30.0),
+        ] {
+            let n = design(f0, w, d);
+            let centre = n.gain_at(f64::from(f0), f64::from(RATE));
+            let want = 10f64.powf(-f64::from(d) / 20.0);
+            assert!(
+                (centre / want - 1.0).abs() < 1e-9,
+                "{f0}: {centre} vs {want}"
+            );
+            assert!((n.gain_at(0.0, f64::from(RATE)) - 1.0).abs() < 1e-12);
+            assert!((n.gain_at(f64::from(RATE) / 2.0, f64::from(RATE)) - 1.0).abs() < 1e-9);
+            // The −3 dB edges (|H|² = (1 + g0²)/2 for depth g0) are `w` apart.
+            let target = ((1.0 + want * want) / 2.0).sqrt();
+            // From the centre `a` outwards to `b`, the gain rises through the target once.
+            let edge = |mut a: f64, mut b: f64| {
+                for _ in 0..60 {
+                    let m = 0.5 * (a + b);
+                    if n.gain_at(m, f64::from(RATE)) < target {
+                        a = m;
+                    } else {
+                        b = m;
+                    }
+                }
+                0.5 * (a + b)
+            };
+            let lo = edge(f64::from(f0), 1e-6);
+            let hi = edge(f64::from(f0), f64::from(RATE) / 2.0);
+            let width = hi - lo;
+            assert!(
+                (width / f64::from(w) - 1.0).abs() < 1e-6,
+                "{f0}: width {width}"
+            );
+        }
+    }
+
+    /// Fixed point against the f64 reference, sample by sample, on a multi-tone signal.
+    #[test]
+    fn fixed_point_follows_the_f64_reference() {
+        let d = design(180.0, 50.0, 30.0);
+        let n = match Notch::quantize(&d, "notch") {
+            Ok(n) => n,
+            Err(e) => unreachable!("{e}"),
+        };
+        let mut s = NotchState::default();
+        let (mut x, mut y) = ([0.0f64; 3], [0.0f64; 2]);
+        let mut worst: f64 = 0.0;
+        for k in 0..20_000 {
+            let t = f64::from(k) / f64::from(RATE);
+            let v = 0.8 * (core::f64::consts::TAU * 180.0 * t).sin()
+                + 0.3 * (core::f64::consts::TAU * 17.0 * t).sin()
+                + 0.1;
+            let xq = Pu::from_num(v);
+            x = [xq.to_num(), x[0], x[1]];
+            let yr = d.reference_step(x, y);
+            y = [yr, y[0]];
+            let yf = n.process(&mut s, xq).to_num::<f64>();
+            worst = worst.max((yf - yr).abs());
+        }
+        // Coefficients quantized to 2^-30 and one output LSB (1.5e-5) of rounding, shaped
+        // by the error feedback: the difference stays within a few LSB.
+        assert!(worst < 8e-5, "worst difference {worst}");
+    }
+
+    /// The fixed-point notch's measured sine response against the design's, at 6 frequencies.
+    #[test]
+    fn measured_response_matches_the_transfer_function() {
+        let d = design(200.0, 60.0, 20.0);
+        let n = match Notch::quantize(&d, "notch") {
+            Ok(n) => n,
+            Err(e) => unreachable!("{e}"),
+        };
+        for f in [5.0, 100.0, 170.0, 200.0, 240.0, 900.0] {
+            let want = d.gain_at(f, f64::from(RATE));
+            let got = measured_gain(&n, f, 0.5);
+            assert!((got - want).abs() < 2e-3, "{f} Hz: {got} vs {want}");
+        }
+    }
+
+    #[test]
+    fn saturated_input_clamps_without_wrap() {
+        let d = design(200.0, 60.0, 20.0);
+        let n = match Notch::quantize(&d, "notch") {
+            Ok(n) => n,
+            Err(e) => unreachable!("{e}"),
+        };
+        let mut s = NotchState::default();
+        for k in 0..1000 {
+            let x = if k % 2 == 0 { Pu::MAX } else { Pu::MIN };
+            let y = n.process(&mut s, x);
+            assert!(s.residual >= 0 && s.residual < 1 << 30);
+            let _ = y;
+        }
+        // Back to a quiet input: the output returns to it.
+        let mut y = Pu::ZERO;
+        for _ in 0..4000 {
+            y = n.process(&mut s, Pu::ZERO);
+        }
+        assert!(y.abs() < Pu::from_num(0.001), "{y}");
+    }
+
+    #[test]
+    fn bad_settings_name_their_key() {
+        let cfg = |c: f32, w: f32, d: f32| NotchConfig {
+            centre_hz: c,
+            width_hz: w,
+            depth_db: d,
+        };
+        let cases = [
+            (cfg(2000.0, 10.0, 20.0), "notch.centre_hz"),
+            (cfg(0.0, 10.0, 20.0), "notch.centre_hz"),
+            (cfg(f32::NAN, 10.0, 20.0), "notch.centre_hz"),
+            (cfg(100.0, 0.0, 20.0), "notch.width_hz"),
+            (cfg(100.0, 101.0, 20.0), "notch.width_hz"),
+            (cfg(100.0, 20.0, -1.0), "notch.depth_db"),
+            (cfg(100.0, 20.0, 81.0), "notch.depth_db"),
+        ];
+        for (c, key) in cases {
+            match NotchDesign::new(&c, RATE, NAMES) {
+                Err(e) => assert_eq!(e.param(), key, "{c:?}"),
+                Ok(_) => unreachable!("{c:?} accepted"),
+            }
+        }
+    }
+}
