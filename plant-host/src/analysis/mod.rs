@@ -5,10 +5,12 @@
 //! the controller.
 
 mod engaged;
+mod frf;
 mod stiffness;
 mod velocity_loop;
 
 pub use engaged::{EngagedPlant, Modes, PlantResponse};
+pub use frf::{closed_loop_response, h1, FrfError, MeasuredResponse};
 pub use stiffness::{PiStiffness, StiffnessPoint};
 pub use velocity_loop::{LoopPoint, Margins, VelocityLoop};
 
