@@ -7,12 +7,14 @@
 mod engaged;
 mod fit;
 mod frf;
+mod sampled;
 mod stiffness;
 mod velocity_loop;
 
 pub use engaged::{EngagedPlant, Modes, PlantResponse};
 pub use fit::{fit_two_inertia, FitError, FitResult, TwoInertiaFit};
 pub use frf::{closed_loop_response, h1, FrfError, MeasuredResponse};
+pub use sampled::{continuous, state, Gears, SampledPlant};
 pub use stiffness::{PiStiffness, StiffnessPoint};
 pub use velocity_loop::{LoopPoint, Margins, VelocityLoop};
 
