@@ -11,6 +11,7 @@ pub mod commands;
 pub mod config;
 pub mod drive;
 pub mod error;
+pub mod linear;
 pub mod metrics;
 pub mod output;
 pub mod overrides;

@@ -1,0 +1,445 @@
+//! The controller's ticks in f64 with its quantized coefficients and without its clamps:
+//! the linear system the fixed-point code implements while no signal saturates.
+//!
+//! Every block follows its controller-core module equation for equation (observer,
+//! acceleration feedback in closed form, filters, PI regulators, differentiators, position
+//! loop). The order is the same, and so is the torque the observer is fed. Each
+//! coefficient is quantized to the Q-format the controller stores it in. What is left out
+//! is nonlinear or a start-up effect: the clamps, the 1-LSB rounding, the faults and the
+//! priming of the estimators. `tests/linear_model.rs` runs this mirror and the fixed-point
+//! controller on the same inputs, so a drift between the two fails a test.
+
+use controller_core::filter::LowPassDesign;
+use controller_core::per_unit::{Coef, Counts, Gain, PosGain, TickGain};
+use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, Gains, ObserverTorque};
+use fixed::traits::Fixed;
+
+/// f32 → the Q-format `T` (round to nearest, as the controller's quantizer) → f64.
+fn q<T: Fixed>(v: f32) -> f64 {
+    T::saturating_from_num(v).to_num::<f64>()
+}
+
+/// A low-pass filter's quantized coefficients: y = b0·x + h, h from the past.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Filter {
+    /// Pass-through.
+    None,
+    /// y ← y + α·(x − y).
+    FirstOrder {
+        /// α.
+        alpha: f64,
+    },
+    /// y = b0·(x0 + 2·x1 + x2) − a1·y1 − a2·y2.
+    SecondOrder {
+        /// b0.
+        b0: f64,
+        /// a1.
+        a1: f64,
+        /// a2.
+        a2: f64,
+    },
+}
+
+impl Filter {
+    fn quantized(d: &LowPassDesign) -> Self {
+        match *d {
+            LowPassDesign::None => Self::None,
+            LowPassDesign::FirstOrder { alpha } => Self::FirstOrder {
+                alpha: q::<Coef>(alpha),
+            },
+            LowPassDesign::SecondOrder { b0, a1, a2 } => Self::SecondOrder {
+                b0: q::<Coef>(b0),
+                a1: q::<Coef>(a1),
+                a2: q::<Coef>(a2),
+            },
+        }
+    }
+
+    /// (h, b0): the output's part from the past, and the feed-through.
+    fn begin(&self, s: &[f64; 4]) -> (f64, f64) {
+        match *self {
+            Self::None => (0.0, 1.0),
+            Self::FirstOrder { alpha } => ((1.0 - alpha) * s[0], alpha),
+            Self::SecondOrder { b0, a1, a2 } => {
+                (b0 * (2.0 * s[0] + s[1]) - a1 * s[2] - a2 * s[3], b0)
+            }
+        }
+    }
+
+    /// Completes the step with input `x`; state layout [x1, x2, y1, y2] (first order: [y]).
+    fn finish(&self, s: &mut [f64; 4], h: f64, x: f64) -> f64 {
+        match *self {
+            Self::None => x,
+            Self::FirstOrder { alpha } => {
+                s[0] = h + alpha * x;
+                s[0]
+            }
+            Self::SecondOrder { b0, .. } => {
+                let y = h + b0 * x;
+                *s = [x, s[0], y, s[2]];
+                y
+            }
+        }
+    }
+
+    fn process(&self, s: &mut [f64; 4], x: f64) -> f64 {
+        let (h, _) = self.begin(s);
+        self.finish(s, h, x)
+    }
+}
+
+/// The quantized coefficients of a controller, as f64.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coefficients {
+    /// Current ticks per velocity tick.
+    pub ticks_per_velocity: usize,
+    /// Position loop on.
+    pub position_loop: bool,
+    /// k_pos \[pu per count\] (Q1.31).
+    pub k_pos: f64,
+    /// Velocity feed-forward gain (Q16.16).
+    pub velocity_ff: f64,
+    /// Acceleration feed-forward (Q16.16).
+    pub k_accel_ff: f64,
+    /// Velocity PI Kp (Q16.16), Ki·Ts (Q8.24).
+    pub vel_kp: f64,
+    /// Velocity PI Ki·Ts.
+    pub vel_ki_ts: f64,
+    /// Current PI Kp, Ki·Ts.
+    pub cur_kp: f64,
+    /// Current PI Ki·Ts.
+    pub cur_ki_ts: f64,
+    /// Velocity feedback filter.
+    pub velocity_filter: Filter,
+    /// AFB filter.
+    pub afb_filter: Filter,
+    /// AFB form.
+    pub afb_mode: AfbMode,
+    /// Ka (Q16.16) and the closed-form g·Ka (Q16.16).
+    pub ka: f64,
+    /// g·Ka.
+    pub ka_closed: f64,
+    /// AFB at the current rate (else the velocity rate).
+    pub afb_at_current_rate: bool,
+    /// Sources.
+    pub afb_source: Estimator,
+    /// Velocity source.
+    pub velocity_source: Estimator,
+    /// Observer torque input.
+    pub observer_torque: ObserverTorque,
+    /// Observer l1, l2, l3 (Q2.30).
+    pub l: [f64; 3],
+    /// Observer k_u (Q8.24), velocity and acceleration scales (Q8.24, Q16.16).
+    pub k_u: f64,
+    /// pu per count per current tick.
+    pub obs_k_vel: f64,
+    /// pu/s per count per current tick².
+    pub obs_k_acc: f64,
+    /// Differentiators: velocity-rate and current-rate scales (k_vel Q8.24, k_acc Q16.16).
+    pub diff_vel: (f64, f64),
+    /// Current-rate scales.
+    pub diff_cur: (f64, f64),
+}
+
+impl Coefficients {
+    /// From a drive and the gains its controller runs with.
+    #[must_use]
+    pub fn new(cfg: &DriveConfig, g: &Gains) -> Self {
+        let afb_filter = Filter::quantized(&g.afb_filter);
+        let b0 = match afb_filter {
+            Filter::None => 1.0,
+            Filter::FirstOrder { alpha } => alpha,
+            Filter::SecondOrder { b0, .. } => b0,
+        };
+        // As controller-core: g = 1/(1 + b0·Ka/J_model) in f32 from the quantized b0.
+        let gain = 1.0 / (1.0 + b0 as f32 * g.ka / g.observer_inertia_s);
+        let afb_on = cfg.accel_feedback.mode != AfbMode::Off;
+        Self {
+            ticks_per_velocity: g.ticks_per_velocity.max(1) as usize,
+            position_loop: g.kpp > 0.0,
+            k_pos: if g.kpp > 0.0 {
+                q::<PosGain>(g.k_pos_pu_per_count)
+            } else {
+                0.0
+            },
+            velocity_ff: q::<Gain>(cfg.velocity_ff_gain),
+            k_accel_ff: q::<Gain>(g.k_accel_ff),
+            vel_kp: q::<Gain>(g.kp_vel),
+            vel_ki_ts: q::<TickGain>(g.ki_vel / cfg.velocity_rate_hz as f32),
+            cur_kp: q::<Gain>(g.kp_cur),
+            cur_ki_ts: q::<TickGain>(g.ki_cur / cfg.current_rate_hz as f32),
+            velocity_filter: Filter::quantized(&g.velocity_filter),
+            afb_filter,
+            afb_mode: if afb_on {
+                cfg.accel_feedback.mode
+            } else {
+                AfbMode::Off
+            },
+            ka: q::<Gain>(g.ka),
+            ka_closed: if cfg.accel_feedback.source == Estimator::Observer {
+                q::<Gain>(g.ka * gain)
+            } else {
+                0.0
+            },
+            afb_at_current_rate: cfg.accel_feedback.rate == AfbRate::Current,
+            afb_source: cfg.accel_feedback.source,
+            velocity_source: cfg.velocity_estimator,
+            observer_torque: cfg.observer.torque_input,
+            l: g.observer_l.map(q::<Coef>),
+            k_u: q::<TickGain>(g.observer_k_u),
+            obs_k_vel: q::<TickGain>(g.cur_tick_pu_per_count),
+            obs_k_acc: q::<Gain>(g.cur_tick_pu_s_per_count),
+            diff_vel: (
+                q::<TickGain>(g.vel_tick_pu_per_count),
+                q::<Gain>(g.vel_tick_pu_s_per_count),
+            ),
+            diff_cur: (
+                q::<TickGain>(g.cur_tick_pu_per_count),
+                q::<Gain>(g.cur_tick_pu_s_per_count),
+            ),
+        }
+    }
+}
+
+/// The controller's state, every entry linear in the signals.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct State {
+    /// Observer position \[counts\], velocity \[counts/tick\], disturbance \[counts/tick²\].
+    pub obs: [f64; 3],
+    /// Observer acceleration over the last tick and its residual \[counts/tick²\].
+    pub obs_acc: [f64; 2],
+    /// Velocity and current PI integrals \[pu\].
+    pub integral: [f64; 2],
+    /// Velocity filter state.
+    pub velocity_filter: [f64; 4],
+    /// AFB filter state.
+    pub afb_filter: [f64; 4],
+    /// Velocity-rate differentiator: last position \[counts\], last difference.
+    pub diff_velocity: [f64; 2],
+    /// Current-rate differentiator: last position, last difference.
+    pub diff_current: [f64; 2],
+    /// Held velocity PI output, AFB term, last torque reference, last current sample \[pu\].
+    pub held: [f64; 4],
+}
+
+/// Number of f64 entries of [`State`].
+pub const STATE_LEN: usize = 3 + 2 + 2 + 4 + 4 + 4 + 4;
+
+impl State {
+    /// Flattened.
+    #[must_use]
+    pub fn to_vec(&self) -> Vec<f64> {
+        let mut v = Vec::with_capacity(STATE_LEN);
+        v.extend_from_slice(&self.obs);
+        v.extend_from_slice(&self.obs_acc);
+        v.extend_from_slice(&self.integral);
+        v.extend_from_slice(&self.velocity_filter);
+        v.extend_from_slice(&self.afb_filter);
+        v.extend_from_slice(&self.diff_velocity);
+        v.extend_from_slice(&self.diff_current);
+        v.extend_from_slice(&self.held);
+        v
+    }
+
+    /// The state of a shift of every position by `counts`: the entries that hold a
+    /// position (observer, differentiators' last readings).
+    #[must_use]
+    pub fn position_shift(counts: f64) -> Self {
+        Self {
+            obs: [counts, 0.0, 0.0],
+            diff_velocity: [counts, 0.0],
+            diff_current: [counts, 0.0],
+            ..Self::default()
+        }
+    }
+
+    /// From [`State::to_vec`]'s layout (missing entries are zero).
+    #[must_use]
+    pub fn from_slice(v: &[f64]) -> Self {
+        let mut it = v.iter().copied().chain(std::iter::repeat(0.0));
+        let mut take = |out: &mut [f64]| {
+            for o in out.iter_mut() {
+                *o = it.next().unwrap_or(0.0);
+            }
+        };
+        let mut s = Self::default();
+        take(&mut s.obs);
+        take(&mut s.obs_acc);
+        take(&mut s.integral);
+        take(&mut s.velocity_filter);
+        take(&mut s.afb_filter);
+        take(&mut s.diff_velocity);
+        take(&mut s.diff_current);
+        take(&mut s.held);
+        s
+    }
+}
+
+/// Where the loop may be opened for margins: the signal used downstream is the external
+/// `w` instead of the computed one, which is reported.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Break {
+    /// Closed.
+    None,
+    /// At the velocity regulator's output (torque reference without AFB).
+    VelocityRegulator,
+    /// At the acceleration-feedback term.
+    AccelerationFeedback,
+}
+
+/// Exogenous inputs of one tick.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Inputs {
+    /// Commanded position \[counts\], velocity \[pu\], acceleration \[pu/s\].
+    pub setpoint: [f64; 3],
+    /// The break signal `w`.
+    pub w: f64,
+}
+
+/// What one current tick produced.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TickOutputs {
+    /// Voltage command \[pu\].
+    pub voltage: f64,
+    /// Torque reference \[pu\].
+    pub torque_ref: f64,
+    /// The computed signal at the break (0 without one).
+    pub at_break: f64,
+}
+
+impl Coefficients {
+    fn predicted(&self, s: &State, torque: f64) -> f64 {
+        (torque * self.k_u + s.obs_acc[1]) * self.obs_k_acc
+    }
+
+    /// The AFB step: closed form with the observer, or the plain update with a measured
+    /// acceleration `a_meas`. `p` is the torque reference without the AFB term.
+    fn afb(&self, s: &mut State, p: f64, a_cmd: f64, a_meas: f64) -> f64 {
+        let c = match self.afb_mode {
+            AfbMode::Off => return 0.0,
+            AfbMode::Plain => 0.0,
+            AfbMode::Error => a_cmd,
+        };
+        if self.afb_source == Estimator::Observer {
+            let (h, b0) = self.afb_filter.begin(&s.afb_filter);
+            let afb = self.ka_closed * (h + b0 * (c - self.predicted(s, p)));
+            let x_t = c - self.predicted(s, p + afb);
+            self.afb_filter.finish(&mut s.afb_filter, h, x_t);
+            afb
+        } else {
+            self.ka * self.afb_filter.process(&mut s.afb_filter, c - a_meas)
+        }
+    }
+
+    fn differentiate(slot: &mut [f64; 2], k: (f64, f64), position: f64) -> (f64, f64) {
+        let [last, last_delta] = *slot;
+        let delta = position - last;
+        *slot = [position, delta];
+        (delta * k.0, (delta - last_delta) * k.1)
+    }
+
+    /// The velocity tick with the position `position` \[counts\].
+    pub fn velocity_tick(&self, s: &mut State, position: f64, inp: &Inputs, brk: Break) -> f64 {
+        let [sp_pos, sp_vel, sp_acc] = inp.setpoint;
+        let uses_diff = self.velocity_source == Estimator::Differentiation
+            || self.afb_source == Estimator::Differentiation;
+        let (v_diff, a_diff) = if uses_diff {
+            Self::differentiate(&mut s.diff_velocity, self.diff_vel, position)
+        } else {
+            (0.0, 0.0)
+        };
+        let v_raw = match self.velocity_source {
+            Estimator::Differentiation => v_diff,
+            Estimator::Observer => s.obs[1] * self.obs_k_vel,
+        };
+        let v_fb = self.velocity_filter.process(&mut s.velocity_filter, v_raw);
+        let v_cmd = if self.position_loop {
+            self.velocity_ff * sp_vel + self.k_pos * (sp_pos - position)
+        } else {
+            sp_vel
+        };
+        let e = v_cmd - v_fb;
+        s.integral[0] += e * self.vel_ki_ts;
+        let pi = self.vel_kp * e + self.k_accel_ff * sp_acc + s.integral[0];
+        let mut reported = 0.0;
+        s.held[0] = if brk == Break::VelocityRegulator {
+            reported = pi;
+            inp.w
+        } else {
+            pi
+        };
+        if !self.afb_at_current_rate {
+            let a_est = match self.afb_source {
+                Estimator::Differentiation => a_diff,
+                Estimator::Observer => s.obs_acc[0] * self.obs_k_acc,
+            };
+            let afb = self.afb(s, s.held[0], sp_acc, a_est);
+            s.held[1] = self.at_afb_break(afb, inp, brk, &mut reported);
+        }
+        reported
+    }
+
+    fn at_afb_break(&self, afb: f64, inp: &Inputs, brk: Break, reported: &mut f64) -> f64 {
+        if brk == Break::AccelerationFeedback {
+            *reported = afb;
+            inp.w
+        } else {
+            afb
+        }
+    }
+
+    /// The current tick with the position \[counts\] and the current sample \[pu\].
+    pub fn current_tick(
+        &self,
+        s: &mut State,
+        position: f64,
+        current: f64,
+        inp: &Inputs,
+        brk: Break,
+    ) -> TickOutputs {
+        let torque = match self.observer_torque {
+            ObserverTorque::Command => s.held[2],
+            ObserverTorque::MeasuredCurrent => 0.5 * (s.held[3] + current),
+        };
+        s.held[3] = current;
+        // Observer (controller-core observer.rs), in counts and ticks.
+        let [p, v, d] = s.obs;
+        let u = torque * self.k_u;
+        let acc = u + d;
+        let p_pred = p + v + 0.5 * acc;
+        let v_pred = v + acc;
+        let e = position - p_pred;
+        let [l1, l2, l3] = self.l;
+        s.obs = [p_pred + l1 * e, v_pred + l2 * e, d + l3 * e];
+        let residual = d + l2 * e;
+        s.obs_acc = [u + residual, residual];
+        let mut reported = 0.0;
+        if self.afb_mode == AfbMode::Off {
+            // The controller never writes its AFB term: it stays zero.
+            s.held[1] = 0.0;
+        } else if self.afb_at_current_rate {
+            let a_meas = if self.afb_source == Estimator::Differentiation {
+                Self::differentiate(&mut s.diff_current, self.diff_cur, position).1
+            } else {
+                0.0
+            };
+            let afb = self.afb(s, s.held[0], inp.setpoint[2], a_meas);
+            s.held[1] = self.at_afb_break(afb, inp, brk, &mut reported);
+        }
+        let i_ref = s.held[0] + s.held[1];
+        s.held[2] = i_ref;
+        let e = i_ref - current;
+        s.integral[1] += e * self.cur_ki_ts;
+        TickOutputs {
+            voltage: self.cur_kp * e + s.integral[1],
+            torque_ref: i_ref,
+            at_break: reported,
+        }
+    }
+}
+
+/// The commanded position of a setpoint in counts, as the controller reads it (Q48.16).
+#[must_use]
+pub fn setpoint_counts(counts: f64) -> f64 {
+    Counts::saturating_from_num(counts).to_num()
+}

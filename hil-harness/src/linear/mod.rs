@@ -1,0 +1,26 @@
+//! The linear model of the whole discrete loop: the controller's ticks in f64 with its
+//! quantized coefficients ([`mirror`]) around the exactly sampled plant ([`model`]), for
+//! poles, damping, margins and stiffness.
+
+pub mod mirror;
+pub mod model;
+
+pub use mirror::{Break, Coefficients};
+pub use model::{LoopModel, Margins};
+
+use crate::config::RunConfig;
+use crate::error::Result;
+use plant_host::analysis::Gears;
+
+/// The model of a run: its controller's coefficients (the gains it runs with, see
+/// [`crate::runner::regulator_gains`]) and its plant, with the gears `gears`.
+pub fn for_run(cfg: &RunConfig, gears: Gears) -> Result<LoopModel> {
+    let gains = crate::runner::regulator_gains(cfg)?;
+    let coef = Coefficients::new(&cfg.drive, &gains);
+    Ok(LoopModel::new(
+        coef,
+        &cfg.plant,
+        f64::from(cfg.drive.current_rate_hz),
+        gears,
+    ))
+}

@@ -1,0 +1,416 @@
+//! The whole discrete loop as one linear map over a velocity period: the exactly sampled
+//! plant ([`plant_host::analysis::SampledPlant`]), the computational delay and the
+//! controller mirror ([`super::mirror`]), in the runner's order within each current tick:
+//!
+//! 1. sample the encoder and the current;
+//! 2. on every n-th tick, the velocity tick;
+//! 3. the current tick;
+//! 4. the plant over the tick, with the previous voltage for the delay's remainder and the
+//!    new one after it (a delay of whole ticks shifts the commands first).
+//!
+//! Stacking the plant (5), the delayed commands and the controller (`mirror::STATE_LEN`),
+//! one velocity period is z⁺ = M·z + inputs. M is read off the mirror by probing it with
+//! unit vectors: the mirror is exactly linear, so this is exact. The poles are the
+//! eigenvalues of M, and the damping of each is that of s = ln(λ)/T_v.
+//!
+//! Two invariances are removed before the damping is judged, because they are not
+//! dynamics of the loop:
+//! - In speed mode (no position loop), shifting every position at once leaves the loop
+//!   unchanged, so M has an eigenvalue exactly 1 on that direction. It is deflated.
+//! - With the gears apart, the load coasts on its own. Its states are dropped.
+
+use super::mirror::{Break, Coefficients, Inputs, State, STATE_LEN};
+use nalgebra::{Complex, DMatrix, DVector};
+use plant_host::analysis::{state, Gears, SampledPlant};
+use plant_host::PlantConfig;
+use std::f64::consts::PI;
+
+/// The linear loop of one drive, plant and contact state.
+#[derive(Debug, Clone)]
+pub struct LoopModel {
+    coef: Coefficients,
+    plant: SampledPlant,
+    gears: Gears,
+    /// Encoder counts per motor radian (as the drive reads them).
+    counts_per_rad: f64,
+    /// Whole ticks of computational delay.
+    whole_delay: usize,
+    /// Velocity period \[s\].
+    period_s: f64,
+    /// ω_b \[rad/s per pu\].
+    base_speed_rad_s: f64,
+}
+
+/// Margins of a loop opened at one point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Margins {
+    /// Gain margin \[dB\] at the first phase crossing of −180° above the crossover
+    /// (infinite if there is none).
+    pub gain_margin_db: f64,
+    /// Phase margin \[deg\] at the gain crossover.
+    pub phase_margin_deg: f64,
+    /// Gain-crossover frequency \[Hz\].
+    pub crossover_hz: f64,
+}
+
+impl LoopModel {
+    /// The model for a controller's coefficients and a plant with the gears `gears`.
+    #[must_use]
+    pub fn new(
+        coef: Coefficients,
+        plant: &PlantConfig,
+        current_rate_hz: f64,
+        gears: Gears,
+    ) -> Self {
+        let tick = 1.0 / current_rate_hz;
+        let delay = plant.electrics.computational_delay_s.max(0.0);
+        let whole_delay = (delay / tick + 1e-9).floor() as usize;
+        let remainder = (delay - whole_delay as f64 * tick).max(0.0);
+        let sampled = SampledPlant::new(&plant.mechanics, &plant.electrics, gears, tick, remainder);
+        let ratio = coef.ticks_per_velocity;
+        Self {
+            coef,
+            plant: sampled,
+            gears,
+            counts_per_rad: f64::from(plant.sensors.counts_per_rev()) / (2.0 * PI),
+            whole_delay,
+            period_s: tick * ratio as f64,
+            base_speed_rad_s: plant.mechanics.derived().base_speed_rad_s,
+        }
+    }
+
+    /// Length of the stacked state.
+    #[must_use]
+    pub fn state_len(&self) -> usize {
+        state::COUNT + self.whole_delay + 1 + STATE_LEN
+    }
+
+    /// One velocity period from `z` with the load torque `load[i]` in tick i and the inputs
+    /// `inp`. Returns z⁺ and the break signal computed in the period's first tick that has
+    /// one (the velocity tick for [`Break::VelocityRegulator`]).
+    fn period(&self, z: &[f64], load: &[f64], inp: &Inputs, brk: Break) -> (Vec<f64>, f64) {
+        let n_plant = state::COUNT;
+        let n_delay = self.whole_delay + 1;
+        let mut x = DVector::from_iterator(n_plant, z.iter().copied().take(n_plant));
+        let mut queue: Vec<f64> = z.iter().copied().skip(n_plant).take(n_delay).collect();
+        let mut c = State::from_slice(z.get(n_plant + n_delay..).unwrap_or(&[]));
+        let mut reported = None;
+        for tick in 0..self.coef.ticks_per_velocity {
+            let position = x.get(state::MOTOR_ANGLE).copied().unwrap_or(0.0) * self.counts_per_rad;
+            let current = x.get(state::CURRENT).copied().unwrap_or(0.0);
+            if tick == 0 {
+                let r = self.coef.velocity_tick(&mut c, position, inp, brk);
+                if brk == Break::VelocityRegulator {
+                    reported = Some(r);
+                }
+            }
+            let out = self.coef.current_tick(&mut c, position, current, inp, brk);
+            if brk == Break::AccelerationFeedback && reported.is_none() {
+                reported = Some(out.at_break);
+            }
+            // queue = [v[k−1], …, v[k−n−1]]: applied old = v[k−n−1], new = v[k−n].
+            let old = queue.last().copied().unwrap_or(0.0);
+            let new = if self.whole_delay == 0 {
+                out.voltage
+            } else {
+                queue.get(self.whole_delay - 1).copied().unwrap_or(0.0)
+            };
+            let tl = load.get(tick).copied().unwrap_or(0.0);
+            x = self.plant.step(&x, new, old, tl);
+            queue.rotate_right(1);
+            if let Some(first) = queue.first_mut() {
+                *first = out.voltage;
+            }
+        }
+        let mut next: Vec<f64> = x.iter().copied().collect();
+        next.extend(queue);
+        next.extend(c.to_vec());
+        (next, reported.unwrap_or(0.0))
+    }
+
+    /// M, the break input column B_w, and the break output row C (reported = C·z + D·w).
+    fn matrices(&self, brk: Break) -> (DMatrix<f64>, DVector<f64>, DVector<f64>, f64) {
+        let n = self.state_len();
+        let zero_load = vec![0.0; self.coef.ticks_per_velocity];
+        let quiet = Inputs::default();
+        let mut m = DMatrix::zeros(n, n);
+        let mut c = DVector::zeros(n);
+        let mut e = vec![0.0; n];
+        for j in 0..n {
+            if let Some(v) = e.get_mut(j) {
+                *v = 1.0;
+            }
+            let (col, r) = self.period(&e, &zero_load, &quiet, brk);
+            m.set_column(j, &DVector::from_vec(col));
+            if let Some(v) = c.get_mut(j) {
+                *v = r;
+            }
+            if let Some(v) = e.get_mut(j) {
+                *v = 0.0;
+            }
+        }
+        let w = Inputs { w: 1.0, ..quiet };
+        let (col, d) = self.period(&vec![0.0; n], &zero_load, &w, brk);
+        (m, DVector::from_vec(col), c, d)
+    }
+
+    /// The closed loop's one-period map.
+    #[must_use]
+    pub fn closed_loop(&self) -> DMatrix<f64> {
+        self.matrices(Break::None).0
+    }
+
+    /// The direction of a shift of every position by one motor radian.
+    fn shift(&self) -> DVector<f64> {
+        let mut v = vec![0.0; state::COUNT + self.whole_delay + 1];
+        for i in [state::MOTOR_ANGLE, state::LOAD_ANGLE] {
+            if let Some(x) = v.get_mut(i) {
+                *x = 1.0;
+            }
+        }
+        v.extend(State::position_shift(self.counts_per_rad).to_vec());
+        DVector::from_vec(v)
+    }
+
+    /// The eigenvalues of the loop's dynamics (invariances removed, module docs).
+    #[must_use]
+    pub fn poles(&self) -> Vec<Complex<f64>> {
+        let mut m = self.closed_loop();
+        let mut shift = self.shift();
+        // (The load states go first, then the states this configuration never uses.)
+        if self.gears == Gears::Apart {
+            // Drop θl and ωl: the coasting load does not act on the motor.
+            m = m
+                .remove_row(state::LOAD_SPEED)
+                .remove_column(state::LOAD_SPEED)
+                .remove_row(state::LOAD_ANGLE)
+                .remove_column(state::LOAD_ANGLE);
+            shift = shift
+                .remove_row(state::LOAD_SPEED)
+                .remove_row(state::LOAD_ANGLE);
+        }
+        let (m_used, shift_used) = drop_unused(&m, &shift);
+        let (mut m, shift) = (m_used, shift_used);
+        let invariant = (&m * &shift - &shift).norm() <= 1e-9 * shift.norm();
+        if invariant {
+            m = deflate(&m, &shift);
+        }
+        m.complex_eigenvalues().iter().copied().collect()
+    }
+
+    /// The damping ratio of a pole λ of the period map: that of s = ln(λ)/T_v. Poles at
+    /// the origin (pure delays) count as ζ = 1.
+    #[must_use]
+    pub fn damping(&self, lambda: Complex<f64>) -> f64 {
+        if lambda.norm() < 1e-12 {
+            return 1.0;
+        }
+        let s = lambda.ln() / self.period_s;
+        if s.norm() == 0.0 {
+            return 0.0;
+        }
+        -s.re / s.norm()
+    }
+
+    /// The smallest damping over the poles; negative means unstable.
+    #[must_use]
+    pub fn smallest_damping(&self) -> f64 {
+        self.poles()
+            .into_iter()
+            .map(|p| self.damping(p))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The spectral radius of the loop (stable below 1).
+    #[must_use]
+    pub fn spectral_radius(&self) -> f64 {
+        self.poles().iter().map(|p| p.norm()).fold(0.0, f64::max)
+    }
+
+    /// L(e^{jωT_v}) with the loop opened at `brk`: L = −(C·(zI − M)⁻¹·B_w + D).
+    #[must_use]
+    pub fn loop_gain(&self, brk: Break, freq_hz: &[f64]) -> Vec<Complex<f64>> {
+        let (m, bw, c, d) = self.matrices(brk);
+        let n = m.nrows();
+        let mc = m.map(Complex::from);
+        let bc = bw.map(Complex::from);
+        let cc = c.map(Complex::from);
+        freq_hz
+            .iter()
+            .map(|f| {
+                let z = Complex::from_polar(1.0, 2.0 * PI * f * self.period_s);
+                let a = DMatrix::<Complex<f64>>::identity(n, n) * z - &mc;
+                match a.lu().solve(&bc) {
+                    Some(x) => -(cc.dot(&x) + d),
+                    None => Complex::new(f64::INFINITY, 0.0),
+                }
+            })
+            .collect()
+    }
+
+    /// Gain and phase margins of the loop opened at `brk`, from its response on a log grid
+    /// up to the velocity Nyquist frequency.
+    #[must_use]
+    pub fn margins(&self, brk: Break) -> Margins {
+        let nyquist = 0.5 / self.period_s;
+        let freqs = plant_host::analysis::log_space(0.01, nyquist * 0.999, 2000);
+        let l = self.loop_gain(brk, &freqs);
+        margins_of(&freqs, &l)
+    }
+
+    /// Dynamic stiffness |τ_L/θl| at each frequency \[pu torque per pu·s of load position\],
+    /// the quantity `hil-harness stiffness` measures.
+    #[must_use]
+    pub fn stiffness(&self, freq_hz: &[f64]) -> Vec<f64> {
+        let (m, _, _, _) = self.matrices(Break::None);
+        let n = m.nrows();
+        let ratio = self.coef.ticks_per_velocity;
+        let tick = self.period_s / ratio as f64;
+        // The response of z⁺ to a unit load torque in tick i alone.
+        let columns: Vec<DVector<f64>> = (0..ratio)
+            .map(|i| {
+                let mut load = vec![0.0; ratio];
+                if let Some(v) = load.get_mut(i) {
+                    *v = 1.0;
+                }
+                DVector::from_vec(
+                    self.period(&vec![0.0; n], &load, &Inputs::default(), Break::None)
+                        .0,
+                )
+            })
+            .collect();
+        let mc = m.map(Complex::from);
+        freq_hz
+            .iter()
+            .map(|f| {
+                let w = 2.0 * PI * f;
+                let z = Complex::from_polar(1.0, w * self.period_s);
+                let mut b = DVector::<Complex<f64>>::zeros(n);
+                for (i, col) in columns.iter().enumerate() {
+                    b += col.map(Complex::from) * Complex::from_polar(1.0, w * tick * i as f64);
+                }
+                let a = DMatrix::<Complex<f64>>::identity(n, n) * z - &mc;
+                match a.lu().solve(&b) {
+                    Some(x) => {
+                        let theta_rad = x.get(state::LOAD_ANGLE).copied().unwrap_or_default();
+                        1.0 / (theta_rad.norm() / self.base_speed_rad_s)
+                    }
+                    None => 0.0,
+                }
+            })
+            .collect()
+    }
+}
+
+/// `m` and `shift` without the states this configuration never touches: a state j whose
+/// column and row of `m` are both e_j holds its value and acts on nothing (a filter or
+/// differentiator that is switched off), an eigenvalue 1 that is not the loop's.
+fn drop_unused(m: &DMatrix<f64>, shift: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+    let n = m.nrows();
+    let unused: Vec<usize> = (0..n)
+        .filter(|&j| {
+            (0..n).all(|i| {
+                let want = if i == j { 1.0 } else { 0.0 };
+                m.get((i, j)) == Some(&want) && m.get((j, i)) == Some(&want)
+            })
+        })
+        .collect();
+    (
+        m.clone().remove_rows_at(&unused).remove_columns_at(&unused),
+        shift.clone().remove_rows_at(&unused),
+    )
+}
+
+/// Gain and phase margins of a loop gain `l` sampled at increasing frequencies `freqs`
+/// \[Hz\]: the phase margin at the first gain crossover (downwards through 1), the gain
+/// margin the smallest at the −180° (mod 360°) crossings after it.
+///
+/// ```
+/// use hil_harness::linear::model::margins_of;
+/// use nalgebra::Complex;
+/// // L = K·e^(−sτ)/s, K = 10 rad/s, τ = 10 ms: crossover 10 rad/s, PM = 90° − 5.7°,
+/// // the −180° crossing at π/(2τ) with |L| = 2Kτ/π: GM = 20·log10(π/(2Kτ)) = 17.9 dB.
+/// let (k, tau) = (10.0, 0.01);
+/// let f: Vec<f64> = (1..20_000).map(|i| i as f64 * 0.005).collect();
+/// let l: Vec<Complex<f64>> = f.iter().map(|f| {
+///     let s = Complex::new(0.0, 2.0 * std::f64::consts::PI * f);
+///     (s * -tau).exp() * k / s
+/// }).collect();
+/// let m = margins_of(&f, &l);
+/// assert!((m.phase_margin_deg - (90.0 - (k * tau).to_degrees())).abs() < 0.05);
+/// assert!((m.crossover_hz - k / (2.0 * std::f64::consts::PI)).abs() < 1e-3);
+/// let gm = 20.0 * (std::f64::consts::PI / (2.0 * k * tau)).log10();
+/// assert!((m.gain_margin_db - gm).abs() < 0.01);
+/// ```
+#[must_use]
+pub fn margins_of(freqs: &[f64], l: &[Complex<f64>]) -> Margins {
+    let mut out = Margins {
+        gain_margin_db: f64::INFINITY,
+        phase_margin_deg: f64::INFINITY,
+        crossover_hz: f64::NAN,
+    };
+    let phase = unwrap_phases(l);
+    let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(f64::NAN);
+    let mag = |i: usize| l.get(i).map_or(f64::NAN, |v| v.norm());
+    let mut crossed = false;
+    for i in 1..l.len() {
+        let (a, b) = (mag(i - 1), mag(i));
+        let (pa, pb) = (at(&phase, i - 1), at(&phase, i));
+        let (fa, fb) = (at(freqs, i - 1), at(freqs, i));
+        if !crossed && a >= 1.0 && b < 1.0 {
+            let t = a.ln() / (a.ln() - b.ln());
+            out.phase_margin_deg = 180.0 + (pa + t * (pb - pa)).to_degrees();
+            out.crossover_hz = fa + t * (fb - fa);
+            crossed = true;
+        }
+        // A crossing of −180° (mod 360°): (φ + π)/2π changes its integer part.
+        let turn = |p: f64| ((p + PI) / (2.0 * PI)).floor();
+        if crossed && turn(pa) != turn(pb) {
+            let target = turn(pa.max(pb)) * 2.0 * PI - PI;
+            let t = (target - pa) / (pb - pa);
+            let g = a.ln() + t * (b.ln() - a.ln());
+            out.gain_margin_db = out.gain_margin_db.min(-20.0 * g / std::f64::consts::LN_10);
+        }
+    }
+    out
+}
+
+/// The map `m` with the invariant direction `s` (m·s = s) taken out: in an orthonormal
+/// basis whose first vector is s/|s|, the first column of QᵀMQ is e1, so the remaining
+/// block holds every other eigenvalue.
+fn deflate(m: &DMatrix<f64>, s: &DVector<f64>) -> DMatrix<f64> {
+    let n = m.nrows();
+    let mut basis = DMatrix::zeros(n, n + 1);
+    basis.set_column(0, s);
+    basis
+        .view_mut((0, 1), (n, n))
+        .copy_from(&DMatrix::identity(n, n));
+    let q = basis.qr().q();
+    let q = q.columns(0, n).into_owned();
+    let t = q.transpose() * m * &q;
+    t.view((1, 1), (n - 1, n - 1)).into_owned()
+}
+
+fn unwrap_phases(l: &[Complex<f64>]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(l.len());
+    let mut offset = 0.0;
+    let mut last: Option<f64> = None;
+    for v in l {
+        let p = v.arg();
+        if let Some(prev) = last {
+            let mut d = p + offset - prev;
+            while d > PI {
+                offset -= 2.0 * PI;
+                d -= 2.0 * PI;
+            }
+            while d < -PI {
+                offset += 2.0 * PI;
+                d += 2.0 * PI;
+            }
+        }
+        let u = p + offset;
+        out.push(u);
+        last = Some(u);
+    }
+    out
+}

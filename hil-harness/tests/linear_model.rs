@@ -1,0 +1,187 @@
+//! The linear model of the loop against the fixed-point controller and closed forms.
+#![allow(clippy::indexing_slicing, clippy::unwrap_used, clippy::expect_used)]
+
+use controller_core::{
+    design, AfbMode, AfbRate, Controller, CurrentInputs, DriveConfig, Estimator, FilterConfig,
+    ObserverTorque, Pu, Setpoint, VelocityInputs,
+};
+use hil_harness::linear::mirror::{Break, Coefficients, Inputs, State};
+use hil_harness::linear::LoopModel;
+use plant_host::analysis::Gears;
+use plant_host::PlantConfig;
+use std::f64::consts::PI;
+
+/// Drives the fixed-point controller and the mirror with the same encoder counts, currents
+/// and setpoints, small enough that nothing saturates; returns the largest differences of
+/// the voltage command and the torque reference.
+fn mirror_vs_controller(cfg: &DriveConfig) -> (f64, f64) {
+    let gains = design(cfg).unwrap();
+    let mut fixed = Controller::new(cfg).unwrap();
+    let coef = Coefficients::new(cfg, &gains);
+    let mut s = State::default();
+    let ratio = gains.ticks_per_velocity as usize;
+    let (mut worst_v, mut worst_t) = (0.0f64, 0.0f64);
+    let mut last_ref = 0.0;
+    for k in 0..8000usize {
+        let t = k as f64 / f64::from(cfg.current_rate_hz);
+        // Zero for the first ticks, so that both start primed at rest.
+        let on = if k < 8 { 0.0 } else { 1.0 };
+        let counts = (on * 12.0 * (2.0 * PI * 3.0 * t).sin()).round();
+        // A current that follows the reference (an ideal current loop) with a ripple, so the
+        // current regulator's integral stays bounded.
+        let current = last_ref + on * 0.01 * (2.0 * PI * 40.0 * t).sin();
+        let ph = 2.0 * PI * 1.3 * t;
+        let sp = [
+            on * 5.0 * ph.sin(),
+            on * 0.001 * ph.cos(),
+            on * 0.01 * ph.sin(),
+        ];
+        let inp = Inputs {
+            setpoint: sp,
+            w: 0.0,
+        };
+        let raw = (counts as i64 as u64 & 0xFFFF_FFFF) as u32;
+        if k % ratio == 0 {
+            let setpoint = Setpoint {
+                position_counts: controller_core::Counts::from_num(sp[0]),
+                velocity_pu: Pu::from_num(sp[1]),
+                acceleration_pu_s: Pu::from_num(sp[2]),
+            };
+            fixed.velocity_tick(VelocityInputs {
+                encoder_count: raw,
+                setpoint,
+                fault_input: false,
+            });
+            coef.velocity_tick(&mut s, counts, &inp, Break::None);
+        }
+        let cq = Pu::from_num(current);
+        let out = fixed.current_tick(CurrentInputs {
+            encoder_count: raw,
+            current_pu: cq,
+        });
+        let m = coef.current_tick(&mut s, counts, cq.to_num(), &inp, Break::None);
+        assert!(out.fault.is_none(), "{:?}", out.fault);
+        let (v, tr) = (
+            out.voltage_cmd_pu.to_num::<f64>(),
+            out.current_ref_pu.to_num::<f64>(),
+        );
+        assert!(
+            tr.abs() < 1.9 && v.abs() < 1.9,
+            "saturating inputs: {tr} {v} at {k}"
+        );
+        last_ref = tr;
+        // The current regulator integrates the torque references' rounding difference, so
+        // its voltage drifts apart slowly; its structure shows in the first 100 ms.
+        if k < 400 {
+            worst_v = worst_v.max((v - m.voltage).abs());
+        }
+        worst_t = worst_t.max((tr - m.torque_ref).abs());
+    }
+    (worst_v, worst_t)
+}
+
+fn variants() -> Vec<(&'static str, DriveConfig)> {
+    let base = DriveConfig::table1();
+    let mut out = vec![("table1", base)];
+    let mut c = base;
+    c.accel_feedback.mode = AfbMode::Plain;
+    out.push(("plain", c));
+    let mut c = base;
+    c.accel_feedback.filter = FilterConfig::SecondOrder {
+        corner_hz: 150.0,
+        q: 0.7,
+    };
+    out.push(("second-order AFB filter", c));
+    let mut c = base;
+    c.accel_feedback.rate = AfbRate::Velocity;
+    out.push(("AFB at the velocity rate", c));
+    let mut c = base;
+    c.velocity_estimator = Estimator::Differentiation;
+    c.velocity_filter = FilterConfig::FirstOrder { corner_hz: 50.0 };
+    c.accel_feedback.source = Estimator::Differentiation;
+    c.accel_feedback.gain_fraction = 0.02;
+    // One count per velocity tick is 0.029 pu of speed: a slow loop, so it stays linear.
+    c.velocity_bandwidth_rad_s = 10.0;
+    out.push(("differentiation", c));
+    let mut c = base;
+    c.observer.torque_input = ObserverTorque::MeasuredCurrent;
+    out.push(("observer on measured current", c));
+    let mut c = base;
+    c.accel_feedback.mode = AfbMode::Off;
+    c.position_bandwidth_rad_s = 0.0;
+    out.push(("speed mode, no AFB", c));
+    out
+}
+
+/// The mirror is the controller: within a few LSB of its rounding. The velocity estimate
+/// is rounded to 1.5e-5 pu (Q16.16), which Kp ≈ 92 turns into 1.4e-3 pu of torque.
+#[test]
+fn the_mirror_follows_the_fixed_point_controller() {
+    for (name, cfg) in variants() {
+        let (dv, dt) = mirror_vs_controller(&cfg);
+        eprintln!("{name}: |Δvoltage| ≤ {dv:.2e} pu, |Δtorque| ≤ {dt:.2e} pu");
+        assert!(dv < 4e-3 && dt < 4e-3, "{name}: {dv} {dt}");
+    }
+}
+
+/// A rigid inertia (stiff shaft, no lost motion) under the velocity PI, with fast current
+/// loop, fast observer and little delay: the dominant poles are the roots of
+/// J·s² + Kp·s + Ki.
+#[test]
+fn rigid_body_poles_are_the_pi_roots() {
+    let mut plant = PlantConfig::table1();
+    plant.mechanics.backlash_deg = 0.0;
+    plant.mechanics.anti_resonance_hz = 400.0;
+    plant.electrics.computational_delay_s = 10e-6;
+    plant.sensors = plant_host::SensorsConfig::with_cpr(1 << 20);
+    let mut cfg = DriveConfig::table1();
+    cfg.encoder_cpr = 1 << 20;
+    cfg.position_bandwidth_rad_s = 0.0;
+    cfg.velocity_bandwidth_rad_s = 20.0;
+    cfg.velocity_damping = 0.6;
+    cfg.accel_feedback.mode = AfbMode::Off;
+    cfg.observer.bandwidth_hz = 400.0;
+    cfg.winding_resistance_pu = plant.electrics.winding_resistance_pu as f32;
+    cfg.winding_inductance_pu_s = plant.electrics.winding_inductance_pu_s as f32;
+    let g = design(&cfg).unwrap();
+    let coef = Coefficients::new(&cfg, &g);
+    let model = LoopModel::new(
+        coef.clone(),
+        &plant,
+        f64::from(cfg.current_rate_hz),
+        Gears::Engaged,
+    );
+    let j = plant.mechanics.motor_inertia_s + plant.mechanics.load_inertia_s;
+    let (kp, ki) = (
+        coef.vel_kp,
+        coef.vel_ki_ts * f64::from(cfg.velocity_rate_hz),
+    );
+    // Roots of J·s² + Kp·s + Ki.
+    let disc = kp * kp - 4.0 * j * ki;
+    assert!(disc < 0.0, "complex pair expected");
+    let want = nalgebra::Complex::new(-kp / (2.0 * j), (-disc).sqrt() / (2.0 * j));
+    let t_v = 1.0 / f64::from(cfg.velocity_rate_hz);
+    let poles: Vec<_> = model.poles().iter().map(|l| l.ln() / t_v).collect();
+    let nearest = poles
+        .iter()
+        .min_by(|a, b| (*a - want).norm().total_cmp(&(*b - want).norm()))
+        .copied()
+        .unwrap();
+    eprintln!("PI roots {want}, nearest model pole {nearest}");
+    assert!(
+        (nearest - want).norm() < 0.02 * want.norm(),
+        "{nearest} vs {want}"
+    );
+    assert!(model.smallest_damping() > 0.0);
+    let m = model.margins(Break::VelocityRegulator);
+    eprintln!("{m:?}");
+    // A PI on a rigid body crosses over near Kp/J with most of its phase margin.
+    assert!(
+        m.phase_margin_deg > 40.0 && m.phase_margin_deg < 90.0,
+        "{m:?}"
+    );
+    assert!(
+        (m.crossover_hz * 2.0 * PI / (kp / j) - 1.0).abs() < 0.3,
+        "{m:?}"
+    );
+}
