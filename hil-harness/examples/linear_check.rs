@@ -1,0 +1,33 @@
+//! Prints the linear model's stability prediction against the nonlinear loop on a grid.
+use hil_harness::linear::check::check_grid;
+use hil_harness::sweep::{designs, BANDWIDTHS_RAD_S};
+
+fn main() {
+    let designs: Vec<_> = designs().into_iter().step_by(6).collect();
+    let bws: Vec<f64> = BANDWIDTHS_RAD_S.iter().copied().step_by(2).collect();
+    let pts = check_grid(&["table1", "dyno"], &bws, &designs);
+    let agree = pts.iter().filter(|p| p.predicted == p.measured).count();
+    for p in &pts {
+        if p.predicted != p.measured {
+            println!(
+                "{} {} {} rad/s: predicted {} measured {} (radius {:.4} / {:.4}, ζ {:.3}, chatter {:.3} pu)",
+                p.plant, p.design, p.bandwidth_rad_s, p.predicted, p.measured, p.radius_engaged,
+                p.radius_apart, p.damping_engaged, p.limit_cycle_torque_pu
+            );
+        }
+    }
+    println!("{agree} of {} agree", pts.len());
+    let quiet =
+        |p: &hil_harness::linear::check::CheckPoint| p.measured && p.limit_cycle_torque_pu < 0.1;
+    let agree_q = pts.iter().filter(|p| p.predicted == quiet(p)).count();
+    println!("{agree_q} of {} agree with stable-and-quiet", pts.len());
+    let mut lc: Vec<(f64, bool)> = pts
+        .iter()
+        .filter(|p| p.measured)
+        .map(|p| (p.limit_cycle_torque_pu, p.predicted))
+        .collect();
+    lc.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (c, pr) in lc.iter().rev().take(25) {
+        println!("chatter {c:.3} predicted {pr}");
+    }
+}
