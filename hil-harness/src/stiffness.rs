@@ -186,7 +186,8 @@ fn phasor(
 /// the acceleration from differentiation instead of the observer.
 pub const SOURCES: [&str; 3] = ["none", "observer", "differentiation"];
 
-fn measure(source: &'static str, w: f64) -> Result<StiffnessPoint> {
+/// Measures the stiffness of the `source` design (`none`, `observer`, `differentiation`) at `w` rad/s.
+pub fn measure(source: &'static str, w: f64) -> Result<StiffnessPoint> {
     let afb = source != "none";
     let period = 2.0 * PI / w;
     let periods = (1.0 / period).ceil().max(3.0);

@@ -185,3 +185,24 @@ fn rigid_body_poles_are_the_pi_roots() {
         "{m:?}"
     );
 }
+
+/// The model's dynamic stiffness against `hil-harness stiffness`'s measurement in the
+/// nonlinear loop (dyno with a stiff coupling, no lost motion: the gears stay engaged),
+/// with and without the default AFB, at the frequencies of its sweep.
+#[test]
+fn predicted_stiffness_matches_the_measured() {
+    for source in ["none", "observer"] {
+        let cfg = hil_harness::stiffness::stiffness_config(source, &[]).unwrap();
+        let model = hil_harness::linear::for_run(&cfg, Gears::Engaged).unwrap();
+        for w in [1.0, 10.0, 40.0, 100.0, 400.0] {
+            let predicted = model.stiffness(&[w / (2.0 * PI)])[0];
+            let measured = hil_harness::stiffness::measure(source, w).unwrap().measured;
+            eprintln!("{source} {w} rad/s: predicted {predicted:.3}, measured {measured:.3}");
+            // The issue asks for 10 %; the model is exact for the linear loop, so 2 %.
+            assert!(
+                (predicted / measured - 1.0).abs() < 0.02,
+                "{source} at {w} rad/s"
+            );
+        }
+    }
+}
