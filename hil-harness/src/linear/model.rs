@@ -41,6 +41,32 @@ pub struct LoopModel {
     base_speed_rad_s: f64,
 }
 
+/// Exogenous signals of one period, per current tick (missing entries are zero).
+struct Exogenous<'a> {
+    /// Load torque \[pu\].
+    load: &'a [f64],
+    /// Error added to the encoder reading \[counts\].
+    encoder: &'a [f64],
+}
+
+impl Exogenous<'_> {
+    const NONE: Exogenous<'static> = Exogenous {
+        load: &[],
+        encoder: &[],
+    };
+}
+
+/// What one period produced.
+struct Period {
+    next: Vec<f64>,
+    reported: f64,
+    torque: Vec<f64>,
+}
+
+fn unit(n: usize, i: usize) -> Vec<f64> {
+    (0..n).map(|k| if k == i { 1.0 } else { 0.0 }).collect()
+}
+
 /// Margins of a loop opened at one point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Margins {
@@ -85,18 +111,22 @@ impl LoopModel {
         state::COUNT + self.whole_delay + 1 + STATE_LEN
     }
 
-    /// One velocity period from `z` with the load torque `load[i]` in tick i and the inputs
-    /// `inp`. Returns z⁺ and the break signal computed in the period's first tick that has
-    /// one (the velocity tick for [`Break::VelocityRegulator`]).
-    fn period(&self, z: &[f64], load: &[f64], inp: &Inputs, brk: Break) -> (Vec<f64>, f64) {
+    /// One velocity period from `z` with the load torque `ex.load[i]` and the encoder
+    /// error `ex.encoder[i]` \[counts\] in tick i, and the inputs `inp`. Returns z⁺, the
+    /// break signal computed in the period's first tick that has one (the velocity tick for
+    /// [`Break::VelocityRegulator`]) and the torque reference of each tick.
+    fn period(&self, z: &[f64], ex: &Exogenous, inp: &Inputs, brk: Break) -> Period {
+        let load = ex.load;
         let n_plant = state::COUNT;
         let n_delay = self.whole_delay + 1;
         let mut x = DVector::from_iterator(n_plant, z.iter().copied().take(n_plant));
         let mut queue: Vec<f64> = z.iter().copied().skip(n_plant).take(n_delay).collect();
         let mut c = State::from_slice(z.get(n_plant + n_delay..).unwrap_or(&[]));
         let mut reported = None;
+        let mut torque = Vec::with_capacity(self.coef.ticks_per_velocity);
         for tick in 0..self.coef.ticks_per_velocity {
-            let position = x.get(state::MOTOR_ANGLE).copied().unwrap_or(0.0) * self.counts_per_rad;
+            let position = x.get(state::MOTOR_ANGLE).copied().unwrap_or(0.0) * self.counts_per_rad
+                + ex.encoder.get(tick).copied().unwrap_or(0.0);
             let current = x.get(state::CURRENT).copied().unwrap_or(0.0);
             if tick == 0 {
                 let r = self.coef.velocity_tick(&mut c, position, inp, brk);
@@ -105,6 +135,7 @@ impl LoopModel {
                 }
             }
             let out = self.coef.current_tick(&mut c, position, current, inp, brk);
+            torque.push(out.torque_ref);
             if brk == Break::AccelerationFeedback && reported.is_none() {
                 reported = Some(out.at_break);
             }
@@ -125,14 +156,18 @@ impl LoopModel {
         let mut next: Vec<f64> = x.iter().copied().collect();
         next.extend(queue);
         next.extend(c.to_vec());
-        (next, reported.unwrap_or(0.0))
+        Period {
+            next,
+            reported: reported.unwrap_or(0.0),
+            torque,
+        }
     }
 
     /// M, the break input column B_w, and the break output row C (reported = C·z + D·w).
     fn matrices(&self, brk: Break) -> (DMatrix<f64>, DVector<f64>, DVector<f64>, f64) {
         let n = self.state_len();
-        let zero_load = vec![0.0; self.coef.ticks_per_velocity];
         let quiet = Inputs::default();
+        let none = Exogenous::NONE;
         let mut m = DMatrix::zeros(n, n);
         let mut c = DVector::zeros(n);
         let mut e = vec![0.0; n];
@@ -140,18 +175,18 @@ impl LoopModel {
             if let Some(v) = e.get_mut(j) {
                 *v = 1.0;
             }
-            let (col, r) = self.period(&e, &zero_load, &quiet, brk);
-            m.set_column(j, &DVector::from_vec(col));
+            let out = self.period(&e, &none, &quiet, brk);
+            m.set_column(j, &DVector::from_vec(out.next));
             if let Some(v) = c.get_mut(j) {
-                *v = r;
+                *v = out.reported;
             }
             if let Some(v) = e.get_mut(j) {
                 *v = 0.0;
             }
         }
         let w = Inputs { w: 1.0, ..quiet };
-        let (col, d) = self.period(&vec![0.0; n], &zero_load, &w, brk);
-        (m, DVector::from_vec(col), c, d)
+        let out = self.period(&vec![0.0; n], &none, &w, brk);
+        (m, DVector::from_vec(out.next), c, out.reported)
     }
 
     /// The closed loop's one-period map.
@@ -258,6 +293,74 @@ impl LoopModel {
         margins_of(&freqs, &l)
     }
 
+    /// RMS torque-reference noise \[pu\] from encoder quantization: a white error of one
+    /// count's variance, 1/12 count², on every reading, through the closed loop: the
+    /// energy of the impulse response from the readings to the torque reference, times
+    /// 1/12, averaged over the ticks of the period. Infinite for an unstable loop.
+    #[must_use]
+    pub fn quantization_torque_rms(&self) -> f64 {
+        if self.spectral_radius() >= 1.0 {
+            return f64::INFINITY;
+        }
+        let (m, _, _, _) = self.matrices(Break::None);
+        let n = m.nrows();
+        let ratio = self.coef.ticks_per_velocity;
+        let zero = vec![0.0; n];
+        let var = 1.0 / 12.0;
+        // Per noise input i: the state it leaves, and the torque it adds in each tick.
+        let (mut b, mut d) = (DMatrix::zeros(n, ratio), DMatrix::zeros(ratio, ratio));
+        for i in 0..ratio {
+            let enc = unit(ratio, i);
+            let ex = Exogenous {
+                load: &[],
+                encoder: &enc,
+            };
+            let out = self.period(&zero, &ex, &Inputs::default(), Break::None);
+            b.set_column(i, &DVector::from_vec(out.next));
+            for (k, t) in out.torque.iter().enumerate() {
+                if let Some(v) = d.get_mut((k, i)) {
+                    *v = *t;
+                }
+            }
+        }
+        // C: the torque of each tick from the period's initial state.
+        let mut c = DMatrix::zeros(ratio, n);
+        let mut e = vec![0.0; n];
+        for j in 0..n {
+            if let Some(v) = e.get_mut(j) {
+                *v = 1.0;
+            }
+            let out = self.period(&e, &Exogenous::NONE, &Inputs::default(), Break::None);
+            for (k, t) in out.torque.iter().enumerate() {
+                if let Some(v) = c.get_mut((k, j)) {
+                    *v = *t;
+                }
+            }
+            if let Some(v) = e.get_mut(j) {
+                *v = 0.0;
+            }
+        }
+        // Σ_k C·M^k·B·Bᵀ·M^kᵀ·Cᵀ, summed along the impulse response until it has died
+        // out: the invariant directions (eigenvalue 1, speed mode) are not seen by the
+        // torque, so the sum converges whenever the loop's own poles are stable.
+        let mut x = b.clone();
+        let mut cov = &d * d.transpose();
+        let mut k = 0;
+        while k < 1_000_000 {
+            let y = &c * &x;
+            let add = &y * y.transpose();
+            cov += &add;
+            x = &m * x;
+            k += 1;
+            if k > 100 && add.norm() < 1e-15 * cov.norm() {
+                break;
+            }
+        }
+        let cov = cov * var;
+        let mean_var = cov.diagonal().iter().sum::<f64>() / ratio as f64;
+        mean_var.max(0.0).sqrt()
+    }
+
     /// Dynamic stiffness |τ_L/θl| at each frequency \[pu torque per pu·s of load position\],
     /// the quantity `hil-harness stiffness` measures.
     #[must_use]
@@ -269,13 +372,14 @@ impl LoopModel {
         // The response of z⁺ to a unit load torque in tick i alone.
         let columns: Vec<DVector<f64>> = (0..ratio)
             .map(|i| {
-                let mut load = vec![0.0; ratio];
-                if let Some(v) = load.get_mut(i) {
-                    *v = 1.0;
-                }
+                let load = unit(ratio, i);
+                let ex = Exogenous {
+                    load: &load,
+                    encoder: &[],
+                };
                 DVector::from_vec(
-                    self.period(&vec![0.0; n], &load, &Inputs::default(), Break::None)
-                        .0,
+                    self.period(&vec![0.0; n], &ex, &Inputs::default(), Break::None)
+                        .next,
                 )
             })
             .collect();
