@@ -1,4 +1,5 @@
-//! The command line: `run`, `sweep`, `stiffness`, `reproduce`, `replay`.
+//! The command line: `run`, `linear`, `sweep`, `stiffness`, `sec2-map`, `reproduce`, `pil`,
+//! `replay`.
 
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
@@ -24,6 +25,23 @@ pub enum Command {
         #[arg(long)]
         config: Option<String>,
         /// Override `section.key=value` (repeatable), e.g. drive.velocity_bandwidth_rad_s=50.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// The linear model of one scenario's loop: poles and damping (gears engaged and apart),
+    /// margins of the velocity and acceleration loops, stiffness, quantization torque
+    /// noise; writes DIR/linear.json and DIR/linear.md.
+    Linear {
+        /// Scenario name (a file under configs/scenarios/).
+        #[arg(long)]
+        scenario: String,
+        /// Configuration (path, or name under configs/); default: the scenario's.
+        #[arg(long)]
+        config: Option<String>,
+        /// Override `section.key=value` (repeatable).
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
         /// Output directory.

@@ -74,6 +74,12 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             set,
             out,
         } => commands::run(&scenario, config.as_deref(), &set, &out),
+        Command::Linear {
+            scenario,
+            config,
+            set,
+            out,
+        } => linear::analyze::linear(&scenario, config.as_deref(), &set, &out),
         Command::Sweep { out } => sweep::sweep(&out),
         Command::Stiffness { out } => stiffness::stiffness(&out),
         Command::Sec2Map { out } => sec2::sec2(&out),

@@ -250,3 +250,26 @@ fn predicted_quantization_noise_matches_the_measured_chatter() {
         }
     }
 }
+
+/// `linear` on the shipped fig6 pair: both loops are predicted stable (as the runs are),
+/// and the default AFB raises the smallest damping with the gears engaged.
+#[test]
+fn fig6_linear_analysis() {
+    let with =
+        hil_harness::linear::analyze::analyze(&hil_harness::resolve("fig6", None, &[]).unwrap())
+            .unwrap();
+    let without = hil_harness::linear::analyze::analyze(
+        &hil_harness::resolve("fig6-no-afb", None, &[]).unwrap(),
+    )
+    .unwrap();
+    for a in [&with, &without] {
+        assert!(a.engaged.spectral_radius < 1.0, "{a:?}");
+        assert!(
+            a.apart.as_ref().is_some_and(|g| g.spectral_radius < 1.0),
+            "{a:?}"
+        );
+        let pm = a.engaged.velocity_loop.phase_margin_deg.unwrap();
+        assert!(pm > 0.0 && pm < 90.0, "{pm}");
+    }
+    assert!(with.engaged.smallest_damping > without.engaged.smallest_damping);
+}

@@ -2,6 +2,7 @@
 //! quantized coefficients ([`mirror`]) around the exactly sampled plant ([`model`]), for
 //! poles, damping, margins and stiffness.
 
+pub mod analyze;
 pub mod check;
 pub mod mirror;
 pub mod model;

@@ -463,7 +463,9 @@ pub fn margins_of(freqs: &[f64], l: &[Complex<f64>]) -> Margins {
         let (fa, fb) = (at(freqs, i - 1), at(freqs, i));
         if !crossed && a >= 1.0 && b < 1.0 {
             let t = a.ln() / (a.ln() - b.ln());
-            out.phase_margin_deg = 180.0 + (pa + t * (pb - pa)).to_degrees();
+            // 180° + ∠L, taken into (−180°, 180°]: the unwrapped phase carries whole turns.
+            let pm = (180.0 + (pa + t * (pb - pa)).to_degrees()).rem_euclid(360.0);
+            out.phase_margin_deg = if pm > 180.0 { pm - 360.0 } else { pm };
             out.crossover_hz = fa + t * (fb - fa);
             crossed = true;
         }
