@@ -48,6 +48,33 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Design the acceleration feedback, estimator and velocity loop from the plant on the
+    /// linear model, with margins, and prove the design in the nonlinear loop; writes
+    /// DIR/drive.toml, DIR/config.toml, DIR/tune.md and DIR/tune.json.
+    Tune {
+        /// Configuration (path, or name under configs/).
+        #[arg(long)]
+        config: String,
+        /// Velocity bandwidth to design for (rad/s).
+        #[arg(
+            long,
+            conflicts_with = "max_bandwidth",
+            required_unless_present = "max_bandwidth"
+        )]
+        target_bandwidth: Option<f64>,
+        /// Search the velocity bandwidth too, for the largest that meets the constraints.
+        #[arg(long)]
+        max_bandwidth: bool,
+        /// Smallest damping ratio, gears engaged and apart.
+        #[arg(long, default_value_t = 0.3)]
+        min_damping: f64,
+        /// Largest torque noise from encoder quantization (pu RMS).
+        #[arg(long, default_value_t = 0.2)]
+        max_noise_pu: f64,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Largest stable velocity bandwidth with and without acceleration feedback.
     Sweep {
         /// Output directory.

@@ -27,6 +27,7 @@ pub mod sec2;
 pub mod stiffness;
 pub mod sweep;
 pub mod trace;
+pub mod tune;
 
 pub use config::{resolve, RunConfig};
 pub use error::{HarnessError, Result};
@@ -80,6 +81,21 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             set,
             out,
         } => linear::analyze::linear(&scenario, config.as_deref(), &set, &out),
+        Command::Tune {
+            config,
+            target_bandwidth,
+            max_bandwidth: _,
+            min_damping,
+            max_noise_pu,
+            out,
+        } => {
+            let constraints = tune::Constraints {
+                min_damping,
+                max_noise_pu,
+                ..tune::Constraints::default()
+            };
+            tune::tune(&config, target_bandwidth, &constraints, &out)
+        }
         Command::Sweep { out } => sweep::sweep(&out),
         Command::Stiffness { out } => stiffness::stiffness(&out),
         Command::Sec2Map { out } => sec2::sec2(&out),

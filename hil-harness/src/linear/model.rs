@@ -288,7 +288,7 @@ impl LoopModel {
     #[must_use]
     pub fn margins(&self, brk: Break) -> Margins {
         let nyquist = 0.5 / self.period_s;
-        let freqs = plant_host::analysis::log_space(0.01, nyquist * 0.999, 2000);
+        let freqs = plant_host::analysis::log_space(0.01, nyquist * 0.999, 800);
         let l = self.loop_gain(brk, &freqs);
         margins_of(&freqs, &l)
     }
