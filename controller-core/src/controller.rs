@@ -29,7 +29,7 @@ use crate::fault::Fault;
 use crate::filter::{LowPass, LowPassState};
 use crate::observer::{Observer, ObserverState};
 use crate::per_unit::{
-    checked_q, count_diff, count_signed, mul_bits, mul_gain, sat_i32, Coef, Counts, CountsErr,
+    checked_q, count_diff_shifted, count_signed, counter_shift, mul_bits, mul_gain, sat_i32, Coef, Counts, CountsErr,
     Gain, PosGain, Pu, PuPerS, TickGain,
 };
 use crate::pi::{PiCoefficients, PiState};
@@ -119,6 +119,8 @@ pub struct Blocks {
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Coefficients {
     counter_bits: u8,
+    /// [`counter_shift`] of `counter_bits`, for the per-tick wrap-safe difference.
+    counter_shift: u32,
     position_loop: bool,
     k_pos: PosGain,
     velocity_ff: Gain,
@@ -292,6 +294,7 @@ impl Coefficients {
         };
         Ok(Self {
             counter_bits: cfg.counter_bits,
+            counter_shift: counter_shift(cfg.counter_bits),
             position_loop: g.kpp > 0.0,
             k_pos: if g.kpp > 0.0 {
                 q(
@@ -465,7 +468,7 @@ impl Controller {
     fn read_encoder(&mut self, raw: u32) {
         let bits = self.coef.counter_bits;
         if self.state.primed {
-            let d = count_diff(raw, self.state.last_raw, bits);
+            let d = count_diff_shifted(raw, self.state.last_raw, self.coef.counter_shift);
             self.state.position = self.state.position.wrapping_add(i64::from(d));
             if d.unsigned_abs() > self.coef.max_count_step.unsigned_abs() {
                 self.trip(Fault::EncoderJump);

@@ -77,8 +77,33 @@ pub fn counts_per_pu_s(encoder_cpr: u32, base_speed_rpm: f32) -> f32 {
 #[must_use]
 #[inline]
 pub fn count_diff(now: u32, before: u32, counter_bits: u8) -> i32 {
+    count_diff_shifted(now, before, counter_shift(counter_bits))
+}
+
+/// The shift that puts a `counter_bits`-wide counter's MSB at bit 31 (0..=16), for
+/// [`count_diff_shifted`]: computed once per configuration instead of every tick.
+///
+/// ```
+/// assert_eq!(controller_core::per_unit::counter_shift(16), 16);
+/// assert_eq!(controller_core::per_unit::counter_shift(32), 0);
+/// ```
+#[must_use]
+#[inline]
+pub fn counter_shift(counter_bits: u8) -> u32 {
+    32u32.saturating_sub(u32::from(counter_bits)).min(16)
+}
+
+/// [`count_diff`] with the counter's [`counter_shift`] already computed.
+///
+/// ```
+/// use controller_core::per_unit::{count_diff_shifted, counter_shift};
+/// assert_eq!(count_diff_shifted(2, 0xFFFE, counter_shift(16)), 4);
+/// ```
+#[must_use]
+#[inline]
+pub fn count_diff_shifted(now: u32, before: u32, shift: u32) -> i32 {
     // Shift the counter's MSB to bit 31, subtract with wrap, shift back arithmetically.
-    let shift = 32u32.saturating_sub(u32::from(counter_bits)).min(16);
+    let shift = shift.min(16);
     let d = (now << shift).wrapping_sub(before << shift) as i32;
     d >> shift
 }
