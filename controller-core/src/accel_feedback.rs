@@ -146,9 +146,28 @@ impl AccelerationFeedback {
     /// let a = afb.update_closed_from(&mut s, Pu::from_num(1), Pu::ZERO, |t| t * 2);
     /// assert_eq!(a, Pu::from_num(-0.5));
     /// ```
-    #[inline]
+    #[inline(always)]
     pub fn update_closed_from(
         &self,
+        s: &mut LowPassState,
+        p: Pu,
+        c: PuPerS,
+        predict: impl Fn(Pu) -> PuPerS,
+    ) -> Pu {
+        // One branch on the filter kind: inside each arm the kind is a constant, so the
+        // filter's own dispatch in begin, add_feedthrough and finish folds away.
+        match self.filter {
+            f @ LowPass::None => self.closed_step(f, s, p, c, predict),
+            f @ LowPass::FirstOrder { .. } => self.closed_step(f, s, p, c, predict),
+            f @ LowPass::SecondOrder { .. } => self.closed_step(f, s, p, c, predict),
+        }
+    }
+
+    /// The closed-form step for the filter `filter` (= `self.filter`).
+    #[inline(always)]
+    fn closed_step(
+        &self,
+        filter: LowPass,
         s: &mut LowPassState,
         p: Pu,
         c: PuPerS,
@@ -157,14 +176,14 @@ impl AccelerationFeedback {
         let lim = self.limit.saturating_abs();
         // afb = g·Ka·(h + b0·x(P)): h and b0·x in Q.46 (Q16.16 · Q2.30), rounded to Q16.16,
         // times g·Ka (Q16.16).
-        let (h46, _) = self.filter.begin(s);
+        let (h46, _) = filter.begin(s);
         let x_p = c.saturating_sub(predict(p));
-        let inner46 = self.filter.add_feedthrough(h46, x_p);
+        let inner46 = filter.add_feedthrough(h46, x_p);
         let inner = Pu::from_bits(sat_i32(round_shr::<30>(inner46)));
         let afb = mul_gain(inner, self.ka_closed).max(-lim).min(lim);
         // Complete the filter step with the input for the torque actually applied.
         let t = p.saturating_add(afb).max(-lim).min(lim);
-        self.filter.finish(s, h46, c.saturating_sub(predict(t)));
+        filter.finish(s, h46, c.saturating_sub(predict(t)));
         afb
     }
 }

@@ -161,7 +161,7 @@ impl LowPass {
     /// use controller_core::per_unit::Coef;
     /// assert_eq!(LowPass::None.feedthrough(), Coef::ONE);
     /// ```
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn feedthrough(&self) -> Coef {
         match *self {
@@ -188,7 +188,7 @@ impl LowPass {
     /// let f = LowPass::FirstOrder { alpha: Coef::from_num(0.5) };
     /// assert_eq!(f.add_feedthrough(1 << 40, Pu::from_num(1)), (1 << 40) + (1 << 45));
     /// ```
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn add_feedthrough(&self, h46: i64, x: Pu) -> i64 {
         let b0 = self.feedthrough().to_bits();
@@ -220,7 +220,7 @@ impl LowPass {
     /// assert_eq!((h46 as f64) / 2f64.powi(46), 0.25); // (1 − α)·0.5
     /// assert_eq!(b0, Coef::from_num(0.5));
     /// ```
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn begin(&self, s: &LowPassState) -> (i64, Coef) {
         match *self {
@@ -259,7 +259,7 @@ impl LowPass {
 
     /// Second half of a step begun with [`LowPass::begin`] on the same state: adds b0·x,
     /// advances the state and returns y\[n\] (Q16.16).
-    #[inline]
+    #[inline(always)]
     pub fn finish(&self, s: &mut LowPassState, h46: i64, x: Pu) -> Pu {
         match *self {
             Self::None => x,
