@@ -29,8 +29,8 @@ use crate::fault::Fault;
 use crate::filter::{LowPass, LowPassState};
 use crate::observer::{Observer, ObserverState};
 use crate::per_unit::{
-    checked_q, count_diff_shifted, count_signed, counter_shift, mul_bits, mul_gain, sat_i32, Coef, Counts, CountsErr,
-    Gain, PosGain, Pu, PuPerS, TickGain,
+    checked_q, count_diff_shifted, count_signed, counter_shift, mul_bits, mul_gain, sat_i32, Coef,
+    Counts, CountsErr, Gain, PosGain, Pu, PuPerS, TickGain,
 };
 use crate::pi::{PiCoefficients, PiState};
 

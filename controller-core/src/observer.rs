@@ -60,7 +60,7 @@ pub struct ObserverState {
     /// Position estimate \[counts\], Q32.32 bits, wrapping modulo 2^32 counts: the observer
     /// only uses the innovation p_meas − p, which wrapping arithmetic gives exactly.
     pub p: i64,
-    /// Velocity estimate \[counts/tick\], Q32.32 bits.
+    /// Velocity estimate \[counts/tick\], Q32.32 bits; `update` reads it saturated to ±2^60.
     pub v: i64,
     /// Disturbance acceleration estimate \[counts/tick²\], Q32.32 bits; `update` reads it
     /// saturated to ±2^60 (2^28 counts/tick²), the range its plain adds rely on.
@@ -122,25 +122,28 @@ impl Observer {
         // Ranges (Q.32 raw), which let the adds below wrap instead of saturate:
         //   |u| ≤ 2^54            (|T·k_u| ≤ 2^31·2^31 = 2^62, ≫ 8)
         //   |corr(l)| ≤ 2^48      (|e·l| ≤ 2^62, ≫ 14)
-        //   |d| < 2^60            (saturated there when read: 2^28 counts/tick², some 10^13
+        //   |d| ≤ 2^60            (saturated there when read: 2^28 counts/tick², some 10^13
         //                          times the largest acceleration a drive can encoder-count)
-        // so |u + d|, |d + l2·e|, |u + d + l2·e| and |d + l3·e| are all below 2^61. Only the
-        // velocity, an integral of them, keeps saturating adds. States a caller makes up
-        // beyond these ranges wrap in `predicted_acceleration_pu_s` (no panic).
+        //   |v| ≤ 2^60            (likewise: 2^28 counts/tick; the velocity output saturates
+        //                          from 2^47 on, so nothing read from it changes)
+        // so |u + d|, |d + l2·e|, |u + d + l2·e| and |d + l3·e| are below 2^61 and
+        // |v + u + d + l2·e| below 2^62: every add is exact. States a caller makes up beyond
+        // these ranges wrap in `predicted_acceleration_pu_s` (no panic).
         // u [counts/tick², Q.32] = T (Q16.16) · k_u (Q8.24) = Q.40 → Q.32.
         let u = (i64::from(torque_pu.to_bits()) * i64::from(self.k_u.to_bits())) >> 8;
         let d = sat_bits::<61>(s.d);
+        let v = sat_bits::<61>(s.v);
         let acc = u.wrapping_add(d);
         // Predict (position wraps modulo 2^32 counts by design).
-        let p_pred = s.p.wrapping_add(s.v).wrapping_add(acc >> 1);
-        let v_pred = s.v.saturating_add(acc);
+        let p_pred = s.p.wrapping_add(v).wrapping_add(acc >> 1);
+        let v_pred = v.wrapping_add(acc);
         // Innovation in counts, Q16.16, saturating (a huge error means a fault elsewhere).
         let e = sat_i32(p_meas.wrapping_sub(p_pred) >> 16);
         // Corrections: e (Q16.16) · l (Q2.30) = Q.46 → Q.32.
         let corr = |l: Coef| (i64::from(e) * i64::from(l.to_bits())) >> 14;
         let dv = corr(self.l2);
         s.p = p_pred.wrapping_add(corr(self.l1));
-        s.v = v_pred.saturating_add(dv);
+        s.v = v_pred.wrapping_add(dv);
         // â = v[n] − v[n−1] = u + d⁻ + l2·e, formed from its parts rather than as a
         // difference of the saturating velocity states.
         s.residual = d.wrapping_add(dv);

@@ -41,7 +41,10 @@ fn symbol_names(elf: &[u8]) -> Vec<String> {
         let strtab = u32_at(elf, section(link) + 16);
         for sym in (off..off + size).step_by(entsize) {
             let start = strtab + u32_at(elf, sym);
-            let end = elf[start..].iter().position(|&c| c == 0).map_or(start, |n| start + n);
+            let end = elf[start..]
+                .iter()
+                .position(|&c| c == 0)
+                .map_or(start, |n| start + n);
             names.push(String::from_utf8_lossy(&elf[start..end]).into_owned());
         }
     }
@@ -65,7 +68,9 @@ fn firmware_images_hold_no_refcell_panic_path() {
         };
         let names = symbol_names(&elf);
         assert!(
-            names.iter().any(|n| n.contains("TIMER0") || n.contains("TIM6")),
+            names
+                .iter()
+                .any(|n| n.contains("TIMER0") || n.contains("TIM6")),
             "{image}: no current-loop handler among {} symbols: symbol table not read",
             names.len()
         );

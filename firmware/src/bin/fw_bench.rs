@@ -12,8 +12,10 @@
 //! cycle counter), net of the measuring code (calibrated with empty windows).
 //!
 //! Prints `current_tick_instructions: N`, `velocity_tick_instructions: N`, the budget check,
-//! the image's flash and RAM use, and exits 1 if one 4 kHz period (current tick plus half a
-//! velocity tick) exceeds 1,000 instructions, if a fault latched (the fault path is shorter
+//! a per-block table (each block of the core timed alone on the bare controller's signals,
+//! and the firmware glue as the interrupt body minus the core), the image's flash and RAM
+//! use, and exits 1 if one 4 kHz period (current tick plus half a velocity tick) exceeds
+//! `PERIOD_BUDGET` (865) instructions, if a fault latched (the fault path is shorter
 //! and would flatter the figures) or if any measurement was disturbed.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -27,8 +29,8 @@ mod target {
     use controller_core::per_unit::count_diff;
     use controller_core::pi::PiState;
     use controller_core::{
-        Controller, CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu,
-        Setpoint, VelocityInputs,
+        Controller, CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu, Setpoint,
+        VelocityInputs,
     };
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m::peripheral::SYST;
@@ -42,8 +44,9 @@ mod target {
 
     /// Instructions per SysTick count: 1 instruction = 1 ns (icount shift=0), 25 MHz clock.
     const INSTRUCTIONS_PER_COUNT: u32 = 1_000_000_000 / board::CORE_CLOCK_HZ;
-    /// Budget of one 4 kHz period: current tick + half a velocity tick [instructions].
-    const PERIOD_BUDGET: u32 = 1000;
+    /// Budget of one 4 kHz period: current tick + half a velocity tick [instructions]: the
+    /// 786 measured after issue 15 plus 10 %, so a regression of that size fails the bench.
+    const PERIOD_BUDGET: u32 = 865;
     /// Current ticks before measuring (start-up: estimator priming).
     const WARMUP_TICKS: u32 = 100;
     /// Measured current ticks (and half as many velocity ticks).
@@ -278,27 +281,28 @@ mod target {
             let t1 = SYST::get_current();
             let _ = out;
             dither(tick % 13);
-            let _ = BARE.with(|(c, profile)| {
-                let t0 = SYST::get_current();
-                let setpoint = core::hint::black_box(profile.next());
-                let t1 = SYST::get_current();
-                BARE_PROFILE_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-                let inputs = VelocityInputs {
-                    encoder_count: SyntheticVelocityIo.encoder_count(),
-                    setpoint,
-                    fault_input: false,
-                };
-                let t0 = SYST::get_current();
-                let out = core::hint::black_box(c.velocity_tick(core::hint::black_box(inputs)));
-                let t1 = SYST::get_current();
-                BARE_VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-                LAST_ACCEL_CMD.store(setpoint.acceleration_pu_s.to_bits(), Ordering::Relaxed);
-                (out, setpoint)
-            })
-            .map(|(out, setpoint)| {
-                let e = out.velocity_cmd_pu.saturating_sub(out.velocity_est_pu);
-                velocity_blocks(tick, e, setpoint.acceleration_pu_s, out.accel_fb_pu);
-            });
+            let _ = BARE
+                .with(|(c, profile)| {
+                    let t0 = SYST::get_current();
+                    let setpoint = core::hint::black_box(profile.next());
+                    let t1 = SYST::get_current();
+                    BARE_PROFILE_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+                    let inputs = VelocityInputs {
+                        encoder_count: SyntheticVelocityIo.encoder_count(),
+                        setpoint,
+                        fault_input: false,
+                    };
+                    let t0 = SYST::get_current();
+                    let out = core::hint::black_box(c.velocity_tick(core::hint::black_box(inputs)));
+                    let t1 = SYST::get_current();
+                    BARE_VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+                    LAST_ACCEL_CMD.store(setpoint.acceleration_pu_s.to_bits(), Ordering::Relaxed);
+                    (out, setpoint)
+                })
+                .map(|(out, setpoint)| {
+                    let e = out.velocity_cmd_pu.saturating_sub(out.velocity_est_pu);
+                    velocity_blocks(tick, e, setpoint.acceleration_pu_s, out.accel_fb_pu);
+                });
             if CURRENT_TICKS.load(Ordering::Relaxed) == before {
                 VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
                 VELOCITY_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
