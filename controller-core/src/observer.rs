@@ -127,8 +127,11 @@ impl Observer {
         //   |v| ≤ 2^60            (likewise: 2^28 counts/tick; the velocity output saturates
         //                          from 2^47 on, so nothing read from it changes)
         // so |u + d|, |d + l2·e|, |u + d + l2·e| and |d + l3·e| are below 2^61 and
-        // |v + u + d + l2·e| below 2^62: every add is exact. States a caller makes up beyond
-        // these ranges wrap in `predicted_acceleration_pu_s` (no panic).
+        // |v + u + d + l2·e| below 2^62: every add is exact, and the step is the saturating
+        // one bit for bit while |v|, |d| < 2^60 (tests/ranges.rs). Beyond that (never
+        // reached from a real encoder) v and d saturate at 2^60 instead of 2^63. States a
+        // caller makes up beyond these ranges wrap in `predicted_acceleration_pu_s` (no
+        // panic).
         // u [counts/tick², Q.32] = T (Q16.16) · k_u (Q8.24) = Q.40 → Q.32.
         let u = (i64::from(torque_pu.to_bits()) * i64::from(self.k_u.to_bits())) >> 8;
         let d = sat_bits::<61>(s.d);
@@ -145,7 +148,7 @@ impl Observer {
         s.p = p_pred.wrapping_add(corr(self.l1));
         s.v = v_pred.wrapping_add(dv);
         // â = v[n] − v[n−1] = u + d⁻ + l2·e, formed from its parts rather than as a
-        // difference of the saturating velocity states.
+        // difference of the velocity states.
         s.residual = d.wrapping_add(dv);
         s.acc = u.wrapping_add(s.residual);
         s.d = d.wrapping_add(corr(self.l3));
