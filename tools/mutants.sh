@@ -22,8 +22,8 @@ mutants=(
   "overspeed: > to >=@controller-core/src/controller.rs@s/v_fb\.unsigned_abs\(\) > self\.coef\.overspeed/v_fb.unsigned_abs() >= self.coef.overspeed/@cargo test -q -p controller-core"
   "following error: > to >=@controller-core/src/controller.rs@s/err\.unsigned_abs\(\) > self\.coef\.following_error/err.unsigned_abs() >= self.coef.following_error/@cargo test -q -p controller-core"
   "closed-form AFB: input sign@controller-core/src/accel_feedback.rs@s/let x_p = c\.saturating_sub\(predict\(p\)\);/let x_p = predict(p).saturating_sub(c);/@cargo test -q -p controller-core"
-  "closed-form AFB: filter finished with P, not the applied T@controller-core/src/accel_feedback.rs@s/self\.filter\.finish\(s, h46, c\.saturating_sub\(predict\(t\)\)\);/self.filter.finish(s, h46, c.saturating_sub(predict(p)));/@cargo test -q -p controller-core"
-  "closed-form AFB: error form loses the commanded acceleration@controller-core/src/accel_feedback.rs@s/AfbMode::Error => a_cmd,\n(\s*\};\n\s*let lim = self\.limit\.saturating_abs\(\);\n\s*\/\/ afb = g)/AfbMode::Error => PuPerS::ZERO,\n\1/@cargo test -q -p controller-core"
+  "closed-form AFB: filter finished with P, not the applied T@controller-core/src/accel_feedback.rs@s/filter\.finish\(s, h46, c\.saturating_sub\(predict\(t\)\)\);/filter.finish(s, h46, c.saturating_sub(predict(p)));/@cargo test -q -p controller-core"
+  "closed-form AFB: error form loses the commanded acceleration@controller-core/src/controller.rs@s/AfbStep::ClosedError => self\.afb_closed_step\(self\.state\.accel_cmd\)/AfbStep::ClosedError => self.afb_closed_step(PuPerS::ZERO)/@cargo test -q -p controller-core"
   "closed-form AFB: applied torque P - afb@controller-core/src/accel_feedback.rs@s/let t = p\.saturating_add\(afb\)/let t = p.saturating_sub(afb)/@cargo test -q -p controller-core"
   "lost motion: half the dead zone@plant-host/src/config/mod.rs@s/half_gap_rad: 0\.5 \* self\.backlash_deg/half_gap_rad: 0.25 * self.backlash_deg/@cargo test -q -p plant-host"
 )

@@ -56,7 +56,7 @@
 
 use crate::config::AfbMode;
 use crate::filter::{LowPass, LowPassState};
-use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, PuPerS};
+use crate::per_unit::{mul_gain, round_shr, sat_i32, Gain, Pu, PuPerS};
 
 /// Acceleration feedback coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -128,17 +128,62 @@ impl AccelerationFeedback {
             AfbMode::Plain => PuPerS::ZERO,
             AfbMode::Error => a_cmd,
         };
+        self.update_closed_from(s, p, c, predict)
+    }
+
+    /// [`AccelerationFeedback::update_closed`] with the form already resolved (`self.mode` is
+    /// not read): `c` is the command part of the filter input x = c − â, 0 for the plain form
+    /// and a_cmd for the error form. A controller picks it once from its settings.
+    ///
+    /// ```
+    /// use controller_core::accel_feedback::AccelerationFeedback;
+    /// use controller_core::filter::{LowPass, LowPassState};
+    /// use controller_core::per_unit::{Gain, Pu};
+    /// use controller_core::AfbMode;
+    /// let afb = AccelerationFeedback { mode: AfbMode::Plain, ka: Gain::from_num(0.5),
+    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::from_num(0.25) };
+    /// let mut s = LowPassState::default();
+    /// let a = afb.update_closed_from(&mut s, Pu::from_num(1), Pu::ZERO, |t| t * 2);
+    /// assert_eq!(a, Pu::from_num(-0.5));
+    /// ```
+    #[inline(always)]
+    pub fn update_closed_from(
+        &self,
+        s: &mut LowPassState,
+        p: Pu,
+        c: PuPerS,
+        predict: impl Fn(Pu) -> PuPerS,
+    ) -> Pu {
+        // One branch on the filter kind: inside each arm the kind is a constant, so the
+        // filter's own dispatch in begin, add_feedthrough and finish folds away.
+        match self.filter {
+            f @ LowPass::None => self.closed_step(f, s, p, c, predict),
+            f @ LowPass::FirstOrder { .. } => self.closed_step(f, s, p, c, predict),
+            f @ LowPass::SecondOrder { .. } => self.closed_step(f, s, p, c, predict),
+        }
+    }
+
+    /// The closed-form step for the filter `filter` (= `self.filter`).
+    #[inline(always)]
+    fn closed_step(
+        &self,
+        filter: LowPass,
+        s: &mut LowPassState,
+        p: Pu,
+        c: PuPerS,
+        predict: impl Fn(Pu) -> PuPerS,
+    ) -> Pu {
         let lim = self.limit.saturating_abs();
         // afb = g·Ka·(h + b0·x(P)): h and b0·x in Q.46 (Q16.16 · Q2.30), rounded to Q16.16,
         // times g·Ka (Q16.16).
-        let (h46, b0) = self.filter.begin(s);
+        let (h46, _) = filter.begin(s);
         let x_p = c.saturating_sub(predict(p));
-        let inner46 = h46.saturating_add(i64::from(x_p.to_bits()) * i64::from(b0.to_bits()));
-        let inner = Pu::from_bits(sat_i32(inner46.saturating_add(1 << 29) >> 30));
+        let inner46 = filter.add_feedthrough(h46, x_p);
+        let inner = Pu::from_bits(sat_i32(round_shr::<30>(inner46)));
         let afb = mul_gain(inner, self.ka_closed).max(-lim).min(lim);
         // Complete the filter step with the input for the torque actually applied.
         let t = p.saturating_add(afb).max(-lim).min(lim);
-        self.filter.finish(s, h46, c.saturating_sub(predict(t)));
+        filter.finish(s, h46, c.saturating_sub(predict(t)));
         afb
     }
 }

@@ -29,8 +29,8 @@ use crate::fault::Fault;
 use crate::filter::{LowPass, LowPassState};
 use crate::observer::{Observer, ObserverState};
 use crate::per_unit::{
-    checked_q, count_diff, count_signed, mul_bits, mul_gain, sat_i32, Coef, Counts, CountsErr,
-    Gain, PosGain, Pu, PuPerS, TickGain,
+    checked_q, count_diff_shifted, count_signed, counter_shift, mul_bits, mul_gain, sat_i32, Coef,
+    Counts, CountsErr, Gain, PosGain, Pu, PuPerS, TickGain,
 };
 use crate::pi::{PiCoefficients, PiState};
 
@@ -100,10 +100,27 @@ pub struct VelocityOutputs {
     pub fault: Option<Fault>,
 }
 
+/// The quantized blocks of a [`Controller`] ([`Controller::blocks`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blocks {
+    /// The state observer (current rate).
+    pub observer: Observer,
+    /// The velocity-feedback filter (velocity rate).
+    pub velocity_filter: LowPass,
+    /// Acceleration feedback with its filter.
+    pub accel_feedback: AccelerationFeedback,
+    /// Velocity PI.
+    pub velocity_regulator: PiCoefficients,
+    /// Current PI.
+    pub current_regulator: PiCoefficients,
+}
+
 /// Quantized coefficients (fixed point), built once from [`Gains`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Coefficients {
     counter_bits: u8,
+    /// [`counter_shift`] of `counter_bits`, for the per-tick wrap-safe difference.
+    counter_shift: u32,
     position_loop: bool,
     k_pos: PosGain,
     velocity_ff: Gain,
@@ -118,18 +135,46 @@ struct Coefficients {
     afb_source: Estimator,
     velocity_source: Estimator,
     observer_torque: ObserverTorque,
-    /// AFB runs in the current tick (mode on and rate Current).
-    afb_in_current_tick: bool,
-    /// AFB runs in the velocity tick (mode on and rate Velocity).
-    afb_in_velocity_tick: bool,
-    /// The current-rate differentiator feeds the AFB.
-    diff_in_current_tick: bool,
+    /// The AFB step of the current tick (none unless the mode is on at rate Current).
+    afb_current: AfbStep,
+    /// The AFB step of the velocity tick (none unless the mode is on at rate Velocity).
+    afb_velocity: AfbStep,
     /// The velocity-rate differentiator is used (velocity or acceleration source).
     diff_in_velocity_tick: bool,
     torque_limit: Pu,
     overspeed: Pu,
     following_error: CountsErr,
     max_count_step: i32,
+}
+
+/// Which acceleration-feedback step a tick runs: source and form resolved once, when the
+/// coefficients are built, so the tick makes one branch instead of testing the mode, the
+/// rate and the source every time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum AfbStep {
+    /// No AFB in this tick.
+    None,
+    /// `AccelerationFeedback::update` on the differentiated acceleration.
+    Measured,
+    /// The closed form on the observer, plain form (filter input −â).
+    ClosedPlain,
+    /// The closed form on the observer, error form (filter input a_cmd − â).
+    ClosedError,
+}
+
+impl AfbStep {
+    fn select(cfg: &DriveConfig, rate: AfbRate) -> Self {
+        let afb = &cfg.accel_feedback;
+        if afb.rate != rate {
+            return Self::None;
+        }
+        match (afb.mode, afb.source) {
+            (AfbMode::Off, _) => Self::None,
+            (_, Estimator::Differentiation) => Self::Measured,
+            (AfbMode::Plain, Estimator::Observer) => Self::ClosedPlain,
+            (AfbMode::Error, Estimator::Observer) => Self::ClosedError,
+        }
+    }
 }
 
 /// All regulator and estimator state (plain data; reset = default).
@@ -225,7 +270,6 @@ impl Coefficients {
                 k_acc: q(a, pa, "Q16.16")?,
             })
         };
-        let afb_on = cfg.accel_feedback.mode != AfbMode::Off;
         let [l1, l2, l3] = g.observer_l;
         let observer = Observer {
             l1: q::<Coef>(l1, "observer l1 (observer.bandwidth_hz)", "Q2.30")?,
@@ -250,6 +294,7 @@ impl Coefficients {
         };
         Ok(Self {
             counter_bits: cfg.counter_bits,
+            counter_shift: counter_shift(cfg.counter_bits),
             position_loop: g.kpp > 0.0,
             k_pos: if g.kpp > 0.0 {
                 q(
@@ -310,11 +355,8 @@ impl Coefficients {
             afb_source: cfg.accel_feedback.source,
             velocity_source: cfg.velocity_estimator,
             observer_torque: cfg.observer.torque_input,
-            afb_in_current_tick: afb_on && cfg.accel_feedback.rate == AfbRate::Current,
-            afb_in_velocity_tick: afb_on && cfg.accel_feedback.rate == AfbRate::Velocity,
-            diff_in_current_tick: afb_on
-                && cfg.accel_feedback.rate == AfbRate::Current
-                && cfg.accel_feedback.source == Estimator::Differentiation,
+            afb_current: AfbStep::select(cfg, AfbRate::Current),
+            afb_velocity: AfbStep::select(cfg, AfbRate::Velocity),
             diff_in_velocity_tick: cfg.velocity_estimator == Estimator::Differentiation
                 || cfg.accel_feedback.source == Estimator::Differentiation,
             torque_limit: lim,
@@ -383,6 +425,20 @@ impl Controller {
         &self.gains
     }
 
+    /// The quantized blocks the ticks run, to time or test one block on its own (e.g.
+    /// `cargo fw-bench`'s per-block table). Copies: the controller is not affected.
+    #[must_use]
+    pub fn blocks(&self) -> Blocks {
+        let c = &self.coef;
+        Blocks {
+            observer: c.observer,
+            velocity_filter: c.velocity_filter,
+            accel_feedback: c.afb,
+            velocity_regulator: c.velocity_regulator,
+            current_regulator: c.current_regulator,
+        }
+    }
+
     /// The latched fault, if any.
     #[must_use]
     pub fn fault(&self) -> Option<Fault> {
@@ -412,7 +468,7 @@ impl Controller {
     fn read_encoder(&mut self, raw: u32) {
         let bits = self.coef.counter_bits;
         if self.state.primed {
-            let d = count_diff(raw, self.state.last_raw, bits);
+            let d = count_diff_shifted(raw, self.state.last_raw, self.coef.counter_shift);
             self.state.position = self.state.position.wrapping_add(i64::from(d));
             if d.unsigned_abs() > self.coef.max_count_step.unsigned_abs() {
                 self.trip(Fault::EncoderJump);
@@ -437,18 +493,34 @@ impl Controller {
     }
 
     /// Acceleration-feedback step with the observer's acceleration, the loop through its
-    /// model solved in closed form for the torque reference `i_vel` + afb.
+    /// model solved in closed form for the torque reference `i_vel` + afb; `c` is the
+    /// command part of the filter input (0 in the plain form, a_cmd in the error form).
     #[inline]
-    fn afb_closed_step(&mut self) {
+    fn afb_closed_step(&mut self, c: PuPerS) {
         if self.state.fault.is_none() {
             let obs = &self.coef.observer;
             let os = &self.state.observer;
-            self.state.afb = self.coef.afb.update_closed(
+            self.state.afb = self.coef.afb.update_closed_from(
                 &mut self.state.afb_filter,
                 self.state.i_vel,
-                self.state.accel_cmd,
+                c,
                 |t| obs.predicted_acceleration_pu_s(os, t),
             );
+        }
+    }
+
+    /// The AFB step `step` of a tick; `a_meas` is that tick's differentiated acceleration
+    /// (used by [`AfbStep::Measured`] only).
+    #[inline]
+    fn run_afb(&mut self, step: AfbStep, a_meas: impl FnOnce(&mut Self) -> PuPerS) {
+        match step {
+            AfbStep::None => {}
+            AfbStep::Measured => {
+                let a = a_meas(self);
+                self.afb_step(a);
+            }
+            AfbStep::ClosedPlain => self.afb_closed_step(PuPerS::ZERO),
+            AfbStep::ClosedError => self.afb_closed_step(self.state.accel_cmd),
         }
     }
 
@@ -490,18 +562,13 @@ impl Controller {
         self.coef
             .observer
             .update(&mut self.state.observer, position, torque);
-        if self.coef.afb_in_current_tick {
-            if self.coef.diff_in_current_tick {
-                let a_meas = self
-                    .coef
-                    .diff_current_rate
-                    .update(&mut self.state.diff_current_rate, position)
-                    .1;
-                self.afb_step(a_meas);
-            } else {
-                self.afb_closed_step();
-            }
-        }
+        // The current-rate differentiator runs only when it feeds the AFB here.
+        self.run_afb(self.coef.afb_current, |c| {
+            c.coef
+                .diff_current_rate
+                .update(&mut c.state.diff_current_rate, position)
+                .1
+        });
         let i_ref = self.total_ref();
         self.state.current_ref = i_ref;
         let e = i_ref.saturating_sub(inp.current_pu);
@@ -562,8 +629,16 @@ impl Controller {
 
         // Position loop: error in Q24.8 counts (saturating), ω_cmd = vff·ω_sp + k_pos·err.
         let (pos_err, v_cmd) = if self.coef.position_loop {
-            let err_bits =
-                (sp.position_counts.to_bits() >> 8).saturating_sub(position.saturating_mul(256));
+            // Q48.16 ≫ 8 is below 2^55 in magnitude; while |position| < 2^54 counts (the
+            // bits from 2^54 up all the sign: one high-word compare) position·256 is below
+            // 2^62 and the difference below 2^63, so plain arithmetic gives the exact value
+            // the saturating form gives.
+            let sp_q8 = sp.position_counts.to_bits() >> 8;
+            let err_bits = if position >> 54 == position >> 63 {
+                sp_q8 - (position << 8)
+            } else {
+                sp_q8.saturating_sub(position.saturating_mul(256))
+            };
             let err = CountsErr::from_bits(sat_i32(err_bits));
             if err.unsigned_abs() > self.coef.following_error.unsigned_abs() {
                 self.trip(Fault::FollowingError);
@@ -588,12 +663,7 @@ impl Controller {
                 ff,
                 self.state.afb,
             );
-            if self.coef.afb_in_velocity_tick {
-                match self.coef.afb_source {
-                    Estimator::Differentiation => self.afb_step(a_est),
-                    Estimator::Observer => self.afb_closed_step(),
-                }
-            }
+            self.run_afb(self.coef.afb_velocity, |_| a_est);
         }
         VelocityOutputs {
             current_ref_pu: self.total_ref(),

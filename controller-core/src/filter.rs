@@ -161,13 +161,47 @@ impl LowPass {
     /// use controller_core::per_unit::Coef;
     /// assert_eq!(LowPass::None.feedthrough(), Coef::ONE);
     /// ```
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn feedthrough(&self) -> Coef {
         match *self {
             Self::None => Coef::ONE,
             Self::FirstOrder { alpha } => alpha,
             Self::SecondOrder { b0, .. } => b0,
+        }
+    }
+
+    /// h + b0·x in Q.46 for an `h46` from [`LowPass::begin`] on this filter: the output of
+    /// the step before its final rounding.
+    ///
+    /// Range argument for the plain (wrapping) add: with b0 in \[0, 1\] (raw 0..=2^30; every
+    /// designed first-order α = 1 − e^(−ω·Ts) and the pass-through's 1) |b0·x| ≤ 2^61, and
+    /// the first order's h = y·2^14 − α·y16 has |h| ≤ 2^62 for |y| ≤ 2^48 (as `begin`
+    /// limits it): below 2^47, h = y16·(2^30 − α) + (y mod 2^16)·2^14, |h| < 2^61 + 2^30;
+    /// above, y16 is saturated at ±2^31 and α·y16 only pulls h back towards zero from
+    /// |y·2^14| ≤ 2^62. So |h + b0·x| < 2^63. A hand-made α outside \[0, 1\] and the biquad,
+    /// whose h has no such bound, take the saturating add.
+    ///
+    /// ```
+    /// use controller_core::filter::LowPass;
+    /// use controller_core::per_unit::{Coef, Pu};
+    /// let f = LowPass::FirstOrder { alpha: Coef::from_num(0.5) };
+    /// assert_eq!(f.add_feedthrough(1 << 40, Pu::from_num(1)), (1 << 40) + (1 << 45));
+    /// ```
+    #[inline(always)]
+    #[must_use]
+    pub fn add_feedthrough(&self, h46: i64, x: Pu) -> i64 {
+        let b0 = self.feedthrough().to_bits();
+        let bx = i64::from(x.to_bits()) * i64::from(b0);
+        let bounded = match *self {
+            Self::None => true,
+            Self::FirstOrder { .. } => (b0 as u32) <= 1 << 30,
+            Self::SecondOrder { .. } => false,
+        };
+        if bounded {
+            h46.wrapping_add(bx)
+        } else {
+            h46.saturating_add(bx)
         }
     }
 
@@ -186,18 +220,24 @@ impl LowPass {
     /// assert_eq!((h46 as f64) / 2f64.powi(46), 0.25); // (1 − α)·0.5
     /// assert_eq!(b0, Coef::from_num(0.5));
     /// ```
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn begin(&self, s: &LowPassState) -> (i64, Coef) {
         match *self {
             Self::None => (0, Coef::ONE),
             Self::FirstOrder { alpha } => {
-                // h = y − α·y16 in Q.46 (y Q32.32 ≪ 14; y16 = y in Q16.16, truncated). `finish`
-                // stores y46 ≫ 14, so |y| < 2^49 and the shift cannot overflow; the bound
-                // only matters for hand-made state. |α·y16| < 2^62.
-                // max/min rather than clamp: clamp carries a (never taken) panic branch.
-                #[allow(clippy::manual_clamp)]
-                let y = s.y_q32.max(-(1 << 48)).min(1 << 48);
+                // h = y − α·y16 in Q.46 (y Q32.32 ≪ 14; y16 = y in Q16.16, truncated), with y
+                // limited to ±2^48 first so the shift cannot overflow (`finish` stores
+                // |y| < 1.5·2^48, so the limit acts only in the last half bit of the range);
+                // |α·y16| < 2^62. In range exactly when the bits above 2^48 are all the sign:
+                // one high-word compare instead of two 64-bit ones on the usual path.
+                let y = if s.y_q32 >> 48 == s.y_q32 >> 63 {
+                    s.y_q32
+                } else {
+                    // max/min rather than clamp: clamp carries a (never taken) panic branch.
+                    #[allow(clippy::manual_clamp)]
+                    s.y_q32.max(-(1 << 48)).min(1 << 48)
+                };
                 let y16 = sat_i32(y >> 16);
                 let h = (y << 14) - i64::from(y16) * i64::from(alpha.to_bits());
                 (h, alpha)
@@ -219,20 +259,21 @@ impl LowPass {
 
     /// Second half of a step begun with [`LowPass::begin`] on the same state: adds b0·x,
     /// advances the state and returns y\[n\] (Q16.16).
-    #[inline]
+    #[inline(always)]
     pub fn finish(&self, s: &mut LowPassState, h46: i64, x: Pu) -> Pu {
         match *self {
             Self::None => x,
-            Self::FirstOrder { alpha } => {
+            Self::FirstOrder { .. } => {
                 // y (Q.46) = h + α·x; the state keeps Q32.32 (≫ 14, the old y + (α·(x − y16) ≫ 14)).
-                let y46 = h46.saturating_add(i64::from(x.to_bits()) * i64::from(alpha.to_bits()));
+                let y46 = self.add_feedthrough(h46, x);
                 s.y_q32 = y46 >> 14;
-                Pu::from_bits(sat_i32(s.y_q32.saturating_add(1 << 15) >> 16))
+                // |y46| < 2^63 ⇒ |y_q32| < 2^49: the rounding add cannot overflow.
+                Pu::from_bits(sat_i32(s.y_q32.wrapping_add(1 << 15) >> 16))
             }
-            Self::SecondOrder { b0, .. } => {
+            Self::SecondOrder { .. } => {
                 // DF1 in Q.46 with error feedback of the truncated bits.
                 let x0 = x.to_bits();
-                let acc = h46.saturating_add(i64::from(b0.to_bits()) * i64::from(x0));
+                let acc = self.add_feedthrough(h46, x);
                 let y0 = sat_i32(acc >> 30);
                 s.residual = acc & ((1 << 30) - 1);
                 s.x = [x0, s.x[0]];

@@ -33,7 +33,7 @@
 //! the coming tick under a torque T: â⁺ = T·k_u + r ([`Observer::predicted_acceleration_pu_s`]),
 //! which lets [`crate::accel_feedback`] solve the loop T → model → â → T in closed form.
 
-use crate::per_unit::{mul_bits, mul_gain, sat_i32, Coef, Gain, Pu, PuPerS, TickGain};
+use crate::per_unit::{mul_bits, mul_gain, sat_bits, sat_i32, Coef, Gain, Pu, PuPerS, TickGain};
 
 /// Observer coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,9 +60,10 @@ pub struct ObserverState {
     /// Position estimate \[counts\], Q32.32 bits, wrapping modulo 2^32 counts: the observer
     /// only uses the innovation p_meas − p, which wrapping arithmetic gives exactly.
     pub p: i64,
-    /// Velocity estimate \[counts/tick\], Q32.32 bits.
+    /// Velocity estimate \[counts/tick\], Q32.32 bits; `update` reads it saturated to ±2^60.
     pub v: i64,
-    /// Disturbance acceleration estimate \[counts/tick²\], Q32.32 bits.
+    /// Disturbance acceleration estimate \[counts/tick²\], Q32.32 bits; `update` reads it
+    /// saturated to ±2^60 (2^28 counts/tick²), the range its plain adds rely on.
     pub d: i64,
     /// Acceleration estimate over the last tick, â = v\[n\] − v\[n−1\] = u + d⁻ + l2·e
     /// \[counts/tick²\], Q32.32.
@@ -118,24 +119,39 @@ impl Observer {
                 ..ObserverState::default()
             };
         }
+        // Ranges (Q.32 raw), which let the adds below wrap instead of saturate:
+        //   |u| ≤ 2^54            (|T·k_u| ≤ 2^31·2^31 = 2^62, ≫ 8)
+        //   |corr(l)| ≤ 2^48      (|e·l| ≤ 2^62, ≫ 14)
+        //   |d| ≤ 2^60            (saturated there when read: 2^28 counts/tick², some 10^13
+        //                          times the largest acceleration a drive can encoder-count)
+        //   |v| ≤ 2^60            (likewise: 2^28 counts/tick; the velocity output saturates
+        //                          from 2^47 on, so nothing read from it changes)
+        // so |u + d|, |d + l2·e|, |u + d + l2·e| and |d + l3·e| are below 2^61 and
+        // |v + u + d + l2·e| below 2^62: every add is exact, and the step is the saturating
+        // one bit for bit while |v|, |d| < 2^60 (tests/ranges.rs). Beyond that (never
+        // reached from a real encoder) v and d saturate at 2^60 instead of 2^63. States a
+        // caller makes up beyond these ranges wrap in `predicted_acceleration_pu_s` (no
+        // panic).
         // u [counts/tick², Q.32] = T (Q16.16) · k_u (Q8.24) = Q.40 → Q.32.
         let u = (i64::from(torque_pu.to_bits()) * i64::from(self.k_u.to_bits())) >> 8;
-        let acc = u.saturating_add(s.d);
+        let d = sat_bits::<61>(s.d);
+        let v = sat_bits::<61>(s.v);
+        let acc = u.wrapping_add(d);
         // Predict (position wraps modulo 2^32 counts by design).
-        let p_pred = s.p.wrapping_add(s.v).wrapping_add(acc >> 1);
-        let v_pred = s.v.saturating_add(acc);
+        let p_pred = s.p.wrapping_add(v).wrapping_add(acc >> 1);
+        let v_pred = v.wrapping_add(acc);
         // Innovation in counts, Q16.16, saturating (a huge error means a fault elsewhere).
         let e = sat_i32(p_meas.wrapping_sub(p_pred) >> 16);
         // Corrections: e (Q16.16) · l (Q2.30) = Q.46 → Q.32.
         let corr = |l: Coef| (i64::from(e) * i64::from(l.to_bits())) >> 14;
         let dv = corr(self.l2);
         s.p = p_pred.wrapping_add(corr(self.l1));
-        s.v = v_pred.saturating_add(dv);
-        // â = v[n] − v[n−1] = u + d⁻ + l2·e, formed from its parts (saturating) rather than
-        // as a difference of the saturating velocity states.
-        s.residual = s.d.saturating_add(dv);
-        s.acc = u.saturating_add(s.residual);
-        s.d = s.d.saturating_add(corr(self.l3));
+        s.v = v_pred.wrapping_add(dv);
+        // â = v[n] − v[n−1] = u + d⁻ + l2·e, formed from its parts rather than as a
+        // difference of the velocity states.
+        s.residual = d.wrapping_add(dv);
+        s.acc = u.wrapping_add(s.residual);
+        s.d = d.wrapping_add(corr(self.l3));
     }
 
     /// Velocity estimate \[pu\].
@@ -178,8 +194,9 @@ impl Observer {
     #[inline]
     #[must_use]
     pub fn predicted_acceleration_pu_s(&self, s: &ObserverState, torque_pu: Pu) -> PuPerS {
+        // |u| ≤ 2^54 and |r| < 2^60 + 2^48 as `update` leaves it (see there): no overflow.
         let u = (i64::from(torque_pu.to_bits()) * i64::from(self.k_u.to_bits())) >> 8;
-        let a = u.saturating_add(s.residual);
+        let a = u.wrapping_add(s.residual);
         Pu::from_bits(mul_bits::<20>(q32_to_q20(a), self.k_acc.to_bits()))
     }
 

@@ -77,8 +77,33 @@ pub fn counts_per_pu_s(encoder_cpr: u32, base_speed_rpm: f32) -> f32 {
 #[must_use]
 #[inline]
 pub fn count_diff(now: u32, before: u32, counter_bits: u8) -> i32 {
+    count_diff_shifted(now, before, counter_shift(counter_bits))
+}
+
+/// The shift that puts a `counter_bits`-wide counter's MSB at bit 31 (0..=16), for
+/// [`count_diff_shifted`]: computed once per configuration instead of every tick.
+///
+/// ```
+/// assert_eq!(controller_core::per_unit::counter_shift(16), 16);
+/// assert_eq!(controller_core::per_unit::counter_shift(32), 0);
+/// ```
+#[must_use]
+#[inline]
+pub fn counter_shift(counter_bits: u8) -> u32 {
+    32u32.saturating_sub(u32::from(counter_bits)).min(16)
+}
+
+/// [`count_diff`] with the counter's [`counter_shift`] already computed.
+///
+/// ```
+/// use controller_core::per_unit::{count_diff_shifted, counter_shift};
+/// assert_eq!(count_diff_shifted(2, 0xFFFE, counter_shift(16)), 4);
+/// ```
+#[must_use]
+#[inline]
+pub fn count_diff_shifted(now: u32, before: u32, shift: u32) -> i32 {
     // Shift the counter's MSB to bit 31, subtract with wrap, shift back arithmetically.
-    let shift = 32u32.saturating_sub(u32::from(counter_bits)).min(16);
+    let shift = shift.min(16);
     let d = (now << shift).wrapping_sub(before << shift) as i32;
     d >> shift
 }
@@ -110,6 +135,29 @@ pub(crate) fn sat_i32(x: i64) -> i32 {
         i32::MIN
     } else {
         i32::MAX
+    }
+}
+
+/// `x / 2^N` rounded to nearest (halves up) for any `i64`, as `(x + 2^(N−1)) >> N` would
+/// give without overflow: halving first loses nothing, because `(2q + b + 2^(N−1)) >> N`
+/// and `(q + 2^(N−2)) >> (N−1)` agree for b ∈ {0, 1} (the half never carries past a
+/// multiple of 2^(N−1)), and `q + 2^(N−2)` cannot overflow. `N` is 2..=62.
+#[inline]
+pub(crate) fn round_shr<const N: u32>(x: i64) -> i64 {
+    ((x >> 1) + (1i64 << (N - 2))) >> (N - 1)
+}
+
+/// Saturate an `i64` to the signed `B`-bit range \[−2^(B−1), 2^(B−1) − 1\] (`B` = 33..=63):
+/// a state limited this way leaves 2^(63−B+1) of headroom for plain adds. In range exactly
+/// when the bits from B−1 up are all the sign: one compare of the high word.
+#[inline]
+pub(crate) fn sat_bits<const B: u32>(x: i64) -> i64 {
+    if x >> (B - 1) == x >> 63 {
+        x
+    } else if x < 0 {
+        -(1i64 << (B - 1))
+    } else {
+        (1i64 << (B - 1)) - 1
     }
 }
 
@@ -177,6 +225,42 @@ mod tests {
         }
         for x in xs {
             assert_eq!(super::sat_i32(x), lim(x), "{x}");
+        }
+    }
+
+    fn samples() -> Vec<i64> {
+        let mut xs = vec![0i64, 1, -1, i64::MAX, i64::MIN, i64::MAX - 1, i64::MIN + 1];
+        for b in 30..63 {
+            for d in -3..=3 {
+                xs.push((1i64 << b) + d);
+                xs.push(-(1i64 << b) + d);
+            }
+        }
+        for k in 0..4000i64 {
+            let x = k.wrapping_mul(0x9E37_79B9_7F4A_7C15u64 as i64);
+            xs.extend([x, x >> 3, x >> 17, x >> 33]);
+        }
+        xs
+    }
+
+    /// `round_shr` against the widened (i128) rounded shift.
+    #[test]
+    fn round_shr_matches_the_rounded_shift() {
+        for x in samples() {
+            let r = |n: u32| ((i128::from(x) + (1i128 << (n - 1))) >> n) as i64;
+            assert_eq!(super::round_shr::<14>(x), r(14), "{x}");
+            assert_eq!(super::round_shr::<16>(x), r(16), "{x}");
+            assert_eq!(super::round_shr::<30>(x), r(30), "{x}");
+        }
+    }
+
+    /// `sat_bits` against the plain range clamp.
+    #[test]
+    fn sat_bits_matches_the_range_definition() {
+        for x in samples() {
+            let c = |b: u32| x.clamp(-(1i64 << (b - 1)), (1i64 << (b - 1)) - 1);
+            assert_eq!(super::sat_bits::<61>(x), c(61), "{x}");
+            assert_eq!(super::sat_bits::<49>(x), c(49), "{x}");
         }
     }
 }

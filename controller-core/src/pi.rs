@@ -96,9 +96,8 @@ impl PiCoefficients {
         // drive is saturated for) must not take usable torque away. The offset is bounded
         // to ±limit first, so the output stays within ±2·limit.
         // max/min rather than clamp: clamp carries a (never taken) panic branch.
-        let off = i64::from(offset.to_bits())
-            .max(-i64::from(limit))
-            .min(i64::from(limit));
+        // In 32 bits: 0 ≤ limit ≤ i32::MAX, so −limit is an i32 too.
+        let off = i64::from(offset.to_bits().max(-limit).min(limit));
         let u_clamped = u.max(-i64::from(limit) - off).min(i64::from(limit) - off);
         state.saturated = u_clamped != u;
         Pu::from_bits(sat_i32(u_clamped))

@@ -80,6 +80,25 @@ struct Segment {
     jerk_over_6: i64,
 }
 
+impl Segment {
+    /// Whether every add of [`Profile::next`] stays below 2^62 in magnitude throughout this
+    /// segment, so plain adds give exactly what the saturating ones give.
+    ///
+    /// Range argument: in the segment the integer state follows a_k = a0 + k·j exactly, so
+    /// |a_k| ≤ A = |a0| + n·|j|, and v_k = v0 + Σ (a_i + j/2), so |v_k| ≤ V = |v0| + n·(A + |j|),
+    /// for k ≤ n (the last segment, n = u32::MAX, has a = j = 0 and keeps v0). The adds form
+    /// v + a/2 + j/6 and p_frac (< 2^32) plus that, v + a + j/2 and a + j: each is at most
+    /// V + A + |j| + 2^32 in magnitude. The bound is evaluated in f64 with a factor-4 margin
+    /// over its rounding (2^60 against 2^62).
+    fn adds_are_bounded(&self) -> bool {
+        let n = f64::from(self.ticks);
+        let j = (self.jerk as f64).abs();
+        let a = (self.a0 as f64).abs() + n * j;
+        let v = (self.v0 as f64).abs() + n * (a + j);
+        v + a + j + Q32 < 1_152_921_504_606_846_976.0 // 2^60
+    }
+}
+
 /// Split an f64 position \[counts\] into whole counts and a Q0.32 fraction.
 fn split_counts(p: f64) -> (i64, i64) {
     let whole = p as i64;
@@ -101,6 +120,9 @@ pub struct Profile {
     p_frac: i64,
     v: i64,
     a: i64,
+    /// The tick's adds cannot overflow for this profile ([`Profile::adds_are_bounded`]):
+    /// decided once at construction, so [`Profile::next`] takes the plain adds.
+    bounded: bool,
 }
 
 const Q32: f64 = 4_294_967_296.0;
@@ -279,6 +301,7 @@ impl Profile {
             },
         )?;
         let first = segs.first().copied().unwrap_or_default();
+        let bounded = segs.iter().take(count).all(Segment::adds_are_bounded);
         Ok(Self {
             segments: segs,
             count,
@@ -290,6 +313,7 @@ impl Profile {
             p_frac: first.p0_frac,
             v: first.v0,
             a: first.a0,
+            bounded,
         })
     }
 
@@ -335,6 +359,26 @@ impl Profile {
         self.index + 1 >= self.count
     }
 
+    /// One tick of p += v + a/2 + j/6 ; v += a + j/2 ; a += j (Q32.32, the fraction carried
+    /// into p_int), with plain adds when `BOUNDED` (the segment's range argument holds,
+    /// [`Segment::adds_are_bounded`]) and saturating ones otherwise.
+    #[inline(always)]
+    fn integrate<const BOUNDED: bool>(&mut self, j: i64, j6: i64) {
+        let add = |x: i64, y: i64| {
+            if BOUNDED {
+                x.wrapping_add(y)
+            } else {
+                x.saturating_add(y)
+            }
+        };
+        let dp = add(add(self.v, self.a >> 1), j6);
+        let f = add(self.p_frac, dp);
+        self.p_int = self.p_int.wrapping_add(f >> 32);
+        self.p_frac = f & 0xFFFF_FFFF;
+        self.v = add(add(self.v, self.a), j >> 1);
+        self.a = add(self.a, j);
+    }
+
     /// The setpoint for this velocity tick; advances the profile by one tick.
     /// Fixed point only, no division.
     #[allow(clippy::should_implement_trait)] // never ends, so not an `Iterator`
@@ -353,13 +397,11 @@ impl Profile {
             Some(seg) => (seg.jerk, seg.jerk_over_6, seg.ticks),
             None => (0, 0, u32::MAX),
         };
-        // p += v + a/2 + j/6 ; v += a + j/2 ; a += j   (Q32.32, fraction carried into p_int)
-        let dp = self.v.saturating_add(self.a >> 1).saturating_add(j6);
-        let f = self.p_frac.saturating_add(dp);
-        self.p_int = self.p_int.wrapping_add(f >> 32);
-        self.p_frac = f & 0xFFFF_FFFF;
-        self.v = self.v.saturating_add(self.a).saturating_add(j >> 1);
-        self.a = self.a.saturating_add(j);
+        if self.bounded {
+            self.integrate::<true>(j, j6);
+        } else {
+            self.integrate::<false>(j, j6);
+        }
         self.tick_in_segment = self.tick_in_segment.saturating_add(1);
         if self.tick_in_segment >= ticks && self.index + 1 < self.count {
             self.index += 1;

@@ -212,3 +212,31 @@ fn the_observer_reports_a_braking_load_as_positive_torque() {
     let d = last.unwrap().disturbance_est_pu;
     assert!(d > Pu::from_num(0.01), "load-torque estimate {d}");
 }
+
+#[test]
+fn the_error_form_feeds_the_commanded_acceleration_through_the_controller() {
+    // Same gains, same inputs, error form against plain form: with a commanded
+    // acceleration and the shaft at rest, the error form's AFB term is the plain one plus
+    // g·Ka·F(a_cmd), so it is larger. A controller that drops a_cmd gives the two equal.
+    let error_cfg = DriveConfig::table1();
+    assert_eq!(error_cfg.accel_feedback.mode, AfbMode::Error);
+    let mut plain_cfg = error_cfg;
+    plain_cfg.accel_feedback.mode = AfbMode::Plain;
+    let gains = controller_core::design(&error_cfg).unwrap();
+    let afb_term = |cfg: &DriveConfig| {
+        let mut c = Controller::with_gains(cfg, &gains).unwrap();
+        c.current_tick(CurrentInputs::default());
+        c.velocity_tick(VelocityInputs {
+            setpoint: Setpoint {
+                acceleration_pu_s: Pu::from_num(2),
+                ..Setpoint::default()
+            },
+            ..VelocityInputs::default()
+        });
+        let out = c.current_tick(CurrentInputs::default());
+        assert!(out.fault.is_none());
+        out.accel_fb_pu
+    };
+    let (error, plain) = (afb_term(&error_cfg), afb_term(&plain_cfg));
+    assert!(error > plain, "error form {error}, plain form {plain}");
+}

@@ -3,22 +3,23 @@
 //!
 //! Sharing rules (single core, the current loop at a higher NVIC priority):
 //! * the [`App`] (controller + trend buffer) is shared by both ticks and the thread-mode
-//!   dump; it sits in a `critical_section::Mutex`. The current tick is the most urgent
+//!   dump; it sits in a [`Shared`] cell, reached only under a critical section and refused
+//!   (never a panic) to a second, re-entrant borrower. The current tick is the most urgent
 //!   interrupt, so holding the section there delays nothing. The velocity interrupt takes
 //!   it only around the core's `velocity_tick` (one call: the core keeps both loops' state
 //!   in one `Controller`), so the current loop is held off for at most that call
 //!   (`cargo fw-bench` prints it as "controller-core alone: Controller::velocity_tick":
-//!   ≈ 440 instructions, ≈ 3 µs at 168 MHz, against a 250 µs period; with the two timers
+//!   ≈ 350 instructions, ≈ 2 µs at 168 MHz, against a 250 µs period; with the two timers
 //!   aligned the current tick has always run first, so in practice it never waits);
 //! * the velocity loop's own I/O and profile live in a [`TaskLocal`], touched by the
 //!   velocity interrupt only, so reading them and computing the next setpoint run with the
 //!   current loop free to preempt.
 
-use core::cell::{RefCell, UnsafeCell};
+use core::cell::{Cell, UnsafeCell};
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use controller_core::{CurrentOutputs, VelocityOutputs};
-use critical_section::Mutex;
+use critical_section::{CriticalSection, Mutex};
 
 use crate::app::{velocity_inputs, App, SetpointSource};
 use crate::board::{CurrentLoopIo, VelocityLoopIo};
@@ -82,6 +83,67 @@ impl<T> Default for TaskLocal<T> {
     }
 }
 
+/// A value shared by interrupts of different priorities and thread mode, reached only under
+/// a critical section. Unlike a `RefCell` a second borrow (a re-entrant call from inside
+/// `with`) is refused with `None` rather than a panic, so the handlers carry no
+/// `panic_already_borrowed` path; under the critical section the flag is a plain load and
+/// store (no exclusive-access loop).
+pub struct Shared<T> {
+    busy: Mutex<Cell<bool>>,
+    value: UnsafeCell<Option<T>>,
+}
+
+// SAFETY: `value` is only touched inside `with`, which needs a `CriticalSection` token (on
+// this single-core target: interrupts masked, so no other context runs meanwhile) and holds
+// the `busy` flag for the whole borrow, so a re-entrant call from inside `f` gets `None`:
+// at most one `&mut T` exists at any time. `T: Send` because the value moves between thread
+// mode (install) and the interrupts.
+#[allow(unsafe_code)]
+unsafe impl<T: Send> Sync for Shared<T> {}
+
+impl<T> Shared<T> {
+    /// An empty cell.
+    pub const fn new() -> Self {
+        Self {
+            busy: Mutex::new(Cell::new(false)),
+            value: UnsafeCell::new(None),
+        }
+    }
+
+    /// Run `f` on the value slot (`None` inside means empty); `None` if the slot is already
+    /// borrowed further up this critical section.
+    #[inline]
+    pub fn with_slot<R>(
+        &self,
+        cs: CriticalSection<'_>,
+        f: impl FnOnce(&mut Option<T>) -> R,
+    ) -> Option<R> {
+        let busy = self.busy.borrow(cs);
+        if busy.replace(true) {
+            return None;
+        }
+        // SAFETY: see the `Sync` impl: the critical section excludes every other context and
+        // the flag, won just above, excludes re-entry until it is cleared below.
+        #[allow(unsafe_code)]
+        let slot = unsafe { &mut *self.value.get() };
+        let result = f(slot);
+        busy.set(false);
+        Some(result)
+    }
+
+    /// Run `f` on the value; `None` if the cell is empty or already borrowed.
+    #[inline]
+    pub fn with<R>(&self, cs: CriticalSection<'_>, f: impl FnOnce(&mut T) -> R) -> Option<R> {
+        self.with_slot(cs, |slot| slot.as_mut().map(f)).flatten()
+    }
+}
+
+impl<T> Default for Shared<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// The velocity interrupt's own state: its board I/O and the setpoint source.
 pub struct VelocityTask<V, S> {
     /// Encoder and fault input.
@@ -95,7 +157,7 @@ pub struct VelocityTask<V, S> {
 /// [`Loops::velocity_isr`] from its handlers.
 pub struct Loops<C, V, S> {
     /// The app and the current loop's I/O (one cell: one borrow per current tick).
-    app: Mutex<RefCell<Option<(App, C)>>>,
+    app: Shared<(App, C)>,
     velocity: TaskLocal<VelocityTask<V, S>>,
     /// Velocity ticks skipped because the task state was unavailable (should stay 0).
     overruns: AtomicU32,
@@ -110,7 +172,7 @@ where
     /// Empty: the handlers do nothing until [`Loops::install`].
     pub const fn new() -> Self {
         Self {
-            app: Mutex::new(RefCell::new(None)),
+            app: Shared::new(),
             velocity: TaskLocal::new(),
             overruns: AtomicU32::new(0),
         }
@@ -119,9 +181,13 @@ where
     /// Hand the app, the I/O halves and the profile to the interrupts (before starting the
     /// timers).
     pub fn install(&self, app: App, current_io: C, velocity_io: V, profile: S) {
-        critical_section::with(|cs| {
-            self.app.borrow(cs).replace(Some((app, current_io)));
+        let placed = critical_section::with(|cs| {
+            self.app
+                .with_slot(cs, |slot| *slot = Some((app, current_io)))
         });
+        if placed.is_none() {
+            self.overruns.fetch_add(1, Ordering::Relaxed);
+        }
         if !self.velocity.install(VelocityTask {
             io: velocity_io,
             profile,
@@ -133,12 +199,7 @@ where
     /// Body of the current-loop interrupt (4 kHz).
     #[inline]
     pub fn current_isr(&self) -> Option<CurrentOutputs> {
-        critical_section::with(|cs| {
-            self.app
-                .borrow_ref_mut(cs)
-                .as_mut()
-                .map(|(app, io)| app.on_current_tick(io))
-        })
+        critical_section::with(|cs| self.app.with(cs, |(app, io)| app.on_current_tick(io)))
     }
 
     /// Body of the velocity-loop interrupt (2 kHz).
@@ -153,24 +214,19 @@ where
             return None;
         };
         // The controller, with the current loop held off for this one call.
-        critical_section::with(|cs| {
-            self.app
-                .borrow_ref_mut(cs)
-                .as_mut()
-                .map(|(app, _)| app.on_velocity_tick(inputs))
-        })
+        critical_section::with(|cs| self.app.with(cs, |(app, _)| app.on_velocity_tick(inputs)))
     }
 
     /// Run `f` on the app (thread mode: status, enable, dump requests), under a critical
     /// section: keep it short.
     pub fn with_app<R>(&self, f: impl FnOnce(&mut App) -> R) -> Option<R> {
-        critical_section::with(|cs| self.app.borrow_ref_mut(cs).as_mut().map(|(app, _)| f(app)))
+        critical_section::with(|cs| self.app.with(cs, |(app, _)| f(app)))
     }
 
     /// Run `f` on the current loop's I/O (thread mode, e.g. a stand-in board's inputs),
     /// under a critical section.
     pub fn with_current_io<R>(&self, f: impl FnOnce(&mut C) -> R) -> Option<R> {
-        critical_section::with(|cs| self.app.borrow_ref_mut(cs).as_mut().map(|(_, io)| f(io)))
+        critical_section::with(|cs| self.app.with(cs, |(_, io)| f(io)))
     }
 
     /// Run `f` on the velocity loop's I/O; `None` if the velocity interrupt holds it.

@@ -192,19 +192,28 @@ impl<const N: usize> TraceBuffer<N> {
         self.record_with(tick, || *signals);
     }
 
-    /// As [`TraceBuffer::record`], building the snapshot only on the ticks that store one
-    /// (the interrupt saves the work on the other `decimation − 1` ticks).
-    #[inline]
+    /// As [`TraceBuffer::record`], building the snapshot only on the ticks that store one.
+    /// The test for those is inlined into the interrupt (a compare of the phase counter);
+    /// the snapshot and the store run only on every `decimation`-th tick, out of line.
+    #[inline(always)]
     pub fn record_with(&mut self, tick: u32, signals: impl FnOnce() -> SignalSnapshot) {
+        // The frozen test is needed only on the ticks that would store: while frozen the
+        // phase may count on, `rearm` resets it.
+        let phase = self.phase.saturating_add(1);
+        if phase < self.config.decimation {
+            self.phase = phase;
+            return;
+        }
         if matches!(self.state, TraceState::Frozen { .. }) {
             return;
         }
-        self.phase = self.phase.saturating_add(1);
-        if self.phase < self.config.decimation {
-            return;
-        }
         self.phase = 0;
-        let signals = signals();
+        self.store(tick, &signals());
+    }
+
+    /// Store one sample of the chosen channels and count down the post-trigger samples.
+    #[inline(never)]
+    fn store(&mut self, tick: u32, signals: &SignalSnapshot) {
         let mut values = [0_i32; TRACE_CHANNELS];
         for (value, signal) in values.iter_mut().zip(self.config.channels.iter()) {
             *value = signals.get(*signal);

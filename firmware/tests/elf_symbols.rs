@@ -1,0 +1,84 @@
+//! The built Cortex-M images hold no `RefCell` panic path (`panic_already_borrowed`): the
+//! interrupt glue shares the app through `isr::Shared`, which refuses a second borrower
+//! instead of panicking. Reads the symbol tables of the release ELFs that `cargo fw-build`,
+//! `cargo fw-bench` and `cargo fw-lil` leave in the target directory (an image not built yet
+//! is reported and skipped: the host test cannot build the ARM target itself). The same
+//! check by hand: `llvm-nm -C target/thumbv7em-none-eabihf/release/fw-bench | grep borrowed`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+use std::path::PathBuf;
+
+/// Symbol names that must not be linked into a firmware image.
+const FORBIDDEN: &[&str] = &["panic_already_borrowed", "panic_already_mutably_borrowed"];
+
+fn u16_at(b: &[u8], at: usize) -> usize {
+    usize::from(u16::from_le_bytes([b[at], b[at + 1]]))
+}
+
+fn u32_at(b: &[u8], at: usize) -> usize {
+    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]) as usize
+}
+
+/// Every symbol name in the `.symtab` of a 32-bit little-endian ELF.
+fn symbol_names(elf: &[u8]) -> Vec<String> {
+    assert_eq!(&elf[..4], b"\x7fELF", "not an ELF file");
+    assert_eq!(elf[4], 1, "not a 32-bit ELF");
+    let (shoff, shentsize, shnum) = (u32_at(elf, 0x20), u16_at(elf, 0x2E), u16_at(elf, 0x30));
+    let section = |i: usize| shoff + i * shentsize;
+    let mut names = Vec::new();
+    for i in 0..shnum {
+        let sh = section(i);
+        // SHT_SYMTAB = 2; its sh_link names the string table.
+        if u32_at(elf, sh + 4) != 2 {
+            continue;
+        }
+        let (off, size, link, entsize) = (
+            u32_at(elf, sh + 16),
+            u32_at(elf, sh + 20),
+            u32_at(elf, sh + 24),
+            u32_at(elf, sh + 36).max(16),
+        );
+        let strtab = u32_at(elf, section(link) + 16);
+        for sym in (off..off + size).step_by(entsize) {
+            let start = strtab + u32_at(elf, sym);
+            let end = elf[start..]
+                .iter()
+                .position(|&c| c == 0)
+                .map_or(start, |n| start + n);
+            names.push(String::from_utf8_lossy(&elf[start..end]).into_owned());
+        }
+    }
+    names
+}
+
+#[test]
+fn firmware_images_hold_no_refcell_panic_path() {
+    let release = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(
+            || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"),
+            PathBuf::from,
+        )
+        .join("thumbv7em-none-eabihf/release");
+    let mut checked = 0;
+    for image in ["firmware", "fw-bench", "fw-lil", "pil"] {
+        let path = release.join(image);
+        let Ok(elf) = std::fs::read(&path) else {
+            eprintln!("{image}: not built ({}), skipped", path.display());
+            continue;
+        };
+        let names = symbol_names(&elf);
+        assert!(
+            names
+                .iter()
+                .any(|n| n.contains("TIMER0") || n.contains("TIM6")),
+            "{image}: no current-loop handler among {} symbols: symbol table not read",
+            names.len()
+        );
+        for bad in FORBIDDEN {
+            let hits: Vec<_> = names.iter().filter(|n| n.contains(bad)).collect();
+            assert!(hits.is_empty(), "{image} links {hits:?}");
+        }
+        checked += 1;
+    }
+    eprintln!("{checked} firmware images checked for {FORBIDDEN:?}");
+}
