@@ -36,7 +36,8 @@ pub use runner::{run_scenario, run_with_backend, ControlBackend, RunOutput};
 use clap::Parser;
 use std::process::ExitCode;
 
-/// Entry point shared by the `hil-harness` binary and the root `stiffdrive` binary.
+/// Entry point of the one command-line binary, the root `stiffdrive` (`cargo run --release
+/// -- ...`; the harness has no binary of its own, so the fat-LTO release link runs once).
 /// `default_command` is used when no subcommand is given (the root binary passes
 /// `"reproduce"`).
 pub fn main_with_default(default_command: &str) -> ExitCode {

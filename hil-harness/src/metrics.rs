@@ -1,7 +1,10 @@
 //! Metrics computed from a trace. Each definition here is repeated in the README; the
 //! windows come from the scenario's `[scenario.metrics]` table.
 
+mod pass;
+
 use crate::trace::{Trace, TraceRow};
+use pass::{hp_inputs, Pass, HP_SIGNALS};
 use serde::Serialize;
 
 /// Time windows and thresholds of the metrics (all times in s of simulated time).
@@ -78,22 +81,9 @@ fn in_window(r: &TraceRow, w: (f64, f64)) -> bool {
     r.t_s >= w.0 && r.t_s <= w.1
 }
 
-fn mean(values: &[f64]) -> f64 {
-    if values.is_empty() {
-        return 0.0;
-    }
-    values.iter().sum::<f64>() / values.len() as f64
-}
-
-fn rms(values: &[f64]) -> f64 {
-    if values.is_empty() {
-        return 0.0;
-    }
-    (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt()
-}
-
 /// `x − centred moving average of x` over `half` samples each side (clipped at the ends):
-/// keeps the ripple above about 1/(2·average length) and removes slow trends.
+/// keeps the ripple above about 1/(2·average length) and removes slow trends. [`compute`]
+/// forms the same values as it goes; this is the definition, whole-signal form.
 pub fn high_pass(x: &[f64], half: usize) -> Vec<f64> {
     let mut prefix = Vec::with_capacity(x.len() + 1);
     prefix.push(0.0);
@@ -102,190 +92,109 @@ pub fn high_pass(x: &[f64], half: usize) -> Vec<f64> {
         acc += v;
         prefix.push(acc);
     }
-    x.iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let lo = i.saturating_sub(half);
-            let hi = (i + half + 1).min(x.len());
-            let sum =
-                prefix.get(hi).copied().unwrap_or(0.0) - prefix.get(lo).copied().unwrap_or(0.0);
-            let n = (hi - lo).max(1) as f64;
-            v - sum / n
+    (0..x.len())
+        .map(|i| {
+            let at = |k: usize| prefix.get(k).copied().unwrap_or(0.0);
+            centred(at, i, half, x.len(), x.get(i).copied().unwrap_or(0.0))
         })
         .collect()
 }
 
-/// Ripple (RMS of the high-passed signal) of `f` in `window`, and its dominant
-/// frequency from zero crossings.
-fn ripple(
-    trace: &Trace,
-    f: impl Fn(&TraceRow) -> f64,
-    window: (f64, f64),
-    avg_s: f64,
-) -> (f64, f64) {
-    let rows = &trace.rows;
-    let dt = match (rows.first(), rows.get(1)) {
-        (Some(a), Some(b)) if b.t_s > a.t_s => b.t_s - a.t_s,
-        _ => return (0.0, 0.0),
-    };
-    let half = ((avg_s / dt) / 2.0).round().max(1.0) as usize;
-    let x: Vec<f64> = rows.iter().map(&f).collect();
-    let hp = high_pass(&x, half);
-    let sel: Vec<f64> = rows
-        .iter()
-        .zip(hp.iter())
-        .filter(|(r, _)| in_window(r, window))
-        .map(|(_, v)| *v)
-        .collect();
-    let crossings = sel
-        .windows(2)
-        .filter(|w| matches!(w, [a, b] if (*a < 0.0) != (*b < 0.0)))
-        .count();
-    let span = window.1 - window.0;
-    let freq = if span > 0.0 {
-        crossings as f64 / (2.0 * span)
-    } else {
-        0.0
-    };
-    (rms(&sel), freq)
+/// v − (mean of the samples i−half ..= i+half, clipped to 0..len), from prefix sums
+/// (`at(k)` = the sum of the first k samples).
+fn centred(at: impl Fn(usize) -> f64, i: usize, half: usize, len: usize, v: f64) -> f64 {
+    let lo = i.saturating_sub(half);
+    let hi = (i + half + 1).min(len);
+    let n = (hi - lo).max(1) as f64;
+    v - (at(hi) - at(lo)) / n
 }
 
-/// Computes every metric of a trace.
+/// Computes every metric of a trace in one pass. The high pass of row j needs the samples up
+/// to j + half, so the ripple sums run `half` rows behind the rest, on one vector of prefix
+/// sums; every sum is taken in trace order, so the figures are those of the whole-signal
+/// definitions ([`high_pass`], then the RMS over the window) bit for bit.
 pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
     let rows = &trace.rows;
-    let speed_err = |r: &TraceRow| r.vel_cmd_pu - r.motor_vel_pu;
-    let finite = rows
-        .iter()
-        .all(|r| r.values().iter().all(|v| v.is_finite()));
-
-    let stable_rows: Vec<&TraceRow> = rows
-        .iter()
-        .filter(|r| in_window(r, w.stable_window_s))
-        .collect();
-    let stable_err: Vec<f64> = stable_rows.iter().map(|r| speed_err(r)).collect();
-    // Oscillation: the speed error with its slow part (centred moving average over
-    // `ripple_average_s`) removed, so a slow recovery from a step is not counted as a
-    // limit cycle; growth beyond bounds is caught by `bounded`.
-    let (oscillation_pu, _) = ripple(trace, speed_err, w.stable_window_s, w.ripple_average_s);
-    let (limit_cycle_torque_pu, _) = ripple(
-        trace,
-        |r| r.current_pu,
-        w.stable_window_s,
-        w.ripple_average_s,
-    );
-    let bounded = stable_err.iter().all(|e| e.abs() < 0.5);
-    let sat_threshold = w.torque_limit_pu * 0.999;
-    let saturated_in_window = stable_rows
-        .iter()
-        .filter(|r| r.torque_cmd_pu.abs() >= sat_threshold)
-        .count();
-    let sat_fraction = if stable_rows.is_empty() {
-        1.0
-    } else {
-        saturated_in_window as f64 / stable_rows.len() as f64
-    };
-    let faulted = rows.iter().any(|r| r.fault != 0.0);
-    let stable = finite
-        && !faulted
-        && !stable_rows.is_empty()
-        && bounded
-        && oscillation_pu.is_finite()
-        && oscillation_pu < w.stable_oscillation_pu
-        && sat_fraction <= w.stable_saturation_fraction;
-
-    let (torque_ripple_rms_pu, _) = ripple(
-        trace,
-        |r| r.current_pu,
-        w.ripple_window_s,
-        w.ripple_average_s,
-    );
-    let (shaft_torque_ripple_rms_pu, shaft_ripple_freq_hz) = ripple(
-        trace,
-        |r| r.shaft_torque_pu,
-        w.ripple_window_s,
-        w.ripple_average_s,
-    );
-
-    let load_step_droop_pu = w.step_time_s.map(|ts| {
-        let before = rows
-            .iter()
-            .rev()
-            .find(|r| r.t_s < ts)
-            .map(speed_err)
-            .unwrap_or(0.0);
-        let worst = rows
-            .iter()
-            .filter(|r| r.t_s >= ts)
-            .map(speed_err)
-            .fold(f64::NEG_INFINITY, f64::max);
-        (worst - before).max(0.0)
-    });
-
-    let overshoot_pu = w.overshoot_window_s.map(|win| {
-        rows.iter()
-            .filter(|r| in_window(r, win))
-            .map(|r| r.load_vel_pu - r.vel_cmd_pu)
-            .fold(0.0, f64::max)
-    });
-
-    let settle_from = w.step_time_s.or(w.ramp_end_s);
-    let settling_s = settle_from.and_then(|t0| {
-        let last_out = rows
-            .iter()
-            .rev()
-            .find(|r| r.t_s >= t0 && speed_err(r).abs() > w.settle_band_pu)
-            .map(|r| r.t_s);
-        match last_out {
-            None => Some(0.0),
-            Some(t) => {
-                // Never settled if it is still outside the band at the end of the run.
-                let end = rows.last().map(|r| r.t_s).unwrap_or(t);
-                if t >= end {
-                    None
-                } else {
-                    Some(t - t0)
-                }
-            }
-        }
-    });
-
+    let len = rows.len();
     let dt = match (rows.first(), rows.get(1)) {
         (Some(a), Some(b)) => b.t_s - a.t_s,
         _ => 0.0,
     };
-    let torque_saturated_s = rows
-        .iter()
-        .filter(|r| r.torque_cmd_pu.abs() >= sat_threshold)
-        .count() as f64
-        * dt;
-
-    let ripple_rows: Vec<&TraceRow> = rows
-        .iter()
-        .filter(|r| in_window(r, w.ripple_window_s))
-        .collect();
-    let mean_torque_pu = mean(&ripple_rows.iter().map(|r| r.current_pu).collect::<Vec<_>>());
-    let mean_speed_error_pu = mean(&ripple_rows.iter().map(|r| speed_err(r)).collect::<Vec<_>>());
-
-    let max_following_error_counts = rows
-        .iter()
-        .map(|r| r.cmd_minus_motor_counts().abs())
-        .fold(0.0, f64::max);
-    let max_twist_counts = rows
-        .iter()
-        .map(|r| r.motor_minus_load_counts().abs())
-        .fold(0.0, f64::max);
-
-    if let Some(bad) = rows
-        .iter()
-        .find(|r| !r.values().iter().all(|v| v.is_finite()))
-    {
+    // Without a positive sample period there is no moving average: every ripple is 0.
+    let half = (dt > 0.0).then(|| ((w.ripple_average_s / dt) / 2.0).round().max(1.0) as usize);
+    let mut pass = Pass::new(w);
+    let mut prefix: Vec<[f64; HP_SIGNALS]> = Vec::with_capacity(len + 1);
+    let mut acc = [0.0; HP_SIGNALS];
+    prefix.push(acc);
+    for i in 0..len + half.unwrap_or(0) {
+        if let Some(r) = rows.get(i) {
+            pass.row(r);
+            for (a, v) in acc.iter_mut().zip(hp_inputs(r)) {
+                *a += v;
+            }
+            prefix.push(acc);
+        }
+        let Some(j) = half.and_then(|h| i.checked_sub(h)) else {
+            continue;
+        };
+        if let (Some(r), Some(h)) = (rows.get(j), half) {
+            let x = hp_inputs(r);
+            let hp = core::array::from_fn(|s| {
+                let at = |k: usize| prefix.get(k).and_then(|p| p.get(s)).copied().unwrap_or(0.0);
+                centred(at, j, h, len, x.get(s).copied().unwrap_or(0.0))
+            });
+            pass.high_passed(r, hp);
+        }
+    }
+    finish(&pass, rows)
+}
+/// The metrics from the pass's sums.
+fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
+    let w = p.w;
+    let dt = match (rows.first(), rows.get(1)) {
+        (Some(a), Some(b)) => b.t_s - a.t_s,
+        _ => 0.0,
+    };
+    // Oscillation: the speed error with its slow part (centred moving average over
+    // `ripple_average_s`) removed, so a slow recovery from a step is not counted as a
+    // limit cycle; growth beyond bounds is caught by `bounded`.
+    let [osc, cycle] = p.stable_hp;
+    let oscillation_pu = osc.rms();
+    let sat_fraction = if p.stable_rows == 0 {
+        1.0
+    } else {
+        p.saturated_in_window as f64 / p.stable_rows as f64
+    };
+    let stable = p.first_bad_t_s.is_none()
+        && !p.faulted
+        && p.stable_rows > 0
+        && p.bounded
+        && oscillation_pu.is_finite()
+        && oscillation_pu < w.stable_oscillation_pu
+        && sat_fraction <= w.stable_saturation_fraction;
+    let [torque, shaft] = p.ripple_hp;
+    let load_step_droop_pu = w
+        .step_time_s
+        .map(|_| (p.worst_after_step - p.before_step_err.unwrap_or(0.0)).max(0.0));
+    let overshoot_pu = w.overshoot_window_s.map(|_| p.overshoot);
+    let settling_s = w.step_time_s.or(w.ramp_end_s).and_then(|t0| {
+        match p.last_out_of_band_t_s {
+            None => Some(0.0),
+            Some(t) => {
+                // Never settled if it is still outside the band at the end of the run.
+                let end = rows.last().map_or(t, |r| r.t_s);
+                (t < end).then_some(t - t0)
+            }
+        }
+    });
+    if let Some(bad_t_s) = p.first_bad_t_s {
         // Max/min folds skip NaN, so these figures would read as plain numbers (0.0000):
         // none of them means anything for this run.
         let nan = f64::NAN;
         let some_nan = |o: Option<f64>| o.map(|_| nan);
         return Metrics {
             stable: false,
-            faulted,
+            faulted: p.faulted,
             oscillation_pu: nan,
             limit_cycle_torque_pu: nan,
             torque_ripple_rms_pu: nan,
@@ -300,27 +209,26 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
             max_following_error_counts: nan,
             max_twist_counts: nan,
             invalid_reason: Some(format!(
-                "the trace holds non-finite values from t = {} s; no metric of this run is a number",
-                bad.t_s
+                "the trace holds non-finite values from t = {bad_t_s} s; no metric of this run is a number"
             )),
         };
     }
     Metrics {
         stable,
-        faulted,
+        faulted: p.faulted,
         oscillation_pu,
-        limit_cycle_torque_pu,
-        torque_ripple_rms_pu,
-        shaft_torque_ripple_rms_pu,
-        shaft_ripple_freq_hz,
+        limit_cycle_torque_pu: cycle.rms(),
+        torque_ripple_rms_pu: torque.rms(),
+        shaft_torque_ripple_rms_pu: shaft.rms(),
+        shaft_ripple_freq_hz: shaft.freq_hz(w.ripple_window_s.1 - w.ripple_window_s.0),
         load_step_droop_pu,
         overshoot_pu,
         settling_s,
-        torque_saturated_s,
-        mean_torque_pu,
-        mean_speed_error_pu,
-        max_following_error_counts,
-        max_twist_counts,
+        torque_saturated_s: p.saturated_rows as f64 * dt,
+        mean_torque_pu: p.ripple_torque.get(),
+        mean_speed_error_pu: p.ripple_speed_err.get(),
+        max_following_error_counts: p.max_following,
+        max_twist_counts: p.max_twist,
         invalid_reason: None,
     }
 }

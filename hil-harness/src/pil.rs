@@ -908,7 +908,7 @@ fn format_section(
     };
     let mut text = format!(
         "## Processor in the loop: `{scenario}` through the firmware in QEMU\n\n\
-         Command: `cargo run --release -p hil-harness -- pil --scenario {scenario} --out DIR`.\n\
+         Command: `cargo run --release -- pil --scenario {scenario} --out DIR`.\n\
          The firmware's `pil` image (version {firmware_version}) runs in QEMU mps2-an386 \
          (Cortex-M4F); every controller tick the harness sends the sampled encoder count and \
          current (or the velocity setpoint) in a CRC-32 framed `pil-link` frame over UART0, the \
@@ -940,7 +940,7 @@ pub fn report_section_or_hint(dir: &Path) -> String {
     report_section(dir).unwrap_or_else(|_| {
         format!(
             "## Processor in the loop\n\nNo PIL run in `{}`. Produce it with \
-             `cargo run --release -p hil-harness -- pil --scenario fig6 --out {}` \
+             `cargo run --release -- pil --scenario fig6 --out {}` \
              (needs qemu-system-arm and the thumbv7em-none-eabihf target); it compares \
              every controller output of the firmware in QEMU with the host run, bit for bit.\n",
             dir.display(),

@@ -16,8 +16,7 @@ use crate::error::{HarnessError, Result};
 use crate::metrics::{compute, Metrics};
 use crate::trace::{Trace, TraceRow};
 use controller_core::{
-    per_unit::Counts, Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs,
-    VelocityOutputs,
+    Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
 };
 use serde::Serialize;
 use std::time::Instant;
@@ -261,7 +260,7 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
             let cmd = scenario.profile.command(t_s);
             let pos_counts = cmd.position_pu_s * counts_per_pu_s;
             let setpoint = Setpoint {
-                position_counts: Counts::saturating_from_num(initial_count as f64 + pos_counts),
+                position_counts: crate::plant::counts(initial_count as f64 + pos_counts),
                 velocity_pu: crate::plant::pu(cmd.velocity_pu),
                 acceleration_pu_s: crate::plant::pu_s(cmd.acceleration_pu_s),
             };

@@ -8,7 +8,8 @@
 use crate::config::{MechanicsDerived, PlantConfig};
 use crate::error::PlantError;
 use crate::load::{for_each_load_piece, LoadTorque};
-use crate::piecewise::{Contact, Piecewise, Vec3, Vec5, Winding};
+use crate::model::{Contact, Vec3, Vec5};
+use crate::piecewise::Piecewise;
 use crate::sensors::Sensors;
 use crate::two_inertia::check_step;
 
@@ -39,12 +40,9 @@ impl DrivePlant {
     /// A drive at rest.
     pub fn new(config: &PlantConfig) -> Self {
         let e = &config.electrics;
-        let winding = Winding {
-            r_pu: e.winding_resistance_pu,
-            l_pu_s: e.winding_inductance_pu_s,
-        };
+        let model = config.mechanics.model(config.backlash, Some(e.winding()));
         Self {
-            core: Piecewise::new(&config.mechanics, config.backlash, Some(winding)),
+            core: Piecewise::new(&model),
             sensors: Sensors::new(&config.sensors, e),
             config: *config,
             derived: config.mechanics.derived(),

@@ -12,12 +12,16 @@
 
 pub mod analysis;
 mod config;
+mod discrete;
 mod drive;
 mod error;
+mod events;
 mod expm;
 mod load;
+mod model;
 mod piecewise;
 mod replay;
+pub mod rounding;
 pub mod sensors;
 mod two_inertia;
 
@@ -28,7 +32,7 @@ pub use config::{
 pub use drive::DrivePlant;
 pub use error::{ConfigError, PlantError};
 pub use load::{for_each_load_piece, LoadTorque, TimeSeries, SMOOTH_LOAD_STEP_S};
-pub use piecewise::Contact;
+pub use model::Contact;
 pub use replay::{
     parse_torque_csv, replay, simulate, write_atomically, ReplaySummary, StateRow, TorqueRow,
     COLUMN_RANGES, MAX_SPAN_S, REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER,

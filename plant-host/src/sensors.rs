@@ -3,12 +3,13 @@
 //! run is reproducible.
 
 use crate::config::{ElectricsConfig, SensorsConfig};
+use crate::rounding::{floor_i64, round_i64};
 use std::f64::consts::PI;
 
 /// Encoder count of an angle: floor(θ·cpr/2π), saturating at the i64 range.
 pub fn encoder_count(angle_rad: f64, cpr: u32) -> i64 {
-    // `as` saturates for out-of-range floats (and maps NaN to 0): no panic path.
-    (angle_rad * f64::from(cpr) / (2.0 * PI)).floor() as i64
+    // Saturates for out-of-range floats and maps NaN to 0: no panic path.
+    floor_i64(angle_rad * f64::from(cpr) / (2.0 * PI))
 }
 
 /// The current ADC: round to the nearest code over ±full scale, clamped to the code range.
@@ -36,8 +37,9 @@ impl CurrentAdc {
     }
     /// The code for a current.
     pub fn code(&self, current_pu: f64) -> i32 {
-        let c = (current_pu / self.lsb_pu).round();
-        (c as i32).clamp(self.min_code, self.max_code)
+        let c = round_i64(current_pu / self.lsb_pu);
+        // Inside the code range, so the narrowing cannot wrap.
+        c.clamp(i64::from(self.min_code), i64::from(self.max_code)) as i32
     }
     /// The quantized current, pu.
     pub fn sample(&self, current_pu: f64) -> f64 {
@@ -55,7 +57,7 @@ pub(crate) enum Channel {
 /// Deterministic Gaussian noise N(0, 1) for (seed, channel, time).
 pub(crate) fn gaussian(seed: u64, channel: Channel, time_s: f64) -> f64 {
     // Sample index: time in ns (sampling instants are distinct to far better than 1 ns).
-    let index = (time_s * 1e9).round() as i64 as u64;
+    let index = round_i64(time_s * 1e9) as u64;
     let mut s = seed ^ (channel as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ index.rotate_left(17);
     let u1 = unit(splitmix(&mut s));
     let u2 = unit(splitmix(&mut s));

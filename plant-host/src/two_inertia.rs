@@ -3,7 +3,8 @@
 use crate::config::{BacklashModel, MechanicsConfig, MechanicsDerived};
 use crate::error::PlantError;
 use crate::load::{for_each_load_piece, LoadTorque};
-use crate::piecewise::{Contact, Piecewise, Vec3, Vec5};
+use crate::model::{Contact, Vec3, Vec5};
+use crate::piecewise::Piecewise;
 
 /// Two inertias coupled by a damped shaft through lost motion, reflected to the motor side,
 /// in per unit (the paper's Fig. 3). Starts at rest with zero twist.
@@ -30,7 +31,7 @@ impl TwoInertiaPlant {
     /// A plant at rest with zero twist.
     pub fn new(mechanics: &MechanicsConfig, backlash: BacklashModel) -> Self {
         Self {
-            core: Piecewise::new(mechanics, backlash, None),
+            core: Piecewise::new(&mechanics.model(backlash, None)),
             derived: mechanics.derived(),
             time_s: 0.0,
         }
@@ -145,6 +146,7 @@ impl TwoInertiaPlant {
 }
 
 /// A step must be finite and ≥ 0 and its inputs finite.
+#[inline]
 pub(crate) fn check_step(dt_s: f64, inputs: &[f64]) -> Result<(), PlantError> {
     if !(dt_s.is_finite() && dt_s >= 0.0) {
         return Err(PlantError::BadStep { dt_s });

@@ -6,7 +6,8 @@
 mod reader;
 
 use crate::error::{ConfigError, PlantError};
-use crate::piecewise::{fastest_rate_per_s, Winding};
+pub use crate::model::BacklashModel;
+use crate::model::{Model, Shaft, Winding};
 use reader::{IntSpec, RealSpec, TableReader};
 use std::f64::consts::PI;
 use std::path::Path;
@@ -30,18 +31,6 @@ pub struct MechanicsConfig {
     pub motor_viscous_pu: f64,
     /// Load viscous friction Bl, pu torque per pu speed.
     pub load_viscous_pu: f64,
-}
-
-/// Which lost-motion law transmits torque across the gap.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum BacklashModel {
-    /// The paper's Simulink "Dead Zone" on the twist: Ts = K·dz(δ) + D·(ωm − ωl) while
-    /// |δ| > g. The damping term can momentarily pull the gears apart.
-    #[default]
-    DeadZone,
-    /// As Modelica's ElastoBacklash: the same law, but the contact can only push
-    /// (the shaft torque never changes sign against the twist).
-    Clamped,
 }
 
 /// The motor winding and its drive (the `[electrics]` table). Voltage and current are in pu;
@@ -368,11 +357,11 @@ impl PlantConfig {
     /// (e.g. a tiny motor inertia under a stiff, heavy load). The integrator sub-steps at
     /// ‖A‖·h ≤ 0.5, so ‖A‖ is capped at [`MAX_RATE_PER_S`] (sub-steps ≥ 0.5 µs).
     pub fn check_speed_of_dynamics(&self) -> Result<(), ConfigError> {
-        let winding = Winding {
-            r_pu: self.electrics.winding_resistance_pu,
-            l_pu_s: self.electrics.winding_inductance_pu_s,
-        };
-        let rate = fastest_rate_per_s(&self.mechanics, Some(winding));
+        let winding = self.electrics.winding();
+        let rate = self
+            .mechanics
+            .model(self.backlash, Some(winding))
+            .fastest_rate_per_s();
         if rate > MAX_RATE_PER_S || !rate.is_finite() {
             return Err(ConfigError::Inconsistent {
                 keys: "plant.motor_inertia_s, plant.load_inertia_s, plant.anti_resonance_hz, \
@@ -425,7 +414,37 @@ pub struct MechanicsDerived {
     pub half_gap_rad: f64,
 }
 
+impl ElectricsConfig {
+    /// R and L of the winding the integrator models.
+    pub(crate) fn winding(&self) -> Winding {
+        Winding {
+            r_pu: self.winding_resistance_pu,
+            l_pu_s: self.winding_inductance_pu_s,
+        }
+    }
+}
+
 impl MechanicsConfig {
+    /// The linear model of each contact mode, for this mechanics under `law` (with the
+    /// winding, when the electrics are modelled).
+    pub(crate) fn model(&self, law: BacklashModel, winding: Option<Winding>) -> Model {
+        let dv = self.derived();
+        Model {
+            motor_inertia_s: self.motor_inertia_s,
+            load_inertia_s: self.load_inertia_s,
+            motor_viscous_pu: self.motor_viscous_pu,
+            load_viscous_pu: self.load_viscous_pu,
+            base_speed_rad_s: dv.base_speed_rad_s,
+            shaft: Shaft {
+                k: dv.stiffness_pu_per_rad,
+                d: dv.damping_pu,
+                g: dv.half_gap_rad,
+            },
+            law,
+            winding,
+        }
+    }
+
     /// K, D, g, ω_b, ω_ar, ω_r.
     pub fn derived(&self) -> MechanicsDerived {
         let wb = 2.0 * PI * self.base_speed_rpm / 60.0;

@@ -1,0 +1,153 @@
+//! The exact zero-order-hold maps x(t+h) = Φ(h)·x + Γ(h)·u of the three contact modes,
+//! cached per step length: a harness that repeats the same few lengths (its delay and the
+//! rest of the tick) pays one matrix exponential per length and mode, then one lookup and
+//! one 5×8 product per step.
+
+use crate::expm::expm;
+use crate::model::{Contact, Mat5, Mat53, Vec3, Vec5};
+use nalgebra::SMatrix;
+
+/// Rows kept per column: the five states and one zero row, so that a column is three
+/// pairs for two-wide SIMD.
+const PADDED: usize = 6;
+
+/// The exact discretisation for one step length: the columns of [Φ | Γ] acting on [x; u].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Discrete {
+    cols: [[f64; PADDED]; 8],
+}
+
+impl Discrete {
+    /// [Φ | Γ] = the top rows of exp([[A, B], [0, 0]]·h).
+    pub(crate) fn new(a: &Mat5, b: &Mat53, h: f64) -> Self {
+        let mut m = SMatrix::<f64, 8, 8>::zeros();
+        m.fixed_view_mut::<5, 5>(0, 0).copy_from(&(a * h));
+        m.fixed_view_mut::<5, 3>(0, 5).copy_from(&(b * h));
+        let e = expm(&m);
+        let mut cols = [[0.0; PADDED]; 8];
+        for (j, col) in cols.iter_mut().enumerate() {
+            for (i, v) in col.iter_mut().take(5).enumerate() {
+                *v = e.get((i, j)).copied().unwrap_or(0.0);
+            }
+        }
+        Self { cols }
+    }
+
+    /// Φ·x + Γ·u. Each state's sum runs over the eight terms left to right from −0.0, as
+    /// `Iterator::sum` over a row does, so the result is bit for bit that of the row form;
+    /// taking it column by column lets the five sums go two at a time.
+    #[inline]
+    pub(crate) fn apply(&self, x: &Vec5, u: &Vec3) -> Vec5 {
+        let z = [x.x, x.y, x.z, x.w, x.a, u.x, u.y, u.z];
+        let mut acc = [-0.0; PADDED];
+        for (col, zj) in self.cols.iter().zip(z) {
+            for (a, c) in acc.iter_mut().zip(col) {
+                *a += c * zj;
+            }
+        }
+        let [a0, a1, a2, a3, a4, _] = acc;
+        Vec5::new(a0, a1, a2, a3, a4)
+    }
+}
+
+/// Step lengths kept at once (a harness uses two or three; a load profile's pieces more).
+const SLOTS: usize = 6;
+
+/// The maps of the three modes for the last [`SLOTS`] step lengths (bit-exact keys, filled
+/// mode by mode as the modes are met), replaced round robin.
+#[derive(Debug, Clone)]
+pub(crate) struct MapCache {
+    systems: [(Mat5, Mat53); 3],
+    /// The step lengths' bits; 0 (h = +0.0, never stepped) marks an empty slot.
+    keys: [u64; SLOTS],
+    maps: [[Option<Discrete>; 3]; SLOTS],
+    next_free: usize,
+}
+
+impl MapCache {
+    /// An empty cache for the modes' (A, B), indexed by [`Contact::index`].
+    pub(crate) fn new(systems: [(Mat5, Mat53); 3]) -> Self {
+        Self {
+            systems,
+            keys: [0; SLOTS],
+            maps: [[None; 3]; SLOTS],
+            next_free: 0,
+        }
+    }
+
+    /// A and B of a mode.
+    pub(crate) fn system(&self, contact: Contact) -> (&Mat5, &Mat53) {
+        let [free, driving, braking] = &self.systems;
+        let (a, b) = match contact {
+            Contact::Free => free,
+            Contact::Driving => driving,
+            Contact::Braking => braking,
+        };
+        (a, b)
+    }
+
+    /// x(t+h) in mode `contact` with u held: a scan of six keys (the lengths a harness
+    /// repeats sit in the first slots), a matrix exponential for a length or mode not met
+    /// before.
+    #[inline]
+    pub(crate) fn step(&mut self, contact: Contact, h: f64, x: &Vec5, u: &Vec3) -> Vec5 {
+        let key = h.to_bits();
+        if let Some(i) = self.keys.iter().position(|k| *k == key) {
+            if let Some(Some(d)) = self.maps.get(i).and_then(|m| m.get(contact.index())) {
+                return d.apply(x, u);
+            }
+        }
+        self.step_slow(contact, key, h, x, u)
+    }
+
+    #[cold]
+    fn step_slow(&mut self, contact: Contact, key: u64, h: f64, x: &Vec5, u: &Vec3) -> Vec5 {
+        let i = match self.keys.iter().position(|k| *k == key) {
+            Some(i) => i,
+            None => {
+                let i = self.next_free;
+                self.next_free = (i + 1) % SLOTS;
+                if let (Some(k), Some(m)) = (self.keys.get_mut(i), self.maps.get_mut(i)) {
+                    *k = key;
+                    *m = [None; 3];
+                }
+                i
+            }
+        };
+        let (a, b) = self.system(contact);
+        let map = Discrete::new(a, b, h);
+        if let Some(entry) = self
+            .maps
+            .get_mut(i)
+            .and_then(|m| m.get_mut(contact.index()))
+        {
+            *entry = Some(map);
+        }
+        map.apply(x, u)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+
+    #[test]
+    fn the_column_product_is_the_row_sum_bit_for_bit() {
+        let a = Mat5::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.37 - 1.5);
+        let b = Mat53::from_fn(|i, j| ((i * 5 + j) % 7) as f64 * 0.11 - 0.3);
+        let d = Discrete::new(&a, &b, 1.7e-4);
+        for k in 0..200 {
+            let s = f64::from(k);
+            let x = Vec5::new(s.sin(), -s * 1e-3, 0.0, -0.0, (s * 0.3).cos() * 1e5);
+            let u = Vec3::new(-(s * 0.7).sin(), 0.0, 1.0);
+            let z = [x.x, x.y, x.z, x.w, x.a, u.x, u.y, u.z];
+            let got = d.apply(&x, &u);
+            for i in 0..5 {
+                let row = d.cols.iter().map(|c| c[i]);
+                let want: f64 = row.zip(z).map(|(r, z)| r * z).sum();
+                assert_eq!(got[i].to_bits(), want.to_bits(), "state {i} at {k}");
+            }
+        }
+    }
+}
