@@ -1,12 +1,13 @@
 //! The built Cortex-M images hold no `RefCell` panic path (`panic_already_borrowed`): the
 //! interrupt glue shares the app through `isr::Shared`, which refuses a second borrower
-//! instead of panicking. Reads the symbol tables of the release ELFs that `cargo fw-build`,
-//! `cargo fw-bench` and `cargo fw-lil` leave in the target directory (an image not built yet
-//! is reported and skipped: the host test cannot build the ARM target itself). The same
-//! check by hand: `llvm-nm -C target/thumbv7em-none-eabihf/release/fw-bench | grep borrowed`.
+//! instead of panicking. The test builds the firmware's release images itself (installing
+//! the ARM target if it is missing, as the PIL tests do) into `target/elf-check`, and reads
+//! their symbol tables. The same check by hand:
+//! `llvm-nm -C target/thumbv7em-none-eabihf/release/fw-bench | grep borrowed`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
 
 /// Symbol names that must not be linked into a firmware image.
 const FORBIDDEN: &[&str] = &["panic_already_borrowed", "panic_already_mutably_borrowed"];
@@ -51,21 +52,36 @@ fn symbol_names(elf: &[u8]) -> Vec<String> {
     names
 }
 
+/// Builds every firmware binary (release, QEMU board) into `target/elf-check`; returns the
+/// directory of the images.
+fn build_images() -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    fw_runner::provision::ensure_arm_target(root).unwrap();
+    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| root.join("target"), PathBuf::from)
+        .join("elf-check");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(root)
+        .args(["build", "-p", "firmware", "--release", "--bins"])
+        .args(["--target", fw_runner::provision::ARM_TARGET])
+        .env("CARGO_TARGET_DIR", &target_dir)
+        .stderr(Stdio::inherit())
+        .status()
+        .unwrap();
+    assert!(status.success(), "building the firmware images failed");
+    target_dir
+        .join(fw_runner::provision::ARM_TARGET)
+        .join("release")
+}
+
 #[test]
 fn firmware_images_hold_no_refcell_panic_path() {
-    let release = std::env::var_os("CARGO_TARGET_DIR")
-        .map_or_else(
-            || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target"),
-            PathBuf::from,
-        )
-        .join("thumbv7em-none-eabihf/release");
+    let release = build_images();
     let mut checked = 0;
     for image in ["firmware", "fw-bench", "fw-lil", "pil"] {
         let path = release.join(image);
-        let Ok(elf) = std::fs::read(&path) else {
-            eprintln!("{image}: not built ({}), skipped", path.display());
-            continue;
-        };
+        let elf = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let names = symbol_names(&elf);
         assert!(
             names
@@ -80,5 +96,6 @@ fn firmware_images_hold_no_refcell_panic_path() {
         }
         checked += 1;
     }
+    assert_eq!(checked, 4);
     eprintln!("{checked} firmware images checked for {FORBIDDEN:?}");
 }
