@@ -1,7 +1,7 @@
 //! The command line: `run`, `linear`, `sweep`, `stiffness`, `sec2-map`, `reproduce`, `pil`,
 //! `replay`.
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 
 /// Runs controller-core against plant-host with the real timing and reproduces the paper.
@@ -17,37 +17,11 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Run one scenario: writes DIR/trace.csv, DIR/summary.json and plots.
-    Run {
-        /// Scenario name (a file under configs/scenarios/).
-        #[arg(long)]
-        scenario: String,
-        /// Configuration (path, or name under configs/); default: the scenario's.
-        #[arg(long)]
-        config: Option<String>,
-        /// Override `section.key=value` (repeatable), e.g. drive.velocity_bandwidth_rad_s=50.
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        set: Vec<String>,
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Run(ScenarioArgs),
     /// The linear model of one scenario's loop: poles and damping (gears engaged and apart),
     /// margins of the velocity and acceleration loops, stiffness, quantization torque
     /// noise; writes DIR/linear.json and DIR/linear.md.
-    Linear {
-        /// Scenario name (a file under configs/scenarios/).
-        #[arg(long)]
-        scenario: String,
-        /// Configuration (path, or name under configs/); default: the scenario's.
-        #[arg(long)]
-        config: Option<String>,
-        /// Override `section.key=value` (repeatable).
-        #[arg(long = "set", value_name = "KEY=VALUE")]
-        set: Vec<String>,
-        /// Output directory.
-        #[arg(long)]
-        out: PathBuf,
-    },
+    Linear(ScenarioArgs),
     /// Design the acceleration feedback, estimator and velocity loop from the plant on the
     /// linear model, with margins, and prove the design in the nonlinear loop; writes
     /// DIR/drive.toml, DIR/config.toml, DIR/tune.md and DIR/tune.json.
@@ -94,7 +68,8 @@ pub enum Command {
         #[arg(long, default_value = "out/sec2")]
         out: PathBuf,
     },
-    /// Everything above, and out/REPORT.md (what `cargo run --release` does).
+    /// The paper's scenarios, the sweep, stiffness and the Sec. II map, and out/REPORT.md (what
+    /// `cargo run --release` does).
     Reproduce {
         /// Output directory.
         #[arg(long, default_value = "out")]
@@ -114,4 +89,21 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+/// One scenario, its config and overrides, and where to write.
+#[derive(Debug, Args)]
+pub struct ScenarioArgs {
+    /// Scenario name (a file under configs/scenarios/).
+    #[arg(long)]
+    pub scenario: String,
+    /// Configuration (path, or name under configs/); default: the scenario's.
+    #[arg(long)]
+    pub config: Option<String>,
+    /// Override `section.key=value` (repeatable), e.g. drive.velocity_bandwidth_rad_s=50.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
 }

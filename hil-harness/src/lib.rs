@@ -70,18 +70,10 @@ pub fn main_with_default(default_command: &str) -> ExitCode {
 pub fn dispatch(command: cli::Command) -> Result<String> {
     use cli::Command;
     match command {
-        Command::Run {
-            scenario,
-            config,
-            set,
-            out,
-        } => commands::run(&scenario, config.as_deref(), &set, &out),
-        Command::Linear {
-            scenario,
-            config,
-            set,
-            out,
-        } => linear::analyze::linear(&scenario, config.as_deref(), &set, &out),
+        Command::Run(a) => commands::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
+        Command::Linear(a) => {
+            linear::analyze::linear(&a.scenario, a.config.as_deref(), &a.set, &a.out)
+        }
         Command::Tune {
             config,
             target_bandwidth,

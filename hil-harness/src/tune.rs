@@ -21,6 +21,7 @@ use crate::error::{HarnessError, Result};
 use crate::linear::{for_run, Break};
 use crate::output::Staging;
 use crate::runner::run_scenario;
+use crate::sweep::AfbDesign;
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -69,82 +70,67 @@ pub const FILTERS: [(&str, f64); 6] = [
 /// Observer bandwidths tried \[Hz\].
 pub const OBSERVER_HZ: [f64; 4] = [75.0, 100.0, 150.0, 250.0];
 
-/// One candidate: its settings as `--set` overrides of the config.
+/// One candidate: a velocity bandwidth and an acceleration-feedback design (the sweep's
+/// [`AfbDesign`], observer bandwidth included), as `--set` overrides of the config.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Candidate {
     /// Velocity bandwidth \[rad/s\].
     pub bandwidth_rad_s: f64,
-    /// `off`, `error` or `plain`.
-    pub mode: &'static str,
-    /// Ka / J_total.
-    pub gain_fraction: f64,
-    /// Filter kind.
-    pub filter: &'static str,
-    /// Filter corner \[Hz\].
-    pub filter_corner_hz: f64,
-    /// `observer` or `differentiation`.
-    pub source: &'static str,
-    /// Observer bandwidth \[Hz\].
-    pub observer_hz: f64,
+    /// The AFB design and the observer bandwidth.
+    #[serde(flatten)]
+    pub afb: AfbDesign,
 }
 
 impl Candidate {
-    /// The `[drive]` keys of this candidate, as (key, TOML value).
-    #[must_use]
-    pub fn keys(&self) -> Vec<(&'static str, String)> {
-        let mut k = vec![
-            (
-                "velocity_bandwidth_rad_s",
-                format!("{}", self.bandwidth_rad_s),
-            ),
-            ("velocity_pi_inertia", "\"total\"".into()),
-            ("observer.bandwidth_hz", format!("{}", self.observer_hz)),
-            ("accel_feedback.mode", format!("\"{}\"", self.mode)),
+    fn sets(&self) -> Vec<String> {
+        let mut s = vec![
+            format!("drive.velocity_bandwidth_rad_s={}", self.bandwidth_rad_s),
+            "drive.velocity_pi_inertia=total".to_string(),
         ];
-        if self.mode != "off" {
-            k.push((
-                "accel_feedback.gain_fraction",
-                format!("{}", self.gain_fraction),
-            ));
-            k.push(("accel_feedback.filter", format!("\"{}\"", self.filter)));
-            k.push((
-                "accel_feedback.filter_corner_hz",
-                format!("{}", self.filter_corner_hz),
-            ));
-            k.push(("accel_feedback.source", format!("\"{}\"", self.source)));
-        }
-        k
+        s.extend(self.afb.sets());
+        s
     }
 
-    fn sets(&self) -> Vec<String> {
-        self.keys()
+    /// The `[drive]` keys of this candidate, as (key below `drive.`, TOML value).
+    #[must_use]
+    pub fn keys(&self) -> Vec<(String, String)> {
+        self.sets()
             .into_iter()
-            .map(|(k, v)| format!("drive.{k}={}", v.trim_matches('"')))
+            .filter_map(|kv| {
+                let (k, v) = kv.strip_prefix("drive.")?.split_once('=')?;
+                let value = if v.parse::<f64>().is_ok() {
+                    v.to_string()
+                } else {
+                    format!("\"{v}\"")
+                };
+                Some((k.to_string(), value))
+            })
             .collect()
     }
 }
 
-/// The grid for the bandwidths `bws`.
+/// The grid for the bandwidths `bws`: without AFB, and the error and plain forms over
+/// [`GAINS`] × [`FILTERS`] × (observer, differentiation), at every observer bandwidth.
 #[must_use]
 pub fn candidates(bws: &[f64]) -> Vec<Candidate> {
     let mut v = Vec::new();
     for &bandwidth_rad_s in bws {
         for observer_hz in OBSERVER_HZ {
-            v.push(Candidate {
-                bandwidth_rad_s,
-                mode: "off",
-                gain_fraction: 0.0,
-                filter: "none",
-                filter_corner_hz: 0.0,
-                source: "observer",
+            let mut push = |afb: AfbDesign| {
+                v.push(Candidate {
+                    bandwidth_rad_s,
+                    afb,
+                })
+            };
+            push(AfbDesign {
                 observer_hz,
+                ..AfbDesign::OFF
             });
-            for gain_fraction in GAINS.into_iter().filter(|g| *g > 0.0) {
+            for gain_fraction in GAINS {
                 for source in ["observer", "differentiation"] {
                     for mode in ["error", "plain"] {
                         for (filter, filter_corner_hz) in FILTERS {
-                            v.push(Candidate {
-                                bandwidth_rad_s,
+                            push(AfbDesign {
                                 mode,
                                 gain_fraction,
                                 filter,
@@ -165,7 +151,10 @@ pub fn candidates(bws: &[f64]) -> Vec<Candidate> {
 /// by the same constraints.
 #[must_use]
 pub fn without_afb(grid: &[Candidate]) -> Vec<Candidate> {
-    grid.iter().filter(|c| c.mode == "off").cloned().collect()
+    grid.iter()
+        .filter(|c| c.afb.mode == "off")
+        .cloned()
+        .collect()
 }
 
 /// The `--set` overrides of a candidate (for `resolve`).
@@ -460,14 +449,9 @@ pub fn tune(
     staging.commit()?;
     let c = &result.design.candidate;
     Ok(format!(
-        "tune {config}: {} rad/s, {} Ka = {} J_total, {} {} Hz, {} (observer {} Hz); damping {:.3}; -> {}",
+        "tune {config}: {} rad/s, {}; damping {:.3}; -> {}",
         c.bandwidth_rad_s,
-        c.mode,
-        c.gain_fraction,
-        c.filter,
-        c.filter_corner_hz,
-        c.source,
-        c.observer_hz,
+        c.afb.label(),
         result.design.damping[0],
         out.display()
     ))

@@ -34,7 +34,7 @@ fn tune_on_a_machine_it_was_not_written_for() {
     let k = Constraints::default();
     let with = search(&config, &grid, &k).unwrap();
     let without = search(&config, &without_afb(&grid), &k).unwrap();
-    assert!(with.design.candidate.mode != "off", "{:?}", with.design);
+    assert!(with.design.candidate.afb.mode != "off", "{:?}", with.design);
     let ripple = |c| {
         let cfg = hil_harness::resolve("fig6", Some(&config), &sets_of(c)).unwrap();
         hil_harness::run_scenario(&cfg).unwrap().metrics
