@@ -298,7 +298,7 @@ fn a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check() {
     assert!(fw.enable_pin, "{fw:?}");
     // And the command says so.
     let dir2 = tempfile::tempdir().unwrap();
-    args.out = dir2.path().to_path_buf();
+    args.run.out = dir2.path().to_path_buf();
     let err = pil_command(&args).unwrap_err().to_string();
     assert!(err.contains("NOT SAFE"), "{err}");
 }

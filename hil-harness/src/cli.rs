@@ -92,7 +92,7 @@ pub enum Command {
 }
 
 /// One scenario, its config and overrides, and where to write.
-#[derive(Debug, Args)]
+#[derive(Clone, Debug, Args)]
 pub struct ScenarioArgs {
     /// Scenario name (a file under configs/scenarios/).
     #[arg(long)]
