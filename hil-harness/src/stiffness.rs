@@ -25,6 +25,7 @@ use crate::plot::{save, Figure, Legend, Panel, Series};
 use crate::runner::run_scenario;
 use crate::trace::Trace;
 use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig};
+use num_complex::Complex64;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -63,33 +64,20 @@ pub struct StiffnessPoint {
     pub accel_est_ratio: f64,
 }
 
-/// Complex number helpers (re, im).
-fn cmul(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
-    (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0)
-}
-
-fn cdiv(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
-    let d = b.0 * b.0 + b.1 * b.1;
-    ((a.0 * b.0 + a.1 * b.1) / d, (a.1 * b.0 - a.0 * b.1) / d)
-}
-
 /// The AFB filter F(jω) (continuous-time equivalent of the drive's low-pass).
-fn filter_response(f: FilterConfig, w: f64) -> (f64, f64) {
+fn filter_response(f: FilterConfig, w: f64) -> Complex64 {
+    let one = Complex64::new(1.0, 0.0);
     match f {
-        FilterConfig::None => (1.0, 0.0),
+        FilterConfig::None => one,
         FilterConfig::FirstOrder { corner_hz } => {
             let wc = 2.0 * PI * f64::from(corner_hz);
-            cdiv((1.0, 0.0), (1.0, w / wc))
+            one / Complex64::new(1.0, w / wc)
         }
         FilterConfig::SecondOrder { corner_hz, q } => {
             let wc = 2.0 * PI * f64::from(corner_hz);
-            let s = (0.0, w);
-            let s2 = cmul(s, s);
-            let den = (
-                s2.0 + wc * wc + wc / f64::from(q) * s.0,
-                s2.1 + wc / f64::from(q) * s.1,
-            );
-            cdiv((wc * wc, 0.0), den)
+            let s = Complex64::new(0.0, w);
+            let den = s * s + Complex64::new(wc * wc, 0.0) + s * (wc / f64::from(q));
+            Complex64::new(wc * wc, 0.0) / den
         }
     }
 }
@@ -98,14 +86,13 @@ fn filter_response(f: FilterConfig, w: f64) -> (f64, f64) {
 /// of `d`. Observer: the Ellis estimate (the change of the velocity estimate over the tick,
 /// correction included) of a three-pole observer at ω_o = 2π·bandwidth_hz,
 /// G(s) = (3ω_o²·s + ω_o³)/(s + ω_o)³. Differentiation: 1 (its delay is ignored).
-pub fn estimator_response(d: &DriveConfig, w: f64) -> (f64, f64) {
+pub fn estimator_response(d: &DriveConfig, w: f64) -> Complex64 {
     match d.accel_feedback.source {
-        Estimator::Differentiation => (1.0, 0.0),
+        Estimator::Differentiation => Complex64::new(1.0, 0.0),
         Estimator::Observer => {
             let wo = 2.0 * PI * f64::from(d.observer.bandwidth_hz);
-            let s_plus = (wo, w);
-            let den = cmul(cmul(s_plus, s_plus), s_plus);
-            cdiv((wo * wo * wo, 3.0 * wo * wo * w), den)
+            let s_plus = Complex64::new(wo, w);
+            Complex64::new(wo * wo * wo, 3.0 * wo * wo * w) / (s_plus * s_plus * s_plus)
         }
     }
 }
@@ -120,21 +107,15 @@ pub fn analytic(cfg: &RunConfig, w: f64) -> f64 {
     };
     let (kp, ki) = (f64::from(g.kp_vel), f64::from(g.ki_vel));
     let j_eff = if d.accel_feedback.mode == AfbMode::Off {
-        (j, 0.0)
+        Complex64::new(j, 0.0)
     } else {
-        let ka = f64::from(g.ka);
-        let fg = cmul(
-            filter_response(d.accel_feedback.filter, w),
-            estimator_response(d, w),
-        );
-        (j + ka * fg.0, ka * fg.1)
+        let fg = filter_response(d.accel_feedback.filter, w) * estimator_response(d, w);
+        Complex64::new(j, 0.0) + fg * f64::from(g.ka)
     };
-    let s = (0.0, w);
-    let s2 = cmul(s, s);
-    let js2 = cmul(j_eff, s2);
-    let re = js2.0 + ki;
-    let im = js2.1 + kp * w;
-    (re * re + im * im).sqrt()
+    let s = Complex64::new(0.0, w);
+    (j_eff * (s * s) + Complex64::new(ki, kp * w))
+        .norm_sqr()
+        .sqrt()
 }
 
 /// The stiffness run for `source` (`none`, `observer`, `differentiation`) with `sets`:
@@ -374,4 +355,67 @@ pub fn stiffness(out: &Path) -> Result<String> {
     let (_, text) = stiffness_into(staging.dir())?;
     staging.commit()?;
     Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // The hand-written (re, im) helpers num-complex replaced, kept here as the reference.
+    fn cmul(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
+        (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0)
+    }
+
+    fn cdiv(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
+        let d = b.0 * b.0 + b.1 * b.1;
+        ((a.0 * b.0 + a.1 * b.1) / d, (a.1 * b.0 - a.0 * b.1) / d)
+    }
+
+    fn old_filter(f: FilterConfig, w: f64) -> (f64, f64) {
+        match f {
+            FilterConfig::None => (1.0, 0.0),
+            FilterConfig::FirstOrder { corner_hz } => {
+                cdiv((1.0, 0.0), (1.0, w / (2.0 * PI * f64::from(corner_hz))))
+            }
+            FilterConfig::SecondOrder { corner_hz, q } => {
+                let wc = 2.0 * PI * f64::from(corner_hz);
+                let s2 = cmul((0.0, w), (0.0, w));
+                let den = (s2.0 + wc * wc, s2.1 + wc / f64::from(q) * w);
+                cdiv((wc * wc, 0.0), den)
+            }
+        }
+    }
+
+    fn old_observer(wo: f64, w: f64) -> (f64, f64) {
+        let s_plus = (wo, w);
+        let den = cmul(cmul(s_plus, s_plus), s_plus);
+        cdiv((wo * wo * wo, 3.0 * wo * wo * w), den)
+    }
+
+    #[test]
+    fn num_complex_responses_match_the_old_helpers_bit_for_bit() {
+        let filters = [
+            FilterConfig::None,
+            FilterConfig::FirstOrder { corner_hz: 100.0 },
+            FilterConfig::SecondOrder {
+                corner_hz: 40.0,
+                q: 0.707,
+            },
+        ];
+        for w in [0.5, 3.0, 20.0, 94.25, 400.0, 2500.0] {
+            for f in filters {
+                let (new, old) = (filter_response(f, w), old_filter(f, w));
+                assert_eq!(
+                    (new.re.to_bits(), new.im.to_bits()),
+                    (old.0.to_bits(), old.1.to_bits()),
+                    "{f:?} at {w}"
+                );
+            }
+            let wo = 2.0 * PI * 75.0;
+            let s_plus = Complex64::new(wo, w);
+            let new = Complex64::new(wo * wo * wo, 3.0 * wo * wo * w) / (s_plus * s_plus * s_plus);
+            let old = old_observer(wo, w);
+            assert_eq!((new.re, new.im), old, "observer at {w}");
+        }
+    }
 }
