@@ -1,0 +1,149 @@
+//! The shape issue 14 asks of the source tree, checked on every `cargo test`: no source
+//! file over 500 lines, no function over 80 lines outside tests, and the Table 1 numbers
+//! only in `configs/table1.toml` (no `.rs` file outside `tests/` holds them).
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+
+use std::path::{Path, PathBuf};
+
+const MAX_FILE_LINES: usize = 500;
+const MAX_FN_LINES: usize = 80;
+/// Table 1's motor and load inertias (s) and anti-resonance (Hz).
+const TABLE1_VALUES: [&str; 3] = ["0.117", "0.863", "22.5"];
+
+/// Every `.rs` file of the workspace outside `tests/` folders and `target/`.
+fn sources() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            let name = e.file_name().to_string_lossy().to_string();
+            if p.is_dir() {
+                if !matches!(name.as_str(), "target" | "tests" | "out" | ".git") {
+                    walk(&p, out);
+                }
+            } else if name.ends_with(".rs") {
+                out.push(p);
+            }
+        }
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut out = Vec::new();
+    for dir in [
+        "src",
+        "controller-core",
+        "plant-host",
+        "hil-harness",
+        "firmware",
+        "pil-link",
+        "fw-runner",
+    ] {
+        walk(&root.join(dir), &mut out);
+    }
+    out.sort();
+    out
+}
+
+/// (name, first line, length) of each function outside `#[cfg(test)]` modules: from its
+/// `fn` line to the closing brace at the same indentation.
+fn long_functions(text: &str) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut found = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        let line = lines[i];
+        if line.trim_start().starts_with("#[cfg(test)]") {
+            break;
+        }
+        let indent = line.len() - line.trim_start().len();
+        let code = line.trim_start();
+        let is_fn = [
+            "fn ",
+            "pub fn ",
+            "pub(crate) fn ",
+            "pub(super) fn ",
+            "const fn ",
+            "pub const fn ",
+        ]
+        .iter()
+        .any(|p| code.starts_with(p));
+        if is_fn && !code.ends_with(';') {
+            let close = format!("{}}}", " ".repeat(indent));
+            let end = (i..lines.len())
+                .find(|&j| lines[j].starts_with(&close) && lines[j].trim() == "}")
+                .unwrap_or(i);
+            let name = code
+                .split("fn ")
+                .nth(1)
+                .unwrap_or("")
+                .split(['(', '<'])
+                .next()
+                .unwrap_or("");
+            let len = end + 1 - i;
+            if len > MAX_FN_LINES {
+                found.push((name.to_string(), i + 1, len));
+            }
+        }
+        i += 1;
+    }
+    found
+}
+
+#[test]
+fn no_source_file_over_500_lines_and_no_function_over_80() {
+    let mut bad = Vec::new();
+    for p in sources() {
+        let text = std::fs::read_to_string(&p).unwrap();
+        let n = text.lines().count();
+        if n > MAX_FILE_LINES {
+            bad.push(format!("{}: {n} lines", p.display()));
+        }
+        for (name, at, len) in long_functions(&text) {
+            bad.push(format!("{}:{at}: fn {name} is {len} lines", p.display()));
+        }
+    }
+    assert!(bad.is_empty(), "over the limits:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn the_table1_numbers_live_only_in_the_config_file() {
+    let mut bad = Vec::new();
+    for p in sources() {
+        let text = std::fs::read_to_string(&p).unwrap();
+        for (k, line) in text.lines().enumerate() {
+            for v in TABLE1_VALUES {
+                let hit = line.match_indices(v).any(|(at, _)| {
+                    let before = line[..at].chars().next_back();
+                    let after = line[at + v.len()..].chars().next();
+                    !before.is_some_and(|c| c.is_ascii_digit() || c == '.')
+                        && !after.is_some_and(|c| c.is_ascii_digit())
+                });
+                if hit {
+                    bad.push(format!("{}:{}: {}", p.display(), k + 1, line.trim()));
+                }
+            }
+        }
+    }
+    let table1 =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/table1.toml"))
+            .unwrap();
+    for v in TABLE1_VALUES {
+        assert!(table1.contains(v), "configs/table1.toml lost {v}");
+    }
+    assert!(
+        bad.is_empty(),
+        "Table 1 values in source files:\n{}",
+        bad.join("\n")
+    );
+}
+
+#[test]
+fn the_function_scanner_sees_a_long_function_and_skips_tests() {
+    let body = "    let x = 1;\n".repeat(MAX_FN_LINES);
+    let text = format!("pub fn long() {{\n{body}}}\nfn short() {{\n}}\n#[cfg(test)]\nmod tests {{\n    fn long_test() {{\n{body}    }}\n}}\n");
+    let found = long_functions(&text);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert_eq!(found[0].0, "long");
+}
