@@ -1,9 +1,12 @@
 //! Prints the linear model's stability prediction against the nonlinear loop on a grid.
 use hil_harness::linear::check::check_grid;
-use hil_harness::sweep::{designs, BANDWIDTHS_RAD_S};
+use hil_harness::sweep::{default_observer_hz, designs, BANDWIDTHS_RAD_S};
 
 fn main() {
-    let designs: Vec<_> = designs().into_iter().step_by(6).collect();
+    let designs: Vec<_> = designs(default_observer_hz())
+        .into_iter()
+        .step_by(6)
+        .collect();
     let bws: Vec<f64> = BANDWIDTHS_RAD_S.iter().copied().step_by(2).collect();
     let pts = check_grid(&["table1", "dyno"], &bws, &designs);
     let agree = pts.iter().filter(|p| p.predicted == p.measured).count();

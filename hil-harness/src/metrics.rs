@@ -148,6 +148,40 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
     }
     finish(&pass, rows)
 }
+
+/// The metrics of a trace that holds non-finite values from `bad_t_s`. Max/min folds skip
+/// NaN, so these figures would read as plain numbers (0.0000): none of them means anything
+/// for this run.
+fn invalid(
+    faulted: bool,
+    bad_t_s: f64,
+    load_step_droop_pu: Option<f64>,
+    overshoot_pu: Option<f64>,
+) -> Metrics {
+    let nan = f64::NAN;
+    let some_nan = |o: Option<f64>| o.map(|_| nan);
+    Metrics {
+        stable: false,
+        faulted,
+        oscillation_pu: nan,
+        limit_cycle_torque_pu: nan,
+        torque_ripple_rms_pu: nan,
+        shaft_torque_ripple_rms_pu: nan,
+        shaft_ripple_freq_hz: nan,
+        load_step_droop_pu: some_nan(load_step_droop_pu),
+        overshoot_pu: some_nan(overshoot_pu),
+        settling_s: None,
+        torque_saturated_s: nan,
+        mean_torque_pu: nan,
+        mean_speed_error_pu: nan,
+        max_following_error_counts: nan,
+        max_twist_counts: nan,
+        invalid_reason: Some(format!(
+            "the trace holds non-finite values from t = {bad_t_s} s; no metric of this run is a number"
+        )),
+    }
+}
+
 /// The metrics from the pass's sums.
 fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
     let w = p.w;
@@ -188,30 +222,7 @@ fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
         }
     });
     if let Some(bad_t_s) = p.first_bad_t_s {
-        // Max/min folds skip NaN, so these figures would read as plain numbers (0.0000):
-        // none of them means anything for this run.
-        let nan = f64::NAN;
-        let some_nan = |o: Option<f64>| o.map(|_| nan);
-        return Metrics {
-            stable: false,
-            faulted: p.faulted,
-            oscillation_pu: nan,
-            limit_cycle_torque_pu: nan,
-            torque_ripple_rms_pu: nan,
-            shaft_torque_ripple_rms_pu: nan,
-            shaft_ripple_freq_hz: nan,
-            load_step_droop_pu: some_nan(load_step_droop_pu),
-            overshoot_pu: some_nan(overshoot_pu),
-            settling_s: None,
-            torque_saturated_s: nan,
-            mean_torque_pu: nan,
-            mean_speed_error_pu: nan,
-            max_following_error_counts: nan,
-            max_twist_counts: nan,
-            invalid_reason: Some(format!(
-                "the trace holds non-finite values from t = {bad_t_s} s; no metric of this run is a number"
-            )),
-        };
+        return invalid(p.faulted, bad_t_s, load_step_droop_pu, overshoot_pu);
     }
     Metrics {
         stable,

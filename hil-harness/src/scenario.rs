@@ -221,8 +221,19 @@ impl ScenarioSpec {
     /// Checks every key against its range (times within the run); errors name the key and
     /// the range. A key the scenario's other settings make meaningless is an error too.
     pub fn validate(&self) -> Result<()> {
-        let end = self.duration_s;
-        in_range("duration_s", end, (0.0, false), MAX_DURATION_S, "s")?;
+        in_range(
+            "duration_s",
+            self.duration_s,
+            (0.0, false),
+            MAX_DURATION_S,
+            "s",
+        )?;
+        self.validate_profile()?;
+        self.validate_loads()?;
+        self.validate_metrics()
+    }
+
+    fn validate_profile(&self) -> Result<()> {
         let p = &self.profile;
         in_range("profile.speed_pu", p.speed_pu, (-3.0, true), 3.0, "pu")?;
         in_range("profile.accel_s", p.accel_s, (0.0, true), 100.0, "s")?;
@@ -245,6 +256,10 @@ impl ScenarioSpec {
                 ));
             }
         }
+        Ok(())
+    }
+
+    fn validate_loads(&self) -> Result<()> {
         for (i, l) in self.load.iter().enumerate() {
             // A step after the end of a shortened run never acts: allowed, but bounded.
             in_range(
@@ -286,6 +301,11 @@ impl ScenarioSpec {
                 "s",
             )?;
         }
+        Ok(())
+    }
+
+    fn validate_metrics(&self) -> Result<()> {
+        let end = self.duration_s;
         let m = &self.metrics;
         for (key, w) in [
             ("metrics.ripple_window_s", m.ripple_window_s),

@@ -212,10 +212,13 @@ fn predicted_stiffness_matches_the_measured() {
 /// speed in the sweep probe's last 0.5 s).
 #[test]
 fn predicted_quantization_noise_matches_the_measured_chatter() {
-    use hil_harness::sweep::{designs, point_config, AfbDesign};
-    let afb = designs()
+    use controller_core::{AfbMode, Estimator};
+    use hil_harness::sweep::{default_observer_hz, designs, point_config, AfbDesign};
+    let afb = designs(default_observer_hz())
         .into_iter()
-        .find(|d| d.mode == "error" && d.source == "observer" && d.gain_fraction == 0.5)
+        .find(|d| {
+            d.mode == AfbMode::Error && d.source == Estimator::Observer && d.gain_fraction == 0.5
+        })
         .unwrap();
     for design in [AfbDesign::OFF, afb] {
         for bw in [30.0, 100.0, 250.0] {

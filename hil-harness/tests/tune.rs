@@ -3,7 +3,7 @@
 //! same constraints.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::tune::{candidates, search, sets_of, without_afb, Constraints};
+use hil_harness::tune::{candidates, search, without_afb, Candidate, Constraints};
 
 /// Table 1's file with another machine: heavier, softer, more lost motion, a finer encoder.
 fn other_machine(dir: &std::path::Path) -> String {
@@ -34,9 +34,14 @@ fn tune_on_a_machine_it_was_not_written_for() {
     let k = Constraints::default();
     let with = search(&config, &grid, &k).unwrap();
     let without = search(&config, &without_afb(&grid), &k).unwrap();
-    assert!(with.design.candidate.afb.mode != "off", "{:?}", with.design);
-    let ripple = |c| {
-        let cfg = hil_harness::resolve("fig6", Some(&config), &sets_of(c)).unwrap();
+    assert!(
+        with.design.candidate.afb.mode != controller_core::AfbMode::Off,
+        "{:?}",
+        with.design
+    );
+    let ripple = |c: &Candidate| {
+        let mut cfg = hil_harness::resolve("fig6", Some(&config), &[]).unwrap();
+        c.apply(&mut cfg.drive);
         hil_harness::run_scenario(&cfg).unwrap().metrics
     };
     let (a, b) = (

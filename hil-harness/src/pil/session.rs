@@ -234,11 +234,9 @@ fn link_report(
     }
 }
 
-/// Runs a scenario through the firmware in QEMU and writes its files (see the module docs).
-/// A link fault is not an `Err` here: it is in `link.fault`, with the trace cut before it.
-pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
-    args.check()?;
-    let cfg = resolve_for_firmware(args)?;
+/// The fault to inject, the firmware image (built if not given) and QEMU (installed if it
+/// is the default binary and missing).
+fn prepare(args: &PilArgs) -> Result<(Option<FaultPlan>, PathBuf)> {
     let plan: Option<FaultPlan> = args
         .inject
         .as_deref()
@@ -252,6 +250,15 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
     if args.qemu == Path::new(provision::QEMU_BINARY) {
         provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
     }
+    Ok((plan, elf))
+}
+
+/// Runs a scenario through the firmware in QEMU and writes its files (see the module docs).
+/// A link fault is not an `Err` here: it is in `link.fault`, with the trace cut before it.
+pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
+    args.check()?;
+    let cfg = resolve_for_firmware(args)?;
+    let (plan, elf) = prepare(args)?;
     let staging = Staging::new(&args.run.out)?;
     let log_path = staging.path("firmware.defmt")?;
     let Session {

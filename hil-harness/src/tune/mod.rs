@@ -16,12 +16,15 @@
 //!    that is stable in all three without a fault, and quiet on the probe, is the design.
 //!    A design that fails is refused and the next one is tried.
 
+pub mod grid;
+
+pub use grid::{candidates, without_afb, Candidate, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
+
 use crate::config::{resolve, RunConfig};
 use crate::error::{HarnessError, Result};
 use crate::linear::{for_run, Break};
 use crate::output::Staging;
 use crate::runner::run_scenario;
-use crate::sweep::AfbDesign;
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -52,117 +55,6 @@ impl Default for Constraints {
     }
 }
 
-/// Velocity bandwidths tried with `--max-bandwidth` \[rad/s\].
-pub const BANDWIDTHS_RAD_S: [f64; 10] = [
-    30.0, 45.0, 60.0, 94.25, 120.0, 150.0, 200.0, 250.0, 350.0, 500.0,
-];
-/// Ka / J_total tried (and no AFB at every bandwidth and observer).
-pub const GAINS: [f64; 4] = [0.25, 0.5, 1.0, 2.0];
-/// AFB filters tried: (kind, corner Hz).
-pub const FILTERS: [(&str, f64); 6] = [
-    ("first_order", 50.0),
-    ("first_order", 100.0),
-    ("first_order", 200.0),
-    ("first_order", 400.0),
-    ("second_order", 100.0),
-    ("second_order", 200.0),
-];
-/// Observer bandwidths tried \[Hz\].
-pub const OBSERVER_HZ: [f64; 4] = [75.0, 100.0, 150.0, 250.0];
-
-/// One candidate: a velocity bandwidth and an acceleration-feedback design (the sweep's
-/// [`AfbDesign`], observer bandwidth included), as `--set` overrides of the config.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Candidate {
-    /// Velocity bandwidth \[rad/s\].
-    pub bandwidth_rad_s: f64,
-    /// The AFB design and the observer bandwidth.
-    #[serde(flatten)]
-    pub afb: AfbDesign,
-}
-
-impl Candidate {
-    fn sets(&self) -> Vec<String> {
-        let mut s = vec![
-            format!("drive.velocity_bandwidth_rad_s={}", self.bandwidth_rad_s),
-            "drive.velocity_pi_inertia=total".to_string(),
-        ];
-        s.extend(self.afb.sets());
-        s
-    }
-
-    /// The `[drive]` keys of this candidate, as (key below `drive.`, TOML value).
-    #[must_use]
-    pub fn keys(&self) -> Vec<(String, String)> {
-        self.sets()
-            .into_iter()
-            .filter_map(|kv| {
-                let (k, v) = kv.strip_prefix("drive.")?.split_once('=')?;
-                let value = if v.parse::<f64>().is_ok() {
-                    v.to_string()
-                } else {
-                    format!("\"{v}\"")
-                };
-                Some((k.to_string(), value))
-            })
-            .collect()
-    }
-}
-
-/// The grid for the bandwidths `bws`: without AFB, and the error and plain forms over
-/// [`GAINS`] × [`FILTERS`] × (observer, differentiation), at every observer bandwidth.
-#[must_use]
-pub fn candidates(bws: &[f64]) -> Vec<Candidate> {
-    let mut v = Vec::new();
-    for &bandwidth_rad_s in bws {
-        for observer_hz in OBSERVER_HZ {
-            let mut push = |afb: AfbDesign| {
-                v.push(Candidate {
-                    bandwidth_rad_s,
-                    afb,
-                })
-            };
-            push(AfbDesign {
-                observer_hz,
-                ..AfbDesign::OFF
-            });
-            for gain_fraction in GAINS {
-                for source in ["observer", "differentiation"] {
-                    for mode in ["error", "plain"] {
-                        for (filter, filter_corner_hz) in FILTERS {
-                            push(AfbDesign {
-                                mode,
-                                gain_fraction,
-                                filter,
-                                filter_corner_hz,
-                                source,
-                                observer_hz,
-                            });
-                        }
-                    }
-                }
-            }
-        }
-    }
-    v
-}
-
-/// The candidates of `grid` without acceleration feedback: the "without AFB" design tuned
-/// by the same constraints.
-#[must_use]
-pub fn without_afb(grid: &[Candidate]) -> Vec<Candidate> {
-    grid.iter()
-        .filter(|c| c.afb.mode == "off")
-        .cloned()
-        .collect()
-}
-
-/// The `--set` overrides of a candidate (for `resolve`).
-#[must_use]
-pub fn sets_of(c: &Candidate) -> Vec<String> {
-    c.sets()
-}
-
 /// A candidate judged on the linear model.
 #[derive(Debug, Clone, Serialize)]
 pub struct Judged {
@@ -180,8 +72,11 @@ pub struct Judged {
     pub feasible: bool,
 }
 
-fn judge(config: &str, c: &Candidate, k: &Constraints) -> Result<Judged> {
-    let cfg = resolve("fig6", Some(config), &c.sets())?;
+fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
+    let mut cfg = fig6.clone();
+    c.apply(&mut cfg.drive);
+    controller_core::design(&cfg.drive)
+        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
     let engaged = for_run(&cfg, Gears::Engaged)?;
     let apart = if cfg.plant.mechanics.backlash_deg > 0.0 {
         for_run(&cfg, Gears::Apart)?.smallest_damping()
@@ -202,7 +97,7 @@ fn judge(config: &str, c: &Candidate, k: &Constraints) -> Result<Judged> {
         && m.gain_margin_db >= k.min_gain_margin_db
         && noise_pu <= k.max_noise_pu;
     Ok(Judged {
-        candidate: c.clone(),
+        candidate: *c,
         damping,
         margins: [m.phase_margin_deg, m.gain_margin_db],
         noise_pu,
@@ -233,16 +128,26 @@ pub struct Verification {
 /// probe (ramp, load on and off, unloaded at speed), on which it must also be quiet.
 pub const VERIFY: [&str; 3] = ["fig6", "shock", "sweep"];
 
-fn verify(config: &str, c: &Candidate) -> Result<Vec<Verification>> {
+/// The scenarios of [`VERIFY`] on `config`, each read once.
+fn bases(config: &str) -> Result<Vec<RunConfig>> {
     VERIFY
         .iter()
-        .map(|s| {
-            let mut sets = c.sets();
+        .map(|s| resolve(s, Some(config), &[]))
+        .collect()
+}
+
+fn verify(bases: &[RunConfig], c: &Candidate) -> Result<Vec<Verification>> {
+    VERIFY
+        .iter()
+        .zip(bases)
+        .map(|(s, base)| {
+            let mut cfg = base.clone();
+            c.apply(&mut cfg.drive);
             if *s == "sweep" {
                 // The probe runs in speed mode, as the sweep runs it.
-                sets.push("drive.position_bandwidth_rad_s=0".into());
+                cfg.drive.position_bandwidth_rad_s = 0.0;
             }
-            let m = run_scenario(&resolve(s, Some(config), &sets)?)?.metrics;
+            let m = run_scenario(&cfg)?.metrics;
             let quiet = *s != "sweep" || m.limit_cycle_torque_pu < crate::sweep::QUIET_TORQUE_PU;
             Ok(Verification {
                 scenario: s,
@@ -275,12 +180,16 @@ pub struct TuneResult {
 
 /// Searches `grid`, ranks and verifies (module docs).
 pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneResult> {
+    let bases = bases(config)?;
+    let fig6 = bases
+        .first()
+        .ok_or_else(|| HarnessError::config("tune", "no fig6 scenario"))?;
     let pb = crate::progress::bar(grid.len() as u64, "tune");
     let mut judged: Vec<Judged> = grid
         .par_iter()
         .filter_map(|c| {
             pb.inc(1);
-            judge(config, c, k).ok()
+            judge(fig6, c, k).ok()
         })
         .collect();
     pb.finish_and_clear();
@@ -295,7 +204,7 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
     });
     let mut refused = Vec::new();
     for j in judged {
-        let runs = verify(config, &j.candidate)?;
+        let runs = verify(&bases, &j.candidate)?;
         if runs.iter().all(|r| r.passed) {
             return Ok(TuneResult {
                 config: config.into(),
@@ -317,45 +226,70 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
     ))
 }
 
-/// The `[drive]` table of a design, as TOML text.
-#[must_use]
-pub fn drive_toml(c: &Candidate) -> String {
-    let mut top = String::from("[drive]\n");
-    let mut afb = String::from("\n[drive.accel_feedback]\n");
-    let mut obs = String::from("\n[drive.observer]\n");
-    for (k, v) in c.keys() {
-        if let Some(k) = k.strip_prefix("accel_feedback.") {
-            let _ = writeln!(afb, "{k} = {v}");
-        } else if let Some(k) = k.strip_prefix("observer.") {
-            let _ = writeln!(obs, "{k} = {v}");
-        } else {
-            let _ = writeln!(top, "{k} = {v}");
-        }
+/// The `[drive]` keys a design sets, as a TOML tree.
+fn design_table(c: &Candidate) -> toml::Table {
+    use crate::sweep::grid::{filter_parts, word};
+    use toml::Value;
+    let mut drive = toml::Table::new();
+    let put = |t: &mut toml::Table, k: &str, v: Value| {
+        t.insert(k.into(), v);
+    };
+    put(
+        &mut drive,
+        "velocity_bandwidth_rad_s",
+        Value::Float(c.bandwidth_rad_s),
+    );
+    put(
+        &mut drive,
+        "velocity_pi_inertia",
+        Value::String("total".into()),
+    );
+    let a = &c.afb;
+    let mut afb = toml::Table::new();
+    put(&mut afb, "mode", Value::String(word(a.mode)));
+    if a.mode != controller_core::AfbMode::Off {
+        let (kind, corner) = filter_parts(a.filter);
+        put(
+            &mut afb,
+            "gain_fraction",
+            Value::Float(f64::from(a.gain_fraction)),
+        );
+        put(&mut afb, "filter", Value::String(kind.into()));
+        put(
+            &mut afb,
+            "filter_corner_hz",
+            Value::Float(f64::from(corner)),
+        );
+        put(&mut afb, "source", Value::String(word(a.source)));
     }
-    top + &afb + &obs
+    drive.insert("accel_feedback".into(), Value::Table(afb));
+    if a.observer_hz > 0.0 {
+        let mut obs = toml::Table::new();
+        put(
+            &mut obs,
+            "bandwidth_hz",
+            Value::Float(f64::from(a.observer_hz)),
+        );
+        drive.insert("observer".into(), Value::Table(obs));
+    }
+    drive
+}
+
+/// The `[drive]` table of a design, as TOML text.
+pub fn drive_toml(c: &Candidate) -> Result<String> {
+    let mut doc = toml::Table::new();
+    doc.insert("drive".into(), toml::Value::Table(design_table(c)));
+    toml::to_string(&doc).map_err(|e| HarnessError::config("tune", e.to_string()))
 }
 
 /// `config` with its `[drive]` table's keys set to the design's.
 fn merged_config(config_path: &Path, c: &Candidate) -> Result<String> {
-    let text =
-        std::fs::read_to_string(config_path).map_err(|e| HarnessError::io(config_path, e))?;
-    let mut doc: toml::Table = text
-        .parse()
-        .map_err(|e: toml::de::Error| HarnessError::config("config", e.message().to_string()))?;
-    let design: toml::Table = drive_toml(c)
-        .parse()
-        .map_err(|e: toml::de::Error| HarnessError::config("tune", e.message().to_string()))?;
-    let Some(toml::Value::Table(new_drive)) = design.get("drive").cloned() else {
-        return Err(HarnessError::config(
-            "tune",
-            "no [drive] table in the design",
-        ));
-    };
+    let mut doc = crate::config::read_table(config_path)?;
     let drive = doc
         .entry("drive")
         .or_insert_with(|| toml::Value::Table(toml::Table::new()));
     if let toml::Value::Table(d) = drive {
-        for (k, v) in new_drive {
+        for (k, v) in design_table(c) {
             match (d.get_mut(&k), v) {
                 (Some(toml::Value::Table(old)), toml::Value::Table(new)) => old.extend(new),
                 (_, v) => {
@@ -367,9 +301,8 @@ fn merged_config(config_path: &Path, c: &Candidate) -> Result<String> {
     toml::to_string(&doc).map_err(|e| HarnessError::config("tune", e.to_string()))
 }
 
-fn markdown(r: &TuneResult) -> String {
+fn markdown(r: &TuneResult, drive_toml: &str) -> String {
     let d = &r.design;
-    let c = &d.candidate;
     let mut s = format!(
         "# tune: `{}`\n\n{} candidates judged on the linear model, {} met the constraints; {} \
          refused in the nonlinear loop before this one.\n\n## Design\n\n```toml\n{}```\n\n",
@@ -377,7 +310,7 @@ fn markdown(r: &TuneResult) -> String {
         r.judged,
         r.feasible,
         r.refused.len(),
-        drive_toml(c)
+        drive_toml
     );
     let _ = writeln!(
         s,
@@ -433,13 +366,14 @@ pub fn tune(
     let dir = staging.dir();
     let json = serde_json::to_string_pretty(&result)
         .map_err(|e| HarnessError::io(dir.join("tune.json"), e))?;
+    let drive = drive_toml(&result.design.candidate)?;
     let files = [
-        ("drive.toml", drive_toml(&result.design.candidate)),
+        ("tune.md", markdown(&result, &drive)),
+        ("drive.toml", drive),
         (
             "config.toml",
             merged_config(&base.config_path, &result.design.candidate)?,
         ),
-        ("tune.md", markdown(&result)),
         ("tune.json", json + "\n"),
     ];
     for (name, text) in files {
