@@ -19,7 +19,7 @@
 //! observer bandwidth.
 
 use crate::config::{borrow_gains, resolve, RunConfig};
-use crate::error::Result;
+use crate::error::{HarnessError, Result};
 use crate::output::Staging;
 use crate::plot::{save, Figure, Legend, Panel, Series};
 use crate::runner::run_scenario;
@@ -118,20 +118,32 @@ pub fn analytic(cfg: &RunConfig, w: f64) -> f64 {
         .sqrt()
 }
 
-/// The stiffness run for `source` (`none`, `observer`, `differentiation`) with `sets`:
-/// the default AFB design with that acceleration source, or, for `none`, the same drive
+/// The stiffness run for the AFB `source` (`None`: AFB off) with the scenario overrides
+/// `sets`: the default AFB design with that acceleration source, or, without, the same drive
 /// with AFB off at the default AFB design's gains.
-pub fn stiffness_config(source: &str, sets: &[String]) -> Result<RunConfig> {
-    let mut sets = sets.to_vec();
-    if source == "none" {
-        let afb = resolve("stiffness", None, &sets)?;
-        sets.push("drive.accel_feedback.mode=off".into());
-        let mut cfg = resolve("stiffness", None, &sets)?;
-        borrow_gains(&mut cfg, "stiffness (its default AFB design)", &afb.drive)?;
-        Ok(cfg)
-    } else {
-        sets.push(format!("drive.accel_feedback.source={source}"));
-        resolve("stiffness", None, &sets)
+pub fn stiffness_config(source: Option<Estimator>, sets: &[String]) -> Result<RunConfig> {
+    with_source(resolve("stiffness", None, sets)?, source)
+}
+
+/// `cfg` (the default AFB design) with the AFB `source`, or AFB off at its gains.
+fn with_source(mut cfg: RunConfig, source: Option<Estimator>) -> Result<RunConfig> {
+    match source {
+        None => {
+            let afb = cfg.drive;
+            cfg.drive.accel_feedback.mode = AfbMode::Off;
+            borrow_gains(&mut cfg, "stiffness (its default AFB design)", &afb)?;
+        }
+        Some(s) => cfg.drive.accel_feedback.source = s,
+    }
+    Ok(cfg)
+}
+
+/// The name of an AFB source in the CSV and the plots.
+pub fn source_name(source: Option<Estimator>) -> &'static str {
+    match source {
+        None => "none",
+        Some(Estimator::Observer) => "observer",
+        Some(Estimator::Differentiation) => "differentiation",
     }
 }
 
@@ -165,21 +177,35 @@ fn phasor(
 
 /// The three drives compared: AFB off, the default AFB design, and the same design with
 /// the acceleration from differentiation instead of the observer.
-pub const SOURCES: [&str; 3] = ["none", "observer", "differentiation"];
+pub const SOURCES: [Option<Estimator>; 3] = [
+    None,
+    Some(Estimator::Observer),
+    Some(Estimator::Differentiation),
+];
 
-/// Measures the stiffness of the `source` design (`none`, `observer`, `differentiation`) at `w` rad/s.
-pub fn measure(source: &'static str, w: f64) -> Result<StiffnessPoint> {
-    let afb = source != "none";
+/// Measures the stiffness of the `source` design (`None`: AFB off) at `w` rad/s.
+pub fn measure(source: Option<Estimator>, w: f64) -> Result<StiffnessPoint> {
+    measure_on(&resolve("stiffness", None, &[])?, source, w)
+}
+
+/// [`measure`] on the stiffness scenario `base`, read once for all points.
+fn measure_on(base: &RunConfig, source: Option<Estimator>, w: f64) -> Result<StiffnessPoint> {
     let period = 2.0 * PI / w;
     let periods = (1.0 / period).ceil().max(3.0);
     let window = periods * period;
     let start = 0.5;
     let duration = start + SETTLE_S + window;
-    let sets = vec![
-        format!("scenario.sine_load.freq_rad_s={w}"),
-        format!("scenario.duration_s={duration}"),
-    ];
-    let cfg = stiffness_config(source, &sets)?;
+    let mut cfg = base.clone();
+    let sine = cfg.scenario.sine_load.as_mut().ok_or_else(|| {
+        HarnessError::config(
+            "scenario.sine_load",
+            "the stiffness scenario needs a sine load",
+        )
+    })?;
+    sine.freq_rad_s = w;
+    cfg.scenario.duration_s = duration;
+    cfg.scenario.validate()?;
+    let cfg = with_source(cfg, source)?;
     let out = run_scenario(&cfg)?;
     let (t1, t0) = (duration, duration - window);
     let torque = phasor(&out.trace, |r| r.load_torque_pu, w, t0, t1);
@@ -188,8 +214,8 @@ pub fn measure(source: &'static str, w: f64) -> Result<StiffnessPoint> {
     let motor_accel = w * mag(phasor(&out.trace, |r| r.motor_vel_pu, w, t0, t1));
     let accel_est = mag(phasor(&out.trace, |r| r.accel_est_pu_s, w, t0, t1));
     Ok(StiffnessPoint {
-        afb,
-        source,
+        afb: source.is_some(),
+        source: source_name(source),
         freq_rad_s: w,
         measured: w * mag(torque) / mag(speed).max(1e-12),
         analytic: analytic(&cfg, w),
@@ -201,7 +227,8 @@ pub fn measure(source: &'static str, w: f64) -> Result<StiffnessPoint> {
 
 /// Measures every frequency with and without AFB, in parallel.
 pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
-    let jobs: Vec<(&'static str, f64)> = SOURCES
+    let base = resolve("stiffness", None, &[])?;
+    let jobs: Vec<(Option<Estimator>, f64)> = SOURCES
         .iter()
         .flat_map(|a| freqs.iter().map(move |w| (*a, *w)))
         .collect();
@@ -209,7 +236,7 @@ pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
     let points: Result<Vec<StiffnessPoint>> = jobs
         .par_iter()
         .map(|(a, w)| {
-            let r = measure(a, *w);
+            let r = measure_on(&base, *a, *w);
             pb.inc(1);
             r
         })
@@ -221,7 +248,7 @@ pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
 /// Eq. 1 for the stiffness scenario's drive, with the default AFB (observer) or without
 /// it at the same gains, on a dense log grid from 0.2 to 2000 rad/s.
 pub fn analytic_curve(afb: bool) -> Result<Vec<(f64, f64)>> {
-    let cfg = stiffness_config(if afb { "observer" } else { "none" }, &[])?;
+    let cfg = stiffness_config(afb.then_some(Estimator::Observer), &[])?;
     Ok((0..=120)
         .map(|i| {
             let w = 0.2 * 10f64.powf(f64::from(i) / 30.0);

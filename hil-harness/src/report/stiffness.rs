@@ -111,7 +111,7 @@ fn holds(ok: bool) -> &'static str {
 
 /// The stiffness section, from the measured points and the stiffness scenario's config.
 pub fn section(stiff: &[StiffnessPoint]) -> Result<Section> {
-    let cfg = crate::stiffness::stiffness_config("observer", &[])?;
+    let cfg = crate::stiffness::stiffness_config(Some(controller_core::Estimator::Observer), &[])?;
     let bw = f64::from(cfg.drive.velocity_bandwidth_rad_s);
     let w_obs = std::f64::consts::TAU * f64::from(cfg.drive.observer.bandwidth_hz);
     let f = findings(stiff, bw, w_obs);
