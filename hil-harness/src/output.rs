@@ -122,6 +122,15 @@ fn link_tree(from: &Path, to: &Path) -> Result<()> {
     }
 }
 
+/// Runs `write` on a staging directory for `target` and commits it: the whole directory
+/// appears at once, or (on an error) the old one stays.
+pub fn staged<T>(target: &Path, write: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
+    let staging = Staging::new(target)?;
+    let value = write(staging.dir())?;
+    staging.commit()?;
+    Ok(value)
+}
+
 impl Staging {
     /// A staging directory whose commit replaces `target` as a whole. Creates the parent,
     /// recovers from a crashed earlier commit, and fails with the path named if the

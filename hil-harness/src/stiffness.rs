@@ -20,7 +20,6 @@
 
 use crate::config::{borrow_gains, resolve, RunConfig};
 use crate::error::{HarnessError, Result};
-use crate::output::Staging;
 use crate::plot::{save, Figure, Legend, Panel, Series};
 use crate::runner::run_scenario;
 use crate::trace::Trace;
@@ -378,10 +377,7 @@ pub fn stiffness_into(dir: &Path) -> Result<(Vec<StiffnessPoint>, String)> {
 
 /// `hil-harness stiffness`.
 pub fn stiffness(out: &Path) -> Result<String> {
-    let staging = Staging::new(out)?;
-    let (_, text) = stiffness_into(staging.dir())?;
-    staging.commit()?;
-    Ok(text)
+    crate::output::staged(out, |dir| stiffness_into(dir).map(|(_, text)| text))
 }
 
 #[cfg(test)]

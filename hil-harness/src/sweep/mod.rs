@@ -12,7 +12,6 @@ pub use grid::{designs, without_afb_of, AfbDesign, BANDWIDTHS_RAD_S, FILTERS, GA
 
 use crate::config::{borrow_gains, resolve, RunConfig};
 use crate::error::{HarnessError, Result};
-use crate::output::Staging;
 use crate::plot::save;
 use crate::runner::run_scenario;
 use controller_core::AfbMode;
@@ -343,10 +342,7 @@ pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepResult>, String)> {
 
 /// `hil-harness sweep`.
 pub fn sweep(out: &Path) -> Result<String> {
-    let staging = Staging::new(out)?;
-    let (_, text) = sweep_into(staging.dir())?;
-    staging.commit()?;
-    Ok(text)
+    crate::output::staged(out, |dir| sweep_into(dir).map(|(_, text)| text))
 }
 
 #[cfg(test)]
