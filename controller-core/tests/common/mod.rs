@@ -1,6 +1,8 @@
 //! Test support: the paper's Table 1 drive from `configs/table1.toml`, composed the way the
 //! harness and the firmware compose it: the `[drive]` table, with the machine keys it omits
 //! taken from `[plant]` (base speed, inertias, encoder) and `[electrics]` (winding).
+//! `firmware/build.rs` bakes the firmware's drive through this same module
+//! ([`try_drive_of`]), so the tests and the image compose the file one way.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use controller_core::DriveConfig;
@@ -20,10 +22,16 @@ pub const MACHINE_KEYS: [(&str, &str); 6] = [
 
 /// The `[drive]` table of a configuration text with the machine keys filled in.
 pub fn drive_table(text: &str) -> toml::Table {
-    let doc: toml::Table = text.parse().expect("configuration parses");
+    try_drive_table(text).expect("configuration parses")
+}
+
+/// [`drive_table`], with the parse error as text.
+pub fn try_drive_table(text: &str) -> Result<toml::Table, String> {
+    let doc: toml::Table = text.parse().map_err(|e| format!("{e}"))?;
     let mut drive = match doc.get("drive") {
         Some(toml::Value::Table(t)) => t.clone(),
-        _ => toml::Table::new(),
+        Some(_) => return Err("drive: must be a table".into()),
+        None => toml::Table::new(),
     };
     for (key, from) in MACHINE_KEYS {
         if !drive.contains_key(key) {
@@ -32,12 +40,19 @@ pub fn drive_table(text: &str) -> toml::Table {
             }
         }
     }
-    drive
+    Ok(drive)
 }
 
 /// The drive of a configuration text.
 pub fn drive_of(text: &str) -> DriveConfig {
-    drive_table(text).try_into().expect("[drive] deserializes")
+    try_drive_of(text).expect("[drive] deserializes")
+}
+
+/// [`drive_of`], with the error as text naming the `[drive]` key.
+pub fn try_drive_of(text: &str) -> Result<DriveConfig, String> {
+    try_drive_table(text)?
+        .try_into()
+        .map_err(|e: toml::de::Error| format!("[drive]: {e}"))
 }
 
 /// The paper's Table 1 drive (`configs/table1.toml`).
