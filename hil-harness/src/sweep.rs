@@ -125,7 +125,7 @@ pub const OBSERVER_HZ: [f64; 2] = [75.0, 150.0];
 /// The run without AFB that is the same drive as `d` without its AFB: the observer (which
 /// also gives the velocity feedback) at `d`'s bandwidth, or at the drive's default.
 pub fn without_afb_of(d: &AfbDesign) -> AfbDesign {
-    let default_hz = f64::from(controller_core::DriveConfig::table1().observer.bandwidth_hz);
+    let default_hz = f64::from(controller_core::config::defaults::OBSERVER.bandwidth_hz);
     let hz = if d.observer_hz > 0.0 && d.observer_hz != default_hz {
         d.observer_hz
     } else {

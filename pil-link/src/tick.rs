@@ -26,6 +26,13 @@ use controller_core::{
 const TAG_CURRENT: u8 = 1;
 const TAG_VELOCITY: u8 = 2;
 
+/// Wire code of a latched drive fault (0 = none): [`controller_core::words::fault_code`],
+/// kept under this name for the harness's `pil.rs` until it calls the core directly.
+#[must_use]
+pub const fn fault_to_byte(fault: Option<Fault>) -> u8 {
+    fault_code(fault)
+}
+
 /// A fault code byte ([`controller_core::words::fault_from_code`]); an unknown code is a
 /// `BadPayload` of `kind`.
 const fn fault_from_byte(b: u8, kind: FrameKind) -> Result<Option<Fault>, LinkError> {
