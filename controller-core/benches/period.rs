@@ -11,8 +11,7 @@ use std::hint::black_box;
 mod common;
 
 use controller_core::{
-    Controller, Counts, CurrentInputs, DriveConfig, Profile, ProfileConfig, Pu, Setpoint,
-    VelocityInputs,
+    Controller, Counts, CurrentInputs, Profile, ProfileConfig, Pu, Setpoint, VelocityInputs,
 };
 use criterion::{criterion_group, criterion_main, Criterion};
 

@@ -388,7 +388,7 @@ mod whole {
         }
         fn visit_f64<E: de::Error>(self, v: f64) -> Result<Whole, E> {
             // 2^64 is exact in f64; below it an integral value converts without loss.
-            if v.is_finite() && v >= 0.0 && v < 18_446_744_073_709_551_616.0 && v == (v as u64) as f64 {
+            if (0.0..18_446_744_073_709_551_616.0).contains(&v) && v == (v as u64) as f64 {
                 Ok(Whole(v as u64))
             } else {
                 Err(E::custom(format_args!("{v}: must be a whole number")))
@@ -399,7 +399,10 @@ mod whole {
     fn narrow<'de, D: Deserializer<'de>, T: TryFrom<u64>>(d: D) -> Result<T, D::Error> {
         let Whole(v) = serde::Deserialize::deserialize(d)?;
         T::try_from(v).map_err(|_| {
-            de::Error::custom(format_args!("{v}: too large for a {}", core::any::type_name::<T>()))
+            de::Error::custom(format_args!(
+                "{v}: too large for a {}",
+                core::any::type_name::<T>()
+            ))
         })
     }
 
@@ -413,84 +416,4 @@ mod whole {
 }
 
 #[cfg(feature = "serde")]
-mod filter_de {
-    //! `FilterConfig` from `{ kind = "none" }`, `{ kind = "first_order", corner_hz = .. }` or
-    //! `{ kind = "second_order", corner_hz = .., q = .. }` (`q` optional), keys in any order;
-    //! a key the kind does not have is an unknown-field error. No buffering, no alloc.
-    use super::{defaults, FilterConfig};
-    use core::fmt;
-    use serde::de::{self, MapAccess, Visitor};
-
-    #[derive(serde::Deserialize)]
-    #[serde(field_identifier, rename_all = "snake_case")]
-    enum Key {
-        Kind,
-        CornerHz,
-        Q,
-    }
-
-    #[derive(serde::Deserialize)]
-    #[serde(rename_all = "snake_case")]
-    enum Kind {
-        None,
-        FirstOrder,
-        SecondOrder,
-    }
-
-    struct FilterVisitor;
-
-    fn set<'de, A: MapAccess<'de>, T: serde::Deserialize<'de>>(
-        slot: &mut Option<T>,
-        map: &mut A,
-        name: &'static str,
-    ) -> Result<(), A::Error> {
-        if slot.is_some() {
-            return Err(de::Error::duplicate_field(name));
-        }
-        *slot = Some(map.next_value()?);
-        Ok(())
-    }
-
-    impl<'de> Visitor<'de> for FilterVisitor {
-        type Value = FilterConfig;
-        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-            f.write_str("a filter table with `kind` = \"none\", \"first_order\" or \"second_order\"")
-        }
-        fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<FilterConfig, A::Error> {
-            let (mut kind, mut corner, mut q) = (None, None, None);
-            while let Some(key) = map.next_key::<Key>()? {
-                match key {
-                    Key::Kind => set(&mut kind, &mut map, "kind")?,
-                    Key::CornerHz => set(&mut corner, &mut map, "corner_hz")?,
-                    Key::Q => set(&mut q, &mut map, "q")?,
-                }
-            }
-            let unknown = |k: &str, allowed: &'static [&'static str]| -> A::Error {
-                de::Error::unknown_field(k, allowed)
-            };
-            match kind.ok_or_else(|| de::Error::missing_field("kind"))? {
-                Kind::None => match (corner, q) {
-                    (None, None) => Ok(FilterConfig::None),
-                    (Some(_), _) => Err(unknown("corner_hz", &["kind"])),
-                    (None, Some(_)) => Err(unknown("q", &["kind"])),
-                },
-                Kind::FirstOrder => match q {
-                    Some(_) => Err(unknown("q", &["kind", "corner_hz"])),
-                    None => Ok(FilterConfig::FirstOrder {
-                        corner_hz: corner.ok_or_else(|| de::Error::missing_field("corner_hz"))?,
-                    }),
-                },
-                Kind::SecondOrder => Ok(FilterConfig::SecondOrder {
-                    corner_hz: corner.ok_or_else(|| de::Error::missing_field("corner_hz"))?,
-                    q: q.unwrap_or_else(defaults::butterworth_q),
-                }),
-            }
-        }
-    }
-
-    impl<'de> serde::Deserialize<'de> for FilterConfig {
-        fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-            d.deserialize_map(FilterVisitor)
-        }
-    }
-}
+mod filter_de;

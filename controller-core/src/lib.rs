@@ -41,7 +41,7 @@ pub use controller::{
 };
 pub use design::{design, Gains};
 pub use error::{ConfigError, QFormat};
-pub use ranges::{Range, RANGES};
 pub use fault::Fault;
 pub use per_unit::{Counts, CountsErr, Pu, PuPerS};
 pub use profile::{Profile, ProfileConfig, ProfileKind};
+pub use ranges::{Range, RANGES};

@@ -101,8 +101,7 @@ pub const LOAD_INERTIA_S: Range = Range::real("load_inertia_s", 0.0, 1000.0, fal
 pub const POSITION_BANDWIDTH_RAD_S: Range =
     Range::real("position_bandwidth_rad_s", 0.0, INF, false);
 /// Velocity bandwidth \[rad/s\] (and below π·velocity_rate_hz).
-pub const VELOCITY_BANDWIDTH_RAD_S: Range =
-    Range::real("velocity_bandwidth_rad_s", 0.0, INF, true);
+pub const VELOCITY_BANDWIDTH_RAD_S: Range = Range::real("velocity_bandwidth_rad_s", 0.0, INF, true);
 /// Velocity damping ζ.
 pub const VELOCITY_DAMPING: Range = Range::real("velocity_damping", 0.1, 10.0, false);
 /// Current bandwidth \[rad/s\] (and below π·current_rate_hz).
@@ -110,8 +109,7 @@ pub const CURRENT_BANDWIDTH_RAD_S: Range = Range::real("current_bandwidth_rad_s"
 /// Winding resistance \[pu\].
 pub const WINDING_RESISTANCE_PU: Range = Range::real("winding_resistance_pu", 0.0, 100.0, true);
 /// Winding inductance \[pu·s\].
-pub const WINDING_INDUCTANCE_PU_S: Range =
-    Range::real("winding_inductance_pu_s", 0.0, 100.0, true);
+pub const WINDING_INDUCTANCE_PU_S: Range = Range::real("winding_inductance_pu_s", 0.0, 100.0, true);
 /// Torque limit \[pu\].
 pub const TORQUE_LIMIT_PU: Range = Range::real("torque_limit_pu", 0.0, 1000.0, true);
 /// Voltage limit \[pu\].
@@ -126,8 +124,7 @@ pub const VELOCITY_FILTER_CORNER_HZ: Range =
 /// Velocity filter Q.
 pub const VELOCITY_FILTER_Q: Range = Range::real("velocity_filter.q", 0.1, 10.0, false);
 /// Ka as a fraction of J_total.
-pub const AFB_GAIN_FRACTION: Range =
-    Range::real("accel_feedback.gain_fraction", 0.0, 20.0, false);
+pub const AFB_GAIN_FRACTION: Range = Range::real("accel_feedback.gain_fraction", 0.0, 20.0, false);
 /// AFB filter corner \[Hz\] (and below the AFB rate / 2).
 pub const AFB_FILTER_CORNER_HZ: Range =
     Range::real("accel_feedback.filter.corner_hz", 0.0, INF, true);

@@ -9,10 +9,10 @@
 mod common;
 use controller_core::differentiator::{Differentiator, DifferentiatorState};
 use controller_core::filter::{design_low_pass, LowPass, LowPassDesign, LowPassState};
-use controller_core::ranges::{AFB_FILTER_CORNER_HZ as AFB_CORNER, AFB_FILTER_Q as AFB_Q};
 use controller_core::observer::{Observer, ObserverState};
 use controller_core::per_unit::{Coef, Gain, Pu, TickGain};
 use controller_core::pi::{PiCoefficients, PiState};
+use controller_core::ranges::{AFB_FILTER_CORNER_HZ as AFB_CORNER, AFB_FILTER_Q as AFB_Q};
 use controller_core::{design, DriveConfig, FilterConfig, Profile, ProfileConfig, ProfileKind};
 
 /// Deterministic pseudo-random numbers in [−1, 1).

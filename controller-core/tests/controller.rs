@@ -8,9 +8,7 @@
 
 mod common;
 use controller_core::per_unit::count_diff;
-use controller_core::{
-    Controller, Counts, CurrentInputs, Fault, Pu, Setpoint, VelocityInputs,
-};
+use controller_core::{Controller, Counts, CurrentInputs, Fault, Pu, Setpoint, VelocityInputs};
 
 fn mask(bits: u8) -> u64 {
     if bits >= 32 {

@@ -71,7 +71,9 @@ fn every_required_key_is_required() {
             .filter(|l| *l != line)
             .map(|l| format!("{l}\n"))
             .collect();
-        let e = toml::from_str::<DriveConfig>(&text).unwrap_err().to_string();
+        let e = toml::from_str::<DriveConfig>(&text)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(key), "{key}: {e}");
     }
 }
@@ -216,6 +218,7 @@ fn serialize_then_deserialize_is_the_same_drive() {
 /// With `schema`: the JSON Schema names the required keys and the filter's tag.
 #[cfg(feature = "schema")]
 #[test]
+#[allow(clippy::indexing_slicing)]
 fn the_json_schema_names_required_keys_and_filter_kinds() {
     let schema = schemars::schema_for!(DriveConfig);
     let text = serde_json::to_string(&schema).unwrap();
@@ -226,11 +229,20 @@ fn the_json_schema_names_required_keys_and_filter_kinds() {
         .iter()
         .filter_map(|x| x.as_str())
         .collect();
-    for key in ["base_speed_rpm", "current_rate_hz", "winding_inductance_pu_s"] {
+    for key in [
+        "base_speed_rpm",
+        "current_rate_hz",
+        "winding_inductance_pu_s",
+    ] {
         assert!(required.contains(&key), "{required:?}");
     }
     assert!(!required.contains(&"counter_bits"));
-    for word in ["first_order", "second_order", "total_plus_afb", "measured_current"] {
+    for word in [
+        "first_order",
+        "second_order",
+        "total_plus_afb",
+        "measured_current",
+    ] {
         assert!(text.contains(word), "{word}");
     }
 }

@@ -310,8 +310,14 @@ pub fn drive_config(doc: &Table, machine: &MachineDefaults) -> Result<DriveConfi
         .and_then(|t| t.get("drive").and_then(Value::as_table).cloned())
         .unwrap_or_default();
     let mut base = base;
-    base.insert("base_speed_rpm".into(), Value::Float(f64::from(machine.base_speed_rpm)));
-    base.insert("encoder_cpr".into(), Value::Integer(i64::from(machine.encoder_cpr)));
+    base.insert(
+        "base_speed_rpm".into(),
+        Value::Float(f64::from(machine.base_speed_rpm)),
+    );
+    base.insert(
+        "encoder_cpr".into(),
+        Value::Integer(i64::from(machine.encoder_cpr)),
+    );
     for (k, v) in [
         ("motor_inertia_s", machine.motor_inertia_s),
         ("load_inertia_s", machine.load_inertia_s),

@@ -237,12 +237,12 @@ proptest! {
 }
 
 mod payloads {
+    use super::common;
     use controller_core::per_unit::{Counts, CountsErr, Pu, PuPerS};
     use controller_core::{
         CurrentInputs, CurrentOutputs, Fault, FilterConfig, Setpoint, VelocityInputs,
         VelocityOutputs,
     };
-    use super::common;
     use pil_link::tick::{Applied, Commands, Sensors};
     use pil_link::wire::Writer;
     use pil_link::{settings, LinkError, MAX_PAYLOAD};

@@ -88,4 +88,3 @@ pub struct Blocks {
     /// Current PI.
     pub current_regulator: PiCoefficients,
 }
-

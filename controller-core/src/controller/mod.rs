@@ -32,10 +32,11 @@ use crate::error::ConfigError;
 use crate::fault::Fault;
 use crate::filter::LowPassState;
 use crate::observer::ObserverState;
-use crate::per_unit::{count_diff_shifted, count_signed, mul_bits, mul_gain, sat_i32, CountsErr, Pu, PuPerS};
+use crate::per_unit::{
+    count_diff_shifted, count_signed, mul_bits, mul_gain, sat_i32, CountsErr, Pu, PuPerS,
+};
 use crate::pi::PiState;
 use coefficients::{AfbStep, Coefficients};
-
 
 /// All regulator and estimator state (plain data; reset = default).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -269,6 +270,38 @@ impl Controller {
         }
     }
 
+    /// The position loop of a velocity tick: the position error (Q24.8 counts, saturating;
+    /// trips on a following error) and the velocity command ω_cmd = vff·ω_sp + k_pos·err
+    /// (ω_sp itself in velocity mode).
+    #[inline(always)]
+    fn position_loop(&mut self, position: i64, sp: &Setpoint) -> (CountsErr, Pu) {
+        // Position loop: error in Q24.8 counts (saturating), ω_cmd = vff·ω_sp + k_pos·err.
+        if self.coef.position_loop {
+            // Q48.16 ≫ 8 is below 2^55 in magnitude; while |position| < 2^54 counts (the
+            // bits from 2^54 up all the sign: one high-word compare) position·256 is below
+            // 2^62 and the difference below 2^63, so plain arithmetic gives the exact value
+            // the saturating form gives.
+            let sp_q8 = sp.position_counts.to_bits() >> 8;
+            let err_bits = if position >> 54 == position >> 63 {
+                sp_q8 - (position << 8)
+            } else {
+                sp_q8.saturating_sub(position.saturating_mul(256))
+            };
+            let err = CountsErr::from_bits(sat_i32(err_bits));
+            if err.unsigned_abs() > self.coef.following_error.unsigned_abs() {
+                self.trip(Fault::FollowingError);
+            }
+            // Q24.8 · Q1.31 = Q.39 → Q16.16.
+            let p_term = Pu::from_bits(mul_bits::<23>(err.to_bits(), self.coef.k_pos.to_bits()));
+            (
+                err,
+                mul_gain(sp.velocity_pu, self.coef.velocity_ff).saturating_add(p_term),
+            )
+        } else {
+            (CountsErr::ZERO, sp.velocity_pu)
+        }
+    }
+
     /// The velocity tick: run every 1/velocity_rate_hz (every n-th current tick).
     ///
     /// ```
@@ -314,31 +347,7 @@ impl Controller {
             self.trip(Fault::Overspeed);
         }
 
-        // Position loop: error in Q24.8 counts (saturating), ω_cmd = vff·ω_sp + k_pos·err.
-        let (pos_err, v_cmd) = if self.coef.position_loop {
-            // Q48.16 ≫ 8 is below 2^55 in magnitude; while |position| < 2^54 counts (the
-            // bits from 2^54 up all the sign: one high-word compare) position·256 is below
-            // 2^62 and the difference below 2^63, so plain arithmetic gives the exact value
-            // the saturating form gives.
-            let sp_q8 = sp.position_counts.to_bits() >> 8;
-            let err_bits = if position >> 54 == position >> 63 {
-                sp_q8 - (position << 8)
-            } else {
-                sp_q8.saturating_sub(position.saturating_mul(256))
-            };
-            let err = CountsErr::from_bits(sat_i32(err_bits));
-            if err.unsigned_abs() > self.coef.following_error.unsigned_abs() {
-                self.trip(Fault::FollowingError);
-            }
-            // Q24.8 · Q1.31 = Q.39 → Q16.16.
-            let p_term = Pu::from_bits(mul_bits::<23>(err.to_bits(), self.coef.k_pos.to_bits()));
-            (
-                err,
-                mul_gain(sp.velocity_pu, self.coef.velocity_ff).saturating_add(p_term),
-            )
-        } else {
-            (CountsErr::ZERO, sp.velocity_pu)
-        };
+        let (pos_err, v_cmd) = self.position_loop(position, &sp);
 
         if self.state.fault.is_none() {
             let ff = mul_gain(sp.acceleration_pu_s, self.coef.k_accel_ff);

@@ -15,7 +15,6 @@ use controller_core::{
     CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu, VelocityInputs,
 };
 
-
 /// Bytes per input record: encoder count (u32 LE), current (Q16.16 bits, i32 LE), fault
 /// input (u32 LE, 0 or 1).
 pub const INPUT_RECORD_BYTES: usize = 12;
