@@ -23,7 +23,6 @@ use controller_core::DriveConfig;
 mod words;
 
 #[path = "../controller-core/tests/common/mod.rs"]
-#[allow(dead_code)]
 mod common;
 
 fn main() {
