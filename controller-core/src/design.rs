@@ -111,6 +111,21 @@ impl Gains {
     }
 }
 
+/// The observer pole θ = e^(−2π·f_o/f_cur) and its correction gains \[l1, l2, l3\] (three
+/// poles at θ).
+fn observer_poles(f_obs: f32, f_cur: f32) -> (f32, [f32; 3]) {
+    let theta =
+        crate::cfgmath::exp(-2.0 * core::f64::consts::PI * f64::from(f_obs) / f64::from(f_cur))
+            as f32;
+    let one_m = 1.0 - theta;
+    let l = [
+        1.0 - theta * theta * theta,
+        1.5 * one_m * one_m * (1.0 + theta),
+        one_m * one_m * one_m,
+    ];
+    (theta, l)
+}
+
 /// Design all gains from the drive settings, after [`DriveConfig::validate`].
 ///
 /// ```
@@ -153,16 +168,7 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
         ObserverInertia::Total => j_total,
         ObserverInertia::Motor => jm,
     };
-    let f_obs = cfg.observer.bandwidth_hz;
-    let theta =
-        crate::cfgmath::exp(-2.0 * core::f64::consts::PI * f64::from(f_obs) / f64::from(f_cur))
-            as f32;
-    let one_m = 1.0 - theta;
-    let observer_l = [
-        1.0 - theta * theta * theta,
-        1.5 * one_m * one_m * (1.0 + theta),
-        one_m * one_m * one_m,
-    ];
+    let (theta, observer_l) = observer_poles(cfg.observer.bandwidth_hz, f_cur);
     let cpps = counts_per_pu_s(cfg.encoder_cpr, cfg.base_speed_rpm);
     let j_loop = match cfg.velocity_pi_inertia {
         PiInertia::Total => j_total,
