@@ -8,11 +8,22 @@
 //!    through the HOST build of controller-core (this script is compiled for the host), and
 //!    the inputs plus the expected output words are written to `$OUT_DIR/lil_data.rs` for the
 //!    `fw-lil` image, which runs the same sequence on the target and compares bit for bit.
+//! 3. The drive: `../configs/table1.toml` composed as the tests compose it (its `[drive]`
+//!    table, the machine keys it omits from `[plant]` and `[electrics]`), deserialized into a
+//!    `DriveConfig` (controller-core's `serde` feature), validated by `design()` (a bad file
+//!    fails the build naming the key) and encoded with pil-link's settings codec into
+//!    `$OUT_DIR/drive_settings.bin`, which the image decodes at start-up
+//!    (`firmware::drive::baked`). No field of the drive is spelled out here.
 use std::{env, fs, path::PathBuf};
+
+use controller_core::DriveConfig;
 
 #[path = "src/lil/words.rs"]
 #[allow(dead_code)]
 mod words;
+
+#[path = "../controller-core/tests/common/mod.rs"]
+mod common;
 
 fn main() {
     let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
@@ -22,8 +33,17 @@ fn main() {
     println!("cargo:rerun-if-changed=link");
     println!("cargo:rerun-if-changed=lil/inputs.csv");
     println!("cargo:rerun-if-changed=src/lil/words.rs");
+    println!("cargo:rerun-if-changed=../configs/table1.toml");
+    println!("cargo:rerun-if-changed=../controller-core/tests/common/mod.rs");
 
-    if let Err(e) = write_lil_data(&manifest.join("lil/inputs.csv"), &out) {
+    let cfg = match bake_drive(&manifest.join("../configs/table1.toml"), &out) {
+        Ok(cfg) => cfg,
+        Err(e) => {
+            eprintln!("drive settings (configs/table1.toml): {e}");
+            std::process::exit(1);
+        }
+    };
+    if let Err(e) = write_lil_data(&cfg, &manifest.join("lil/inputs.csv"), &out) {
         // A broken recording must fail the build, not produce an empty test.
         eprintln!("loop-in-the-loop data: {e}");
         std::process::exit(1);
@@ -59,10 +79,32 @@ fn main() {
     println!("cargo:rustc-link-arg=-Tboard-check.x");
 }
 
+/// Compose, validate and encode the drive of `toml_path` into `drive_settings.bin`; the
+/// drive as the image will decode it.
+fn bake_drive(toml_path: &std::path::Path, out: &std::path::Path) -> Result<DriveConfig, String> {
+    let text = fs::read_to_string(toml_path).map_err(|e| e.to_string())?;
+    let cfg = common::try_drive_of(&text)?;
+    controller_core::design(&cfg).map_err(|e| format!("drive.{}: {e}", e.param()))?;
+    let mut w = pil_link::wire::Writer::new();
+    pil_link::settings::encode(&cfg, &mut w).map_err(|e| format!("encode: {e:?}"))?;
+    let bytes = w.as_slice();
+    // The image decodes these very bytes; the reference run uses the decoded drive too.
+    let back = pil_link::settings::decode(bytes).map_err(|e| format!("decode: {e:?}"))?;
+    if back != cfg {
+        return Err("settings codec does not round-trip the drive".into());
+    }
+    fs::write(out.join("drive_settings.bin"), bytes).map_err(|e| e.to_string())?;
+    Ok(back)
+}
+
 /// Parse the recording, run the host core on it, write `lil_inputs.bin` and
 /// `lil_expected.bin`. A missing recording gives empty files (the replay then fails loudly
 /// for having no periods); a malformed one is an error.
-fn write_lil_data(csv: &std::path::Path, out: &std::path::Path) -> Result<(), String> {
+fn write_lil_data(
+    cfg: &DriveConfig,
+    csv: &std::path::Path,
+    out: &std::path::Path,
+) -> Result<(), String> {
     let text = match fs::read_to_string(csv) {
         Ok(t) => t,
         Err(_) => {
@@ -105,7 +147,7 @@ fn write_lil_data(csv: &std::path::Path, out: &std::path::Path) -> Result<(), St
         input_bytes.extend_from_slice(&rec.to_bytes());
     }
     let mut expected = Vec::new();
-    words::reference_run(inputs.iter().copied(), |w| {
+    words::reference_run(cfg, inputs.iter().copied(), |w| {
         for x in w {
             expected.extend_from_slice(&x.to_le_bytes());
         }

@@ -18,6 +18,9 @@
     clippy::panic
 )]
 
+#[path = "../controller-core/tests/common/mod.rs"]
+mod common;
+
 use hil_harness::pil::{build_pil_image, build_pil_image_with, pil_command, run_pil, PilArgs};
 use pil_link::host::{HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
@@ -353,7 +356,7 @@ fn a_second_config_while_running_is_a_protocol_fault() {
     let (mut qemu, mut link) = raw_session(&elf(), &dir.path().join("fw.defmt"));
     link.hello(500).unwrap();
     let mut w = pil_link::wire::Writer::new();
-    pil_link::settings::encode(&controller_core::DriveConfig::table1(), &mut w).unwrap();
+    pil_link::settings::encode(&common::table1(), &mut w).unwrap();
     link.configure(w.as_slice()).unwrap();
     match link.configure(w.as_slice()) {
         Err(HostError::FirmwareFault(r)) => assert_eq!(r.code, FaultCode::Protocol),

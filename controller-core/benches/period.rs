@@ -1,21 +1,25 @@
 //! One 4 kHz period on the host: a current tick plus half a velocity tick, measured as a
 //! pair of periods (two current ticks and one velocity tick); divide by two for one period.
-//! The motor turns at 2 counts per current tick (0.117 pu) and the setpoint follows it, so
+//! The motor turns at 2 counts per current tick and the setpoint follows it, so
 //! every regulator, the observer and the AFB path run (no fault short-cut).
 //! `cargo bench -p controller-core`
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
 use std::hint::black_box;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use controller_core::{
-    Controller, Counts, CurrentInputs, DriveConfig, Profile, ProfileConfig, Pu, Setpoint,
-    VelocityInputs,
+    Controller, Counts, CurrentInputs, Profile, ProfileConfig, Pu, Setpoint, VelocityInputs,
 };
 use criterion::{criterion_group, criterion_main, Criterion};
 
 struct Rig {
     ctl: Controller,
     pos: i64,
+    /// The speed of 2 counts per current tick \[pu\].
+    speed: Pu,
 }
 
 impl Rig {
@@ -25,7 +29,7 @@ impl Rig {
     fn setpoint(&self) -> Setpoint {
         Setpoint {
             position_counts: Counts::from_num(self.pos + 3),
-            velocity_pu: Pu::from_num(0.117),
+            velocity_pu: self.speed,
             acceleration_pu_s: Pu::from_num(0.5),
         }
     }
@@ -48,10 +52,13 @@ impl Rig {
 }
 
 fn periods(c: &mut Criterion) {
-    let cfg = DriveConfig::table1();
+    let cfg = common::table1();
+    let counts_per_s = 2.0 * f64::from(cfg.current_rate_hz);
+    let base_counts_per_s = f64::from(cfg.encoder_cpr) * f64::from(cfg.base_speed_rpm) / 60.0;
     let mut rig = Rig {
         ctl: Controller::new(&cfg).unwrap(),
         pos: 0,
+        speed: Pu::from_num(counts_per_s / base_counts_per_s),
     };
     c.bench_function(
         "two 4 kHz periods (velocity tick + 2 current ticks), Table 1 default",

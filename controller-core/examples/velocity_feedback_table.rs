@@ -10,10 +10,12 @@
     missing_docs
 )]
 
+#[path = "../tests/common/mod.rs"]
+mod common;
 #[path = "../tests/sim/mod.rs"]
 mod sim;
 
-use controller_core::{AfbMode, Controller, DriveConfig, Estimator, FilterConfig};
+use controller_core::{AfbMode, Controller, Estimator, FilterConfig};
 use sim::{run_fig6, run_scenario, PlantParams, Scenario};
 
 fn main() {
@@ -31,7 +33,7 @@ fn main() {
             (AfbMode::Error, Estimator::Differentiation, 25.0),
             (AfbMode::Error, Estimator::Observer, 100.0),
         ] {
-            let mut cfg = DriveConfig::table1();
+            let mut cfg = common::table1();
             cfg.velocity_estimator = vel;
             cfg.velocity_filter = if vf == 0.0 {
                 FilterConfig::None

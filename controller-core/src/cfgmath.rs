@@ -161,4 +161,124 @@ mod tests {
             );
         }
     }
+
+    /// micromath (f32) against cfgmath (f64) over the arguments the coefficient design uses,
+    /// as the largest relative error against std's f64, on the functions and on the derived
+    /// coefficients. `cargo test -p controller-core --lib micromath -- --nocapture` prints
+    /// the figures quoted in `controller-core/README.md`.
+    #[test]
+    fn micromath_against_cfgmath() {
+        // Called through the trait: on the host, f32's inherent methods would shadow it.
+        use micromath::F32Ext as M;
+        let tau = core::f64::consts::TAU;
+        let n = 20_000;
+        // Error relative to max(|exact|, floor): floor 0 = relative, 1 = absolute (sin, whose
+        // zeros make a relative error meaningless).
+        let worst_with = |f: &dyn Fn(f64) -> (f64, f64, f64), lo: f64, hi: f64, floor: f64| {
+            let (mut mm, mut cm) = (0.0_f64, 0.0_f64);
+            for k in 0..=n {
+                let x = lo + (hi - lo) * f64::from(k) / f64::from(n);
+                let (exact, m, c) = f(x);
+                let scale = exact.abs().max(floor);
+                if scale != 0.0 {
+                    mm = mm.max((m - exact).abs() / scale);
+                    cm = cm.max((c - exact).abs() / scale);
+                }
+            }
+            (mm, cm)
+        };
+        let worst =
+            |f: &dyn Fn(f64) -> (f64, f64, f64), lo: f64, hi: f64| worst_with(f, lo, hi, 0.0);
+        let rows: [(&str, (f64, f64)); 8] = [
+            (
+                "exp(x), x in [-pi, 0] (poles, first-order alpha)",
+                worst(
+                    &|x| (x.exp(), f64::from(M::exp(x as f32)), super::exp(x)),
+                    -core::f64::consts::PI,
+                    0.0,
+                ),
+            ),
+            (
+                "exp(x), x in [-7, 0] (notch depth)",
+                worst(
+                    &|x| (x.exp(), f64::from(M::exp(x as f32)), super::exp(x)),
+                    -7.0,
+                    0.0,
+                ),
+            ),
+            (
+                "tan(x), x in [1e-4, 1.5] (bilinear pre-warp)",
+                worst(
+                    &|x| (x.tan(), f64::from(M::tan(x as f32)), super::tan(x)),
+                    1e-4,
+                    1.5,
+                ),
+            ),
+            (
+                "sin(x), x in [0, 2 pi] (notch response; absolute error)",
+                worst_with(
+                    &|x| (x.sin(), f64::from(M::sin(x as f32)), super::sin_cos(x).0),
+                    0.0,
+                    tau,
+                    1.0,
+                ),
+            ),
+            (
+                "sqrt(x), x in [1e-6, 100]",
+                worst(
+                    &|x| (x.sqrt(), f64::from(M::sqrt(x as f32)), super::sqrt(x)),
+                    1e-6,
+                    100.0,
+                ),
+            ),
+            (
+                "ln(x), x in [1.01, 1e4] (sweep ratio)",
+                worst(
+                    &|x| (x.ln(), f64::from(M::ln(x as f32)), super::ln(x)),
+                    1.01,
+                    1e4,
+                ),
+            ),
+            // First-order alpha = 1 - e^(-2 pi fc/fs), corner 0.1 Hz .. fs/2 at 4 kHz.
+            (
+                "alpha = 1 - exp(-2 pi fc/fs), fc in [0.1 Hz, 2 kHz] at 4 kHz",
+                worst(
+                    &|f| {
+                        let x = -tau * f / 4000.0;
+                        (
+                            1.0 - x.exp(),
+                            1.0 - f64::from(M::exp(x as f32)),
+                            1.0 - super::exp(x),
+                        )
+                    },
+                    0.1,
+                    2000.0,
+                ),
+            ),
+            // Observer l3 = (1 - theta)^3, theta = e^(-2 pi fo/fs), 1..2000 Hz at 4 kHz.
+            (
+                "observer l3 = (1 - theta)^3, fo in [1 Hz, 2 kHz] at 4 kHz",
+                worst(
+                    &|f| {
+                        let x = -tau * f / 4000.0;
+                        let l3 = |t: f64| (1.0 - t).powi(3);
+                        (
+                            l3(x.exp()),
+                            l3(f64::from(M::exp(x as f32))),
+                            l3(super::exp(x)),
+                        )
+                    },
+                    1.0,
+                    2000.0,
+                ),
+            ),
+        ];
+        println!("| quantity | micromath (f32) max rel. error | cfgmath (f64) max rel. error |");
+        println!("|---|---|---|");
+        for (name, (mm, cm)) in rows {
+            println!("| {name} | {mm:.1e} | {cm:.1e} |");
+            // cfgmath must stay at f64 precision, far below the Q2.30 LSB (9.3e-10).
+            assert!(cm < 1e-11, "{name}: cfgmath {cm:e}");
+        }
+    }
 }

@@ -1,8 +1,13 @@
 //! Drive settings: plain `Copy` data, all in SI or per-unit as the field names say.
-//! [`crate::design()`] validates them and turns them into gains once.
+//! [`crate::design()`] validates them ([`DriveConfig::validate`], one range table:
+//! [`crate::ranges::RANGES`]) and turns them into gains once. With the `serde` feature the
+//! same types are the `[drive]` TOML contract; with `schema`, its JSON Schema.
 
 /// Source of a velocity or acceleration estimate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub enum Estimator {
     /// Backward differences of the encoder counts at the consuming loop's rate
     /// (velocity = Δcounts/Ts, acceleration = Δ²counts/Ts²), with their quantization.
@@ -13,6 +18,14 @@ pub enum Estimator {
 
 /// A low-pass filter on an estimate.
 #[derive(Clone, Copy, Debug, PartialEq)]
+// Deserialize is written out (`filter_de`): serde's derive of an internally tagged enum
+// buffers the map, which needs `alloc`.
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
+#[cfg_attr(
+    feature = "serde",
+    serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)
+)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub enum FilterConfig {
     /// No filter.
     None,
@@ -25,13 +38,17 @@ pub enum FilterConfig {
     SecondOrder {
         /// Corner frequency \[Hz\], 0 < f_c < rate/2.
         corner_hz: f32,
-        /// Quality factor (0.707 = Butterworth), 0.1..=10.
+        /// Quality factor, 0.1..=10; 1/√2 (Butterworth) when absent.
+        #[cfg_attr(feature = "serde", serde(default = "defaults::butterworth_q"))]
         q: f32,
     },
 }
 
 /// How the acceleration feedback term is formed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub enum AfbMode {
     /// No acceleration feedback.
     Off,
@@ -44,6 +61,9 @@ pub enum AfbMode {
 
 /// Which tick runs the acceleration feedback path.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub enum AfbRate {
     /// Every current tick (`current_rate_hz`).
     Current,
@@ -53,6 +73,9 @@ pub enum AfbRate {
 
 /// Acceleration feedback ("inertia stabilization") settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub struct AccelFeedbackConfig {
     /// Form of the feedback.
     pub mode: AfbMode,
@@ -68,6 +91,9 @@ pub struct AccelFeedbackConfig {
 
 /// Inertia the observer's model uses to turn the torque command into acceleration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub enum ObserverInertia {
     /// Motor plus load (`motor_inertia_s + load_inertia_s`): right while the gears are engaged.
     Total,
@@ -77,6 +103,9 @@ pub enum ObserverInertia {
 
 /// Inertia the velocity PI is sized for (Kp = ω_v·J, Ki = Kp·ω_v/(4ζ²)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub enum PiInertia {
     /// J = J_total: the regulator is tuned for the machine and acceleration feedback adds
     /// inertia electrically on top of it (the paper's reading, Fig. 2). With AFB off or on,
@@ -89,6 +118,9 @@ pub enum PiInertia {
 
 /// Torque the observer's model is driven with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub enum ObserverTorque {
     /// The torque (current) reference of the last current tick.
     Command,
@@ -98,6 +130,9 @@ pub enum ObserverTorque {
 
 /// Luenberger observer settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub struct ObserverConfig {
     /// Observer bandwidth \[Hz\]: the three observer poles sit at z = e^(−2π·f·Ts_current).
     /// 0 < f < current_rate_hz/2.
@@ -111,6 +146,9 @@ pub struct ObserverConfig {
 
 /// Fault thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields, default))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub struct FaultLimits {
     /// Overspeed trip on the velocity estimate \[pu\], > 0.
     pub overspeed_pu: f32,
@@ -123,17 +161,39 @@ pub struct FaultLimits {
 }
 
 /// The drive's settings. Every field is plain data; the units are in the names.
+///
+/// With the `serde` feature this is the `[drive]` table of a configuration file: the machine
+/// keys (`base_speed_rpm`, `encoder_cpr`, `motor_inertia_s`, `load_inertia_s`,
+/// `winding_resistance_pu`, `winding_inductance_pu_s`) and the loop keys (`current_rate_hz`,
+/// `velocity_rate_hz`, `position_bandwidth_rad_s`, `velocity_bandwidth_rad_s`,
+/// `current_bandwidth_rad_s`) are required; every other key defaults to stiffdrive's design
+/// default (see [`defaults`]). Ranges: [`crate::ranges::RANGES`], checked by
+/// [`DriveConfig::validate`].
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
 pub struct DriveConfig {
     /// Base (rated) speed \[rpm\], defines 1 pu of speed. > 0.
     pub base_speed_rpm: f32,
     /// Encoder counts per motor revolution (after quadrature), ≥ 4.
+    #[cfg_attr(feature = "serde", serde(deserialize_with = "whole::u32"))]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub encoder_cpr: u32,
     /// Width of the hardware counter that delivers `encoder_count` \[bits\], 16..=32.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default = "defaults::counter_bits", deserialize_with = "whole::u8")
+    )]
+    #[cfg_attr(feature = "schema", schemars(with = "u8"))]
     pub counter_bits: u8,
     /// Current-loop tick rate \[Hz\], 100..=100,000.
+    #[cfg_attr(feature = "serde", serde(deserialize_with = "whole::u32"))]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub current_rate_hz: u32,
     /// Velocity-loop tick rate \[Hz\]; must divide `current_rate_hz`.
+    #[cfg_attr(feature = "serde", serde(deserialize_with = "whole::u32"))]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
     pub velocity_rate_hz: u32,
     /// Motor inertia \[s\], > 0.
     pub motor_inertia_s: f32,
@@ -144,8 +204,10 @@ pub struct DriveConfig {
     /// Velocity-loop bandwidth \[rad/s\]: Kp = ω·J, Ki = Kp·ω/(4ζ²). > 0, below π·velocity_rate_hz.
     pub velocity_bandwidth_rad_s: f32,
     /// Velocity-loop damping ζ, 0.1..=10 (1 = Ki = Kp·ω/4).
+    #[cfg_attr(feature = "serde", serde(default = "defaults::velocity_damping"))]
     pub velocity_damping: f32,
     /// Inertia the velocity PI is sized for (`[drive] velocity_pi_inertia`).
+    #[cfg_attr(feature = "serde", serde(default = "defaults::velocity_pi_inertia"))]
     pub velocity_pi_inertia: PiInertia,
     /// Current-loop bandwidth \[rad/s\]: Kp = L·ω_c, Ki = R·ω_c. > 0, below π·current_rate_hz.
     pub current_bandwidth_rad_s: f32,
@@ -154,82 +216,36 @@ pub struct DriveConfig {
     /// Winding inductance \[pu voltage per pu current per second, i.e. pu·s\], > 0.
     pub winding_inductance_pu_s: f32,
     /// Torque (= current) reference limit \[pu\], > 0.
+    #[cfg_attr(feature = "serde", serde(default = "defaults::torque_limit_pu"))]
     pub torque_limit_pu: f32,
     /// Voltage command limit \[pu\], > 0.
+    #[cfg_attr(feature = "serde", serde(default = "defaults::voltage_limit_pu"))]
     pub voltage_limit_pu: f32,
     /// Fraction of the commanded velocity fed forward into the velocity reference, 0..=1
     /// (position mode; in velocity mode the setpoint velocity is the reference).
+    #[cfg_attr(feature = "serde", serde(default = "defaults::velocity_ff_gain"))]
     pub velocity_ff_gain: f32,
     /// Fraction of the commanded acceleration times inertia fed forward as torque, 0..=1.
+    #[cfg_attr(feature = "serde", serde(default = "defaults::accel_ff_gain"))]
     pub accel_ff_gain: f32,
     /// Low-pass filter on the velocity feedback.
+    #[cfg_attr(feature = "serde", serde(default = "defaults::velocity_filter"))]
     pub velocity_filter: FilterConfig,
     /// Source of the velocity feedback.
+    #[cfg_attr(feature = "serde", serde(default = "defaults::velocity_estimator"))]
     pub velocity_estimator: Estimator,
     /// Acceleration feedback.
+    #[cfg_attr(feature = "serde", serde(default))]
     pub accel_feedback: AccelFeedbackConfig,
     /// State observer.
+    #[cfg_attr(feature = "serde", serde(default))]
     pub observer: ObserverConfig,
     /// Fault thresholds.
+    #[cfg_attr(feature = "serde", serde(default))]
     pub faults: FaultLimits,
 }
 
 impl DriveConfig {
-    /// The paper's Table 1 drive: 1000 rpm, 4096 CPR, 4 kHz current / 2 kHz velocity ticks,
-    /// Jm = 0.117 s, Jl = 0.863 s, bandwidths 3 Hz (position), 15 Hz (velocity),
-    /// 318 Hz (current), velocity PI sized for J_total, with acceleration feedback on in the default design of
-    /// `controller-core/README.md` (chosen by the closed-loop sweep in
-    /// `tests/afb_design.rs`): error form, Ka = 0.5·J_total, acceleration from the observer
-    /// (motor-inertia model, 75 Hz), first-order filter at 100 Hz, run every current tick;
-    /// velocity feedback from the observer.
-    ///
-    /// ```
-    /// let cfg = controller_core::DriveConfig::table1();
-    /// assert!(controller_core::design(&cfg).is_ok());
-    /// ```
-    #[must_use]
-    pub const fn table1() -> Self {
-        Self {
-            base_speed_rpm: 1000.0,
-            encoder_cpr: 4096,
-            counter_bits: 16,
-            current_rate_hz: 4000,
-            velocity_rate_hz: 2000,
-            motor_inertia_s: 0.117,
-            load_inertia_s: 0.863,
-            position_bandwidth_rad_s: 2.0 * core::f32::consts::PI * 3.0,
-            velocity_bandwidth_rad_s: 2.0 * core::f32::consts::PI * 15.0,
-            velocity_damping: 1.0,
-            velocity_pi_inertia: PiInertia::Total,
-            current_bandwidth_rad_s: 2.0 * core::f32::consts::PI * 318.0,
-            winding_resistance_pu: 0.05,
-            winding_inductance_pu_s: 0.0006,
-            torque_limit_pu: 2.0,
-            voltage_limit_pu: 1.2,
-            velocity_ff_gain: 1.0,
-            accel_ff_gain: 1.0,
-            velocity_filter: FilterConfig::None,
-            velocity_estimator: Estimator::Observer,
-            accel_feedback: AccelFeedbackConfig {
-                mode: AfbMode::Error,
-                gain_fraction: 0.5,
-                filter: FilterConfig::FirstOrder { corner_hz: 100.0 },
-                rate: AfbRate::Current,
-                source: Estimator::Observer,
-            },
-            observer: ObserverConfig {
-                bandwidth_hz: 75.0,
-                model_inertia: ObserverInertia::Motor,
-                torque_input: ObserverTorque::Command,
-            },
-            faults: FaultLimits {
-                overspeed_pu: 1.5,
-                following_error_counts: 4096.0,
-                encoder_jump_margin: 2.0,
-            },
-        }
-    }
-
     /// Total inertia J_total = motor + load \[s\].
     #[must_use]
     pub fn total_inertia_s(&self) -> f32 {
@@ -237,8 +253,167 @@ impl DriveConfig {
     }
 }
 
-impl Default for DriveConfig {
+impl Default for AccelFeedbackConfig {
     fn default() -> Self {
-        Self::table1()
+        defaults::ACCEL_FEEDBACK
     }
 }
+
+impl Default for ObserverConfig {
+    fn default() -> Self {
+        defaults::OBSERVER
+    }
+}
+
+impl Default for FaultLimits {
+    fn default() -> Self {
+        defaults::FAULTS
+    }
+}
+
+pub mod defaults {
+    //! stiffdrive's design defaults of the settings a configuration may omit (the ones
+    //! `controller-core/README.md` explains: acceleration feedback in the error form at
+    //! Ka = 0.5·J_total from the observer, first-order filter at 100 Hz, every current tick;
+    //! observer at 75 Hz with the motor-inertia model). They are design choices, not machine
+    //! data: the machine and loop-rate keys have no default.
+    use super::{
+        AccelFeedbackConfig, AfbMode, AfbRate, Estimator, FaultLimits, FilterConfig,
+        ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
+    };
+
+    /// Acceleration feedback: error form, Ka = 0.5·J_total, first order at 100 Hz, every
+    /// current tick, acceleration from the observer.
+    pub const ACCEL_FEEDBACK: AccelFeedbackConfig = AccelFeedbackConfig {
+        mode: AfbMode::Error,
+        gain_fraction: 0.5,
+        filter: FilterConfig::FirstOrder { corner_hz: 100.0 },
+        rate: AfbRate::Current,
+        source: Estimator::Observer,
+    };
+    /// Observer: 75 Hz, motor-inertia model, driven by the torque command.
+    pub const OBSERVER: ObserverConfig = ObserverConfig {
+        bandwidth_hz: 75.0,
+        model_inertia: ObserverInertia::Motor,
+        torque_input: ObserverTorque::Command,
+    };
+    /// Fault limits: overspeed 1.5 pu, following error 4096 counts, encoder-jump margin 2.
+    pub const FAULTS: FaultLimits = FaultLimits {
+        overspeed_pu: 1.5,
+        following_error_counts: 4096.0,
+        encoder_jump_margin: 2.0,
+    };
+
+    /// Butterworth Q = 1/√2 of a second-order filter that names no `q`.
+    #[must_use]
+    pub const fn butterworth_q() -> f32 {
+        core::f32::consts::FRAC_1_SQRT_2
+    }
+    /// 16-bit hardware counter.
+    #[must_use]
+    pub const fn counter_bits() -> u8 {
+        16
+    }
+    /// ζ = 1 (Ki = Kp·ω/4).
+    #[must_use]
+    pub const fn velocity_damping() -> f32 {
+        1.0
+    }
+    /// PI sized for J_total.
+    #[must_use]
+    pub const fn velocity_pi_inertia() -> PiInertia {
+        PiInertia::Total
+    }
+    /// 2 pu torque.
+    #[must_use]
+    pub const fn torque_limit_pu() -> f32 {
+        2.0
+    }
+    /// 1.2 pu voltage.
+    #[must_use]
+    pub const fn voltage_limit_pu() -> f32 {
+        1.2
+    }
+    /// Full velocity feed-forward.
+    #[must_use]
+    pub const fn velocity_ff_gain() -> f32 {
+        1.0
+    }
+    /// Full acceleration feed-forward.
+    #[must_use]
+    pub const fn accel_ff_gain() -> f32 {
+        1.0
+    }
+    /// No velocity filter.
+    #[must_use]
+    pub const fn velocity_filter() -> FilterConfig {
+        FilterConfig::None
+    }
+    /// Velocity from the observer.
+    #[must_use]
+    pub const fn velocity_estimator() -> Estimator {
+        Estimator::Observer
+    }
+}
+
+#[cfg(feature = "serde")]
+mod whole {
+    //! Whole-number fields accept an integer or an integral float (`24` or `24.0`) and
+    //! reject a fractional one: a count, a bit width or a rate is never truncated.
+    use core::fmt;
+    use serde::de::{self, Deserializer, Visitor};
+
+    struct Whole(u64);
+
+    impl<'de> serde::Deserialize<'de> for Whole {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            d.deserialize_any(WholeVisitor)
+        }
+    }
+
+    struct WholeVisitor;
+
+    impl Visitor<'_> for WholeVisitor {
+        type Value = Whole;
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("a non-negative whole number")
+        }
+        fn visit_u64<E: de::Error>(self, v: u64) -> Result<Whole, E> {
+            Ok(Whole(v))
+        }
+        fn visit_i64<E: de::Error>(self, v: i64) -> Result<Whole, E> {
+            u64::try_from(v)
+                .map(Whole)
+                .map_err(|_| E::custom(format_args!("{v}: must be a non-negative whole number")))
+        }
+        fn visit_f64<E: de::Error>(self, v: f64) -> Result<Whole, E> {
+            // 2^64 is exact in f64; below it an integral value converts without loss.
+            if (0.0..18_446_744_073_709_551_616.0).contains(&v) && v == (v as u64) as f64 {
+                Ok(Whole(v as u64))
+            } else {
+                Err(E::custom(format_args!("{v}: must be a whole number")))
+            }
+        }
+    }
+
+    fn narrow<'de, D: Deserializer<'de>, T: TryFrom<u64>>(d: D) -> Result<T, D::Error> {
+        let Whole(v) = serde::Deserialize::deserialize(d)?;
+        T::try_from(v).map_err(|_| {
+            de::Error::custom(format_args!(
+                "{v}: too large for a {}",
+                core::any::type_name::<T>()
+            ))
+        })
+    }
+
+    pub(super) fn u32<'de, D: Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+        narrow(d)
+    }
+
+    pub(super) fn u8<'de, D: Deserializer<'de>>(d: D) -> Result<u8, D::Error> {
+        narrow(d)
+    }
+}
+
+#[cfg(feature = "serde")]
+mod filter_de;

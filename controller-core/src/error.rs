@@ -3,6 +3,39 @@
 
 use core::fmt;
 
+/// A fixed-point format Qm.n, read off the type itself ([`QFormat::of`]), so an error can
+/// never name another format than the one the value was quantized to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct QFormat {
+    /// Integer bits m (including the sign bit).
+    pub int_bits: u32,
+    /// Fractional bits n.
+    pub frac_bits: u32,
+}
+
+impl QFormat {
+    /// The format of the `fixed` type `T`, e.g. `Q16.16` for `I16F16`.
+    ///
+    /// ```
+    /// use controller_core::error::QFormat;
+    /// use controller_core::per_unit::Coef;
+    /// assert_eq!(QFormat::of::<Coef>().to_string(), "Q2.30");
+    /// ```
+    #[must_use]
+    pub const fn of<T: fixed::traits::Fixed>() -> Self {
+        Self {
+            int_bits: T::INT_NBITS,
+            frac_bits: T::FRAC_NBITS,
+        }
+    }
+}
+
+impl fmt::Display for QFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Q{}.{}", self.int_bits, self.frac_bits)
+    }
+}
+
 /// A bad setting found by [`crate::design()`], [`crate::Controller::new`] or
 /// [`crate::Profile::new`]. Never a panic and never a silent clamp.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,7 +74,7 @@ pub enum ConfigError {
         /// The computed value.
         value: f32,
         /// The Q-format it must fit.
-        q_format: &'static str,
+        q_format: QFormat,
     },
     /// A non-zero derived gain or coefficient is too small for its fixed-point format
     /// (it would be quantized with more than 1 % error).
@@ -51,7 +84,7 @@ pub enum ConfigError {
         /// The computed value.
         value: f32,
         /// The Q-format it must fit.
-        q_format: &'static str,
+        q_format: QFormat,
     },
     /// `current_rate_hz` is not an integer multiple of `velocity_rate_hz`.
     RateRatio {
@@ -63,6 +96,26 @@ pub enum ConfigError {
 }
 
 impl ConfigError {
+    /// `value` of `param` does not fit the format of `T`.
+    #[must_use]
+    pub const fn overflow<T: fixed::traits::Fixed>(param: &'static str, value: f32) -> Self {
+        Self::CoefficientOverflow {
+            param,
+            value,
+            q_format: QFormat::of::<T>(),
+        }
+    }
+
+    /// `value` of `param` is too small for the format of `T`.
+    #[must_use]
+    pub const fn underflow<T: fixed::traits::Fixed>(param: &'static str, value: f32) -> Self {
+        Self::CoefficientUnderflow {
+            param,
+            value,
+            q_format: QFormat::of::<T>(),
+        }
+    }
+
     /// The name of the offending parameter.
     #[must_use]
     pub fn param(&self) -> &'static str {

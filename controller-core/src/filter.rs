@@ -6,6 +6,8 @@
 use crate::config::FilterConfig;
 use crate::error::ConfigError;
 use crate::per_unit::{checked_q, sat_i32, Coef, Pu};
+use crate::ranges::Range;
+use crate::validate::check_filter;
 
 /// Coefficients of a low-pass filter.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,18 +64,19 @@ pub enum LowPassDesign {
     },
 }
 
-/// Design a low-pass filter for a tick rate. `param` names the `FilterConfig` field for
-/// errors (e.g. `"accel_feedback.filter"`).
+/// Design a low-pass filter for a tick rate. `corner` and `q` are the [`Range`] entries of
+/// the setting (e.g. [`crate::ranges::AFB_FILTER_CORNER_HZ`]): they are checked here and name
+/// the setting in an error.
 pub fn design_low_pass(
     cfg: &FilterConfig,
     rate_hz: f32,
-    param_corner: &'static str,
-    param_q: &'static str,
+    corner: &Range,
+    q: &Range,
 ) -> Result<LowPassDesign, ConfigError> {
+    check_filter(cfg, rate_hz, corner, q)?;
     match *cfg {
         FilterConfig::None => Ok(LowPassDesign::None),
         FilterConfig::FirstOrder { corner_hz } => {
-            check_corner(corner_hz, rate_hz, param_corner)?;
             let alpha = (1.0
                 - crate::cfgmath::exp(
                     -core::f64::consts::TAU * f64::from(corner_hz) / f64::from(rate_hz),
@@ -81,19 +84,6 @@ pub fn design_low_pass(
             Ok(LowPassDesign::FirstOrder { alpha })
         }
         FilterConfig::SecondOrder { corner_hz, q } => {
-            check_corner(corner_hz, rate_hz, param_corner)?;
-            if !q.is_finite() {
-                return Err(ConfigError::NotFinite { param: param_q });
-            }
-            if !(0.1..=10.0).contains(&q) {
-                return Err(ConfigError::OutOfRange {
-                    param: param_q,
-                    value: q,
-                    min: 0.1,
-                    max: 10.0,
-                    min_exclusive: false,
-                });
-            }
             // Bilinear transform with the corner pre-warped: K = tan(π·f_c/f_s).
             let k = crate::cfgmath::tan(
                 core::f64::consts::PI * f64::from(corner_hz) / f64::from(rate_hz),
@@ -109,39 +99,10 @@ pub fn design_low_pass(
     }
 }
 
-fn check_corner(corner_hz: f32, rate_hz: f32, param: &'static str) -> Result<(), ConfigError> {
-    if !corner_hz.is_finite() {
-        return Err(ConfigError::NotFinite { param });
-    }
-    if corner_hz <= 0.0 {
-        return Err(ConfigError::OutOfRange {
-            param,
-            value: corner_hz,
-            min: 0.0,
-            max: rate_hz / 2.0,
-            min_exclusive: true,
-        });
-    }
-    if corner_hz >= rate_hz / 2.0 {
-        return Err(ConfigError::AboveNyquist {
-            param,
-            value: corner_hz,
-            nyquist: rate_hz / 2.0,
-        });
-    }
-    Ok(())
-}
-
 impl LowPass {
     /// Quantize a design to Q2.30; `param` names the coefficient set in an overflow error.
     pub fn quantize(d: &LowPassDesign, param: &'static str) -> Result<Self, ConfigError> {
-        let q = |v: f32| {
-            checked_q::<Coef>(v).ok_or(ConfigError::CoefficientOverflow {
-                param,
-                value: v,
-                q_format: "Q2.30",
-            })
-        };
+        let q = |v: f32| checked_q::<Coef>(v).ok_or(ConfigError::overflow::<Coef>(param, v));
         Ok(match *d {
             LowPassDesign::None => Self::None,
             LowPassDesign::FirstOrder { alpha } => Self::FirstOrder { alpha: q(alpha)? },

@@ -6,6 +6,11 @@
 //! Configuration ([`DriveConfig`] → [`design()`] → [`Gains`]) uses `f32` once; the ticks
 //! ([`Controller::current_tick`], [`Controller::velocity_tick`], [`Profile::next`]) use
 //! only fixed-point integer arithmetic, saturate instead of wrapping, and cannot panic.
+//!
+//! Features: `serde` derives `Serialize`/`Deserialize` on [`DriveConfig`] and its nested
+//! settings (the `[drive]` TOML contract; still `no_std`, no alloc); `schema` adds
+//! `schemars::JsonSchema` (std). [`RANGES`] is the one range table [`DriveConfig::validate`]
+//! checks. [`words`] holds the raw-word layout of the tick outputs and the fault codes.
 #![cfg_attr(not(test), no_std)]
 
 pub mod accel_feedback;
@@ -23,6 +28,9 @@ pub mod observer;
 pub mod per_unit;
 pub mod pi;
 pub mod profile;
+pub mod ranges;
+mod validate;
+pub mod words;
 
 pub use config::{
     AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
@@ -32,7 +40,8 @@ pub use controller::{
     Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs,
 };
 pub use design::{design, Gains};
-pub use error::ConfigError;
+pub use error::{ConfigError, QFormat};
 pub use fault::Fault;
 pub use per_unit::{Counts, CountsErr, Pu, PuPerS};
 pub use profile::{Profile, ProfileConfig, ProfileKind};
+pub use ranges::{Range, RANGES};

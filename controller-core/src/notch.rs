@@ -188,11 +188,7 @@ impl Notch {
     /// Quantize a design to Q2.30. `param` names the coefficient set in an error.
     pub fn quantize(d: &NotchDesign, param: &'static str) -> Result<Self, ConfigError> {
         let q = |v: f64| {
-            checked_q::<Coef>(v as f32).ok_or(ConfigError::CoefficientOverflow {
-                param,
-                value: v as f32,
-                q_format: "Q2.30",
-            })
+            checked_q::<Coef>(v as f32).ok_or(ConfigError::overflow::<Coef>(param, v as f32))
         };
         Ok(Self {
             b0: q(d.b0)?,

@@ -198,6 +198,30 @@ pub fn counts_to_pu(counts: i32, k: TickGain) -> Pu {
     Pu::from_bits(mul_bits::<8>(counts, k.to_bits()))
 }
 
+/// `value` quantized to `T` for the coefficient `param`: an error naming `T`'s Q-format if it
+/// does not fit ([`ConfigError::CoefficientOverflow`]) or, being non-zero, would lose more
+/// than 1 % to the quantization ([`ConfigError::CoefficientUnderflow`]). Configuration code
+/// only.
+///
+/// ```
+/// use controller_core::per_unit::{quantize, Coef};
+/// assert!(quantize::<Coef>(0.5, "alpha").is_ok());
+/// let e = quantize::<Coef>(3.0, "alpha").unwrap_err();
+/// assert!(e.to_string().contains("Q2.30"));
+/// ```
+pub fn quantize<T: fixed::traits::Fixed>(
+    value: f32,
+    param: &'static str,
+) -> Result<T, crate::ConfigError> {
+    let x: T = checked_q::<T>(value).ok_or(crate::ConfigError::overflow::<T>(param, value))?;
+    // A non-zero coefficient must keep at least ~1 % relative precision.
+    let back: f32 = x.to_num();
+    if value != 0.0 && ((back - value) / value).abs() > 0.01 {
+        return Err(crate::ConfigError::underflow::<T>(param, value));
+    }
+    Ok(x)
+}
+
 /// Saturating conversion of an `f32` to a fixed-point type, for configuration code only.
 #[must_use]
 pub fn checked_q<T: fixed::traits::Fixed>(value: f32) -> Option<T> {

@@ -159,8 +159,10 @@ impl Profile {
     /// Build a profile for a drive, starting at position 0 counts.
     ///
     /// ```
-    /// use controller_core::{DriveConfig, Profile, ProfileConfig};
-    /// let mut p = Profile::new(&ProfileConfig::fig6(), &DriveConfig::table1()).unwrap();
+    /// use controller_core::{Profile, ProfileConfig};
+    /// # let drive: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let mut p = Profile::new(&ProfileConfig::fig6(), &drive).unwrap();
     /// for _ in 0..2000 { p.next(); }          // 1 s at 2 kHz
     /// let sp = p.next();
     /// assert!((sp.velocity_pu.to_num::<f32>() - 1.0).abs() < 1e-3);
@@ -287,18 +289,16 @@ impl Profile {
             }
         }
         let k_vel = crate::per_unit::checked_q::<TickGain>(g.vel_tick_pu_per_count).ok_or(
-            ConfigError::CoefficientOverflow {
-                param: "pu per count per velocity tick",
-                value: g.vel_tick_pu_per_count,
-                q_format: "Q8.24",
-            },
+            ConfigError::overflow::<TickGain>(
+                "pu per count per velocity tick",
+                g.vel_tick_pu_per_count,
+            ),
         )?;
         let k_acc = crate::per_unit::checked_q::<Gain>(g.vel_tick_pu_s_per_count).ok_or(
-            ConfigError::CoefficientOverflow {
-                param: "pu/s per count per velocity tick²",
-                value: g.vel_tick_pu_s_per_count,
-                q_format: "Q16.16",
-            },
+            ConfigError::overflow::<Gain>(
+                "pu/s per count per velocity tick²",
+                g.vel_tick_pu_s_per_count,
+            ),
         )?;
         let first = segs.first().copied().unwrap_or_default();
         let bounded = segs.iter().take(count).all(Segment::adds_are_bounded);
@@ -320,9 +320,11 @@ impl Profile {
     /// Shift the whole profile by a start position \[counts\].
     ///
     /// ```
-    /// use controller_core::{Counts, DriveConfig, Profile, ProfileConfig};
+    /// use controller_core::{Counts, Profile, ProfileConfig};
     /// let start = Counts::from_num(-100.5);
-    /// let mut p = Profile::new(&ProfileConfig::fig6(), &DriveConfig::table1())
+    /// # let drive: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let mut p = Profile::new(&ProfileConfig::fig6(), &drive)
     ///     .unwrap()
     ///     .with_start_position(start);
     /// assert_eq!(p.next().position_counts, start);
@@ -346,10 +348,12 @@ impl Profile {
     /// Whether the profile has reached its final standstill (or endless hold).
     ///
     /// ```
-    /// use controller_core::{DriveConfig, Profile, ProfileConfig};
+    /// use controller_core::{Profile, ProfileConfig};
     /// let mut cfg = ProfileConfig::fig6();
     /// cfg.hold_time_s = 0.0;
-    /// let mut p = Profile::new(&cfg, &DriveConfig::table1()).unwrap();
+    /// # let drive: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let mut p = Profile::new(&cfg, &drive).unwrap();
     /// assert!(!p.is_done());
     /// for _ in 0..4000 { p.next(); } // 1 s up, 1 s down at 2 kHz
     /// assert!(p.is_done());

@@ -10,6 +10,7 @@
     clippy::indexing_slicing
 )]
 
+mod common;
 mod sim;
 
 use controller_core::{AfbMode, Controller, DriveConfig, FilterConfig, ObserverTorque};
@@ -38,13 +39,13 @@ fn rigid_motor_runs_far_above_the_old_inner_loop_limit() {
     let mut sc = Scenario::fig6(2.0);
     sc.load_pu = 0.0;
     let lim = old_limit(100.0);
-    let mut off = DriveConfig::table1();
+    let mut off = common::table1();
     off.accel_feedback.mode = AfbMode::Off;
     let r_off = run(&off, &plant, &sc);
     println!("rigid motor, AFB off: {r_off:?}");
     assert!(r_off.stable());
     for factor in [3.0f64, 10.0] {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.accel_feedback.gain_fraction = (factor * lim) as f32;
         cfg.accel_feedback.filter = FilterConfig::FirstOrder { corner_hz: 100.0 };
         let r = run(&cfg, &plant, &sc);
@@ -68,7 +69,7 @@ fn rigid_motor_runs_far_above_the_old_inner_loop_limit() {
 #[test]
 fn ka_sweep_through_the_table1_machine() {
     let plant = PlantParams::table1();
-    let mut off = DriveConfig::table1();
+    let mut off = common::table1();
     off.accel_feedback.mode = AfbMode::Off;
     let off6 = run(&off, &plant, &Scenario::fig6(2.5));
     let off4 = run(&off, &plant, &Scenario::fig4());
@@ -83,7 +84,7 @@ fn ka_sweep_through_the_table1_machine() {
         off4.torque_ripple_rms_pu
     );
     for frac in [0.25f32, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0] {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.accel_feedback.gain_fraction = frac;
         let r6 = run(&cfg, &plant, &Scenario::fig6(2.5));
         let r4 = run(&cfg, &plant, &Scenario::fig4());
@@ -113,7 +114,7 @@ fn observer_torque_input_command_or_measured_current() {
     let mut rows = Vec::new();
     for input in [ObserverTorque::Command, ObserverTorque::MeasuredCurrent] {
         for mode in [AfbMode::Off, AfbMode::Error] {
-            let mut cfg = DriveConfig::table1();
+            let mut cfg = common::table1();
             cfg.observer.torque_input = input;
             cfg.accel_feedback.mode = mode;
             let r6 = run(&cfg, &plant, &Scenario::fig6(2.5));

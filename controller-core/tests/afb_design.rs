@@ -9,6 +9,7 @@
     clippy::indexing_slicing
 )]
 
+mod common;
 mod sim;
 
 use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, ObserverInertia};
@@ -41,7 +42,7 @@ fn describe(cfg: &DriveConfig) -> String {
 fn default_table1_design_and_its_ka_neighbours_are_stable() {
     let plant = PlantParams::table1();
     for frac_scale in [0.5f32, 1.0, 2.0] {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.accel_feedback.gain_fraction *= frac_scale;
         let r6 = run_fig6(&cfg, &plant, 2.5);
         let mut ctl = controller_core::Controller::new(&cfg).unwrap();
@@ -61,7 +62,7 @@ fn default_table1_design_and_its_ka_neighbours_are_stable() {
 fn raw_differentiated_velocity_feedback_at_4096_cpr() {
     let plant = PlantParams::table1();
     for mode in [AfbMode::Off, AfbMode::Error] {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.velocity_estimator = Estimator::Differentiation;
         cfg.accel_feedback.mode = mode;
         let r = run_fig6(&cfg, &plant, 2.0);
@@ -82,7 +83,7 @@ fn afb_design_sweep() {
     };
     for obs_j in [ObserverInertia::Motor, ObserverInertia::Total] {
         for f_obs in [75.0f32, 150.0, 300.0] {
-            let mut cfg = DriveConfig::table1();
+            let mut cfg = common::table1();
             cfg.accel_feedback.mode = AfbMode::Off;
             cfg.observer.model_inertia = obs_j;
             cfg.observer.bandwidth_hz = f_obs;
@@ -107,7 +108,7 @@ fn afb_design_sweep() {
                         },
                     ] {
                         for f_obs in [75.0f32, 150.0] {
-                            let mut cfg = DriveConfig::table1();
+                            let mut cfg = common::table1();
                             cfg.accel_feedback.mode = mode;
                             cfg.accel_feedback.rate = rate;
                             cfg.accel_feedback.source = source;
@@ -148,7 +149,7 @@ fn afb_design_sweep() {
 fn high_resolution_encoder_and_the_acceleration_loop_limit() {
     let plant = PlantParams::table1();
     let run = |vel: Estimator, afb: Estimator, fc: f32, rate: AfbRate| {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.encoder_cpr = 1_000_000;
         cfg.counter_bits = 32;
         cfg.faults.following_error_counts = 1_000_000.0;

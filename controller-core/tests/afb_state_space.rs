@@ -20,6 +20,7 @@
     clippy::needless_range_loop
 )]
 
+mod common;
 use controller_core::{design, AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig};
 
 const N: usize = 17;
@@ -463,7 +464,7 @@ impl Plant {
 /// 1000·J_total (Ka/Jm = 8400).
 #[test]
 fn the_inner_loop_limit_is_gone() {
-    let base = DriveConfig::table1();
+    let base = common::table1();
     println!(
         "| corner [Hz] | (2 − α)/α·Jm/J_total | one tick late, rigid Jm | closed form, rigid Jm |"
     );
@@ -503,7 +504,7 @@ fn the_inner_loop_limit_is_gone() {
 /// the gears separated more than the old in-controller limit (2 − α)/α·Jm.
 #[test]
 fn acceleration_loop_limits_through_the_plant() {
-    let base = DriveConfig::table1();
+    let base = common::table1();
     println!("Observer-fed AFB (error form, 4 kHz, observer 75 Hz, PI sized for J_total), largest stable Ka/J_total (1000 = the search's end):");
     println!("| filter corner [Hz] | one tick late: separated (Jm) | rigid J_total | two-mass | closed form: separated (Jm) | rigid J_total | two-mass |");
     println!("|---|---|---|---|---|---|---|");
@@ -573,7 +574,7 @@ fn acceleration_loop_limits_through_the_plant() {
 /// corner with the gears separated (the differentiation and hold delays halve).
 #[test]
 fn differentiated_acceleration_corner_limits() {
-    let base = DriveConfig::table1();
+    let base = common::table1();
     println!("Differentiated velocity and acceleration, largest stable first-order corner [Hz] (900 = the search's end):");
     println!(
         "| Ka/J_total | AFB at 4 kHz, separated | engaged | AFB at 2 kHz, separated | engaged |"

@@ -6,11 +6,13 @@
     clippy::indexing_slicing
 )]
 
+mod common;
 use controller_core::differentiator::{Differentiator, DifferentiatorState};
 use controller_core::filter::{design_low_pass, LowPass, LowPassDesign, LowPassState};
 use controller_core::observer::{Observer, ObserverState};
 use controller_core::per_unit::{Coef, Gain, Pu, TickGain};
 use controller_core::pi::{PiCoefficients, PiState};
+use controller_core::ranges::{AFB_FILTER_CORNER_HZ as AFB_CORNER, AFB_FILTER_Q as AFB_Q};
 use controller_core::{design, DriveConfig, FilterConfig, Profile, ProfileConfig, ProfileKind};
 
 /// Deterministic pseudo-random numbers in [−1, 1).
@@ -140,7 +142,7 @@ fn filters_match_f64_reference() {
             2e-4,
         ),
     ] {
-        let d = design_low_pass(&cfg, 4000.0, "c", "q").unwrap();
+        let d = design_low_pass(&cfg, 4000.0, &AFB_CORNER, &AFB_Q).unwrap();
         let (fx, rf) = run_filter(&d, &inputs);
         let worst = fx
             .iter()
@@ -164,8 +166,8 @@ fn filters_match_f64_reference() {
             q: std::f32::consts::FRAC_1_SQRT_2,
         },
         4000.0,
-        "c",
-        "q",
+        &AFB_CORNER,
+        &AFB_Q,
     )
     .unwrap();
     if let LowPassDesign::SecondOrder { b0, a1, a2 } = d {
@@ -187,7 +189,7 @@ fn filters_match_f64_reference() {
 /// to 1e-6 relative plus 1 LSB; one count at Table 1 is 0.0293 pu and 58.6 pu/s.
 #[test]
 fn differentiator_matches_f64_and_shows_quantization() {
-    let g = design(&DriveConfig::table1()).unwrap();
+    let g = design(&common::table1()).unwrap();
     let d = Differentiator {
         k_vel: TickGain::from_num(g.vel_tick_pu_per_count),
         k_acc: Gain::from_num(g.vel_tick_pu_s_per_count),
@@ -237,7 +239,7 @@ fn observer_from_table1(cfg: &DriveConfig) -> (Observer, controller_core::Gains)
 #[test]
 fn observer_poles_are_where_designed() {
     for f_obs in [20.0f32, 75.0, 150.0, 500.0] {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.observer.bandwidth_hz = f_obs;
         let g = design(&cfg).unwrap();
         let [l1, l2, l3] = g.observer_l.map(f64::from);
@@ -273,7 +275,7 @@ fn observer_poles_are_where_designed() {
 /// within 0.01 pu (its count-quantization noise is ±0.1 pu at 75 Hz and 4096 CPR).
 #[test]
 fn observer_matches_f64_reference_and_tracks_a_rigid_body() {
-    let mut cfg = DriveConfig::table1();
+    let mut cfg = common::table1();
     cfg.observer.model_inertia = controller_core::ObserverInertia::Total;
     let (o, g) = observer_from_table1(&cfg);
     let j = f64::from(g.observer_inertia_s);
@@ -351,7 +353,7 @@ fn torque_prev(k: usize, _tq: f64) -> Pu {
 /// position within 0.01 counts, velocity within 2e-5 pu, acceleration within 1e-3 pu/s.
 #[test]
 fn profiles_match_f64_reference() {
-    let drive = DriveConfig::table1();
+    let drive = common::table1();
     let cpps = 4096.0 * 1000.0 / 60.0;
     let ts = 1.0 / 2000.0;
     for kind in [
@@ -429,7 +431,7 @@ fn profiles_match_f64_reference() {
 /// start − v·(t_a/2 + t_h + t_d/2)·counts_per_pu_s, within 0.01 counts, and then holds.
 #[test]
 fn reverse_profile_from_a_start_position() {
-    let drive = DriveConfig::table1();
+    let drive = common::table1();
     let cpps = 4096.0 * 1000.0 / 60.0;
     let cfg = ProfileConfig {
         kind: ProfileKind::SCurve { jerk_time_s: 0.05 },

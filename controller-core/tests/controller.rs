@@ -6,10 +6,9 @@
     clippy::indexing_slicing
 )]
 
+mod common;
 use controller_core::per_unit::count_diff;
-use controller_core::{
-    Controller, Counts, CurrentInputs, DriveConfig, Fault, Pu, Setpoint, VelocityInputs,
-};
+use controller_core::{Controller, Counts, CurrentInputs, Fault, Pu, Setpoint, VelocityInputs};
 
 fn mask(bits: u8) -> u64 {
     if bits >= 32 {
@@ -22,7 +21,7 @@ fn mask(bits: u8) -> u64 {
 /// Move the encoder at `step` counts per current tick through the counter's wrap, with a
 /// setpoint that follows exactly: the position error stays zero and no fault trips.
 fn run_through_wrap(bits: u8, start_raw: u64) {
-    let mut cfg = DriveConfig::table1();
+    let mut cfg = common::table1();
     cfg.counter_bits = bits;
     let mut c = Controller::new(&cfg).unwrap();
     let step = 7i64;
@@ -66,7 +65,7 @@ fn counter_wraps_at_its_width() {
 
 #[test]
 fn torque_and_voltage_saturate_at_their_limits() {
-    let cfg = DriveConfig::table1();
+    let cfg = common::table1();
     let mut c = Controller::new(&cfg).unwrap();
     for k in 0..2000 {
         let out = c.current_tick(CurrentInputs {
@@ -147,7 +146,7 @@ fn assert_latched(c: &mut Controller, fault: Fault) {
 
 #[test]
 fn encoder_jump_trips_and_latches() {
-    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    let mut c = Controller::new(&common::table1()).unwrap();
     c.current_tick(CurrentInputs {
         encoder_count: 100,
         current_pu: Pu::ZERO,
@@ -170,7 +169,7 @@ fn encoder_jump_trips_and_latches() {
 
 #[test]
 fn overspeed_trips_and_latches() {
-    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    let mut c = Controller::new(&common::table1()).unwrap();
     // 30 counts per 0.25 ms = 1.76 pu, above the 1.5 pu trip, below the jump limit.
     let mut tripped = None;
     for k in 0..400u32 {
@@ -197,7 +196,7 @@ fn overspeed_trips_and_latches() {
 
 #[test]
 fn following_error_trips_and_latches() {
-    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    let mut c = Controller::new(&common::table1()).unwrap();
     let v = c.velocity_tick(vel_in(0, 4000, false));
     assert_eq!(v.fault, None);
     assert_eq!(v.position_error_counts, 4000);
@@ -205,7 +204,7 @@ fn following_error_trips_and_latches() {
     assert_eq!(v.fault, Some(Fault::FollowingError));
     assert_latched(&mut c, Fault::FollowingError);
     // In velocity mode there is no following-error check.
-    let mut cfg = DriveConfig::table1();
+    let mut cfg = common::table1();
     cfg.position_bandwidth_rad_s = 0.0;
     let mut c = Controller::new(&cfg).unwrap();
     let v = c.velocity_tick(vel_in(0, 1_000_000, false));
@@ -215,7 +214,7 @@ fn following_error_trips_and_latches() {
 
 #[test]
 fn external_fault_trips_and_latches() {
-    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    let mut c = Controller::new(&common::table1()).unwrap();
     let v = c.velocity_tick(vel_in(0, 0, true));
     assert_eq!(v.fault, Some(Fault::External));
     assert_eq!(Fault::External.to_string(), "external fault input");
@@ -231,7 +230,7 @@ fn afb_output_is_a_named_signal_and_follows_the_mode() {
         (controller_core::AfbMode::Error, true),
         (controller_core::AfbMode::Plain, false),
     ] {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.accel_feedback.mode = mode;
         cfg.accel_feedback.source = controller_core::Estimator::Differentiation;
         let mut c = Controller::new(&cfg).unwrap();
@@ -267,8 +266,8 @@ fn afb_output_is_a_named_signal_and_follows_the_mode() {
 /// those gains and build with AFB off; the regulator gains stay bit-identical, also when the
 /// PI is sized for J_total + Ka (where AFB off would design a smaller Kp of its own).
 #[test]
-fn with_gains_runs_the_same_gains_with_afb_off() {
-    let mut on = DriveConfig::table1();
+fn from_gains_runs_the_same_gains_with_afb_off() {
+    let mut on = common::table1();
     on.velocity_pi_inertia = controller_core::PiInertia::TotalPlusAfb;
     let gains = controller_core::design(&on).unwrap();
     let w = on.velocity_bandwidth_rad_s;
@@ -282,25 +281,18 @@ fn with_gains_runs_the_same_gains_with_afb_off() {
     off.accel_feedback.mode = controller_core::AfbMode::Off;
     let own = controller_core::design(&off).unwrap();
     assert!((own.kp_vel - w * 0.98).abs() < 1e-3);
-    let c = Controller::with_gains(&off, &gains.without_afb()).unwrap();
+    let c = Controller::from_gains(&gains.without_afb()).unwrap();
     assert_eq!(c.gains().kp_vel.to_bits(), gains.kp_vel.to_bits());
     assert_eq!(c.gains().ka, 0.0);
-    // Bad gains are still validated against their Q-formats.
-    let mut bad = gains;
+    // The carried settings are the AFB-off drive.
+    assert_eq!(c.gains().cfg, off);
+    // Bad gains are still validated against their Q-formats, and the error names the
+    // format of the coefficient's type.
+    let mut bad = gains.without_afb();
     bad.kp_vel = 1e9;
-    assert!(Controller::with_gains(&off, &bad)
-        .unwrap_err()
-        .param()
-        .starts_with("kp_vel"));
-    // And the settings are still validated.
-    let mut bad_cfg = off;
-    bad_cfg.motor_inertia_s = -1.0;
-    assert_eq!(
-        Controller::with_gains(&bad_cfg, &gains)
-            .unwrap_err()
-            .param(),
-        "motor_inertia_s"
-    );
+    let e = Controller::from_gains(&bad).unwrap_err();
+    assert!(e.param().starts_with("kp_vel"));
+    assert!(e.to_string().contains("Q16.16"), "{e}");
 }
 
 /// Anti-windup on the final torque reference: when the velocity regulator's output plus the

@@ -23,6 +23,7 @@
     clippy::needless_range_loop
 )]
 
+mod common;
 use controller_core::observer::{Observer, ObserverState};
 use controller_core::per_unit::{Coef, Gain, TickGain};
 use controller_core::{design, DriveConfig, Pu};
@@ -147,7 +148,7 @@ fn fit(y: &[(f64, f64)], w: f64) -> C {
 }
 
 fn table1_observer() -> (Observer, controller_core::Gains, DriveConfig) {
-    let cfg = DriveConfig::table1();
+    let cfg = common::table1();
     let g = design(&cfg).unwrap();
     let o = Observer {
         l1: Coef::from_num(g.observer_l[0]),

@@ -7,6 +7,7 @@
     clippy::indexing_slicing
 )]
 
+mod common;
 use controller_core::filter::LowPassDesign;
 use controller_core::{
     design, AfbMode, Controller, CurrentInputs, DriveConfig, FilterConfig, Gains, PiInertia, Pu,
@@ -14,7 +15,7 @@ use controller_core::{
 };
 
 fn cfg(pi: PiInertia, mode: AfbMode, frac: f32) -> DriveConfig {
-    let mut c = DriveConfig::table1();
+    let mut c = common::table1();
     c.velocity_pi_inertia = pi;
     c.accel_feedback.mode = mode;
     c.accel_feedback.gain_fraction = frac;
@@ -29,7 +30,7 @@ fn close(a: f32, b: f32) -> bool {
 /// Total: Kp = ω·J_total whatever Ka and the AFB form; TotalPlusAfb: Kp = ω·(J_total + Ka).
 #[test]
 fn velocity_pi_inertia_decides_kp() {
-    let w = DriveConfig::table1().velocity_bandwidth_rad_s;
+    let w = common::table1().velocity_bandwidth_rad_s;
     let jt = 0.117f32 + 0.863;
     for mode in [AfbMode::Plain, AfbMode::Error] {
         for frac in [0.0f32, 0.25, 0.5, 1.0, 3.0] {
@@ -59,7 +60,7 @@ fn velocity_pi_inertia_decides_kp() {
         assert!(close(g.kp_vel, w * jt));
     }
     // The Table 1 default is Total.
-    assert_eq!(DriveConfig::table1().velocity_pi_inertia, PiInertia::Total);
+    assert_eq!(common::table1().velocity_pi_inertia, PiInertia::Total);
 }
 
 fn filter_bits(f: &LowPassDesign) -> Vec<u32> {
@@ -81,7 +82,7 @@ fn regulator_bits(g: &Gains) -> Vec<u32> {
         g.ki_vel.to_bits(),
         g.kp_cur.to_bits(),
         g.ki_cur.to_bits(),
-        g.accel_ff_gain.to_bits(),
+        g.cfg.accel_ff_gain.to_bits(),
         g.vel_tick_pu_per_count.to_bits(),
         g.vel_tick_pu_s_per_count.to_bits(),
         g.cur_tick_pu_per_count.to_bits(),
@@ -136,11 +137,11 @@ fn without_afb_keeps_every_other_gain_bit_identical() {
     }
 }
 
-/// The controller built with `with_gains(cfg_off, &gains.without_afb())` runs bit for bit
+/// The controller built with `from_gains(&design(cfg_on)?.without_afb())` runs bit for bit
 /// like `Controller::new(cfg_off)` when the PI is sized for J_total (same gains), and with
 /// the AFB run's larger Kp when sized for J_total + Ka.
 #[test]
-fn with_gains_of_the_afb_run_drives_like_the_same_design() {
+fn from_gains_of_the_afb_run_drives_like_the_same_design() {
     let run = |c: &mut Controller| {
         let mut out = Vec::new();
         for k in 0..400i32 {
@@ -170,7 +171,8 @@ fn with_gains_of_the_afb_run_drives_like_the_same_design() {
         let mut off = on;
         off.accel_feedback.mode = AfbMode::Off;
         let g = design(&on).unwrap().without_afb();
-        let a = run(&mut Controller::with_gains(&off, &g).unwrap());
+        assert_eq!(g.cfg, off);
+        let a = run(&mut Controller::from_gains(&g).unwrap());
         let b = run(&mut Controller::new(&off).unwrap());
         if pi == PiInertia::Total {
             assert_eq!(a, b);

@@ -8,6 +8,7 @@
     clippy::panic
 )]
 
+mod common;
 use controller_core::differentiator::{Differentiator, DifferentiatorState};
 use controller_core::per_unit::{checked_q, CountsErr, Gain, Pu, TickGain};
 use controller_core::pi::{PiCoefficients, PiState};
@@ -75,7 +76,7 @@ fn the_differentiator_outputs_nothing_until_it_has_two_and_three_samples() {
 /// Table 1 with velocity from differentiation and no filter, so the velocity estimate is
 /// exactly Δcounts · k_vel.
 fn differentiating(overspeed_pu: f32) -> DriveConfig {
-    let mut c = DriveConfig::table1();
+    let mut c = common::table1();
     c.velocity_estimator = Estimator::Differentiation;
     c.velocity_filter = FilterConfig::None;
     c.accel_feedback.mode = AfbMode::Off;
@@ -116,7 +117,7 @@ fn overspeed_trips_above_the_limit_and_not_at_it() {
 
 #[test]
 fn an_encoder_jump_trips_above_the_largest_plausible_step_and_not_at_it() {
-    let cfg = DriveConfig::table1();
+    let cfg = common::table1();
     let probe = Controller::new(&cfg).unwrap();
     let max_step: i32 = checked_q::<CountsErr>(probe.gains().max_count_step)
         .unwrap()
@@ -148,7 +149,7 @@ fn a_following_error_trips_above_the_limit_and_not_at_it() {
         ..Setpoint::default()
     };
     let run = |limit: f32| {
-        let mut cfg = DriveConfig::table1();
+        let mut cfg = common::table1();
         cfg.faults.following_error_counts = limit;
         let mut c = Controller::new(&cfg).unwrap();
         c.velocity_tick(VelocityInputs {
@@ -180,7 +181,7 @@ fn differentiated_velocity_feeds_the_loop_when_the_afb_takes_the_observer() {
 fn the_observer_reports_a_braking_load_as_positive_torque() {
     // Faulted (external fault), so the torque command is 0; the motor decelerates from
     // 40 counts per current tick by one count per tick: a load brakes forward motion.
-    let mut c = Controller::new(&DriveConfig::table1()).unwrap();
+    let mut c = Controller::new(&common::table1()).unwrap();
     c.velocity_tick(VelocityInputs {
         fault_input: true,
         ..VelocityInputs::default()
@@ -218,13 +219,16 @@ fn the_error_form_feeds_the_commanded_acceleration_through_the_controller() {
     // Same gains, same inputs, error form against plain form: with a commanded
     // acceleration and the shaft at rest, the error form's AFB term is the plain one plus
     // g·Ka·F(a_cmd), so it is larger. A controller that drops a_cmd gives the two equal.
-    let error_cfg = DriveConfig::table1();
+    let error_cfg = common::table1();
     assert_eq!(error_cfg.accel_feedback.mode, AfbMode::Error);
     let mut plain_cfg = error_cfg;
     plain_cfg.accel_feedback.mode = AfbMode::Plain;
     let gains = controller_core::design(&error_cfg).unwrap();
     let afb_term = |cfg: &DriveConfig| {
-        let mut c = Controller::with_gains(cfg, &gains).unwrap();
+        // The error run's gains with the form switched: every gain bit-identical.
+        let mut g = gains;
+        g.cfg = *cfg;
+        let mut c = Controller::from_gains(&g).unwrap();
         c.current_tick(CurrentInputs::default());
         c.velocity_tick(VelocityInputs {
             setpoint: Setpoint {

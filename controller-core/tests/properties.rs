@@ -8,6 +8,7 @@
     clippy::indexing_slicing
 )]
 
+mod common;
 use controller_core::per_unit::count_diff;
 use controller_core::{
     design, AfbMode, AfbRate, Controller, Counts, CurrentInputs, DriveConfig, Estimator,
@@ -16,7 +17,7 @@ use controller_core::{
 use proptest::prelude::*;
 
 fn config(bits: u8, mode: u8, rate: bool, src: bool, vel_src: bool, filter: u8) -> DriveConfig {
-    let mut c = DriveConfig::table1();
+    let mut c = common::table1();
     c.counter_bits = bits;
     c.accel_feedback.mode = [AfbMode::Off, AfbMode::Plain, AfbMode::Error][usize::from(mode % 3)];
     c.accel_feedback.rate = if rate {
@@ -95,7 +96,7 @@ proptest! {
             FilterConfig::FirstOrder { corner_hz: 1.0 },
             FilterConfig::SecondOrder { corner_hz: 5.0, q: 10.0 },
             FilterConfig::SecondOrder { corner_hz: 1900.0, q: 0.1 },
-        ].iter().map(|f| LowPass::quantize(&design_low_pass(f, 4000.0, "c", "q").unwrap(), "t").unwrap()).collect();
+        ].iter().map(|f| LowPass::quantize(&design_low_pass(f, 4000.0, &controller_core::ranges::AFB_FILTER_CORNER_HZ, &controller_core::ranges::AFB_FILTER_Q).unwrap(), "t").unwrap()).collect();
         let mut fs = [LowPassState::default(); 3];
         let obs = Observer { l1: Coef::from_num(1.9), l2: Coef::from_num(1.9), l3: Coef::from_num(1.9),
             k_u: TickGain::MAX, k_vel: TickGain::MAX, k_acc: Gain::MAX, k_load: Gain::MIN };
@@ -135,7 +136,7 @@ proptest! {
             decel_time_s: td,
             start_delay_s: delay,
         };
-        let mut drive = DriveConfig::table1();
+        let mut drive = common::table1();
         drive.encoder_cpr = cpr;
         drive.counter_bits = 32;
         if let Ok(p) = Profile::new(&cfg, &drive) {
@@ -164,7 +165,7 @@ proptest! {
         v in proptest::collection::vec(prop_oneof![any::<f32>(), -10.0f32..10_000.0], 12),
         cpr: u32, bits: u8, fc: u32, fv: u32,
     ) {
-        let mut c = DriveConfig::table1();
+        let mut c = common::table1();
         c.base_speed_rpm = v[0];
         c.motor_inertia_s = v[1];
         c.load_inertia_s = v[2];

@@ -6,12 +6,13 @@
     clippy::indexing_slicing
 )]
 
+mod common;
 use controller_core::{
     design, ConfigError, Controller, DriveConfig, FilterConfig, Profile, ProfileConfig, ProfileKind,
 };
 
 fn expect_err(mutate: impl Fn(&mut DriveConfig), param: &str) -> ConfigError {
-    let mut cfg = DriveConfig::table1();
+    let mut cfg = common::table1();
     mutate(&mut cfg);
     let err = Controller::new(&cfg).expect_err(param);
     assert!(
@@ -25,8 +26,8 @@ fn expect_err(mutate: impl Fn(&mut DriveConfig), param: &str) -> ConfigError {
 
 #[test]
 fn table1_is_valid() {
-    assert!(design(&DriveConfig::table1()).is_ok());
-    assert!(Controller::new(&DriveConfig::default()).is_ok());
+    assert!(design(&common::table1()).is_ok());
+    assert!(Controller::new(&common::table1()).is_ok());
 }
 
 #[test]
@@ -205,7 +206,7 @@ fn derived_coefficients_that_do_not_fit_are_errors() {
         "{e:?}"
     );
     // A 1e6 CPR drive (the printing-press stand) is fine.
-    let mut cfg = DriveConfig::table1();
+    let mut cfg = common::table1();
     cfg.encoder_cpr = 1_000_000;
     cfg.counter_bits = 32;
     assert!(
@@ -228,7 +229,7 @@ fn derived_coefficients_that_do_not_fit_are_errors() {
 
 #[test]
 fn every_profile_setting_is_validated() {
-    let drive = DriveConfig::table1();
+    let drive = common::table1();
     let check = |mutate: &dyn Fn(&mut ProfileConfig), param: &str| {
         let mut p = ProfileConfig::fig6();
         p.hold_time_s = 1.0;

@@ -46,6 +46,8 @@ pub enum AppError {
     Config(ConfigError),
     /// The trend-buffer settings are invalid.
     Trace(TraceConfigError),
+    /// The baked drive settings ([`crate::drive::BAKED`]) do not decode.
+    Settings(pil_link::LinkError),
     /// The board's encoder counter width differs from `DriveConfig::counter_bits`.
     CounterBits {
         /// Width the board delivers [bits].
@@ -74,7 +76,7 @@ impl SetpointSource for Setpoint {
     }
 }
 
-pub use crate::lil::words::fault_code;
+pub use controller_core::words::fault_code;
 
 /// Gather the velocity tick's inputs: encoder and fault input from the board, the next
 /// setpoint from the profile. Runs before the controller is taken.

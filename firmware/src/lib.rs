@@ -10,7 +10,8 @@
 //!   interrupts; the handler bodies).
 //! * [`trace`]: the trend buffer (fixed-size capture of chosen signals, dumped on request).
 //! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU).
-//! * [`lil`]: the loop-in-the-loop record format and its bit-exact output words.
+//! * [`drive`]: the drive settings baked from `configs/table1.toml` at build time.
+//! * [`lil`]: the loop-in-the-loop record format and its reference run.
 //! * `boards::qemu` / `boards::stm32f4`, `rt`: the hardware edge, target builds only.
 //!
 //! The library builds on the host too (`cargo test -p firmware`), where the hardware
@@ -19,6 +20,7 @@
 
 pub mod app;
 pub mod board;
+pub mod drive;
 pub mod isr;
 pub mod lil;
 pub mod synthetic;

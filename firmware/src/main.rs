@@ -121,7 +121,15 @@ mod target {
         let Some(mut core) = cortex_m::Peripherals::take() else {
             exit(false)
         };
-        let cfg = DriveConfig::table1();
+        // The drive baked from configs/table1.toml; an image whose settings do not decode
+        // stays in its safe state (outputs never enabled) and reports it.
+        let cfg = match firmware::drive::baked() {
+            Ok(cfg) => cfg,
+            Err(e) => {
+                defmt::error!("baked drive settings: {}", defmt::Debug2Format(&e));
+                exit(false)
+            }
+        };
         let mut b = board::init(&mut core, &cfg);
         defmt::info!(
             "stiffdrive firmware {=str} on {=str}: current loop {=u32} Hz, velocity loop {=u32} Hz",
@@ -235,9 +243,13 @@ mod target {
             exit(false)
         };
         let overruns = LOOPS.overruns();
-        // The move's end position: 0.5 pu for (0.4/2 + 0.2 + 0.4/2) s at 4096·1000/60
-        // counts per pu·s = 20,480 counts. The motor must have got there and stopped.
-        let end_counts = (0.5 * 0.6 * 4096.0 * 1000.0 / 60.0) as i32;
+        // The move's end position: 0.5 pu for (0.4/2 + 0.2 + 0.4/2) s at the baked drive's
+        // counts per pu·s. The motor must have got there and stopped.
+        let Ok(cfg) = firmware::drive::baked() else {
+            exit(false)
+        };
+        let cpps = controller_core::per_unit::counts_per_pu_s(cfg.encoder_cpr, cfg.base_speed_rpm);
+        let end_counts = (0.5 * 0.6 * cpps) as i32;
         let final_error = board::motor_counts() as i32 - end_counts;
         defmt::info!(
             "run done: {=u32} current ticks, {=u32} velocity overruns, {=u32} dumps, fault {}, \

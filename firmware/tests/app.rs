@@ -7,7 +7,7 @@
     clippy::panic
 )]
 
-use controller_core::{DriveConfig, Fault, Pu, Setpoint};
+use controller_core::{Fault, Pu, Setpoint};
 use firmware::app::{velocity_inputs, App, AppError, DEFAULT_TRACE};
 use firmware::board::{CurrentLoopIo, VelocityLoopIo};
 use firmware::trace::{TraceState, TriggerCause};
@@ -49,7 +49,7 @@ impl VelocityLoopIo for MockIo {
 }
 
 fn app() -> App {
-    let cfg = DriveConfig::table1();
+    let cfg = firmware::drive::baked().unwrap();
     App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE).unwrap()
 }
 
@@ -63,7 +63,7 @@ fn period(app: &mut App, io: &mut MockIo, k: u32, setpoint: &mut Setpoint) {
 
 #[test]
 fn rejects_a_board_with_the_wrong_counter_width() {
-    let cfg = DriveConfig::table1();
+    let cfg = firmware::drive::baked().unwrap();
     assert_eq!(
         App::new(&cfg, 32, DEFAULT_TRACE).err(),
         Some(AppError::CounterBits {

@@ -8,7 +8,7 @@
     clippy::panic
 )]
 
-use controller_core::{DriveConfig, Profile, ProfileConfig, Setpoint};
+use controller_core::{Profile, ProfileConfig, Setpoint};
 use firmware::app::{velocity_inputs, App, DEFAULT_TRACE};
 use firmware::isr::{Loops, TaskLocal};
 use firmware::lil::words::LilInput;
@@ -16,14 +16,14 @@ use firmware::lil::ReplayIo;
 use firmware::trace::{TraceState, TriggerCause};
 
 fn app() -> App {
-    let cfg = DriveConfig::table1();
+    let cfg = firmware::drive::baked().unwrap();
     let mut app = App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE).unwrap();
     app.set_enable_request(true);
     app
 }
 
 fn profile() -> Profile {
-    Profile::new(&ProfileConfig::fig6(), &DriveConfig::table1()).unwrap()
+    Profile::new(&ProfileConfig::fig6(), &firmware::drive::baked().unwrap()).unwrap()
 }
 
 fn record(k: u32) -> LilInput {

@@ -25,12 +25,12 @@ fn app_path_matches_host_core_bit_for_bit() {
         "enabled {}",
         report.enabled_ticks
     );
-    assert_eq!(words::fault_code(report.last.fault), 4);
+    assert_eq!(controller_core::words::fault_code(report.last.fault), 4);
 }
 
 #[test]
 fn a_single_flipped_bit_is_caught() {
-    let cfg = words::drive_config();
+    let cfg = firmware::drive::baked().unwrap();
     let mut app = App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE).unwrap();
     app.set_enable_request(true);
     let mut profile = controller_core::Profile::new(&words::profile_config(), &cfg).unwrap();
@@ -53,4 +53,18 @@ fn records_round_trip() {
         fault_input: true,
     };
     assert_eq!(words::LilInput::from_bytes(&rec.to_bytes()), rec);
+}
+
+#[test]
+fn the_baked_drive_decodes_and_a_corrupt_one_is_an_error_not_a_panic() {
+    let cfg = firmware::drive::baked().unwrap();
+    assert!(controller_core::design(&cfg).is_ok());
+    assert_eq!(firmware::drive::BAKED.len(), pil_link::settings::LEN);
+    // A truncated or garbled payload is rejected.
+    let bytes = firmware::drive::BAKED;
+    assert!(pil_link::settings::decode(&bytes[..bytes.len() - 1]).is_err());
+    let mut bad = bytes.to_vec();
+    // The velocity_pi_inertia enum byte (after 5 + 5 scalar fields): no such variant.
+    bad[4 + 4 + 1 + 4 + 4 + 5 * 4] = 7;
+    assert!(pil_link::settings::decode(&bad).is_err());
 }

@@ -31,7 +31,7 @@ pub struct RunConfig {
 
 /// The AFB run a comparison run takes its regulator gains from. "The same gains without
 /// AFB" means bit-identical gains: the run builds its controller with
-/// `Controller::with_gains(own drive, design(AFB drive) with Ka = 0)`
+/// `Controller::from_gains(design(AFB drive) with Ka = 0, carrying its own drive)`
 /// ([`crate::runner::regulator_gains`]), never by designing its own.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GainsOf {

@@ -301,7 +301,34 @@ fn unknown(key: &str, reals: &[Real], extra: &[&str]) -> HarnessError {
 /// Builds the drive configuration: Table 1 defaults, then the machine's values, then the
 /// `[drive]` table of `doc` (if any).
 pub fn drive_config(doc: &Table, machine: &MachineDefaults) -> Result<DriveConfig> {
-    let mut cfg = DriveConfig::table1();
+    // Base: the loop keys of configs/table1.toml's [drive] (what `DriveConfig::table1()`
+    // gave), the design defaults, then the machine (interim, until the harness composes the
+    // file tree itself).
+    let base: Table = include_str!("../../configs/table1.toml")
+        .parse::<Table>()
+        .ok()
+        .and_then(|t| t.get("drive").and_then(Value::as_table).cloned())
+        .unwrap_or_default();
+    let mut base = base;
+    base.insert(
+        "base_speed_rpm".into(),
+        Value::Float(f64::from(machine.base_speed_rpm)),
+    );
+    base.insert(
+        "encoder_cpr".into(),
+        Value::Integer(i64::from(machine.encoder_cpr)),
+    );
+    for (k, v) in [
+        ("motor_inertia_s", machine.motor_inertia_s),
+        ("load_inertia_s", machine.load_inertia_s),
+        ("winding_resistance_pu", machine.winding_resistance_pu),
+        ("winding_inductance_pu_s", machine.winding_inductance_pu_s),
+    ] {
+        base.insert(k.into(), Value::Float(f64::from(v)));
+    }
+    let mut cfg: DriveConfig = base
+        .try_into()
+        .map_err(|e: toml::de::Error| HarnessError::config("drive", e.to_string()))?;
     cfg.base_speed_rpm = machine.base_speed_rpm;
     cfg.encoder_cpr = machine.encoder_cpr;
     cfg.motor_inertia_s = machine.motor_inertia_s;

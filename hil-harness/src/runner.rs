@@ -182,9 +182,16 @@ fn drive_error(e: controller_core::ConfigError) -> HarnessError {
 pub fn regulator_gains(cfg: &RunConfig) -> Result<Gains> {
     match &cfg.gains_of {
         None => controller_core::design(&cfg.drive).map_err(drive_error),
-        Some(of) => Ok(controller_core::design(&of.drive)
-            .map_err(drive_error)?
-            .without_afb()),
+        Some(of) => {
+            // The AFB run's gains without AFB, carrying this run's own (validated) drive for
+            // its limits, modes and rates.
+            controller_core::design(&cfg.drive).map_err(drive_error)?;
+            let mut g = controller_core::design(&of.drive)
+                .map_err(drive_error)?
+                .without_afb();
+            g.cfg = cfg.drive;
+            Ok(g)
+        }
     }
 }
 
@@ -195,6 +202,7 @@ pub fn regulator_gains(cfg: &RunConfig) -> Result<Gains> {
 /// through their exact (shortest round-trip) decimal form.
 pub fn same_regulator_gains(a: &Gains, b: &Gains) -> bool {
     let mut b = *b;
+    b.cfg = a.cfg;
     b.ka = a.ka;
     b.k_accel_ff = a.k_accel_ff;
     b.afb_filter = a.afb_filter;
@@ -202,9 +210,9 @@ pub fn same_regulator_gains(a: &Gains, b: &Gains) -> bool {
     format!("{a:?}") == format!("{b:?}")
 }
 
-/// The host controller of `cfg`: `Controller::with_gains(drive, regulator_gains(cfg))`.
+/// The host controller of `cfg`: `Controller::from_gains(&regulator_gains(cfg))`.
 pub fn controller(cfg: &RunConfig) -> Result<Controller> {
-    Controller::with_gains(&cfg.drive, &regulator_gains(cfg)?).map_err(drive_error)
+    Controller::from_gains(&regulator_gains(cfg)?).map_err(drive_error)
 }
 
 /// Runs `cfg` with the host controller (`controller_core::Controller`).

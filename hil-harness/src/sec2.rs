@@ -64,10 +64,8 @@ pub struct MapPoint {
 
 /// `--set` overrides of one cell (AFB on).
 pub fn sets(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: f64) -> Vec<String> {
-    let trip = controller_core::DriveConfig::table1()
-        .faults
-        .following_error_counts
-        * interpolation as f32;
+    let trip =
+        controller_core::config::defaults::FAULTS.following_error_counts * interpolation as f32;
     vec![
         format!("sensors.encoder_interpolation={interpolation}"),
         format!("drive.faults.following_error_counts={trip}"),

@@ -1,6 +1,9 @@
 //! The linear model of the loop against the fixed-point controller and closed forms.
 #![allow(clippy::indexing_slicing, clippy::unwrap_used, clippy::expect_used)]
 
+#[path = "../../controller-core/tests/common/mod.rs"]
+mod common;
+
 use controller_core::{
     design, AfbMode, AfbRate, Controller, CurrentInputs, DriveConfig, Estimator, FilterConfig,
     ObserverTorque, Pu, Setpoint, VelocityInputs,
@@ -81,7 +84,7 @@ fn mirror_vs_controller(cfg: &DriveConfig) -> (f64, f64) {
 }
 
 fn variants() -> Vec<(&'static str, DriveConfig)> {
-    let base = DriveConfig::table1();
+    let base = common::table1();
     let mut out = vec![("table1", base)];
     let mut c = base;
     c.accel_feedback.mode = AfbMode::Plain;
@@ -134,7 +137,7 @@ fn rigid_body_poles_are_the_pi_roots() {
     plant.mechanics.anti_resonance_hz = 400.0;
     plant.electrics.computational_delay_s = 10e-6;
     plant.sensors = plant_host::SensorsConfig::with_cpr(1 << 20);
-    let mut cfg = DriveConfig::table1();
+    let mut cfg = common::table1();
     cfg.encoder_cpr = 1 << 20;
     cfg.position_bandwidth_rad_s = 0.0;
     cfg.velocity_bandwidth_rad_s = 20.0;

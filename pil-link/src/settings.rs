@@ -16,9 +16,9 @@ use controller_core::{
 /// Payload bytes of a [`DriveConfig`].
 ///
 /// ```
-/// use controller_core::DriveConfig;
 /// use pil_link::{settings, wire::Writer};
-/// let cfg = DriveConfig::table1();
+/// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+/// #     env!("CARGO_MANIFEST_DIR"), "/../controller-core/doc/example-drive.toml"))).unwrap();
 /// let mut w = Writer::new();
 /// settings::encode(&cfg, &mut w).unwrap();
 /// assert_eq!(w.as_slice().len(), settings::LEN);

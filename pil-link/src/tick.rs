@@ -1,6 +1,7 @@
 //! Per-tick payloads: controller-core's inputs (harness → firmware, `Sensors` frames) and
 //! outputs (firmware → harness, `Commands` frames). Fixed-point values travel as their raw
-//! bits, so both sides hold the very same numbers.
+//! bits, so both sides hold the very same numbers; a fault travels as its
+//! [`controller_core::words::fault_code`].
 //!
 //! ```text
 //! Sensors, current tick   (9 bytes):  tag 1 | encoder u32 | current_pu i32
@@ -17,6 +18,7 @@
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 use controller_core::per_unit::{Counts, CountsErr, Pu, PuPerS};
+use controller_core::words::{fault_code, fault_from_code};
 use controller_core::{
     CurrentInputs, CurrentOutputs, Fault, Setpoint, VelocityInputs, VelocityOutputs,
 };
@@ -24,33 +26,16 @@ use controller_core::{
 const TAG_CURRENT: u8 = 1;
 const TAG_VELOCITY: u8 = 2;
 
-/// Wire code of a latched drive fault (0 = none). Stable across versions.
-#[must_use]
-pub const fn fault_to_byte(fault: Option<Fault>) -> u8 {
-    match fault {
-        None => 0,
-        Some(Fault::Overspeed) => 1,
-        Some(Fault::FollowingError) => 2,
-        Some(Fault::EncoderJump) => 3,
-        Some(Fault::External) => 4,
+/// A fault code byte ([`controller_core::words::fault_from_code`]); an unknown code is a
+/// `BadPayload` of `kind`.
+const fn fault_from_byte(b: u8, kind: FrameKind) -> Result<Option<Fault>, LinkError> {
+    match fault_from_code(b) {
+        Ok(f) => Ok(f),
+        Err(_) => Err(LinkError::BadPayload {
+            kind: kind as u8,
+            len: 0,
+        }),
     }
-}
-
-/// Inverse of [`fault_to_byte`]; an unknown code is a `BadPayload` of `kind`.
-pub const fn fault_from_byte(b: u8, kind: FrameKind) -> Result<Option<Fault>, LinkError> {
-    Ok(match b {
-        0 => None,
-        1 => Some(Fault::Overspeed),
-        2 => Some(Fault::FollowingError),
-        3 => Some(Fault::EncoderJump),
-        4 => Some(Fault::External),
-        _ => {
-            return Err(LinkError::BadPayload {
-                kind: kind as u8,
-                len: 0,
-            })
-        }
-    })
 }
 
 /// A `Sensors` payload: the inputs of one controller tick.
@@ -137,7 +122,7 @@ impl Commands {
                     .i32(o.voltage_cmd_pu.to_bits())?
                     .i32(o.current_ref_pu.to_bits())?
                     .i32(o.accel_fb_pu.to_bits())?
-                    .u8(fault_to_byte(o.fault))?
+                    .u8(fault_code(o.fault))?
                     .i32(a.voltage_bits)?
                     .u8(u8::from(a.enabled))?
                     .u32(a.isr_ticks)?;
@@ -151,7 +136,7 @@ impl Commands {
                     .i32(o.acceleration_est_pu_s.to_bits())?
                     .i32(o.position_error_counts.to_bits())?
                     .i32(o.disturbance_est_pu.to_bits())?
-                    .u8(fault_to_byte(o.fault))?;
+                    .u8(fault_code(o.fault))?;
             }
         }
         Ok(())

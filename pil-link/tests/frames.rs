@@ -7,6 +7,9 @@
     clippy::panic
 )]
 
+#[path = "../../controller-core/tests/common/mod.rs"]
+mod common;
+
 use pil_link::{
     Decoder, Frame, FrameKind, LinkError, SequenceCheck, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION,
 };
@@ -234,9 +237,10 @@ proptest! {
 }
 
 mod payloads {
+    use super::common;
     use controller_core::per_unit::{Counts, CountsErr, Pu, PuPerS};
     use controller_core::{
-        CurrentInputs, CurrentOutputs, DriveConfig, Fault, FilterConfig, Setpoint, VelocityInputs,
+        CurrentInputs, CurrentOutputs, Fault, FilterConfig, Setpoint, VelocityInputs,
         VelocityOutputs,
     };
     use pil_link::tick::{Applied, Commands, Sensors};
@@ -313,7 +317,7 @@ mod payloads {
 
         #[test]
         fn drive_config_round_trips_bit_for_bit(bits in proptest::array::uniform12(any::<u32>())) {
-            let mut cfg = DriveConfig::table1();
+            let mut cfg = common::table1();
             cfg.motor_inertia_s = f32::from_bits(bits[0]);
             cfg.velocity_bandwidth_rad_s = f32::from_bits(bits[1]);
             cfg.velocity_filter = FilterConfig::FirstOrder { corner_hz: f32::from_bits(bits[2]) };
@@ -343,7 +347,7 @@ mod payloads {
             Err(LinkError::BadPayload { .. })
         ));
         let mut w = Writer::new();
-        settings::encode(&DriveConfig::table1(), &mut w).unwrap();
+        settings::encode(&common::table1(), &mut w).unwrap();
         let mut bytes = w.as_slice().to_vec();
         bytes[66] = 7; // velocity filter tag
         assert!(settings::decode(&bytes).is_err());

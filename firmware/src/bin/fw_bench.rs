@@ -396,7 +396,10 @@ mod target {
         let Some(mut core) = cortex_m::Peripherals::take() else {
             exit(false)
         };
-        let cfg = DriveConfig::table1();
+        let Ok(cfg) = firmware::drive::baked() else {
+            defmt::error!("baked drive settings do not decode");
+            exit(false)
+        };
         // The board brings up its console and outputs; the drive I/O here is synthetic.
         let _board = board::init(&mut core, &cfg);
         let (app, profile, generator) = match (

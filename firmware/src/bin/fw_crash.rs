@@ -36,7 +36,11 @@ mod target {
         let Some(mut core) = cortex_m::Peripherals::take() else {
             firmware::rt::exit(false)
         };
-        let cfg = controller_core::DriveConfig::table1();
+        let Ok(cfg) = firmware::drive::baked() else {
+            defmt::error!("fw-crash: baked drive settings do not decode");
+            // Exit 0 is the failure case here (the runner expects the crash's status 1).
+            firmware::rt::exit(true)
+        };
         let _board = board::init(&mut core, &cfg);
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
         loop {

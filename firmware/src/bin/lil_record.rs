@@ -33,7 +33,7 @@ fn main() {
 }
 
 fn run() -> Result<(), firmware::app::AppError> {
-    let cfg = words::drive_config();
+    let cfg = firmware::drive::baked().map_err(firmware::app::AppError::Settings)?;
     let mut app = App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE)?;
     app.set_enable_request(true);
     let mut profile = controller_core::Profile::new(&words::profile_config(), &cfg)

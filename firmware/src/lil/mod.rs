@@ -14,9 +14,7 @@ use controller_core::{CurrentOutputs, Pu};
 
 use crate::app::{velocity_inputs, App, SetpointSource};
 use crate::board::{CurrentLoopIo, VelocityLoopIo};
-use words::{
-    current_words, tick_ratio, velocity_after, velocity_words, LilInput, INPUT_RECORD_BYTES,
-};
+use words::{tick_ratio, velocity_after, LilInput, INPUT_RECORD_BYTES};
 
 /// The recorded inputs, [`INPUT_RECORD_BYTES`] per 4 kHz period.
 pub static INPUTS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/lil_inputs.bin"));
@@ -161,10 +159,10 @@ pub fn replay<S: SetpointSource>(
         let out = app.on_current_tick(&mut io);
         report.enabled_ticks += u32::from(io.enabled);
         report.last = out;
-        check(&mut report, k, &current_words(&out));
+        check(&mut report, k, &out.to_words());
         if velocity_after(k, ratio) {
             let v = app.on_velocity_tick(velocity_inputs(&mut io, profile));
-            check(&mut report, k, &velocity_words(&v));
+            check(&mut report, k, &v.to_words());
         }
         report.periods += 1;
     }
@@ -172,12 +170,14 @@ pub fn replay<S: SetpointSource>(
     report
 }
 
-/// Build the run's app and profile and replay the embedded recording.
+/// Build the run's app (the baked drive, [`crate::drive::baked`]) and profile and replay the
+/// embedded recording.
 ///
 /// # Errors
-/// The app's configuration error.
+/// The app's configuration error (a baked drive that does not decode is
+/// [`crate::app::AppError::Settings`]).
 pub fn replay_embedded() -> Result<ReplayReport, crate::app::AppError> {
-    let cfg = words::drive_config();
+    let cfg = crate::drive::baked().map_err(crate::app::AppError::Settings)?;
     let mut app = App::new(&cfg, cfg.counter_bits, crate::app::DEFAULT_TRACE)?;
     app.set_enable_request(true);
     let mut profile = controller_core::Profile::new(&words::profile_config(), &cfg)

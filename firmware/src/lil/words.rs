@@ -1,6 +1,8 @@
 //! Loop-in-the-loop: the run's settings, the record layout and the reference run.
 //!
-//! This file depends on controller-core and `core` only, because it is compiled twice: into
+//! The drive of the run is the one `build.rs` bakes from `configs/table1.toml`
+//! (`firmware::drive::baked` in the image). This file depends on controller-core and `core`
+//! only, because it is compiled twice: into
 //! the firmware library (target and host) and into `build.rs` (host), where
 //! [`reference_run`] computes the expected outputs with the HOST build of the core.
 //!
@@ -10,17 +12,12 @@
 //! setpoint: the order the aligned timer interrupts give on the target.
 
 use controller_core::{
-    CurrentInputs, CurrentOutputs, DriveConfig, Fault, Profile, ProfileConfig, ProfileKind, Pu,
-    VelocityInputs, VelocityOutputs,
+    CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu, VelocityInputs,
 };
 
 /// Bytes per input record: encoder count (u32 LE), current (Q16.16 bits, i32 LE), fault
 /// input (u32 LE, 0 or 1).
 pub const INPUT_RECORD_BYTES: usize = 12;
-/// Output words per current tick.
-pub const CURRENT_WORDS: usize = 4;
-/// Output words per velocity tick.
-pub const VELOCITY_WORDS: usize = 8;
 
 /// One recorded 4 kHz period of sensor inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -58,50 +55,6 @@ impl LilInput {
     }
 }
 
-/// Small integer code of a fault (0 = none), for output words, traces and logs.
-#[must_use]
-pub const fn fault_code(fault: Option<Fault>) -> u8 {
-    match fault {
-        None => 0,
-        Some(Fault::Overspeed) => 1,
-        Some(Fault::FollowingError) => 2,
-        Some(Fault::EncoderJump) => 3,
-        Some(Fault::External) => 4,
-    }
-}
-
-/// The bit patterns of a current tick's outputs.
-#[must_use]
-pub fn current_words(o: &CurrentOutputs) -> [u32; CURRENT_WORDS] {
-    [
-        o.voltage_cmd_pu.to_bits() as u32,
-        o.current_ref_pu.to_bits() as u32,
-        o.accel_fb_pu.to_bits() as u32,
-        u32::from(fault_code(o.fault)),
-    ]
-}
-
-/// The bit patterns of a velocity tick's outputs.
-#[must_use]
-pub fn velocity_words(o: &VelocityOutputs) -> [u32; VELOCITY_WORDS] {
-    [
-        o.current_ref_pu.to_bits() as u32,
-        o.accel_fb_pu.to_bits() as u32,
-        o.velocity_cmd_pu.to_bits() as u32,
-        o.velocity_est_pu.to_bits() as u32,
-        o.acceleration_est_pu_s.to_bits() as u32,
-        o.position_error_counts.to_bits() as u32,
-        o.disturbance_est_pu.to_bits() as u32,
-        u32::from(fault_code(o.fault)),
-    ]
-}
-
-/// The drive of the run: the paper's Table 1 drive with its default acceleration feedback.
-#[must_use]
-pub const fn drive_config() -> DriveConfig {
-    DriveConfig::table1()
-}
-
 /// The motion of the run: after 25 ms at rest, a trapezoid to 0.5 pu in 0.25 s, 0.25 s at
 /// speed, down in 0.25 s.
 #[must_use]
@@ -137,30 +90,29 @@ pub fn current_inputs(rec: &LilInput) -> CurrentInputs {
     }
 }
 
-/// Run the bare controller-core over `inputs` and hand every tick's output words to
-/// `emit`, in run order. This is the reference the firmware's App path must match.
+/// Run the bare controller-core of drive `cfg` over `inputs` and hand every tick's output
+/// words ([`controller_core::words`]) to `emit`, in run order. This is the reference the
+/// firmware's App path must match.
 ///
 /// # Errors
 /// The core's configuration error for the run's settings.
 pub fn reference_run(
+    cfg: &DriveConfig,
     inputs: impl IntoIterator<Item = LilInput>,
     mut emit: impl FnMut(&[u32]),
 ) -> Result<(), controller_core::ConfigError> {
-    let cfg = drive_config();
-    let mut controller = controller_core::Controller::new(&cfg)?;
-    let mut profile = Profile::new(&profile_config(), &cfg)?;
-    let ratio = tick_ratio(&cfg);
+    let mut controller = controller_core::Controller::new(cfg)?;
+    let mut profile = Profile::new(&profile_config(), cfg)?;
+    let ratio = tick_ratio(cfg);
     for (k, rec) in (0_u32..).zip(inputs) {
-        emit(&current_words(
-            &controller.current_tick(current_inputs(&rec)),
-        ));
+        emit(&controller.current_tick(current_inputs(&rec)).to_words());
         if velocity_after(k, ratio) {
             let out = controller.velocity_tick(VelocityInputs {
                 encoder_count: rec.encoder_count,
                 setpoint: profile.next(),
                 fault_input: rec.fault_input,
             });
-            emit(&velocity_words(&out));
+            emit(&out.to_words());
         }
     }
     Ok(())

@@ -3,7 +3,8 @@
 
 use super::backend::TickLog;
 use crate::runner::RunOutput;
-use controller_core::{CurrentOutputs, Fault, VelocityOutputs};
+use controller_core::words::{CURRENT_FIELDS, VELOCITY_FIELDS};
+use controller_core::{CurrentOutputs, VelocityOutputs};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -49,39 +50,22 @@ pub struct Mismatch {
     pub pil_bits: i64,
 }
 
-fn fault_bits(f: Option<Fault>) -> i64 {
-    i64::from(pil_link::tick::fault_to_byte(f))
+/// Each output word of a tick with its name, as the signed value of its bits (the fault
+/// word is its code): controller-core's one layout ([`controller_core::words`]).
+fn named(names: &[&'static str], words: &[u32]) -> Vec<(&'static str, i64)> {
+    names
+        .iter()
+        .zip(words)
+        .map(|(n, w)| (*n, i64::from(*w as i32)))
+        .collect()
 }
 
-fn current_fields(o: &CurrentOutputs) -> [(&'static str, i64); 4] {
-    [
-        ("voltage_cmd_pu", i64::from(o.voltage_cmd_pu.to_bits())),
-        ("current_ref_pu", i64::from(o.current_ref_pu.to_bits())),
-        ("accel_fb_pu", i64::from(o.accel_fb_pu.to_bits())),
-        ("fault", fault_bits(o.fault)),
-    ]
+fn current_fields(o: &CurrentOutputs) -> Vec<(&'static str, i64)> {
+    named(&CURRENT_FIELDS, &o.to_words())
 }
 
-fn velocity_fields(o: &VelocityOutputs) -> [(&'static str, i64); 8] {
-    [
-        ("current_ref_pu", i64::from(o.current_ref_pu.to_bits())),
-        ("accel_fb_pu", i64::from(o.accel_fb_pu.to_bits())),
-        ("velocity_cmd_pu", i64::from(o.velocity_cmd_pu.to_bits())),
-        ("velocity_est_pu", i64::from(o.velocity_est_pu.to_bits())),
-        (
-            "acceleration_est_pu_s",
-            i64::from(o.acceleration_est_pu_s.to_bits()),
-        ),
-        (
-            "position_error_counts",
-            i64::from(o.position_error_counts.to_bits()),
-        ),
-        (
-            "disturbance_est_pu",
-            i64::from(o.disturbance_est_pu.to_bits()),
-        ),
-        ("fault", fault_bits(o.fault)),
-    ]
+fn velocity_fields(o: &VelocityOutputs) -> Vec<(&'static str, i64)> {
+    named(&VELOCITY_FIELDS, &o.to_words())
 }
 
 /// The output-value tally of a comparison.

@@ -31,7 +31,7 @@ pub const PLANTS: [&str; 2] = ["table1", "printing-press"];
 /// The observer bandwidth of the drive's default design (Hz): a design at it is the
 /// config's own observer.
 pub fn default_observer_hz() -> f32 {
-    controller_core::DriveConfig::table1().observer.bandwidth_hz
+    controller_core::config::defaults::OBSERVER.bandwidth_hz
 }
 
 /// One sweep point.

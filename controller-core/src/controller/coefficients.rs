@@ -1,0 +1,232 @@
+//! The quantized coefficients of a [`super::Controller`], built once from [`Gains`] (and the
+//! validated settings they carry). Each coefficient is quantized with
+//! [`quantize`], whose error names the Q-format of the coefficient's own type.
+
+use crate::accel_feedback::AccelerationFeedback;
+use crate::config::{AfbMode, AfbRate, DriveConfig, Estimator, ObserverTorque};
+use crate::design::Gains;
+use crate::differentiator::Differentiator;
+use crate::error::ConfigError;
+use crate::filter::LowPass;
+use crate::observer::Observer;
+use crate::per_unit::{counter_shift, quantize, Coef, CountsErr, Gain, PosGain, Pu, TickGain};
+use crate::pi::PiCoefficients;
+
+/// Quantized coefficients (fixed point), built once from [`Gains`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Coefficients {
+    pub(super) counter_bits: u8,
+    /// [`counter_shift`] of `counter_bits`, for the per-tick wrap-safe difference.
+    pub(super) counter_shift: u32,
+    pub(super) position_loop: bool,
+    pub(super) k_pos: PosGain,
+    pub(super) velocity_ff: Gain,
+    pub(super) k_accel_ff: Gain,
+    pub(super) velocity_regulator: PiCoefficients,
+    pub(super) current_regulator: PiCoefficients,
+    pub(super) velocity_filter: LowPass,
+    pub(super) diff_velocity_rate: Differentiator,
+    pub(super) diff_current_rate: Differentiator,
+    pub(super) observer: Observer,
+    pub(super) afb: AccelerationFeedback,
+    pub(super) afb_source: Estimator,
+    pub(super) velocity_source: Estimator,
+    pub(super) observer_torque: ObserverTorque,
+    /// The AFB step of the current tick (none unless the mode is on at rate Current).
+    pub(super) afb_current: AfbStep,
+    /// The AFB step of the velocity tick (none unless the mode is on at rate Velocity).
+    pub(super) afb_velocity: AfbStep,
+    /// The velocity-rate differentiator is used (velocity or acceleration source).
+    pub(super) diff_in_velocity_tick: bool,
+    pub(super) torque_limit: Pu,
+    pub(super) overspeed: Pu,
+    pub(super) following_error: CountsErr,
+    pub(super) max_count_step: i32,
+}
+
+/// Which acceleration-feedback step a tick runs: source and form resolved once, when the
+/// coefficients are built, so the tick makes one branch instead of testing the mode, the
+/// rate and the source every time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum AfbStep {
+    /// No AFB in this tick.
+    None,
+    /// `AccelerationFeedback::update` on the differentiated acceleration.
+    Measured,
+    /// The closed form on the observer, plain form (filter input −â).
+    ClosedPlain,
+    /// The closed form on the observer, error form (filter input a_cmd − â).
+    ClosedError,
+}
+
+impl AfbStep {
+    fn select(cfg: &DriveConfig, rate: AfbRate) -> Self {
+        let afb = &cfg.accel_feedback;
+        if afb.rate != rate {
+            return Self::None;
+        }
+        match (afb.mode, afb.source) {
+            (AfbMode::Off, _) => Self::None,
+            (_, Estimator::Differentiation) => Self::Measured,
+            (AfbMode::Plain, Estimator::Observer) => Self::ClosedPlain,
+            (AfbMode::Error, Estimator::Observer) => Self::ClosedError,
+        }
+    }
+}
+
+/// The acceleration-feedback block with torque limit `lim`.
+fn accel_feedback(g: &Gains, lim: Pu) -> Result<AccelerationFeedback, ConfigError> {
+    let cfg = &g.cfg;
+    let filter = LowPass::quantize(&g.afb_filter, "accel_feedback.filter coefficients")?;
+    // Closed form of the loop through the observer's model (accel_feedback module docs):
+    // g·Ka with g = 1/(1 + b0·Ka/J_model); b0 from the quantized filter, so that the
+    // solved loop is the one the tick runs.
+    let ka_closed = if cfg.accel_feedback.source == Estimator::Observer {
+        let b0: f32 = filter.feedthrough().to_num();
+        let gain = 1.0 / (1.0 + b0 * g.ka / g.observer_inertia_s);
+        quantize::<Gain>(
+            g.ka * gain,
+            "ka/(1 + b0·Ka/J_model) (accel_feedback.gain_fraction, filter, observer inertia)",
+        )?
+    } else {
+        Gain::ZERO
+    };
+    Ok(AccelerationFeedback {
+        mode: cfg.accel_feedback.mode,
+        ka: quantize(g.ka, "ka (accel_feedback.gain_fraction × total inertia)")?,
+        filter,
+        limit: lim,
+        ka_closed,
+    })
+}
+
+/// The state observer.
+fn observer(g: &Gains) -> Result<Observer, ConfigError> {
+    let [l1, l2, l3] = g.observer_l;
+    Ok(Observer {
+        l1: quantize::<Coef>(l1, "observer l1 (observer.bandwidth_hz)")?,
+        l2: quantize::<Coef>(l2, "observer l2 (observer.bandwidth_hz)")?,
+        l3: quantize::<Coef>(l3, "observer l3 (observer.bandwidth_hz)")?,
+        k_u: quantize(
+            g.observer_k_u,
+            "observer k_u (inertia, encoder_cpr, current_rate_hz)",
+        )?,
+        k_vel: quantize(
+            g.cur_tick_pu_per_count,
+            "pu per count per current tick (encoder_cpr, base_speed_rpm, current_rate_hz)",
+        )?,
+        k_acc: quantize(
+            g.cur_tick_pu_s_per_count,
+            "pu/s per count per current tick² (encoder_cpr, base_speed_rpm, current_rate_hz)",
+        )?,
+        k_load: quantize(-g.observer_inertia_s, "observer model inertia")?,
+    })
+}
+
+/// A differentiator with velocity scale `v` and acceleration scale `a`.
+fn differentiator(
+    v: f32,
+    a: f32,
+    pv: &'static str,
+    pa: &'static str,
+) -> Result<Differentiator, ConfigError> {
+    Ok(Differentiator {
+        k_vel: quantize(v, pv)?,
+        k_acc: quantize(a, pa)?,
+    })
+}
+
+/// The velocity and current PI regulators (torque limit `lim`, voltage limit `vlim`).
+fn regulators(
+    g: &Gains,
+    lim: Pu,
+    vlim: Pu,
+) -> Result<(PiCoefficients, PiCoefficients), ConfigError> {
+    let cfg = &g.cfg;
+    let velocity = PiCoefficients {
+        kp: quantize(g.kp_vel, "kp_vel (velocity_bandwidth_rad_s × inertia)")?,
+        ki_ts: quantize::<TickGain>(
+            g.ki_vel / cfg.velocity_rate_hz as f32,
+            "ki_vel·Ts (velocity_bandwidth_rad_s, velocity_damping)",
+        )?,
+        limit: lim,
+    };
+    let current = PiCoefficients {
+        kp: quantize(
+            g.kp_cur,
+            "kp_cur (winding_inductance_pu_s × current_bandwidth_rad_s)",
+        )?,
+        ki_ts: quantize::<TickGain>(
+            g.ki_cur / cfg.current_rate_hz as f32,
+            "ki_cur·Ts (winding_resistance_pu × current_bandwidth_rad_s)",
+        )?,
+        limit: vlim,
+    };
+    Ok((velocity, current))
+}
+
+impl Coefficients {
+    /// Quantize `g` (designed from, and carrying, validated settings).
+    pub(super) fn from_gains(g: &Gains) -> Result<Self, ConfigError> {
+        let cfg = &g.cfg;
+        let lim: Pu = quantize(cfg.torque_limit_pu, "torque_limit_pu")?;
+        let vlim: Pu = quantize(cfg.voltage_limit_pu, "voltage_limit_pu")?;
+        // Quantized in the order of the error precedence: AFB, observer, position, regulators.
+        let afb = accel_feedback(g, lim)?;
+        let observer = observer(g)?;
+        let k_pos = if g.kpp > 0.0 {
+            quantize(
+                g.k_pos_pu_per_count,
+                "k_pos (position_bandwidth_rad_s / counts per pu·s)",
+            )?
+        } else {
+            PosGain::ZERO
+        };
+        let velocity_ff = quantize(cfg.velocity_ff_gain, "velocity_ff_gain")?;
+        let k_accel_ff = quantize(g.k_accel_ff, "k_accel_ff (accel_ff_gain × inertia)")?;
+        let (velocity_regulator, current_regulator) = regulators(g, lim, vlim)?;
+        Ok(Self {
+            counter_bits: cfg.counter_bits,
+            counter_shift: counter_shift(cfg.counter_bits),
+            position_loop: g.kpp > 0.0,
+            k_pos,
+            velocity_ff,
+            k_accel_ff,
+            velocity_regulator,
+            current_regulator,
+            velocity_filter: LowPass::quantize(&g.velocity_filter, "velocity_filter coefficients")?,
+            diff_velocity_rate: differentiator(
+                g.vel_tick_pu_per_count,
+                g.vel_tick_pu_s_per_count,
+                "pu per count per velocity tick (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
+                "pu/s per count per velocity tick² (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
+            )?,
+            diff_current_rate: differentiator(
+                g.cur_tick_pu_per_count,
+                g.cur_tick_pu_s_per_count,
+                "pu per count per current tick (encoder_cpr, base_speed_rpm, current_rate_hz)",
+                "pu/s per count per current tick² (encoder_cpr, base_speed_rpm, current_rate_hz)",
+            )?,
+            observer,
+            afb,
+            afb_source: cfg.accel_feedback.source,
+            velocity_source: cfg.velocity_estimator,
+            observer_torque: cfg.observer.torque_input,
+            afb_current: AfbStep::select(cfg, AfbRate::Current),
+            afb_velocity: AfbStep::select(cfg, AfbRate::Velocity),
+            diff_in_velocity_tick: cfg.velocity_estimator == Estimator::Differentiation
+                || cfg.accel_feedback.source == Estimator::Differentiation,
+            torque_limit: lim,
+            overspeed: quantize(cfg.faults.overspeed_pu, "faults.overspeed_pu")?,
+            following_error: quantize(
+                cfg.faults.following_error_counts,
+                "faults.following_error_counts",
+            )?,
+            max_count_step: quantize::<CountsErr>(
+                g.max_count_step,
+                "max count step (faults.encoder_jump_margin × overspeed)",
+            )?
+            .to_num::<i32>(),
+        })
+    }
+}

@@ -1,0 +1,90 @@
+//! The inputs and outputs of the two ticks, and the quantized blocks
+//! ([`super::Controller::blocks`]).
+
+use crate::accel_feedback::AccelerationFeedback;
+use crate::fault::Fault;
+use crate::filter::LowPass;
+use crate::observer::Observer;
+use crate::per_unit::{Counts, CountsErr, Pu, PuPerS};
+use crate::pi::PiCoefficients;
+
+/// Inputs of the current tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CurrentInputs {
+    /// Raw encoder counter, wraps at `counter_bits`.
+    pub encoder_count: u32,
+    /// Measured current \[pu\].
+    pub current_pu: Pu,
+}
+
+/// Outputs of the current tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CurrentOutputs {
+    /// Voltage command \[pu\], within ±voltage_limit_pu.
+    pub voltage_cmd_pu: Pu,
+    /// Current (= torque) reference \[pu\], within ±torque_limit_pu; 0 when faulted.
+    pub current_ref_pu: Pu,
+    /// Acceleration-feedback term added to the torque reference \[pu\].
+    pub accel_fb_pu: Pu,
+    /// Latched fault, if any.
+    pub fault: Option<Fault>,
+}
+
+/// A motion command for one velocity tick (from [`crate::Profile::next`] or elsewhere).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Setpoint {
+    /// Commanded position \[counts, unwrapped, Q48.16\].
+    pub position_counts: Counts,
+    /// Commanded velocity \[pu\].
+    pub velocity_pu: Pu,
+    /// Commanded acceleration \[pu/s\].
+    pub acceleration_pu_s: PuPerS,
+}
+
+/// Inputs of the velocity tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VelocityInputs {
+    /// Raw encoder counter, wraps at `counter_bits`.
+    pub encoder_count: u32,
+    /// Motion command.
+    pub setpoint: Setpoint,
+    /// External fault input (latches [`Fault::External`]).
+    pub fault_input: bool,
+}
+
+/// Outputs of the velocity tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VelocityOutputs {
+    /// Torque reference from the velocity regulator plus feed-forward, plus the AFB term
+    /// held at that moment, clamped \[pu\].
+    pub current_ref_pu: Pu,
+    /// Acceleration-feedback term \[pu torque\].
+    pub accel_fb_pu: Pu,
+    /// Velocity reference into the velocity regulator \[pu\].
+    pub velocity_cmd_pu: Pu,
+    /// Velocity feedback used by the regulator \[pu\].
+    pub velocity_est_pu: Pu,
+    /// Acceleration estimate from the AFB source at this rate \[pu/s\].
+    pub acceleration_est_pu_s: PuPerS,
+    /// Commanded minus measured position \[counts\] (0 in velocity mode).
+    pub position_error_counts: CountsErr,
+    /// Observer load-torque estimate \[pu\].
+    pub disturbance_est_pu: Pu,
+    /// Latched fault, if any.
+    pub fault: Option<Fault>,
+}
+
+/// The quantized blocks of a [`Controller`] ([`Controller::blocks`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blocks {
+    /// The state observer (current rate).
+    pub observer: Observer,
+    /// The velocity-feedback filter (velocity rate).
+    pub velocity_filter: LowPass,
+    /// Acceleration feedback with its filter.
+    pub accel_feedback: AccelerationFeedback,
+    /// Velocity PI.
+    pub velocity_regulator: PiCoefficients,
+    /// Current PI.
+    pub current_regulator: PiCoefficients,
+}

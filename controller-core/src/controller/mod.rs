@@ -1,0 +1,375 @@
+//! The cascaded regulators of the paper's Fig. 5, split into the two ticks.
+//!
+//! Current tick (every 1/current_rate_hz):
+//! ```text
+//! position ← unwrap(encoder_count)                       (encoder-jump check)
+//! observer ← (position, torque of the last tick: command or measured current)
+//! afb      ← AccelerationFeedback(â, a_cmd)               (if AFB runs at this rate;
+//!            with the observer's â solved in closed form for this tick's torque)
+//! i_ref    = clamp(i_vel + afb, ±torque_limit)            (0 when faulted)
+//! v_cmd    = CurrentRegulator(i_ref − i_meas)             (PI, ±voltage_limit)
+//! ```
+//! Velocity tick (every 1/velocity_rate_hz):
+//! ```text
+//! ω_cmd = vff·ω_sp + k_pos·(θ_sp − θ)                      (position P; ω_sp in velocity mode)
+//! i_vel = VelocityRegulator(ω_cmd − ω_fb) + k_aff·a_sp     (PI, ±torque_limit)
+//! afb   ← AccelerationFeedback(...)                         (if AFB runs at this rate)
+//! ```
+//! In a period where both ticks run, call `velocity_tick` before `current_tick` so the
+//! current tick applies the new torque reference at once; the other order adds one current
+//! period of delay to the velocity loop and is otherwise equally valid. The velocity tick
+//! reads the observer state left by the latest current tick.
+
+mod coefficients;
+mod io;
+
+pub use io::{Blocks, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs};
+
+use crate::config::{DriveConfig, Estimator, ObserverTorque};
+use crate::design::{design, Gains};
+use crate::differentiator::DifferentiatorState;
+use crate::error::ConfigError;
+use crate::fault::Fault;
+use crate::filter::LowPassState;
+use crate::observer::ObserverState;
+use crate::per_unit::{
+    count_diff_shifted, count_signed, mul_bits, mul_gain, sat_i32, CountsErr, Pu, PuPerS,
+};
+use crate::pi::PiState;
+use coefficients::{AfbStep, Coefficients};
+
+/// All regulator and estimator state (plain data; reset = default).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct State {
+    primed: bool,
+    last_raw: u32,
+    position: i64,
+    velocity_regulator: PiState,
+    current_regulator: PiState,
+    velocity_filter: LowPassState,
+    afb_filter: LowPassState,
+    diff_velocity_rate: DifferentiatorState,
+    diff_current_rate: DifferentiatorState,
+    observer: ObserverState,
+    i_vel: Pu,
+    afb: Pu,
+    current_ref: Pu,
+    /// Measured current of the last current tick \[pu\] (observer torque input).
+    last_current: Pu,
+    accel_cmd: PuPerS,
+    fault: Option<Fault>,
+}
+
+/// The drive controller: coefficients plus state.
+#[derive(Clone, Copy, Debug)]
+pub struct Controller {
+    gains: Gains,
+    coef: Coefficients,
+    state: State,
+}
+
+impl Controller {
+    /// Validate the settings, design the gains and build a controller in its reset state:
+    /// `Controller::from_gains(&design(cfg)?)`.
+    ///
+    /// ```
+    /// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let c = controller_core::Controller::new(&cfg).unwrap();
+    /// assert!(c.fault().is_none());
+    /// ```
+    pub fn new(cfg: &DriveConfig) -> Result<Self, ConfigError> {
+        Self::from_gains(&design(cfg)?)
+    }
+
+    /// Build a controller from designed gains without designing again: [`design()`] output,
+    /// e.g. [`Gains::without_afb`] for "the same gains" with acceleration feedback off, or
+    /// with some gains changed. The settings [`Gains::cfg`] carries supply the limits, modes
+    /// and rates; every coefficient is taken from `gains` and checked against its Q-format.
+    ///
+    /// ```
+    /// use controller_core::{design, Controller};
+    /// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let g = design(&cfg).unwrap().without_afb();
+    /// let c = Controller::from_gains(&g).unwrap();
+    /// assert_eq!(c.gains(), &g);
+    /// ```
+    pub fn from_gains(gains: &Gains) -> Result<Self, ConfigError> {
+        Ok(Self {
+            gains: *gains,
+            coef: Coefficients::from_gains(gains)?,
+            state: State::default(),
+        })
+    }
+
+    /// The designed gains (f32).
+    #[must_use]
+    pub fn gains(&self) -> &Gains {
+        &self.gains
+    }
+
+    /// The quantized blocks the ticks run, to time or test one block on its own (e.g.
+    /// `cargo fw-bench`'s per-block table). Copies: the controller is not affected.
+    #[must_use]
+    pub fn blocks(&self) -> Blocks {
+        let c = &self.coef;
+        Blocks {
+            observer: c.observer,
+            velocity_filter: c.velocity_filter,
+            accel_feedback: c.afb,
+            velocity_regulator: c.velocity_regulator,
+            current_regulator: c.current_regulator,
+        }
+    }
+
+    /// The latched fault, if any.
+    #[must_use]
+    pub fn fault(&self) -> Option<Fault> {
+        self.state.fault
+    }
+
+    /// Clear a latched fault and all regulator and estimator state. The next encoder
+    /// reading becomes the position reference again (the raw counter read as signed).
+    pub fn reset(&mut self) {
+        self.state = State::default();
+    }
+
+    /// Latch a fault (the first one wins) and drop every torque-producing state.
+    fn trip(&mut self, fault: Fault) {
+        if self.state.fault.is_none() {
+            self.state.fault = Some(fault);
+        }
+        let s = &mut self.state;
+        s.velocity_regulator = PiState::default();
+        s.afb_filter = LowPassState::default();
+        s.i_vel = Pu::ZERO;
+        s.afb = Pu::ZERO;
+    }
+
+    /// Update the unwrapped position from a raw counter reading; trips on a count jump.
+    #[inline]
+    fn read_encoder(&mut self, raw: u32) {
+        let bits = self.coef.counter_bits;
+        if self.state.primed {
+            let d = count_diff_shifted(raw, self.state.last_raw, self.coef.counter_shift);
+            self.state.position = self.state.position.wrapping_add(i64::from(d));
+            if d.unsigned_abs() > self.coef.max_count_step.unsigned_abs() {
+                self.trip(Fault::EncoderJump);
+            }
+        } else {
+            self.state.position = i64::from(count_signed(raw, bits));
+            self.state.primed = true;
+        }
+        self.state.last_raw = raw;
+    }
+
+    /// Acceleration-feedback step with a measured acceleration (differentiation).
+    #[inline]
+    fn afb_step(&mut self, a_meas: PuPerS) {
+        if self.state.fault.is_none() {
+            let a_cmd = self.state.accel_cmd;
+            self.state.afb = self
+                .coef
+                .afb
+                .update(&mut self.state.afb_filter, a_meas, a_cmd);
+        }
+    }
+
+    /// Acceleration-feedback step with the observer's acceleration, the loop through its
+    /// model solved in closed form for the torque reference `i_vel` + afb; `c` is the
+    /// command part of the filter input (0 in the plain form, a_cmd in the error form).
+    #[inline]
+    fn afb_closed_step(&mut self, c: PuPerS) {
+        if self.state.fault.is_none() {
+            let obs = &self.coef.observer;
+            let os = &self.state.observer;
+            self.state.afb = self.coef.afb.update_closed_from(
+                &mut self.state.afb_filter,
+                self.state.i_vel,
+                c,
+                |t| obs.predicted_acceleration_pu_s(os, t),
+            );
+        }
+    }
+
+    /// The AFB step `step` of a tick; `a_meas` is that tick's differentiated acceleration
+    /// (used by [`AfbStep::Measured`] only).
+    #[inline]
+    fn run_afb(&mut self, step: AfbStep, a_meas: impl FnOnce(&mut Self) -> PuPerS) {
+        match step {
+            AfbStep::None => {}
+            AfbStep::Measured => {
+                let a = a_meas(self);
+                self.afb_step(a);
+            }
+            AfbStep::ClosedPlain => self.afb_closed_step(PuPerS::ZERO),
+            AfbStep::ClosedError => self.afb_closed_step(self.state.accel_cmd),
+        }
+    }
+
+    fn total_ref(&self) -> Pu {
+        if self.state.fault.is_some() {
+            Pu::ZERO
+        } else {
+            let lim = self.coef.torque_limit;
+            self.state
+                .i_vel
+                .saturating_add(self.state.afb)
+                .max(-lim)
+                .min(lim)
+        }
+    }
+
+    /// The current tick: run every 1/current_rate_hz.
+    ///
+    /// ```
+    /// use controller_core::{Controller, CurrentInputs, Pu};
+    /// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let mut c = Controller::new(&cfg).unwrap();
+    /// let out = c.current_tick(CurrentInputs { encoder_count: 0, current_pu: Pu::ZERO });
+    /// assert_eq!(out.current_ref_pu, Pu::ZERO);
+    /// ```
+    pub fn current_tick(&mut self, inp: CurrentInputs) -> CurrentOutputs {
+        self.read_encoder(inp.encoder_count);
+        let position = self.state.position;
+        // The observer sees the torque that acted over the last tick: the command, or the
+        // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
+        let torque = match self.coef.observer_torque {
+            ObserverTorque::Command => self.state.current_ref,
+            ObserverTorque::MeasuredCurrent => Pu::from_bits(sat_i32(
+                (i64::from(self.state.last_current.to_bits())
+                    + i64::from(inp.current_pu.to_bits()))
+                    >> 1,
+            )),
+        };
+        self.state.last_current = inp.current_pu;
+        self.coef
+            .observer
+            .update(&mut self.state.observer, position, torque);
+        // The current-rate differentiator runs only when it feeds the AFB here.
+        self.run_afb(self.coef.afb_current, |c| {
+            c.coef
+                .diff_current_rate
+                .update(&mut c.state.diff_current_rate, position)
+                .1
+        });
+        let i_ref = self.total_ref();
+        self.state.current_ref = i_ref;
+        let e = i_ref.saturating_sub(inp.current_pu);
+        let v = self
+            .coef
+            .current_regulator
+            .update(&mut self.state.current_regulator, e, Pu::ZERO);
+        CurrentOutputs {
+            voltage_cmd_pu: v,
+            current_ref_pu: i_ref,
+            accel_fb_pu: self.state.afb,
+            fault: self.state.fault,
+        }
+    }
+
+    /// The position loop of a velocity tick: the position error (Q24.8 counts, saturating;
+    /// trips on a following error) and the velocity command ω_cmd = vff·ω_sp + k_pos·err
+    /// (ω_sp itself in velocity mode).
+    #[inline(always)]
+    fn position_loop(&mut self, position: i64, sp: &Setpoint) -> (CountsErr, Pu) {
+        // Position loop: error in Q24.8 counts (saturating), ω_cmd = vff·ω_sp + k_pos·err.
+        if self.coef.position_loop {
+            // Q48.16 ≫ 8 is below 2^55 in magnitude; while |position| < 2^54 counts (the
+            // bits from 2^54 up all the sign: one high-word compare) position·256 is below
+            // 2^62 and the difference below 2^63, so plain arithmetic gives the exact value
+            // the saturating form gives.
+            let sp_q8 = sp.position_counts.to_bits() >> 8;
+            let err_bits = if position >> 54 == position >> 63 {
+                sp_q8 - (position << 8)
+            } else {
+                sp_q8.saturating_sub(position.saturating_mul(256))
+            };
+            let err = CountsErr::from_bits(sat_i32(err_bits));
+            if err.unsigned_abs() > self.coef.following_error.unsigned_abs() {
+                self.trip(Fault::FollowingError);
+            }
+            // Q24.8 · Q1.31 = Q.39 → Q16.16.
+            let p_term = Pu::from_bits(mul_bits::<23>(err.to_bits(), self.coef.k_pos.to_bits()));
+            (
+                err,
+                mul_gain(sp.velocity_pu, self.coef.velocity_ff).saturating_add(p_term),
+            )
+        } else {
+            (CountsErr::ZERO, sp.velocity_pu)
+        }
+    }
+
+    /// The velocity tick: run every 1/velocity_rate_hz (every n-th current tick).
+    ///
+    /// ```
+    /// use controller_core::{Controller, VelocityInputs};
+    /// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let mut c = Controller::new(&cfg).unwrap();
+    /// let out = c.velocity_tick(VelocityInputs::default());
+    /// assert!(out.fault.is_none());
+    /// ```
+    pub fn velocity_tick(&mut self, inp: VelocityInputs) -> VelocityOutputs {
+        self.read_encoder(inp.encoder_count);
+        if inp.fault_input {
+            self.trip(Fault::External);
+        }
+        let position = self.state.position;
+        let sp = inp.setpoint;
+        self.state.accel_cmd = sp.acceleration_pu_s;
+
+        // Differentiate only when a loop uses it (its state is then updated every tick).
+        let (v_diff, a_diff) = if self.coef.diff_in_velocity_tick {
+            self.coef
+                .diff_velocity_rate
+                .update(&mut self.state.diff_velocity_rate, position)
+        } else {
+            (Pu::ZERO, Pu::ZERO)
+        };
+        let obs = &self.coef.observer;
+        let v_raw = match self.coef.velocity_source {
+            Estimator::Differentiation => v_diff,
+            Estimator::Observer => obs.velocity_pu(&self.state.observer),
+        };
+        let v_fb = self
+            .coef
+            .velocity_filter
+            .process(&mut self.state.velocity_filter, v_raw);
+        let a_est = match self.coef.afb_source {
+            Estimator::Differentiation => a_diff,
+            Estimator::Observer => obs.acceleration_pu_s(&self.state.observer),
+        };
+        let disturbance = obs.load_torque_pu(&self.state.observer);
+        if v_fb.unsigned_abs() > self.coef.overspeed.unsigned_abs() {
+            self.trip(Fault::Overspeed);
+        }
+
+        let (pos_err, v_cmd) = self.position_loop(position, &sp);
+
+        if self.state.fault.is_none() {
+            let ff = mul_gain(sp.acceleration_pu_s, self.coef.k_accel_ff);
+            let e = v_cmd.saturating_sub(v_fb);
+            // Anti-windup judged on the final torque reference (PI + AFB term held now).
+            self.state.i_vel = self.coef.velocity_regulator.update_with_offset(
+                &mut self.state.velocity_regulator,
+                e,
+                ff,
+                self.state.afb,
+            );
+            self.run_afb(self.coef.afb_velocity, |_| a_est);
+        }
+        VelocityOutputs {
+            current_ref_pu: self.total_ref(),
+            accel_fb_pu: self.state.afb,
+            velocity_cmd_pu: v_cmd,
+            velocity_est_pu: v_fb,
+            acceleration_est_pu_s: a_est,
+            position_error_counts: pos_err,
+            disturbance_est_pu: disturbance,
+            fault: self.state.fault,
+        }
+    }
+}

@@ -1,0 +1,178 @@
+//! The one range table of the drive settings. [`crate::DriveConfig::validate`] checks every
+//! entry; the harness reads [`RANGES`] to put `minimum`/`maximum` into the JSON Schema of
+//! `[drive]`. A key is the dotted path of the setting below `[drive]`.
+//!
+//! Ranges that depend on other settings (a frequency below its loop's Nyquist limit, the
+//! ratio of the tick rates, the counter width the encoder-jump limit needs) are explicit
+//! checks in `validate`, naming the key they concern.
+
+use crate::error::ConfigError;
+
+/// The allowed range of one setting: `[min, max]`, or `(min, max]` when `min_exclusive`.
+/// `max = ∞` means no upper bound (besides being finite).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Range {
+    /// Dotted path below `[drive]`, e.g. `"accel_feedback.gain_fraction"`.
+    pub key: &'static str,
+    /// Smallest allowed value.
+    pub min: f32,
+    /// Largest allowed value (`f32::INFINITY`: unbounded).
+    pub max: f32,
+    /// Whether `min` itself is excluded.
+    pub min_exclusive: bool,
+    /// Whether the setting is a whole number (counts, bits, rates).
+    pub whole: bool,
+}
+
+impl Range {
+    const fn real(key: &'static str, min: f32, max: f32, min_exclusive: bool) -> Self {
+        Self {
+            key,
+            min,
+            max,
+            min_exclusive,
+            whole: false,
+        }
+    }
+
+    const fn whole(key: &'static str, min: f32, max: f32) -> Self {
+        Self {
+            key,
+            min,
+            max,
+            min_exclusive: false,
+            whole: true,
+        }
+    }
+
+    /// `v` if it is finite and inside the range, else the error naming [`Range::key`].
+    pub fn check(&self, v: f32) -> Result<f32, ConfigError> {
+        if !v.is_finite() {
+            return Err(ConfigError::NotFinite { param: self.key });
+        }
+        let low_ok = if self.min_exclusive {
+            v > self.min
+        } else {
+            v >= self.min
+        };
+        if low_ok && v <= self.max {
+            Ok(v)
+        } else {
+            Err(self.out_of_range(v))
+        }
+    }
+
+    /// A whole-number setting: `v` if inside the range.
+    pub fn check_whole(&self, v: u32) -> Result<u32, ConfigError> {
+        // Every bound of the table is exact in f32 (powers of two or below 2^24).
+        self.check(v as f32).map(|_| v)
+    }
+
+    /// The out-of-range error of `v`.
+    #[must_use]
+    pub fn out_of_range(&self, v: f32) -> ConfigError {
+        ConfigError::OutOfRange {
+            param: self.key,
+            value: v,
+            min: self.min,
+            max: self.max,
+            min_exclusive: self.min_exclusive,
+        }
+    }
+}
+
+const INF: f32 = f32::INFINITY;
+
+/// Base speed \[rpm\].
+pub const BASE_SPEED_RPM: Range = Range::real("base_speed_rpm", 0.0, 100_000.0, true);
+/// Encoder counts per revolution.
+pub const ENCODER_CPR: Range = Range::whole("encoder_cpr", 4.0, 1_073_741_824.0);
+/// Counter width \[bits\] (and at least what the encoder-jump limit needs).
+pub const COUNTER_BITS: Range = Range::whole("counter_bits", 16.0, 32.0);
+/// Current tick rate \[Hz\].
+pub const CURRENT_RATE_HZ: Range = Range::whole("current_rate_hz", 100.0, 100_000.0);
+/// Velocity tick rate \[Hz\] (and `current_rate_hz / n`, n = 1..=16).
+pub const VELOCITY_RATE_HZ: Range = Range::whole("velocity_rate_hz", 10.0, 100_000.0);
+/// Motor inertia \[s\].
+pub const MOTOR_INERTIA_S: Range = Range::real("motor_inertia_s", 0.0, 1000.0, true);
+/// Load inertia \[s\].
+pub const LOAD_INERTIA_S: Range = Range::real("load_inertia_s", 0.0, 1000.0, false);
+/// Position bandwidth \[rad/s\] (and below π·velocity_rate_hz); 0 = velocity mode.
+pub const POSITION_BANDWIDTH_RAD_S: Range =
+    Range::real("position_bandwidth_rad_s", 0.0, INF, false);
+/// Velocity bandwidth \[rad/s\] (and below π·velocity_rate_hz).
+pub const VELOCITY_BANDWIDTH_RAD_S: Range = Range::real("velocity_bandwidth_rad_s", 0.0, INF, true);
+/// Velocity damping ζ.
+pub const VELOCITY_DAMPING: Range = Range::real("velocity_damping", 0.1, 10.0, false);
+/// Current bandwidth \[rad/s\] (and below π·current_rate_hz).
+pub const CURRENT_BANDWIDTH_RAD_S: Range = Range::real("current_bandwidth_rad_s", 0.0, INF, true);
+/// Winding resistance \[pu\].
+pub const WINDING_RESISTANCE_PU: Range = Range::real("winding_resistance_pu", 0.0, 100.0, true);
+/// Winding inductance \[pu·s\].
+pub const WINDING_INDUCTANCE_PU_S: Range = Range::real("winding_inductance_pu_s", 0.0, 100.0, true);
+/// Torque limit \[pu\].
+pub const TORQUE_LIMIT_PU: Range = Range::real("torque_limit_pu", 0.0, 1000.0, true);
+/// Voltage limit \[pu\].
+pub const VOLTAGE_LIMIT_PU: Range = Range::real("voltage_limit_pu", 0.0, 1000.0, true);
+/// Velocity feed-forward fraction.
+pub const VELOCITY_FF_GAIN: Range = Range::real("velocity_ff_gain", 0.0, 1.0, false);
+/// Acceleration feed-forward fraction.
+pub const ACCEL_FF_GAIN: Range = Range::real("accel_ff_gain", 0.0, 1.0, false);
+/// Velocity filter corner \[Hz\] (and below velocity_rate_hz/2).
+pub const VELOCITY_FILTER_CORNER_HZ: Range =
+    Range::real("velocity_filter.corner_hz", 0.0, INF, true);
+/// Velocity filter Q.
+pub const VELOCITY_FILTER_Q: Range = Range::real("velocity_filter.q", 0.1, 10.0, false);
+/// Ka as a fraction of J_total.
+pub const AFB_GAIN_FRACTION: Range = Range::real("accel_feedback.gain_fraction", 0.0, 20.0, false);
+/// AFB filter corner \[Hz\] (and below the AFB rate / 2).
+pub const AFB_FILTER_CORNER_HZ: Range =
+    Range::real("accel_feedback.filter.corner_hz", 0.0, INF, true);
+/// AFB filter Q.
+pub const AFB_FILTER_Q: Range = Range::real("accel_feedback.filter.q", 0.1, 10.0, false);
+/// Observer bandwidth \[Hz\] (and below current_rate_hz/2).
+pub const OBSERVER_BANDWIDTH_HZ: Range = Range::real("observer.bandwidth_hz", 0.0, INF, true);
+/// Overspeed trip \[pu\].
+pub const OVERSPEED_PU: Range = Range::real("faults.overspeed_pu", 0.0, 100.0, true);
+/// Following-error trip \[counts\].
+pub const FOLLOWING_ERROR_COUNTS: Range =
+    Range::real("faults.following_error_counts", 0.0, 8_000_000.0, true);
+/// Encoder-jump margin.
+pub const ENCODER_JUMP_MARGIN: Range =
+    Range::real("faults.encoder_jump_margin", 1.0, 1000.0, false);
+
+/// Every numeric setting of [`crate::DriveConfig`] with its range, in declaration order.
+pub const RANGES: &[Range] = &[
+    BASE_SPEED_RPM,
+    ENCODER_CPR,
+    COUNTER_BITS,
+    CURRENT_RATE_HZ,
+    VELOCITY_RATE_HZ,
+    MOTOR_INERTIA_S,
+    LOAD_INERTIA_S,
+    POSITION_BANDWIDTH_RAD_S,
+    VELOCITY_BANDWIDTH_RAD_S,
+    VELOCITY_DAMPING,
+    CURRENT_BANDWIDTH_RAD_S,
+    WINDING_RESISTANCE_PU,
+    WINDING_INDUCTANCE_PU_S,
+    TORQUE_LIMIT_PU,
+    VOLTAGE_LIMIT_PU,
+    VELOCITY_FF_GAIN,
+    ACCEL_FF_GAIN,
+    VELOCITY_FILTER_CORNER_HZ,
+    VELOCITY_FILTER_Q,
+    AFB_GAIN_FRACTION,
+    AFB_FILTER_CORNER_HZ,
+    AFB_FILTER_Q,
+    OBSERVER_BANDWIDTH_HZ,
+    OVERSPEED_PU,
+    FOLLOWING_ERROR_COUNTS,
+    ENCODER_JUMP_MARGIN,
+];
+
+/// The range of `key` (a dotted path below `[drive]`), if it has one.
+#[must_use]
+pub fn range_of(key: &str) -> Option<&'static Range> {
+    RANGES.iter().find(|r| r.key == key)
+}
