@@ -6,7 +6,6 @@ use crate::error::{HarnessError, Result};
 use crate::metrics::MetricWindows;
 use serde::Deserialize;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 
 /// A scenario file: one `[scenario]` table.
 #[derive(Clone, Debug, Deserialize)]
@@ -406,66 +405,6 @@ fn in_range(key: &str, v: f64, lo: (f64, bool), hi: f64, unit: &str) -> Result<(
     ))
 }
 
-/// The `configs/` directory: `$STIFFDRIVE_CONFIGS`, else the first `configs/scenarios`
-/// found from the working directory upwards, else the one in this source tree.
-pub fn configs_dir() -> PathBuf {
-    if let Some(dir) = std::env::var_os("STIFFDRIVE_CONFIGS") {
-        return PathBuf::from(dir);
-    }
-    if let Ok(cwd) = std::env::current_dir() {
-        for dir in cwd.ancestors() {
-            let c = dir.join("configs");
-            if c.join("scenarios").is_dir() {
-                return c;
-            }
-        }
-    }
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join("configs")
-}
-
-/// Names of the scenarios under `configs/scenarios/`, sorted.
-pub fn known_scenarios() -> Vec<String> {
-    let dir = configs_dir().join("scenarios");
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .map(|rd| {
-            rd.filter_map(|e| e.ok())
-                .filter_map(|e| {
-                    let p = e.path();
-                    (p.extension().is_some_and(|x| x == "toml"))
-                        .then(|| p.file_stem().map(|s| s.to_string_lossy().into_owned()))
-                        .flatten()
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    names.sort();
-    names
-}
-
-/// Loads `configs/scenarios/NAME.toml`.
-pub fn load_scenario(name: &str) -> Result<ScenarioSpec> {
-    let valid = !name.is_empty()
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
-    let path = configs_dir().join("scenarios").join(format!("{name}.toml"));
-    if !valid || !path.is_file() {
-        return Err(HarnessError::UnknownScenario {
-            name: name.to_string(),
-            known: known_scenarios(),
-        });
-    }
-    let text = std::fs::read_to_string(&path).map_err(|e| HarnessError::io(&path, e))?;
-    let file: ScenarioFile = toml::from_str(&text).map_err(|e| HarnessError::Parse {
-        path: path.clone(),
-        reason: e.to_string(),
-    })?;
-    file.scenario.validate()?;
-    Ok(file.scenario)
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -500,6 +439,7 @@ mod tests {
 
     #[test]
     fn unknown_scenario_lists_the_known_ones() {
+        use crate::config::load_scenario;
         let e = load_scenario("no-such-scenario").unwrap_err();
         assert!(matches!(e, HarnessError::UnknownScenario { .. }));
         let e = load_scenario("../etc/passwd").unwrap_err();

@@ -1,15 +1,16 @@
-//! Resolving what one run uses: the config file (by path or name under `configs/`), the
-//! scenario's `set` overrides, then the command line's `--set`, parsed into plant-host's
-//! `PlantConfig` and controller-core's `DriveConfig`.
+//! Resolving what one run uses: the scenario file's value tree with the `scenario.*`
+//! overrides, then the config file's value tree (by path or name under `configs/`) with the
+//! scenario's `set` table and the command line's other `--set`s, each deserialized once
+//! into its owner's type.
 
-use crate::drive::{drive_config, MachineDefaults};
+use super::files::{config_path, read_table, scenario_of, scenario_table};
+use super::machine::machine;
+use super::overrides;
+use super::scenario::ScenarioSpec;
 use crate::error::{HarnessError, Result};
-use crate::overrides;
-use crate::scenario::{configs_dir, ScenarioFile, ScenarioSpec};
 use controller_core::{AfbMode, DriveConfig};
 use plant_host::PlantConfig;
-use std::path::{Path, PathBuf};
-use toml::Table;
+use std::path::PathBuf;
 
 /// Everything one closed-loop run needs.
 #[derive(Clone, Debug)]
@@ -78,82 +79,6 @@ pub fn borrow_gains(cfg: &mut RunConfig, source: &str, afb_drive: &DriveConfig) 
     Ok(())
 }
 
-/// Finds a config by path, or by name as `configs/NAME.toml`.
-pub fn config_path(name_or_path: &str) -> Result<PathBuf> {
-    let p = Path::new(name_or_path);
-    if p.is_file() {
-        return Ok(p.to_path_buf());
-    }
-    // Project configs first, then the harness's own test-stand plants.
-    for dir in [
-        configs_dir(),
-        configs_dir().join("scenarios").join("plants"),
-    ] {
-        let by_name = dir.join(format!("{name_or_path}.toml"));
-        if by_name.is_file() {
-            return Ok(by_name);
-        }
-    }
-    Err(HarnessError::io(
-        p,
-        "no such config file (give a path or a name under configs/)",
-    ))
-}
-
-/// Reads a TOML file into a table.
-pub fn read_table(path: &Path) -> Result<Table> {
-    let text = std::fs::read_to_string(path).map_err(|e| HarnessError::io(path, e))?;
-    text.parse::<Table>().map_err(|e| HarnessError::Parse {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })
-}
-
-/// The machine values the drive takes from the plant unless `[drive]` overrides them.
-pub fn machine_defaults(plant: &PlantConfig) -> MachineDefaults {
-    MachineDefaults {
-        base_speed_rpm: plant.mechanics.base_speed_rpm as f32,
-        // The drive counts what the interpolator delivers.
-        encoder_cpr: plant.sensors.counts_per_rev(),
-        motor_inertia_s: plant.mechanics.motor_inertia_s as f32,
-        load_inertia_s: plant.mechanics.load_inertia_s as f32,
-        winding_resistance_pu: plant.electrics.winding_resistance_pu as f32,
-        winding_inductance_pu_s: plant.electrics.winding_inductance_pu_s as f32,
-    }
-}
-
-/// The tables a machine config may hold: plant-host's and the drive's.
-pub const CONFIG_TABLES: [&str; 5] = ["plant", "electrics", "sensors", "lost_motion", "drive"];
-
-/// Parses plant and drive from a (merged) document. A top-level key that is not one of
-/// [`CONFIG_TABLES`] (a misspelt table) is an error: nothing would read it.
-pub fn plant_and_drive(doc: &Table) -> Result<(PlantConfig, DriveConfig)> {
-    if let Some(k) = doc.keys().find(|k| !CONFIG_TABLES.contains(&k.as_str())) {
-        return Err(HarnessError::config(
-            k.as_str(),
-            format!(
-                "unknown table `[{k}]`: nothing reads it (a config has {})",
-                CONFIG_TABLES.map(|t| format!("[{t}]")).join(", ")
-            ),
-        ));
-    }
-    let text = toml::to_string(doc).map_err(|e| HarnessError::config("config", e.to_string()))?;
-    let plant = PlantConfig::from_toml_str(&text).map_err(plant_error)?;
-    let drive = drive_config(doc, &machine_defaults(&plant))?;
-    Ok((plant, drive))
-}
-
-fn plant_error(e: plant_host::ConfigError) -> HarnessError {
-    let text = e.to_string();
-    // plant-host's messages already start with the offending `table.key`.
-    let key = text
-        .split(|c: char| c.is_whitespace() || c == ':' || c == '`')
-        .find(|w| w.contains('.'))
-        .unwrap_or("plant")
-        .to_string();
-    HarnessError::config(key, text)
-}
-
 /// Loads scenario `name` and its config (or `config_override`), applying the scenario's
 /// `set` table and then `sets` (`section.key=value`).
 pub fn resolve(name: &str, config_override: Option<&str>, sets: &[String]) -> Result<RunConfig> {
@@ -168,24 +93,13 @@ fn resolve_with(
     sets: &[String],
     borrow: bool,
 ) -> Result<RunConfig> {
-    // Validates the name and lists the known scenarios if it does not exist.
-    crate::scenario::load_scenario(name)?;
-    let scenario_path = configs_dir().join("scenarios").join(format!("{name}.toml"));
-    let mut scenario_doc = read_table(&scenario_path)?;
-
     let (scenario_sets, config_sets): (Vec<String>, Vec<String>) = sets
         .iter()
         .cloned()
         .partition(|s| s.trim_start().starts_with("scenario."));
+    let mut scenario_doc = scenario_table(name)?;
     overrides::apply_all(&mut scenario_doc, &scenario_sets)?;
-    let file: ScenarioFile = scenario_doc
-        .clone()
-        .try_into()
-        .map_err(|e: toml::de::Error| {
-            HarnessError::config(format!("scenario ({name})"), e.message().to_string())
-        })?;
-    let scenario = file.scenario;
-    scenario.validate()?;
+    let scenario = scenario_of(scenario_doc)?;
 
     let config_path = config_path(config_override.unwrap_or(&scenario.config))?;
     let mut doc = read_table(&config_path)?;
@@ -193,7 +107,7 @@ fn resolve_with(
         overrides::set(&mut doc, key, value.clone())?;
     }
     overrides::apply_all(&mut doc, &config_sets)?;
-    let (plant, drive) = plant_and_drive(&doc)?;
+    let (plant, drive) = machine(doc)?;
     let mut cfg = RunConfig {
         name: name.to_string(),
         scenario,

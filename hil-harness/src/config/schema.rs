@@ -1,0 +1,142 @@
+//! The JSON Schema of a machine file (`configs/*.toml`): plant-host's tables and
+//! controller-core's `[drive]`, each generated from its type (schemars), with the bounds of
+//! the owners' range tables (`plant_host::RANGES`, `controller_core::RANGES`) as
+//! `minimum`/`maximum`. An editor with a TOML language server (taplo, Even Better TOML)
+//! completes and checks a drive file against it: `hil-harness schema --out FILE`.
+
+use crate::error::{HarnessError, Result};
+use serde_json::{Map, Value};
+
+/// Follows `$ref`s (`#/$defs/Name`) in `root` from `node`.
+fn resolved<'a>(root: &'a Value, mut node: &'a Value) -> &'a Value {
+    while let Some(r) = node.get("$ref").and_then(Value::as_str) {
+        let Some(name) = r.strip_prefix("#/$defs/") else {
+            break;
+        };
+        match root.get("$defs").and_then(|d| d.get(name)) {
+            Some(next) => node = next,
+            None => break,
+        }
+    }
+    node
+}
+
+/// The JSON pointers of every schema that holds the property at `path` (dotted), from
+/// `at`: through `$ref`s, into each alternative of a `oneOf`/`anyOf` (a tagged enum).
+fn holders(root: &Value, at: String, path: &[&str], out: &mut Vec<String>) {
+    let Some(node) = root.pointer(&at) else {
+        return;
+    };
+    let node = resolved(root, node);
+    let here = pointer_of(root, node).unwrap_or(at);
+    let Some((first, rest)) = path.split_first() else {
+        out.push(here);
+        return;
+    };
+    for alt in ["oneOf", "anyOf"] {
+        if let Some(n) = node.get(alt).and_then(Value::as_array).map(Vec::len) {
+            for i in 0..n {
+                holders(root, format!("{here}/{alt}/{i}"), path, out);
+            }
+        }
+    }
+    if node.get("properties").and_then(|p| p.get(*first)).is_some() {
+        holders(root, format!("{here}/properties/{first}"), rest, out);
+    }
+}
+
+/// The JSON pointer of `node` inside `root`'s `$defs`, or `None` for an inline node.
+fn pointer_of(root: &Value, node: &Value) -> Option<String> {
+    let defs = root.get("$defs")?.as_object()?;
+    defs.iter()
+        .find(|(_, v)| std::ptr::eq(*v, node))
+        .map(|(k, _)| format!("/$defs/{k}"))
+}
+
+/// Writes the bounds of one key into every schema that holds it.
+fn bound(root: &mut Value, base: &str, key: &str, bounds: &[(&str, f64)]) -> Result<()> {
+    let path: Vec<&str> = key.split('.').collect();
+    let mut at = Vec::new();
+    holders(root, base.to_string(), &path, &mut at);
+    if at.is_empty() {
+        return Err(HarnessError::Backend(format!(
+            "schema: the range table's key `{key}` is not in the generated schema"
+        )));
+    }
+    for p in at {
+        if let Some(Value::Object(o)) = root.pointer_mut(&p) {
+            for (name, v) in bounds {
+                if v.is_finite() {
+                    o.insert((*name).into(), Value::from(*v));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn to_value(schema: schemars::Schema) -> Result<Value> {
+    serde_json::to_value(schema).map_err(|e| HarnessError::Backend(format!("schema: {e}")))
+}
+
+/// The schema of a machine file, every range bound in it.
+pub fn machine_schema() -> Result<Value> {
+    let mut root = to_value(schemars::schema_for!(plant_host::PlantConfig))?;
+    let drive = to_value(schemars::schema_for!(controller_core::DriveConfig))?;
+    let mut defs = root
+        .get("$defs")
+        .and_then(Value::as_object)
+        .cloned()
+        .unwrap_or_default();
+    let mut drive_root = drive.as_object().cloned().unwrap_or_default();
+    if let Some(Value::Object(d)) = drive_root.remove("$defs") {
+        for (k, v) in d {
+            if defs.insert(k.clone(), v).is_some() {
+                return Err(HarnessError::Backend(format!(
+                    "schema: plant and drive both define `{k}`"
+                )));
+            }
+        }
+    }
+    drive_root.remove("$schema");
+    if let Value::Object(o) = &mut root {
+        o.insert("$defs".into(), Value::Object(defs));
+        let props = o
+            .entry("properties")
+            .or_insert_with(|| Value::Object(Map::new()));
+        if let Value::Object(p) = props {
+            p.insert("drive".into(), Value::Object(drive_root));
+        }
+    }
+    for r in plant_host::RANGES {
+        let b = match r.allowed {
+            plant_host::Allowed::Real { min, max } => vec![("minimum", min), ("maximum", max)],
+            plant_host::Allowed::Integer { min, max } => {
+                vec![("minimum", min as f64), ("maximum", max as f64)]
+            }
+            plant_host::Allowed::Words(_) => continue,
+        };
+        bound(&mut root, "", r.key, &b)?;
+    }
+    for r in controller_core::RANGES {
+        let low = if r.min_exclusive {
+            "exclusiveMinimum"
+        } else {
+            "minimum"
+        };
+        let b = [(low, f64::from(r.min)), ("maximum", f64::from(r.max))];
+        bound(&mut root, "/properties/drive", r.key, &b)?;
+    }
+    Ok(root)
+}
+
+/// `hil-harness schema --out FILE`: writes the machine-file schema as pretty JSON.
+pub fn write_schema(out: &std::path::Path) -> Result<String> {
+    let text = serde_json::to_string_pretty(&machine_schema()?)
+        .map_err(|e| HarnessError::Backend(format!("schema: {e}")))?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| HarnessError::io(dir, e))?;
+    }
+    std::fs::write(out, text + "\n").map_err(|e| HarnessError::io(out, e))?;
+    Ok(format!("machine-file JSON Schema -> {}", out.display()))
+}
