@@ -114,7 +114,7 @@ pub fn machine_defaults(plant: &PlantConfig) -> MachineDefaults {
     MachineDefaults {
         base_speed_rpm: plant.mechanics.base_speed_rpm as f32,
         // The drive counts what the interpolator delivers.
-        encoder_cpr: plant.sensors.counts_per_rev(),
+        encoder_cpr: plant.counts_per_rev(),
         motor_inertia_s: plant.mechanics.motor_inertia_s as f32,
         load_inertia_s: plant.mechanics.load_inertia_s as f32,
         winding_resistance_pu: plant.electrics.winding_resistance_pu as f32,
@@ -137,21 +137,15 @@ pub fn plant_and_drive(doc: &Table) -> Result<(PlantConfig, DriveConfig)> {
             ),
         ));
     }
-    let text = toml::to_string(doc).map_err(|e| HarnessError::config("config", e.to_string()))?;
-    let plant = PlantConfig::from_toml_str(&text).map_err(plant_error)?;
+    let mut plant_tables = doc.clone();
+    plant_tables.remove("drive");
+    let plant = PlantConfig::from_table(plant_tables).map_err(plant_error)?;
     let drive = drive_config(doc, &machine_defaults(&plant))?;
     Ok((plant, drive))
 }
 
 fn plant_error(e: plant_host::ConfigError) -> HarnessError {
-    let text = e.to_string();
-    // plant-host's messages already start with the offending `table.key`.
-    let key = text
-        .split(|c: char| c.is_whitespace() || c == ':' || c == '`')
-        .find(|w| w.contains('.'))
-        .unwrap_or("plant")
-        .to_string();
-    HarnessError::config(key, text)
+    HarnessError::config(e.key(), e.to_string())
 }
 
 /// Loads scenario `name` and its config (or `config_override`), applying the scenario's

@@ -411,8 +411,7 @@ fn write_report(
 
     // Fig. 4.
     let (c4, f4) = get(runs, "fig4")?;
-    let gap_counts =
-        c4.plant.mechanics.backlash_deg / 360.0 * f64::from(c4.plant.sensors.counts_per_rev());
+    let gap_counts = c4.plant.mechanics.backlash_deg / 360.0 * f64::from(c4.plant.counts_per_rev());
     let m4 = &f4.metrics;
     let ok4 = m4.max_twist_counts >= 0.5 * gap_counts;
     r.section(
@@ -421,7 +420,7 @@ fn write_report(
         "A trapezoidal velocity command on the Table 1 plant shows the resonance and the lost motion in the command - motor and motor - load position differences; when the torque is removed the inertias resonate.",
         &format!(
             "lost motion {} deg = {gap_counts:.2} counts at {} counts/rev; largest |motor - load| {:.2} counts; largest |command - motor| {:.2} counts; shaft-torque ripple {:.3} pu RMS at about {:.0} Hz after the ramp; stable: {}.",
-            c4.plant.mechanics.backlash_deg, c4.plant.sensors.counts_per_rev(),
+            c4.plant.mechanics.backlash_deg, c4.plant.counts_per_rev(),
             m4.max_twist_counts, m4.max_following_error_counts, m4.shaft_torque_ripple_rms_pu, m4.shaft_ripple_freq_hz, m4.stable
         ),
         &format!(
@@ -458,12 +457,12 @@ fn write_report(
         .collect();
         let sens = &ca.plant.sensors;
         r.section(
-            &format!("Fig. 6 and Fig. 7: trapezoid to rated speed with a 50 % load step, acceleration feedback on ({what}, {} counts/rev)", sens.counts_per_rev()),
+            &format!("Fig. 6 and Fig. 7: trapezoid to rated speed with a 50 % load step, acceleration feedback on ({what}, {} counts/rev)", ca.plant.counts_per_rev()),
             &[&format!("{afb}/trace.png"), if afb == "fig6" { "fig6-compare.png" } else { "fig6-65k-compare.png" }],
             "At 1 s the velocity stops ramping and the load overshoots slightly; the 50 % load step at 1.5 s causes a slight oscillation. The compensation (acceleration feedback) signal is non-zero while accelerating.",
             &format!(
                 "encoder {} counts/rev x {} interpolation. AFB design: {:?}, Ka = {} x J_total, filter {:?}, source {:?}, rate {:?}. Stable: {}; load overshoot after the ramp {} pu; droop after the step {} pu; settling {} s; torque at its limit for {:.3} s. Shaft-torque ripple after the step {:.4} pu with AFB, {:.4} pu without at the same gains (`{off}`, stable: {}): {}. Motor-torque ripple {:.4} / {:.4} pu. {}.",
-                sens.encoder_cpr, sens.encoder_interpolation,
+                ca.plant.mechanics.encoder_cpr, sens.encoder_interpolation,
                 ca.drive.accel_feedback.mode, ca.drive.accel_feedback.gain_fraction, ca.drive.accel_feedback.filter, ca.drive.accel_feedback.source, ca.drive.accel_feedback.rate,
                 ma.stable, fmt_opt(ma.overshoot_pu), fmt_opt(ma.load_step_droop_pu), fmt_opt(ma.settling_s), ma.torque_saturated_s,
                 ma.shaft_torque_ripple_rms_pu, mo.shaft_torque_ripple_rms_pu, mo.stable,
@@ -521,8 +520,8 @@ fn write_report(
         let _ = writeln!(
             r.text,
             "\n### Encoder {} counts/rev x {n} = {} counts/rev\n\n{}\n{}\n\n**Assessment:** {v} (criterion, over the whole map: the loop without AFB is unstable at one velocity-filter corner or more, and in those rows the loop with AFB is stable in at least half of the cells; \"partly agrees\" if it is stable in fewer than half but in one or more; \"does not agree\" otherwise). The map, not one point of it, is the result.",
-            c.plant.sensors.encoder_cpr,
-            c.plant.sensors.encoder_cpr.saturating_mul(n),
+            c.plant.mechanics.encoder_cpr,
+            c.plant.mechanics.encoder_cpr.saturating_mul(n),
             crate::sec2::table(&m),
             crate::sec2::summary_text(&m)
         );
@@ -677,8 +676,8 @@ fn write_report(
         &format!(
             "{sweep_text}Probe run `configs/scenarios/sweep.toml` in speed mode; a bandwidth counts only if every grid point below it passes too. Grid: {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, filters {:?}, acceleration from differentiation or from the observer at {:?} Hz (every point in `sweep/sweep.csv`; points whose gains do not fit controller-core's fixed-point formats are rejected there and count as not achievable). The runs without AFB use the gains of each plant's default AFB design at the same bandwidth, one per observer bandwidth of the grid (the observer also gives the velocity feedback); \"without AFB\" is the better of them. The modelled press: {} counts/rev, lost motion {} deg ({:.0} counts), Jm {} s, Jl {} s (`configs/printing-press.toml`).",
             crate::sweep::BANDWIDTHS_RAD_S, crate::sweep::GAINS, crate::sweep::FILTERS, crate::sweep::OBSERVER_HZ,
-            press.plant.sensors.counts_per_rev(), press.plant.mechanics.backlash_deg,
-            press.plant.mechanics.backlash_deg / 360.0 * f64::from(press.plant.sensors.counts_per_rev()),
+            press.plant.counts_per_rev(), press.plant.mechanics.backlash_deg,
+            press.plant.mechanics.backlash_deg / 360.0 * f64::from(press.plant.counts_per_rev()),
             press.plant.mechanics.motor_inertia_s, press.plant.mechanics.load_inertia_s
         ),
         &format!(

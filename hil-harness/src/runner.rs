@@ -18,6 +18,7 @@ use crate::trace::{Trace, TraceRow};
 use controller_core::{
     Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
 };
+use plant_host::TwoInertiaPlant;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -218,7 +219,7 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
     cfg: &RunConfig,
     backend: &mut B,
 ) -> Result<RunOutput> {
-    let mut plant = crate::plant::Plant::new(&cfg.plant)?;
+    let mut plant = TwoInertiaPlant::voltage_driven(&cfg.plant);
     let drive = &cfg.drive;
     let scenario = &cfg.scenario;
 
@@ -231,7 +232,7 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
 
     // Position command: counts = pu·s · (base rpm / 60) · cpr, in the counts the drive
     // reads (after sin/cos interpolation).
-    let cpr = f64::from(cfg.plant.sensors.counts_per_rev());
+    let cpr = f64::from(cfg.plant.counts_per_rev());
     let counts_per_pu_s = cfg.plant.mechanics.base_speed_rpm / 60.0 * cpr;
     let counts_per_rad = cpr / std::f64::consts::TAU;
     let mask: u64 = if drive.counter_bits >= 32 {
@@ -269,20 +270,19 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
                 setpoint,
                 fault_input: false,
             });
-            let s = plant.snapshot();
             rows.push(TraceRow {
                 t_s,
                 pos_cmd_counts: pos_counts,
-                motor_pos_counts: s.motor_pos_rad * counts_per_rad,
-                load_pos_counts: s.load_pos_rad * counts_per_rad,
+                motor_pos_counts: plant.motor_pos_rad() * counts_per_rad,
+                load_pos_counts: plant.load_pos_rad() * counts_per_rad,
                 vel_cmd_pu: cmd.velocity_pu,
-                motor_vel_pu: s.motor_vel_pu,
-                load_vel_pu: s.load_vel_pu,
+                motor_vel_pu: plant.motor_vel_pu(),
+                load_vel_pu: plant.load_vel_pu(),
                 vel_est_pu: crate::plant::f(last_vel.velocity_est_pu),
                 torque_cmd_pu: crate::plant::f(last_vel.current_ref_pu),
-                current_pu: s.current_pu,
+                current_pu: plant.current_pu(),
                 accel_fb_pu: crate::plant::f(last_vel.accel_fb_pu),
-                shaft_torque_pu: s.shaft_torque_pu,
+                shaft_torque_pu: plant.shaft_torque_pu(),
                 load_torque_pu: scenario.load_torque_pu(t_s),
                 voltage_pu,
                 accel_est_pu_s: crate::plant::f(last_vel.acceleration_est_pu_s),
@@ -294,20 +294,24 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
             current_pu: crate::plant::pu(current_pu),
         });
         if delay_s > 0.0 {
-            plant.advance(
-                delay_s,
-                voltage_pu,
-                scenario.load_torque_pu(t_s + 0.5 * delay_s),
-            )?;
+            plant
+                .try_advance(
+                    delay_s,
+                    voltage_pu,
+                    scenario.load_torque_pu(t_s + 0.5 * delay_s),
+                )
+                .map_err(crate::plant::plant_error)?;
         }
         voltage_pu = delay_line.push(crate::plant::f(out.voltage_cmd_pu), voltage_pu);
         let rest_s = tc_s - delay_s;
         if rest_s > 0.0 {
-            plant.advance(
-                rest_s,
-                voltage_pu,
-                scenario.load_torque_pu(t_s + delay_s + 0.5 * rest_s),
-            )?;
+            plant
+                .try_advance(
+                    rest_s,
+                    voltage_pu,
+                    scenario.load_torque_pu(t_s + delay_s + 0.5 * rest_s),
+                )
+                .map_err(crate::plant::plant_error)?;
         }
         if k % u64::from(ratio) == 0 {
             if let Some(row) = rows.last_mut() {

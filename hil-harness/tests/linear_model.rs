@@ -129,11 +129,13 @@ fn the_mirror_follows_the_fixed_point_controller() {
 /// J·s² + Kp·s + Ki.
 #[test]
 fn rigid_body_poles_are_the_pi_roots() {
-    let mut plant = PlantConfig::table1();
+    let table1 = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    let mut plant = PlantConfig::from_machine_file(table1.as_ref()).unwrap();
     plant.mechanics.backlash_deg = 0.0;
     plant.mechanics.anti_resonance_hz = 400.0;
     plant.electrics.computational_delay_s = 10e-6;
-    plant.sensors = plant_host::SensorsConfig::with_cpr(1 << 20);
+    plant.mechanics.encoder_cpr = 1 << 20;
+    plant.sensors = plant_host::SensorsConfig::default();
     let mut cfg = DriveConfig::table1();
     cfg.encoder_cpr = 1 << 20;
     cfg.position_bandwidth_rad_s = 0.0;

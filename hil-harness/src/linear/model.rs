@@ -98,7 +98,7 @@ impl LoopModel {
             coef,
             plant: sampled,
             gears,
-            counts_per_rad: f64::from(plant.sensors.counts_per_rev()) / (2.0 * PI),
+            counts_per_rad: f64::from(plant.counts_per_rev()) / (2.0 * PI),
             whole_delay,
             period_s: tick * ratio as f64,
             base_speed_rad_s: plant.mechanics.derived().base_speed_rad_s,
