@@ -151,11 +151,11 @@ mod tests {
 
     #[test]
     fn counts_floor_towards_minus_infinity() {
-        let one = 2.0 * PI / 4096.0;
-        assert_eq!(encoder_count(0.0, 4096), 0);
-        assert_eq!(encoder_count(0.999 * one, 4096), 0);
-        assert_eq!(encoder_count(1.001 * one, 4096), 1);
-        assert_eq!(encoder_count(-0.001 * one, 4096), -1);
+        let one = 2.0 * PI / 2048.0;
+        assert_eq!(encoder_count(0.0, 2048), 0);
+        assert_eq!(encoder_count(0.999 * one, 2048), 0);
+        assert_eq!(encoder_count(1.001 * one, 2048), 1);
+        assert_eq!(encoder_count(-0.001 * one, 2048), -1);
         assert_eq!(encoder_count(2.0 * PI, 1_000_000), 1_000_000);
     }
 
