@@ -11,7 +11,7 @@
 
 use controller_core::Gains;
 use hil_harness::config::borrow_gains;
-use hil_harness::runner::{controller, regulator_gains, same_regulator_gains};
+use hil_harness::engine::runner::{controller, regulator_gains, same_regulator_gains};
 use hil_harness::{resolve, RunConfig};
 
 fn bits(g: &Gains) -> [u32; 7] {
@@ -51,7 +51,7 @@ fn every_no_afb_scenario_runs_at_the_gains_of_its_afb_run() {
     let mut pairs = 0;
     for inertia in ["total", "total_plus_afb"] {
         let sets = vec![format!("drive.velocity_pi_inertia={inertia}")];
-        for name in hil_harness::scenario::known_scenarios() {
+        for name in hil_harness::config::known_scenarios() {
             let off = resolve(&name, None, &sets).unwrap();
             let Some(of) = off.gains_of.clone() else {
                 continue;
@@ -97,12 +97,12 @@ fn borrowed_gains_are_not_the_drives_own_design() {
 /// The stiffness measurement without AFB uses the default AFB design's gains.
 #[test]
 fn stiffness_without_afb_runs_at_the_afb_designs_gains() {
-    let off = hil_harness::stiffness::stiffness_config(None, &[]).unwrap();
+    let off = hil_harness::experiments::stiffness::stiffness_config(None, &[]).unwrap();
     for source in [
         Some(controller_core::Estimator::Observer),
         Some(controller_core::Estimator::Differentiation),
     ] {
-        let afb = hil_harness::stiffness::stiffness_config(source, &[]).unwrap();
+        let afb = hil_harness::experiments::stiffness::stiffness_config(source, &[]).unwrap();
         check_pair(&afb, &off, &[]);
     }
 }

@@ -1,6 +1,6 @@
 //! Prints the linear model's stability prediction against the nonlinear loop on a grid.
-use hil_harness::linear::check::check_grid;
-use hil_harness::sweep::{default_observer_hz, designs, BANDWIDTHS_RAD_S};
+use hil_harness::experiments::linear::check::check_grid;
+use hil_harness::experiments::sweep::{default_observer_hz, designs, BANDWIDTHS_RAD_S};
 
 fn main() {
     let designs: Vec<_> = designs(default_observer_hz())
@@ -20,8 +20,9 @@ fn main() {
         }
     }
     println!("{agree} of {} agree", pts.len());
-    let quiet =
-        |p: &hil_harness::linear::check::CheckPoint| p.measured && p.limit_cycle_torque_pu < 0.1;
+    let quiet = |p: &hil_harness::experiments::linear::check::CheckPoint| {
+        p.measured && p.limit_cycle_torque_pu < 0.1
+    };
     let agree_q = pts.iter().filter(|p| p.predicted == quiet(p)).count();
     println!("{agree_q} of {} agree with stable-and-quiet", pts.len());
     let mut lc: Vec<(f64, bool)> = pts

@@ -77,6 +77,13 @@ pub enum Command {
     },
     /// Run one scenario through the firmware in QEMU (processor in the loop).
     Pil(crate::pil::PilArgs),
+    /// Write the JSON Schema of a machine file (`configs/*.toml`: the plant tables and
+    /// `[drive]`, with every range), for an editor to complete and check a config.
+    Schema {
+        /// Output file.
+        #[arg(long, default_value = "configs/machine.schema.json")]
+        out: PathBuf,
+    },
     /// Drive the plant open-loop with a torque CSV (plant-host's replay).
     Replay {
         /// Configuration (path, or name under configs/).

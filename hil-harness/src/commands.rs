@@ -2,11 +2,11 @@
 //! `DIR/trace.png|svg`.
 
 use crate::config::{resolve, RunConfig};
+use crate::engine::runner::{run_scenario, RunOutput};
+use crate::engine::trace::Trace;
 use crate::error::{HarnessError, Result};
 use crate::output::Staging;
 use crate::plot::{save, Figure, Panel, Series};
-use crate::runner::{run_scenario, RunOutput};
-use crate::trace::Trace;
 use std::path::Path;
 
 /// The standard three-panel figure of a run: speeds, torques, position differences.

@@ -2,36 +2,26 @@
 //! every 250 µs, velocity tick every 500 µs, computational delay, zero-order hold) and
 //! turns the paper's figures and claims into runs, plots and a report.
 //!
-//! Library entry points: [`runner::run_scenario`] (host controller) and
-//! [`runner::run_with_backend`] with any [`runner::ControlBackend`] (e.g. the firmware
+//! Library entry points: [`engine::runner::run_scenario`] (host controller) and
+//! [`engine::runner::run_with_backend`] with any [`engine::runner::ControlBackend`] (e.g. the firmware
 //! through the PIL link), on a [`config::RunConfig`] from [`config::resolve`].
 
 pub mod cli;
 pub mod commands;
 pub mod config;
-pub mod drive;
+pub mod engine;
 pub mod error;
-pub mod linear;
-pub mod metrics;
+pub mod experiments;
 pub mod output;
-pub mod overrides;
 pub mod pil;
-pub mod plant;
 pub mod plot;
 pub mod progress;
 pub mod replay;
 pub mod report;
-pub mod runner;
-pub mod scenario;
-pub mod sec2;
-pub mod stiffness;
-pub mod sweep;
-pub mod trace;
-pub mod tune;
 
 pub use config::{resolve, RunConfig};
+pub use engine::runner::{run_scenario, run_with_backend, ControlBackend, RunOutput};
 pub use error::{HarnessError, Result};
-pub use runner::{run_scenario, run_with_backend, ControlBackend, RunOutput};
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -69,6 +59,7 @@ pub fn main_with_default(default_command: &str) -> ExitCode {
 /// Runs one parsed command; returns the text to print.
 pub fn dispatch(command: cli::Command) -> Result<String> {
     use cli::Command;
+    use experiments::{linear, sec2, stiffness, sweep, tune};
     match command {
         Command::Run(a) => commands::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
         Command::Linear(a) => {
@@ -99,5 +90,6 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             out,
         } => replay::replay(&config, &torque, &out),
         Command::Pil(args) => pil::pil_command(&args),
+        Command::Schema { out } => config::schema::write_schema(&out),
     }
 }

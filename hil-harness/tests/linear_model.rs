@@ -8,8 +8,8 @@ use controller_core::{
     design, AfbMode, AfbRate, Controller, CurrentInputs, DriveConfig, Estimator, FilterConfig,
     ObserverTorque, Pu, Setpoint, VelocityInputs,
 };
-use hil_harness::linear::mirror::{Break, Coefficients, Inputs, State};
-use hil_harness::linear::LoopModel;
+use hil_harness::experiments::linear::mirror::{Break, Coefficients, Inputs, State};
+use hil_harness::experiments::linear::LoopModel;
 use plant_host::analysis::Gears;
 use plant_host::PlantConfig;
 use std::f64::consts::PI;
@@ -132,11 +132,13 @@ fn the_mirror_follows_the_fixed_point_controller() {
 /// J·s² + Kp·s + Ki.
 #[test]
 fn rigid_body_poles_are_the_pi_roots() {
-    let mut plant = PlantConfig::table1();
+    let table1 = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    let mut plant = PlantConfig::from_machine_file(table1.as_ref()).unwrap();
     plant.mechanics.backlash_deg = 0.0;
     plant.mechanics.anti_resonance_hz = 400.0;
     plant.electrics.computational_delay_s = 10e-6;
-    plant.sensors = plant_host::SensorsConfig::with_cpr(1 << 20);
+    plant.mechanics.encoder_cpr = 1 << 20;
+    plant.sensors = plant_host::SensorsConfig::default();
     let mut cfg = common::table1();
     cfg.encoder_cpr = 1 << 20;
     cfg.position_bandwidth_rad_s = 0.0;
@@ -195,12 +197,14 @@ fn rigid_body_poles_are_the_pi_roots() {
 #[test]
 fn predicted_stiffness_matches_the_measured() {
     for source in [None, Some(controller_core::Estimator::Observer)] {
-        let cfg = hil_harness::stiffness::stiffness_config(source, &[]).unwrap();
-        let model = hil_harness::linear::for_run(&cfg, Gears::Engaged).unwrap();
+        let cfg = hil_harness::experiments::stiffness::stiffness_config(source, &[]).unwrap();
+        let model = hil_harness::experiments::linear::for_run(&cfg, Gears::Engaged).unwrap();
         for w in [1.0, 10.0, 40.0, 100.0, 400.0] {
             let predicted = model.stiffness(&[w / (2.0 * PI)])[0];
-            let measured = hil_harness::stiffness::measure(source, w).unwrap().measured;
-            let source = hil_harness::stiffness::source_name(source);
+            let measured = hil_harness::experiments::stiffness::measure(source, w)
+                .unwrap()
+                .measured;
+            let source = hil_harness::experiments::stiffness::source_name(source);
             eprintln!("{source} {w} rad/s: predicted {predicted:.3}, measured {measured:.3}");
             // The issue asks for 10 %; the model is exact for the linear loop, so 2 %.
             assert!(
@@ -217,7 +221,7 @@ fn predicted_stiffness_matches_the_measured() {
 #[test]
 fn predicted_quantization_noise_matches_the_measured_chatter() {
     use controller_core::{AfbMode, Estimator};
-    use hil_harness::sweep::{default_observer_hz, designs, point_config, AfbDesign};
+    use hil_harness::experiments::sweep::{default_observer_hz, designs, point_config, AfbDesign};
     let afb = designs(default_observer_hz())
         .into_iter()
         .find(|d| {
@@ -227,7 +231,7 @@ fn predicted_quantization_noise_matches_the_measured_chatter() {
     for design in [AfbDesign::OFF, afb] {
         for bw in [30.0, 100.0, 250.0] {
             let cfg = point_config("dyno", &design, bw, &[]).unwrap();
-            let model = hil_harness::linear::for_run(&cfg, Gears::Engaged).unwrap();
+            let model = hil_harness::experiments::linear::for_run(&cfg, Gears::Engaged).unwrap();
             let predicted = model.quantization_torque_rms();
             let out = hil_harness::run_scenario(&cfg).unwrap();
             let window: Vec<f64> = out
@@ -262,10 +266,11 @@ fn predicted_quantization_noise_matches_the_measured_chatter() {
 /// and the default AFB raises the smallest damping with the gears engaged.
 #[test]
 fn fig6_linear_analysis() {
-    let with =
-        hil_harness::linear::analyze::analyze(&hil_harness::resolve("fig6", None, &[]).unwrap())
-            .unwrap();
-    let without = hil_harness::linear::analyze::analyze(
+    let with = hil_harness::experiments::linear::analyze::analyze(
+        &hil_harness::resolve("fig6", None, &[]).unwrap(),
+    )
+    .unwrap();
+    let without = hil_harness::experiments::linear::analyze::analyze(
         &hil_harness::resolve("fig6-no-afb", None, &[]).unwrap(),
     )
     .unwrap();

@@ -3,7 +3,7 @@
 //! same constraints.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::tune::{candidates, search, without_afb, Candidate, Constraints};
+use hil_harness::experiments::tune::{candidates, search, without_afb, Candidate, Constraints};
 
 /// Table 1's file with another machine: heavier, softer, more lost motion, a finer encoder.
 fn other_machine(dir: &std::path::Path) -> String {

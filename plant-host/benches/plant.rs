@@ -1,11 +1,12 @@
 //! Cost of the plant per simulated second (`cargo bench -p plant-host`).
 //! - mechanics: 4000 steps of 250 µs under a torque profile that crosses the gap ~40 times.
-//! - drive: winding + mechanics in the harness's pattern, a new voltage 180 µs after each
-//!   250 µs tick (8000 `advance` calls per simulated second), plus the encoder and ADC reads.
+//! - drive: winding + mechanics in the harness's pattern, a new voltage the computational
+//!   delay after each 250 µs tick (8000 `advance` calls per simulated second), plus the
+//!   encoder and ADC reads. The plant is `configs/table1.toml`.
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use plant_host::{DrivePlant, PlantConfig, TwoInertiaPlant};
+use plant_host::{PlantConfig, TwoInertiaPlant};
 use std::f64::consts::PI;
 use std::time::Duration;
 
@@ -16,20 +17,23 @@ fn profile(t: f64) -> (f64, f64) {
 }
 
 fn bench(c: &mut Criterion) {
-    let cfg = PlantConfig::table1();
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
+    let delay = cfg.electrics.computational_delay_s;
+    let rest = 250e-6 - delay;
     let torques: Vec<(f64, f64)> = (0..4000).map(|k| profile(k as f64 * 250e-6)).collect();
     let mut g = c.benchmark_group("plant per simulated second");
     g.sample_size(20).measurement_time(Duration::from_secs(4));
     // Warm plants (their per-step-length matrix exponentials cached), cloned per iteration:
     // the figure is the steady cost of a long run.
-    let mut warm_mech = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    let mut warm_mech = TwoInertiaPlant::torque_driven(&cfg);
     for (tm, tl) in &torques {
         warm_mech.advance(250e-6, *tm, *tl);
     }
-    let mut warm_drive = DrivePlant::new(&cfg);
+    let mut warm_drive = TwoInertiaPlant::voltage_driven(&cfg);
     for (tm, tl) in &torques {
-        warm_drive.advance(180e-6, 0.05 * tm, *tl);
-        warm_drive.advance(70e-6, 0.05 * tm, *tl);
+        warm_drive.advance(delay, 0.05 * tm, *tl);
+        warm_drive.advance(rest, 0.05 * tm, *tl);
     }
     eprintln!(
         "mechanics: {} contact changes, {} crossing searches per simulated second",
@@ -39,14 +43,14 @@ fn bench(c: &mut Criterion) {
     g.bench_function("mechanics 4 kHz, gap-crossing profile", |b| {
         b.iter(|| {
             let mut p = warm_mech.clone();
-            p.set_state(0.0, 0.0, 0.0, 0.0);
+            p.set_state(0.0, 0.0, 0.0, 0.0, 0.0);
             for (tm, tl) in &torques {
                 p.advance(250e-6, *tm, *tl);
             }
             black_box(p.motor_pos_rad())
         })
     });
-    g.bench_function("drive 4 kHz, 180+70 us events, sensors read", |b| {
+    g.bench_function("drive 4 kHz, delay + rest events, sensors read", |b| {
         b.iter(|| {
             let mut d = warm_drive.clone();
             d.set_state(0.0, 0.0, 0.0, 0.0, 0.0);
@@ -56,8 +60,8 @@ fn bench(c: &mut Criterion) {
                 acc = acc.wrapping_add(d.encoder_count());
                 let i = d.current_sample();
                 let v = 0.05 * tm + d.motor_vel_pu() + 0.01 * i;
-                d.advance(180e-6, v_prev, *tl);
-                d.advance(70e-6, v, *tl);
+                d.advance(delay, v_prev, *tl);
+                d.advance(rest, v, *tl);
                 v_prev = v;
             }
             black_box((acc, d.mode_changes()))

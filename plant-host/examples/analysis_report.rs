@@ -10,14 +10,14 @@ use std::f64::consts::PI;
 use std::path::PathBuf;
 
 fn config(name: &str) -> Result<PlantConfig, plant_host::PlantError> {
-    PlantConfig::from_file(
+    PlantConfig::from_machine_file(
         &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("../configs")
             .join(name),
     )
 }
 
-/// Kp = ω_bw·J_total, Ki = Kp·ω_bw/4 (ζ = 1), current loop 318 Hz, delay 0.18 ms.
+/// Kp = ω_bw·J_total, Ki = Kp·ω_bw/4 (ζ = 1), current loop 318 Hz, the config's delay.
 fn design(
     cfg: &PlantConfig,
     bw: f64,
@@ -52,7 +52,8 @@ fn max_stable_bw(cfg: &PlantConfig, ka_frac: f64, fc_hz: f64, periods_s: (f64, f
     last
 }
 
-fn main() -> Result<(), plant_host::PlantError> {
+/// The modes and constants of each shipped machine, and the stable bandwidths.
+fn machines() -> Result<(), plant_host::PlantError> {
     for name in ["table1.toml", "printing-press.toml"] {
         let cfg = config(name)?;
         let d = cfg.mechanics.derived();
@@ -63,7 +64,7 @@ fn main() -> Result<(), plant_host::PlantError> {
             d.stiffness_pu_per_rad,
             d.damping_pu,
             d.half_gap_rad,
-            2.0 * d.half_gap_rad * f64::from(cfg.sensors.encoder_cpr) / (2.0 * PI)
+            2.0 * d.half_gap_rad * f64::from(cfg.mechanics.encoder_cpr) / (2.0 * PI)
         );
         println!(
             "  resonance {:.2} Hz (damping {:.3}), anti-resonance {:.2} Hz (damping {:.3})",
@@ -113,14 +114,21 @@ fn main() -> Result<(), plant_host::PlantError> {
         }
     }
 
-    let cfg = config("table1.toml")?;
-    println!("== Table 1, velocity bandwidth 15 Hz (94.2 rad/s), 2 kHz, 0.18 ms delay, 318 Hz current loop");
+    Ok(())
+}
+
+/// Table 1 at the paper's velocity bandwidth, with and without AFB.
+fn table1_loops(cfg: &PlantConfig) {
+    println!(
+        "== Table 1, velocity bandwidth 15 Hz (94.2 rad/s), 2 kHz, {:.2} ms delay, 318 Hz current loop",
+        cfg.electrics.computational_delay_s * 1e3
+    );
     for (label, ka, fc) in [
         ("no AFB", 0.0, 100.0),
         ("Ka=0.5 J, 100 Hz", 0.5, 100.0),
         ("Ka=1.0 J, 20 Hz", 1.0, 20.0),
     ] {
-        let lp = design(&cfg, 2.0 * PI * 15.0, ka, fc, (500e-6, 500e-6));
+        let lp = design(cfg, 2.0 * PI * 15.0, ka, fc, (500e-6, 500e-6));
         let mg = lp.margins();
         let am = lp.accel_margins();
         println!(
@@ -142,11 +150,14 @@ fn main() -> Result<(), plant_host::PlantError> {
             }
         }
     }
+}
 
+/// Table 1 gains with the gears apart, and the multi-rate loops.
+fn apart_and_rates(cfg: &PlantConfig) {
     println!("== Table 1 gains (designed for J_total) with the gears APART (Jm alone), 2 kHz");
     for (bw_label, bw) in [("15 Hz", 2.0 * PI * 15.0), ("2 rad/s", 2.0)] {
         for (label, ka, fc) in [("no AFB", 0.0, 100.0), ("Ka=1.0 J, 20 Hz", 1.0, 20.0)] {
-            let mut lp = design(&cfg, bw, ka, fc, (500e-6, 500e-6));
+            let mut lp = design(cfg, bw, ka, fc, (500e-6, 500e-6));
             lp.plant = EngagedPlant::disengaged(&cfg.mechanics);
             let mg = lp.margins();
             println!(
@@ -175,7 +186,7 @@ fn main() -> Result<(), plant_host::PlantError> {
         let mut unstable = Vec::new();
         for k in 1..=100 {
             let n = f64::from(k) / 100.0;
-            let mut eq = cfg;
+            let mut eq = *cfg;
             eq.mechanics.anti_resonance_hz *= n.sqrt();
             eq.mechanics.shaft_damping_ratio *= n.sqrt();
             let lp = design(&eq, 2.0 * PI * 15.0, ka, fc, periods);
@@ -192,7 +203,10 @@ fn main() -> Result<(), plant_host::PlantError> {
         };
         println!("  {label}: {span}");
     }
+}
 
+/// Eq. 1 / Fig. 2.
+fn eq1() {
     println!("== Eq. 1 / Fig. 2 (Jp = 1 s, zeros at 1 and 10 rad/s)");
     let st = PiStiffness::from_zeros(1.0, 1.0, 10.0);
     for p in st.curve(&[0.1, 1.0, 3.162, 10.0, 100.0]) {
@@ -201,5 +215,13 @@ fn main() -> Result<(), plant_host::PlantError> {
             p.omega_rad_s, p.magnitude, p.magnitude_db, p.phase_deg
         );
     }
+}
+
+fn main() -> Result<(), plant_host::PlantError> {
+    machines()?;
+    let cfg = config("table1.toml")?;
+    table1_loops(&cfg);
+    apart_and_rates(&cfg);
+    eq1();
     Ok(())
 }

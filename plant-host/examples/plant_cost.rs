@@ -7,8 +7,15 @@ use std::f64::consts::PI;
 use std::time::Instant;
 
 fn main() {
-    let cfg = PlantConfig::table1();
-    let mut p = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    let cfg = match PlantConfig::from_machine_file(path.as_ref()) {
+        Ok(cfg) => cfg,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(1);
+        }
+    };
+    let mut p = TwoInertiaPlant::torque_driven(&cfg);
     let seconds: u32 = std::env::args()
         .nth(1)
         .and_then(|a| a.parse().ok())
@@ -18,7 +25,7 @@ fn main() {
         p.advance(250e-6, 0.5, 0.3);
     }
     let engaged = start.elapsed().as_secs_f64() / f64::from(seconds);
-    let mut q = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    let mut q = TwoInertiaPlant::torque_driven(&cfg);
     let torques: Vec<f64> = (0..seconds * 4000)
         .map(|k| {
             let t = f64::from(k) * 250e-6;

@@ -4,7 +4,8 @@
 use std::fmt;
 use std::path::PathBuf;
 
-/// A configuration problem: bad TOML, a missing, unknown, mistyped, non-finite or out-of-range key.
+/// A configuration problem: bad TOML, a missing, unknown, mistyped, non-finite or
+/// out-of-range key. [`ConfigError::key`] gives the dotted key (or table) it is about.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ConfigError {
     /// The text is not valid TOML.
@@ -12,7 +13,7 @@ pub enum ConfigError {
         /// The TOML parser's message.
         message: String,
     },
-    /// A table this crate owns is missing (`[plant]`).
+    /// A table this crate requires is missing (`[plant]`, `[electrics]`).
     MissingTable {
         /// Table name.
         table: &'static str,
@@ -22,19 +23,17 @@ pub enum ConfigError {
         /// Table name.
         table: &'static str,
     },
+    /// A top-level table that is not one of plant-host's.
+    UnknownTable {
+        /// Table name.
+        table: String,
+    },
     /// A required key is missing.
     Missing {
         /// `table.key`.
         key: String,
         /// The allowed range, as text with units.
         allowed: String,
-    },
-    /// A required key is absent and a key nothing reads looks like it misspelt.
-    Misspelt {
-        /// `table.key` as written (nothing reads it).
-        key: String,
-        /// `table.key` that is required.
-        expected: String,
     },
     /// A key this crate does not know, inside one of its own tables.
     Unknown {
@@ -59,8 +58,8 @@ pub enum ConfigError {
     },
     /// Keys each in range whose combination is not allowed.
     Inconsistent {
-        /// The keys involved, `table.key` comma-separated.
-        keys: String,
+        /// The keys involved, `table.key`, the one most to blame first.
+        keys: Vec<&'static str>,
         /// What is wrong and how to fix it.
         message: String,
     },
@@ -75,20 +74,39 @@ pub enum ConfigError {
     },
 }
 
+impl ConfigError {
+    /// The dotted key the error is about (`plant.motor_inertia_s`), the table for a table
+    /// error (`plant`), the first of the keys for an inconsistent combination, and "" for a
+    /// TOML syntax error.
+    pub fn key(&self) -> &str {
+        match self {
+            Self::Syntax { .. } => "",
+            Self::MissingTable { table } | Self::NotATable { table } => table,
+            Self::UnknownTable { table } => table,
+            Self::Inconsistent { keys, .. } => keys.first().copied().unwrap_or(""),
+            Self::Missing { key, .. }
+            | Self::Unknown { key, .. }
+            | Self::WrongType { key, .. }
+            | Self::NotFinite { key, .. }
+            | Self::OutOfRange { key, .. } => key,
+        }
+    }
+}
+
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::Syntax { message } => write!(f, "invalid TOML: {message}"),
             Self::MissingTable { table } => write!(f, "missing table [{table}]"),
             Self::NotATable { table } => write!(f, "`{table}` must be a table ([{table}])"),
+            Self::UnknownTable { table } => write!(
+                f,
+                "unknown table `[{table}]` (plant-host reads [plant], [electrics], [sensors], \
+                 [lost_motion])"
+            ),
             Self::Missing { key, allowed } => {
                 write!(f, "missing key `{key}` (allowed: {allowed})")
             }
-            Self::Misspelt { key, expected } => write!(
-                f,
-                "unknown key `{key}` (nothing reads it); the required key `{expected}` is \
-                 missing: a misspelling?"
-            ),
             Self::Unknown { key, allowed } => {
                 write!(f, "unknown key `{key}` (allowed keys: {allowed})")
             }
@@ -98,7 +116,7 @@ impl fmt::Display for ConfigError {
             Self::NotFinite { key, allowed } => {
                 write!(f, "`{key}` is not finite (allowed: {allowed})")
             }
-            Self::Inconsistent { keys, message } => write!(f, "{keys}: {message}"),
+            Self::Inconsistent { keys, message } => write!(f, "{}: {message}", keys.join(", ")),
             Self::OutOfRange {
                 key,
                 value,

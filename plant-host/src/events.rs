@@ -3,7 +3,8 @@
 //! series (bracketed on [`SEARCH_SAMPLES`] samples, closed by bracketed Newton steps to
 //! [`TIME_TOL_S`]).
 
-use crate::model::{BacklashModel, Contact, Mat5, Mat53, Shaft, Vec3, Vec5};
+use crate::config::BacklashModel;
+use crate::model::{Contact, Mat5, Mat53, Shaft, Vec3, Vec5};
 
 /// Most Taylor terms kept (‖A‖·h ≤ 0.5 needs ~20 for 1e-16).
 const MAX_TERMS: usize = 28;

@@ -3,38 +3,44 @@
 //! and sensor quantization around it; and the linear analysis (nalgebra) that explains it.
 //! It knows nothing of the controller.
 //!
-//! - [`TwoInertiaPlant`]: the mechanics (torque in).
-//! - [`DrivePlant`]: winding + mechanics + encoder + current ADC (voltage in).
+//! - [`TwoInertiaPlant`]: the mechanics and sensors, torque in, or with the winding in
+//!   front, voltage in.
 //! - [`LoadTorque`]: load disturbances.
-//! - [`PlantConfig`]: the `[plant]`, `[electrics]`, `[sensors]`, `[lost_motion]` TOML tables.
+//! - [`PlantConfig`]: the `[plant]`, `[electrics]`, `[sensors]`, `[lost_motion]` TOML
+//!   tables, their range table [`RANGES`] and [`PlantConfig::validate`].
 //! - [`replay()`]: a torque profile through the mechanics, CSV in and out.
 //! - [`analysis`]: modes, stiffness (Eq. 1), closed velocity loop response and margins.
+//!
+//! Modules: `config` (plain data) ← `model` (matrices) ← `discrete` + `events` (the exact
+//! maps and the event search) ← `piecewise` (the integrator) ← `two_inertia` (the plant);
+//! `validate` and `parse` check and read a config.
 
 pub mod analysis;
 mod config;
 mod discrete;
-mod drive;
 mod error;
 mod events;
 mod expm;
 mod load;
 mod model;
+mod parse;
 mod piecewise;
 mod replay;
 pub mod rounding;
 pub mod sensors;
 mod two_inertia;
+mod validate;
 
 pub use config::{
-    BacklashModel, ElectricsConfig, MechanicsConfig, MechanicsDerived, PlantConfig, SensorsConfig,
-    MAX_RATE_PER_S,
+    range_of, Allowed, BacklashModel, ElectricsConfig, KeyRange, LostMotionConfig, MechanicsConfig,
+    MechanicsDerived, PlantConfig, Reading, SensorsConfig, RANGES,
 };
-pub use drive::DrivePlant;
 pub use error::{ConfigError, PlantError};
 pub use load::{for_each_load_piece, LoadTorque, TimeSeries, SMOOTH_LOAD_STEP_S};
-pub use model::Contact;
+pub use model::{Contact, Winding};
 pub use replay::{
     parse_torque_csv, replay, simulate, write_atomically, ReplaySummary, StateRow, TorqueRow,
     COLUMN_RANGES, MAX_SPAN_S, REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER,
 };
 pub use two_inertia::TwoInertiaPlant;
+pub use validate::MAX_RATE_PER_S;

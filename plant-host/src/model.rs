@@ -1,10 +1,11 @@
 //! The model of Fig. 3 as linear systems: the shaft law, the winding, and the state-space
-//! matrices of each contact mode. Plain numbers in, matrices out: the configuration builds a
-//! [`Model`] and the integrator steps it, and neither module needs the other.
+//! matrices of each contact mode. The model is built from the configuration (plain data,
+//! which knows nothing of it), and the integrator steps it.
 //!
 //! State x = [δ (rad), θl (rad), ωm (pu), ωl (pu), i (pu)], input u = [u_motor, TL (pu), 1].
 //! u_motor is the winding voltage (pu) when the winding is modelled, else the motor torque.
 
+use crate::config::{BacklashModel, ElectricsConfig, MechanicsConfig};
 use nalgebra::{SMatrix, SVector};
 
 pub(crate) type Vec5 = SVector<f64, 5>;
@@ -33,21 +34,10 @@ impl Contact {
     }
 }
 
-/// Which lost-motion law transmits torque across the gap.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum BacklashModel {
-    /// The paper's Simulink "Dead Zone" on the twist: Ts = K·dz(δ) + D·(ωm − ωl) while
-    /// |δ| > g. The damping term can momentarily pull the gears apart.
-    #[default]
-    DeadZone,
-    /// As Modelica's ElastoBacklash: the same law, but the contact can only push
-    /// (the shaft torque never changes sign against the twist).
-    Clamped,
-}
-
-/// Winding parameters when the electrics are modelled.
+/// The motor winding, when the electrics are modelled: the plant's input is then its
+/// voltage (L·di/dt = v − R·i − ωm, torque = current), else the motor torque.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Winding {
+pub struct Winding {
     /// R, pu.
     pub r_pu: f64,
     /// L, pu·s.
@@ -86,7 +76,40 @@ pub(crate) struct Model {
     pub winding: Option<Winding>,
 }
 
+impl From<&ElectricsConfig> for Winding {
+    fn from(e: &ElectricsConfig) -> Self {
+        Self {
+            r_pu: e.winding_resistance_pu,
+            l_pu_s: e.winding_inductance_pu_s,
+        }
+    }
+}
+
 impl Model {
+    /// The linear model of each contact mode for `mechanics` under `law`, with the winding
+    /// when the electrics are modelled.
+    pub(crate) fn new(
+        mechanics: &MechanicsConfig,
+        law: BacklashModel,
+        winding: Option<Winding>,
+    ) -> Self {
+        let dv = mechanics.derived();
+        Self {
+            motor_inertia_s: mechanics.motor_inertia_s,
+            load_inertia_s: mechanics.load_inertia_s,
+            motor_viscous_pu: mechanics.motor_viscous_pu,
+            load_viscous_pu: mechanics.load_viscous_pu,
+            base_speed_rad_s: dv.base_speed_rad_s,
+            shaft: Shaft {
+                k: dv.stiffness_pu_per_rad,
+                d: dv.damping_pu,
+                g: dv.half_gap_rad,
+            },
+            law,
+            winding,
+        }
+    }
+
     /// A and B of the mode `contact`.
     pub(crate) fn matrices(&self, contact: Contact) -> (Mat5, Mat53) {
         let (on, sigma) = match contact {

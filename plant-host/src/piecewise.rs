@@ -11,9 +11,10 @@
 //! A step length not seen before costs one 8×8 matrix exponential per mode (a few µs);
 //! callers that repeat the same few lengths (a harness's delay and remainder) hit the cache.
 
+use crate::config::BacklashModel;
 use crate::discrete::MapCache;
 use crate::events::{Guards, Taylor};
-use crate::model::{row_sum_norm, BacklashModel, Contact, Model, Shaft, Vec3, Vec5};
+use crate::model::{row_sum_norm, Contact, Model, Shaft, Vec3, Vec5};
 
 /// Mode changes allowed inside one step before the rest is stepped without guards
 /// (protects against chattering at a grazing contact).

@@ -76,7 +76,7 @@ pub fn replay(
     torque_csv: &Path,
     out_csv: &Path,
 ) -> Result<ReplaySummary, PlantError> {
-    let config = PlantConfig::from_file(config_path)?;
+    let config = PlantConfig::from_machine_file(config_path)?;
     let text = std::fs::read_to_string(torque_csv).map_err(|e| io_err(torque_csv, &e))?;
     let rows = parse_torque_csv(&text, torque_csv)?;
     let (states, crossings) = simulate(&config, &rows);
@@ -132,8 +132,8 @@ fn state_is_finite(s: &StateRow) -> bool {
 
 /// Simulates the rows (already validated) through the mechanics of `config`.
 pub fn simulate(config: &PlantConfig, rows: &[TorqueRow]) -> (Vec<StateRow>, u64) {
-    let mut plant = TwoInertiaPlant::new(&config.mechanics, config.backlash);
-    let cpr = config.sensors.counts_per_rev();
+    let mut plant = TwoInertiaPlant::torque_driven(config);
+    let cpr = config.counts_per_rev();
     let mut out = Vec::with_capacity(rows.len());
     let mut prev: Option<&TorqueRow> = None;
     for row in rows {
@@ -154,23 +154,32 @@ pub fn simulate(config: &PlantConfig, rows: &[TorqueRow]) -> (Vec<StateRow>, u64
     (out, plant.mode_changes())
 }
 
-/// Parses and validates a torque CSV: exact header, three finite numbers per row, strictly
-/// increasing times, at least one row. Blank lines are skipped.
+/// Parses and validates a torque CSV (the `csv` crate; fields trimmed, blank lines
+/// skipped): exact header, three finite numbers per row within [`COLUMN_RANGES`], strictly
+/// increasing times, at least one row, a span of at most [`MAX_SPAN_S`]. Errors name the
+/// line and the column.
 pub fn parse_torque_csv(text: &str, path: &Path) -> Result<Vec<TorqueRow>, PlantError> {
-    let err = |line: usize, message: String| PlantError::Csv {
+    let err = |line: u64, message: String| PlantError::Csv {
         path: path.to_path_buf(),
-        line,
+        line: usize::try_from(line).unwrap_or(usize::MAX),
         message,
     };
-    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l.trim()));
-    let header = lines.find(|(_, l)| !l.is_empty());
-    match header {
-        Some((_, h)) if h.trim_start_matches('\u{feff}') == REPLAY_INPUT_HEADER => {}
-        Some((n, h)) => {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let mut records = reader.records();
+    let line_of = |r: &csv::StringRecord| r.position().map_or(0, csv::Position::line);
+    let csv_err = |e: csv::Error| err(e.position().map_or(0, csv::Position::line), e.to_string());
+    match records.next().transpose().map_err(csv_err)? {
+        Some(h) if h.iter().collect::<Vec<_>>().join(",") == REPLAY_INPUT_HEADER => {}
+        Some(h) => {
+            let found = h.iter().collect::<Vec<_>>().join(",");
             return Err(err(
-                n,
-                format!("header is `{h}`, expected `{REPLAY_INPUT_HEADER}`"),
-            ))
+                line_of(&h),
+                format!("header is `{found}`, expected `{REPLAY_INPUT_HEADER}`"),
+            ));
         }
         None => {
             return Err(err(
@@ -181,45 +190,21 @@ pub fn parse_torque_csv(text: &str, path: &Path) -> Result<Vec<TorqueRow>, Plant
     }
     let mut rows = Vec::new();
     let mut prev_t = f64::NEG_INFINITY;
-    for (n, line) in lines.filter(|(_, l)| !l.is_empty()) {
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != 3 {
+    for record in records {
+        let record = record.map_err(csv_err)?;
+        let n = line_of(&record);
+        let row = parse_row(&record).map_err(|m| err(n, m))?;
+        if row.t_s <= prev_t {
             return Err(err(
                 n,
                 format!(
-                    "{} fields, expected 3 ({REPLAY_INPUT_HEADER})",
-                    fields.len()
+                    "t_s = {} must be greater than the previous row's {prev_t}",
+                    row.t_s
                 ),
             ));
         }
-        let mut v = [0.0; 3];
-        for ((slot, field), (name, lo, hi)) in v.iter_mut().zip(&fields).zip(COLUMN_RANGES) {
-            let x = field
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| err(n, format!("{name} = `{field}` is not a finite number")))?;
-            if !(lo..=hi).contains(&x) {
-                return Err(err(
-                    n,
-                    format!("{name} = {x} is outside its allowed range [{lo}, {hi}]"),
-                ));
-            }
-            *slot = x;
-        }
-        let [t_s, motor_torque_pu, load_torque_pu] = v;
-        if t_s <= prev_t {
-            return Err(err(
-                n,
-                format!("t_s = {t_s} must be greater than the previous row's {prev_t}"),
-            ));
-        }
-        prev_t = t_s;
-        rows.push(TorqueRow {
-            t_s,
-            motor_torque_pu,
-            load_torque_pu,
-        });
+        prev_t = row.t_s;
+        rows.push(row);
     }
     let (Some(first), Some(last)) = (rows.first(), rows.last()) else {
         return Err(err(0, "no data rows".into()));
@@ -235,6 +220,36 @@ pub fn parse_torque_csv(text: &str, path: &Path) -> Result<Vec<TorqueRow>, Plant
         ));
     }
     Ok(rows)
+}
+
+/// One data row: three finite numbers within their column's range.
+fn parse_row(record: &csv::StringRecord) -> Result<TorqueRow, String> {
+    if record.len() != 3 {
+        return Err(format!(
+            "{} fields, expected 3 ({REPLAY_INPUT_HEADER})",
+            record.len()
+        ));
+    }
+    let mut v = [0.0; 3];
+    for ((slot, field), (name, lo, hi)) in v.iter_mut().zip(record).zip(COLUMN_RANGES) {
+        let x = field
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("{name} = `{field}` is not a finite number"))?;
+        if !(lo..=hi).contains(&x) {
+            return Err(format!(
+                "{name} = {x} is outside its allowed range [{lo}, {hi}]"
+            ));
+        }
+        *slot = x;
+    }
+    let [t_s, motor_torque_pu, load_torque_pu] = v;
+    Ok(TorqueRow {
+        t_s,
+        motor_torque_pu,
+        load_torque_pu,
+    })
 }
 
 fn io_err(path: &Path, e: &std::io::Error) -> PlantError {

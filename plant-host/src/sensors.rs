@@ -2,7 +2,7 @@
 //! Noise is a pure function of (seed, channel, sample time), so sampling needs no `&mut` and a
 //! run is reproducible.
 
-use crate::config::{ElectricsConfig, SensorsConfig};
+use crate::config::{ElectricsConfig, PlantConfig, SensorsConfig};
 use crate::rounding::{floor_i64, round_i64};
 use std::f64::consts::PI;
 
@@ -83,15 +83,24 @@ fn unit(z: u64) -> f64 {
 pub struct Sensors {
     /// The sensor config.
     pub config: SensorsConfig,
+    /// Motor encoder counts per revolution as the drive reads them (after interpolation).
+    pub counts_per_rev: u32,
     /// The current ADC.
     pub adc: CurrentAdc,
 }
 
 impl Sensors {
-    /// From the sensor and electrics configs.
-    pub fn new(s: &SensorsConfig, e: &ElectricsConfig) -> Self {
+    /// The sensors of a plant config.
+    pub fn new(config: &PlantConfig) -> Self {
+        Self::from_parts(config.counts_per_rev(), &config.sensors, &config.electrics)
+    }
+
+    /// From a motor encoder of `counts_per_rev` (as the drive reads it), the sensor and the
+    /// electrics configs.
+    pub fn from_parts(counts_per_rev: u32, s: &SensorsConfig, e: &ElectricsConfig) -> Self {
         Self {
             config: *s,
+            counts_per_rev,
             adc: CurrentAdc::new(e),
         }
     }
@@ -103,7 +112,7 @@ impl Sensors {
     /// before the floor.
     pub fn motor_count(&self, motor_pos_rad: f64, time_s: f64) -> i64 {
         let c = &self.config;
-        let cpr = c.counts_per_rev();
+        let cpr = self.counts_per_rev;
         if c.encoder_noise_counts > 0.0 {
             let noise_rad = c.encoder_noise_counts
                 * gaussian(c.noise_seed, Channel::MotorEncoder, time_s)
@@ -119,7 +128,7 @@ impl Sensors {
     /// Load encoder count (physical load shaft = reflected angle / gear ratio), if fitted.
     pub fn load_count(&self, load_pos_rad: f64) -> Option<i64> {
         let c = &self.config;
-        c.load_encoder_cpr
+        c.load_encoder()
             .map(|cpr| encoder_count(load_pos_rad / c.gear_ratio, cpr))
     }
 
@@ -142,35 +151,33 @@ mod tests {
 
     #[test]
     fn counts_floor_towards_minus_infinity() {
-        let one = 2.0 * PI / 4096.0;
-        assert_eq!(encoder_count(0.0, 4096), 0);
-        assert_eq!(encoder_count(0.999 * one, 4096), 0);
-        assert_eq!(encoder_count(1.001 * one, 4096), 1);
-        assert_eq!(encoder_count(-0.001 * one, 4096), -1);
+        let one = 2.0 * PI / 2048.0;
+        assert_eq!(encoder_count(0.0, 2048), 0);
+        assert_eq!(encoder_count(0.999 * one, 2048), 0);
+        assert_eq!(encoder_count(1.001 * one, 2048), 1);
+        assert_eq!(encoder_count(-0.001 * one, 2048), -1);
         assert_eq!(encoder_count(2.0 * PI, 1_000_000), 1_000_000);
     }
 
     #[test]
     fn interpolation_multiplies_the_counts_and_keeps_the_floor() {
-        let mut s = SensorsConfig::with_cpr(4096);
-        s.encoder_interpolation = 16;
-        let sensors = Sensors::new(&s, &ElectricsConfig::default());
-        assert_eq!(s.counts_per_rev(), 65_536);
-        let fine = 2.0 * PI / 65_536.0;
+        let e = ElectricsConfig::with_delay(0.0);
+        let sensors = Sensors::from_parts(1024 * 16, &SensorsConfig::default(), &e);
+        let fine = 2.0 * PI / 16_384.0;
         // One plain count is 16 interpolated counts; a sixteenth of a count is resolved.
-        assert_eq!(sensors.motor_count(2.0 * PI / 4096.0 + 0.5 * fine, 0.0), 16);
+        assert_eq!(sensors.motor_count(2.0 * PI / 1024.0 + 0.5 * fine, 0.0), 16);
         assert_eq!(sensors.motor_count(1.001 * fine, 0.0), 1);
         assert_eq!(sensors.motor_count(0.999 * fine, 0.0), 0);
         assert_eq!(sensors.motor_count(-0.001 * fine, 0.0), -1);
         // Factor 1 is the plain encoder.
-        let plain = Sensors::new(&SensorsConfig::with_cpr(4096), &ElectricsConfig::default());
+        let plain = Sensors::from_parts(1024, &SensorsConfig::default(), &e);
         assert_eq!(plain.motor_count(1.001 * fine, 0.0), 0);
-        assert_eq!(plain.motor_count(2.0 * PI, 0.0), 4096);
+        assert_eq!(plain.motor_count(2.0 * PI, 0.0), 1024);
     }
 
     #[test]
     fn adc_quantizes_and_clamps() {
-        let adc = CurrentAdc::new(&ElectricsConfig::default());
+        let adc = CurrentAdc::new(&ElectricsConfig::with_delay(0.0));
         assert!((adc.lsb_pu() - 8.0 / 4096.0).abs() < 1e-15);
         assert_eq!(adc.code(10.0), 2047);
         assert_eq!(adc.code(-10.0), -2048);

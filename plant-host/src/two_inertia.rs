@@ -1,86 +1,202 @@
-//! The mechanical plant of Fig. 3 on its own: motor torque in, positions and speeds out.
+//! The plant of Fig. 3: two inertias coupled by a damped shaft through lost motion, with the
+//! motor encoder(s) and current ADC around it, and optionally the motor winding in front.
+//!
+//! Without a winding ([`TwoInertiaPlant::torque_driven`]) the input is the motor torque.
+//! With it ([`TwoInertiaPlant::voltage_driven`]) the input is the winding voltage (the PWM
+//! average, held between calls): L·di/dt = v − R·i − ωm (back-EMF = speed in pu),
+//! Tm = i (torque = current in pu). The harness applies each new command
+//! `computational_delay_s` after its sampling instant ([`TwoInertiaPlant::advance_period`]
+//! does it for callers that do not schedule events themselves).
 
-use crate::config::{BacklashModel, MechanicsConfig, MechanicsDerived};
+use crate::config::{MechanicsDerived, PlantConfig};
 use crate::error::PlantError;
 use crate::load::{for_each_load_piece, LoadTorque};
-use crate::model::{Contact, Vec3, Vec5};
+use crate::model::{Contact, Model, Vec3, Vec5, Winding};
 use crate::piecewise::Piecewise;
+use crate::sensors::Sensors;
 
-/// Two inertias coupled by a damped shaft through lost motion, reflected to the motor side,
-/// in per unit (the paper's Fig. 3). Starts at rest with zero twist.
+/// Two inertias, lost motion, sensors, and the winding when the electrics are modelled, in
+/// per unit. Starts at rest with zero twist and zero current.
 ///
 /// ```
 /// use plant_host::{PlantConfig, TwoInertiaPlant};
-/// let cfg = PlantConfig::table1();
-/// let mut plant = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
-/// // 1 pu torque for 10 ms: the motor crosses the 0.25° half-gap alone, then drags the load.
+/// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+/// let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
+/// let mut plant = TwoInertiaPlant::torque_driven(&cfg);
+/// // 1 pu torque for 10 ms: the motor crosses the half-gap alone, then drags the load.
 /// for _ in 0..40 {
 ///     plant.advance(250e-6, 1.0, 0.0);
 /// }
 /// assert!(plant.motor_pos_rad() > plant.load_pos_rad());
 /// assert!(plant.shaft_torque_pu() > 0.0);
+///
+/// // Volts into the winding: the current rises with L/R while the back-EMF pushes back.
+/// let mut drive = TwoInertiaPlant::voltage_driven(&cfg);
+/// drive.advance(10e-3, 0.05, 0.0);
+/// assert!(drive.current_pu() > 0.1 && drive.current_pu() < 1.0);
+/// assert!((drive.current_sample() - drive.current_pu()).abs() < 1e-3);
 /// ```
 #[derive(Debug, Clone)]
 pub struct TwoInertiaPlant {
     core: Piecewise,
+    sensors: Sensors,
+    config: PlantConfig,
+    winding: Option<Winding>,
     derived: MechanicsDerived,
     time_s: f64,
+    /// The input [`TwoInertiaPlant::advance_period`] is applying now, pu.
+    applied_input_pu: f64,
 }
 
 impl TwoInertiaPlant {
-    /// A plant at rest with zero twist.
-    pub fn new(mechanics: &MechanicsConfig, backlash: BacklashModel) -> Self {
+    /// The mechanics alone: the input is the motor torque (pu); the current stays 0.
+    pub fn torque_driven(config: &PlantConfig) -> Self {
+        Self::new(config, None)
+    }
+
+    /// The winding in front of the mechanics (`[electrics]`): the input is the winding
+    /// voltage (pu).
+    pub fn voltage_driven(config: &PlantConfig) -> Self {
+        Self::new(config, Some(Winding::from(&config.electrics)))
+    }
+
+    /// A plant at rest with `winding` (voltage in) or without (torque in).
+    pub fn new(config: &PlantConfig, winding: Option<Winding>) -> Self {
+        let model = Model::new(&config.mechanics, config.backlash(), winding);
         Self {
-            core: Piecewise::new(&mechanics.model(backlash, None)),
-            derived: mechanics.derived(),
+            core: Piecewise::new(&model),
+            sensors: Sensors::new(config),
+            config: *config,
+            winding,
+            derived: config.mechanics.derived(),
             time_s: 0.0,
+            applied_input_pu: 0.0,
         }
     }
 
-    /// Advances `dt_s` seconds with both torques held (pu). Invalid input (negative or
-    /// non-finite `dt_s`, non-finite torque) leaves the plant unchanged; use
-    /// [`Self::try_advance`] to see the error.
-    pub fn advance(&mut self, dt_s: f64, motor_torque_pu: f64, load_torque_pu: f64) {
+    /// Advances `dt_s` seconds with the input (torque or voltage, pu) and the load torque
+    /// held. Invalid input (negative or non-finite `dt_s`, non-finite values) leaves the
+    /// plant unchanged; use [`Self::try_advance`] to see the error.
+    pub fn advance(&mut self, dt_s: f64, input_pu: f64, load_torque_pu: f64) {
         // The error is the caller's contract violation; the plant stays as it was.
-        let _ = self.try_advance(dt_s, motor_torque_pu, load_torque_pu);
-    }
-
-    /// Advances `dt_s` with `motor_torque_pu` held and the load torque following `load` (time from
-    /// [`Self::time_s`]): steps end at the load's discontinuities and a sinusoid is held at
-    /// midpoints of ≤ 50 µs pieces.
-    pub fn advance_with_load(
-        &mut self,
-        dt_s: f64,
-        motor_torque_pu: f64,
-        load: &LoadTorque,
-    ) -> Result<(), PlantError> {
-        check_step(dt_s, &[motor_torque_pu])?;
-        let mut result = Ok(());
-        for_each_load_piece(self.time_s, dt_s, load, |h, tl| {
-            if result.is_ok() {
-                result = self.try_advance(h, motor_torque_pu, tl);
-            }
-        });
-        result
+        let _ = self.try_advance(dt_s, input_pu, load_torque_pu);
     }
 
     /// As [`Self::advance`], reporting invalid input.
     pub fn try_advance(
         &mut self,
         dt_s: f64,
-        motor_torque_pu: f64,
+        input_pu: f64,
         load_torque_pu: f64,
     ) -> Result<(), PlantError> {
-        check_step(dt_s, &[motor_torque_pu, load_torque_pu])?;
+        check_step(dt_s, &[input_pu, load_torque_pu])?;
         self.core
-            .advance(dt_s, &Vec3::new(motor_torque_pu, load_torque_pu, 1.0));
+            .advance(dt_s, &Vec3::new(input_pu, load_torque_pu, 1.0));
         self.time_s += dt_s;
         Ok(())
     }
 
+    /// Advances `dt_s` with `input_pu` held and the load torque following `load` (time
+    /// from [`Self::time_s`]): steps end at the load's discontinuities and a sinusoid is
+    /// held at midpoints of ≤ 50 µs pieces.
+    pub fn advance_with_load(
+        &mut self,
+        dt_s: f64,
+        input_pu: f64,
+        load: &LoadTorque,
+    ) -> Result<(), PlantError> {
+        check_step(dt_s, &[input_pu])?;
+        let mut result = Ok(());
+        for_each_load_piece(self.time_s, dt_s, load, |h, tl| {
+            if result.is_ok() {
+                result = self.try_advance(h, input_pu, tl);
+            }
+        });
+        result
+    }
+
+    /// One sampling period with the computational delay: the input applied so far holds
+    /// for `electrics.computational_delay_s` (clamped to the period), then `new_input_pu`
+    /// (computed from samples taken at the start of the period) holds for the rest and
+    /// stays applied.
+    ///
+    /// ```
+    /// use plant_host::{PlantConfig, TwoInertiaPlant};
+    /// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    /// let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
+    /// let (mut a, mut b) = (TwoInertiaPlant::voltage_driven(&cfg), TwoInertiaPlant::voltage_driven(&cfg));
+    /// let delay = cfg.electrics.computational_delay_s;
+    /// a.advance_period(250e-6, 0.3, 0.0).unwrap();
+    /// b.advance(delay, 0.0, 0.0);
+    /// b.advance(250e-6 - delay, 0.3, 0.0);
+    /// assert_eq!(a.current_pu(), b.current_pu());
+    /// assert_eq!(a.applied_input_pu(), 0.3);
+    /// ```
+    pub fn advance_period(
+        &mut self,
+        period_s: f64,
+        new_input_pu: f64,
+        load_torque_pu: f64,
+    ) -> Result<(), PlantError> {
+        check_step(period_s, &[new_input_pu, load_torque_pu])?;
+        let delay_s = self.config.electrics.computational_delay_s.min(period_s);
+        self.try_advance(delay_s, self.applied_input_pu, load_torque_pu)?;
+        self.try_advance(period_s - delay_s, new_input_pu, load_torque_pu)?;
+        self.applied_input_pu = new_input_pu;
+        Ok(())
+    }
+
+    /// The input [`Self::advance_period`] is currently applying, pu.
+    pub fn applied_input_pu(&self) -> f64 {
+        self.applied_input_pu
+    }
+
+    /// The config this plant was built from.
+    pub fn config(&self) -> &PlantConfig {
+        &self.config
+    }
+    /// The winding, when the input is a voltage.
+    pub fn winding(&self) -> Option<&Winding> {
+        self.winding.as_ref()
+    }
+    /// K, D, g, ω_b...
+    pub fn derived(&self) -> &MechanicsDerived {
+        &self.derived
+    }
     /// Simulated time since construction, s.
     pub fn time_s(&self) -> f64 {
         self.time_s
+    }
+    /// The configured computational delay (sample → new input applied), s.
+    pub fn computational_delay_s(&self) -> f64 {
+        self.config.electrics.computational_delay_s
+    }
+    /// The longest internal sub-step, s (steps are split so that ‖A‖·h ≤ 0.5 and
+    /// h ≤ 250 µs).
+    pub fn max_substep_s(&self) -> f64 {
+        self.core.max_step_s()
+    }
+
+    /// Motor encoder: floor(θm·cpr/2π) (+ noise if configured). The harness wraps it to the
+    /// controller's counter width.
+    pub fn encoder_count(&self) -> i64 {
+        self.sensors.motor_count(self.motor_pos_rad(), self.time_s)
+    }
+    /// Load encoder count, if one is configured.
+    pub fn load_encoder_count(&self) -> Option<i64> {
+        self.sensors.load_count(self.load_pos_rad())
+    }
+    /// Winding current (= motor torque), pu, exact; 0 without a winding.
+    pub fn current_pu(&self) -> f64 {
+        self.core.state().a
+    }
+    /// Winding current as the ADC reports it (noise, quantization, clamping), pu.
+    pub fn current_sample(&self) -> f64 {
+        self.sensors.current(self.current_pu(), self.time_s)
+    }
+    /// Sensor models (ADC LSB etc.).
+    pub fn sensors(&self) -> &Sensors {
+        &self.sensors
     }
     /// Motor angle θm, rad.
     pub fn motor_pos_rad(&self) -> f64 {
@@ -118,36 +234,35 @@ impl TwoInertiaPlant {
     pub fn crossing_searches(&self) -> u64 {
         self.core.crossing_searches()
     }
-    /// K, D, g, ω_b... of this plant.
-    pub fn derived(&self) -> &MechanicsDerived {
-        &self.derived
-    }
-    /// The longest internal sub-step, s (steps are split so that ‖A‖·h ≤ 0.5 and h ≤ 250 µs).
-    pub fn max_substep_s(&self) -> f64 {
-        self.core.max_step_s()
-    }
 
-    /// Puts the plant in a given state (positions rad, speeds pu); the contact follows.
+    /// Puts the plant in a given state (positions rad, speeds pu, current pu; the current
+    /// stays 0 without a winding); the contact follows.
     pub fn set_state(
         &mut self,
         motor_pos_rad: f64,
         load_pos_rad: f64,
         motor_vel_pu: f64,
         load_vel_pu: f64,
+        current_pu: f64,
     ) {
+        let current_pu = if self.winding.is_some() {
+            current_pu
+        } else {
+            0.0
+        };
         self.core.set_state(Vec5::new(
             motor_pos_rad - load_pos_rad,
             load_pos_rad,
             motor_vel_pu,
             load_vel_pu,
-            0.0,
+            current_pu,
         ));
     }
 }
 
 /// A step must be finite and ≥ 0 and its inputs finite.
 #[inline]
-pub(crate) fn check_step(dt_s: f64, inputs: &[f64]) -> Result<(), PlantError> {
+fn check_step(dt_s: f64, inputs: &[f64]) -> Result<(), PlantError> {
     if !(dt_s.is_finite() && dt_s >= 0.0) {
         return Err(PlantError::BadStep { dt_s });
     }

@@ -11,17 +11,11 @@
 
 mod common;
 
+use common::config_path;
 use common::{RefParams, Reference};
-use plant_host::{replay, BacklashModel, DrivePlant, PlantConfig};
+use plant_host::{replay, BacklashModel, PlantConfig, TwoInertiaPlant};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
-use std::path::PathBuf;
-
-fn config_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../configs")
-        .join(name)
-}
 
 /// Motor torque reversing at 4 Hz with a 31 Hz ripple, load torque with a slow sine and a step:
 /// the gears cross the gap at every reversal and rattle in between.
@@ -40,7 +34,7 @@ fn ref_params(cfg: &PlantConfig, winding: bool) -> RefParams {
         m.anti_resonance_hz,
         m.shaft_damping_ratio,
         m.backlash_deg,
-        cfg.backlash == BacklashModel::Clamped,
+        cfg.lost_motion.model == BacklashModel::Clamped,
         winding.then_some((
             cfg.electrics.winding_resistance_pu,
             cfg.electrics.winding_inductance_pu_s,
@@ -69,7 +63,7 @@ fn replay_vs_reference(cfg_file: &str, model: Option<&str>) -> (MaxErr, u64, u64
     }
     let cfg_path = dir.path().join("plant.toml");
     std::fs::write(&cfg_path, &cfg_text).unwrap();
-    let cfg = PlantConfig::from_toml_str(&cfg_text).unwrap();
+    let cfg = PlantConfig::from_machine_toml(&cfg_text).unwrap();
 
     let rows = 4001;
     let dt = 250e-6;
@@ -95,7 +89,7 @@ fn replay_vs_reference(cfg_file: &str, model: Option<&str>) -> (MaxErr, u64, u64
     );
     // 1 µs RK4 steps: truncation error ~ (ω_r·h)^4 ≈ 1e-13 per unit time.
     let mut r = Reference::new(ref_params(&cfg, false), 1e-6);
-    let cpr = f64::from(cfg.sensors.encoder_cpr);
+    let cpr = f64::from(cfg.counts_per_rev());
     let mut err = MaxErr::default();
     let mut prev: Option<(f64, f64, f64)> = None;
     for ((t, tm, tl), line) in torques.iter().zip(lines) {
@@ -177,8 +171,9 @@ fn printing_press_replay_matches_reference() {
 /// after each 0.25 ms tick, so `advance` sees alternating 180 µs and 70 µs steps.
 #[test]
 fn drive_with_winding_matches_reference_for_irregular_steps() {
-    let cfg = PlantConfig::from_file(&config_path("table1.toml")).unwrap();
-    let mut drive = DrivePlant::new(&cfg);
+    let cfg = common::table1();
+    let mut drive = TwoInertiaPlant::voltage_driven(&cfg);
+    let delay = cfg.electrics.computational_delay_s;
     let mut r = Reference::new(ref_params(&cfg, true), 1e-6);
     let (mut max_pos, mut max_vel, mut max_cur) = (0.0_f64, 0.0_f64, 0.0_f64);
     let mut v_applied = 0.0;
@@ -187,7 +182,7 @@ fn drive_with_winding_matches_reference_for_irregular_steps() {
         let (tm_wish, tl) = profile(t);
         // A crude voltage: what would push the wished torque through R plus the back-EMF.
         let v_new = 0.05 * tm_wish + drive.motor_vel_pu() + 0.02 * ((tick % 7) as f64 - 3.0);
-        for (dt, v) in [(180e-6, v_applied), (70e-6, v_new)] {
+        for (dt, v) in [(delay, v_applied), (250e-6 - delay, v_new)] {
             drive.advance(dt, v, tl);
             r.advance(dt, v, tl);
             t += dt;
@@ -215,7 +210,7 @@ fn drive_with_winding_matches_reference_for_irregular_steps() {
 /// frozen per step) misses the fine reference by far more than the 1e-4 bound.
 #[test]
 fn stepping_over_the_edges_would_fail_the_bound() {
-    let cfg = PlantConfig::table1();
+    let cfg = common::table1();
     let p = ref_params(&cfg, false);
     let mut fine = Reference::new(p, 1e-6);
     let mut naive = Reference::new(p, 62.5e-6);

@@ -8,19 +8,12 @@
     missing_docs
 )]
 
+mod common;
+
+use common::config;
 use plant_host::analysis::{EngagedPlant, PiStiffness, VelocityLoop};
 use plant_host::{BacklashModel, PlantConfig, TwoInertiaPlant};
 use std::f64::consts::PI;
-use std::path::PathBuf;
-
-fn config(name: &str) -> PlantConfig {
-    PlantConfig::from_file(
-        &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../configs")
-            .join(name),
-    )
-    .unwrap()
-}
 
 /// Rockwell-style gains: Kp = ω_bw·J, Ki = Kp·ω_bw/4; single rate.
 fn table1_loop(bw_rad_s: f64, ka: f64, filter_hz: f64, period_s: f64) -> VelocityLoop {
@@ -46,7 +39,7 @@ fn table1_loop2(
         accel_filter_hz: filter_hz,
         velocity_period_s: period_s,
         accel_period_s,
-        delay_s: 180e-6,
+        delay_s: cfg.electrics.computational_delay_s,
         current_bandwidth_hz: Some(318.0),
     }
 }
@@ -125,10 +118,12 @@ fn closed_loop_stiffness_tends_to_eq1_for_an_ideal_rigid_drive() {
 /// with the lost motion removed (a different code path from the eigenvalue model) and reports
 /// whether a small speed disturbance grows (true) or dies out (false).
 fn grows_in_time_domain(lp: &VelocityLoop, cfg: &PlantConfig) -> bool {
-    let mut mech = cfg.mechanics;
-    mech.backlash_deg = 0.0;
-    let mut plant = TwoInertiaPlant::new(&mech, BacklashModel::DeadZone);
-    plant.set_state(0.0, 0.0, 0.01, 0.0);
+    let mut engaged = *cfg;
+    engaged.mechanics.backlash_deg = 0.0;
+    engaged.lost_motion.model = BacklashModel::DeadZone;
+    let mech = engaged.mechanics;
+    let mut plant = TwoInertiaPlant::torque_driven(&engaged);
+    plant.set_state(0.0, 0.0, 0.01, 0.0, 0.0);
     let tv = lp.velocity_period_s;
     let n = (tv / lp.accel_period_s).round().max(1.0) as usize;
     let (ta, td) = (tv / n as f64, lp.delay_s);

@@ -12,7 +12,7 @@
 mod common;
 
 use common::{RefParams, Reference};
-use plant_host::{BacklashModel, PlantConfig, TwoInertiaPlant};
+use plant_host::{BacklashModel, TwoInertiaPlant};
 use proptest::prelude::*;
 
 fn steps() -> impl Strategy<Value = Vec<(f64, f64, f64, f64)>> {
@@ -29,13 +29,13 @@ fn steps() -> impl Strategy<Value = Vec<(f64, f64, f64, f64)>> {
 }
 
 fn run(clamped: bool, seq: &[(f64, f64, f64, f64)]) {
-    let mut cfg = PlantConfig::table1();
+    let mut cfg = common::table1();
     if clamped {
-        cfg.backlash = BacklashModel::Clamped;
+        cfg.lost_motion.model = BacklashModel::Clamped;
     }
     let m = &cfg.mechanics;
-    let mut whole = TwoInertiaPlant::new(m, cfg.backlash);
-    let mut split = TwoInertiaPlant::new(m, cfg.backlash);
+    let mut whole = TwoInertiaPlant::torque_driven(&cfg);
+    let mut split = TwoInertiaPlant::torque_driven(&cfg);
     let mut r = Reference::new(
         RefParams::from_raw(
             m.base_speed_rpm,
@@ -83,8 +83,8 @@ proptest! {
 
 #[test]
 fn invalid_steps_are_rejected_and_leave_the_plant_unchanged() {
-    let cfg = PlantConfig::table1();
-    let mut p = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    let cfg = common::table1();
+    let mut p = TwoInertiaPlant::torque_driven(&cfg);
     p.advance(1e-3, 1.0, 0.0);
     let before = (p.motor_pos_rad(), p.motor_vel_pu(), p.time_s());
     assert!(p.try_advance(-1e-3, 1.0, 0.0).is_err());
@@ -98,7 +98,7 @@ fn invalid_steps_are_rejected_and_leave_the_plant_unchanged() {
 #[test]
 fn advance_with_load_ends_steps_at_load_changes() {
     use plant_host::LoadTorque;
-    let cfg = PlantConfig::table1();
+    let cfg = common::table1();
     let load = LoadTorque::Sum(vec![
         LoadTorque::Step {
             at_s: 0.010_1,
@@ -110,8 +110,8 @@ fn advance_with_load_ends_steps_at_load_changes() {
             torque_pu: 1.5,
         },
     ]);
-    let mut a = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
-    let mut b = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    let mut a = TwoInertiaPlant::torque_driven(&cfg);
+    let mut b = TwoInertiaPlant::torque_driven(&cfg);
     for _ in 0..120 {
         a.advance_with_load(250e-6, 1.0, &load).unwrap();
     }

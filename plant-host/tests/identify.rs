@@ -4,7 +4,9 @@
 #![allow(clippy::indexing_slicing, clippy::unwrap_used, clippy::expect_used)]
 
 use plant_host::analysis::{closed_loop_response, fit_two_inertia};
-use plant_host::{BacklashModel, MechanicsConfig, TwoInertiaPlant};
+mod common;
+
+use plant_host::{PlantConfig, TwoInertiaPlant};
 use std::f64::consts::PI;
 
 const RATE_HZ: f64 = 4000.0;
@@ -17,9 +19,9 @@ struct Record {
 
 /// 60 s at 4 kHz: the torque is r − kp·ω̂ with ω̂ from the count difference, r a ±0.1 pu
 /// random binary sequence, held for one tick (ZOH), and the position read in whole counts.
-fn run(m: &MechanicsConfig, cpr: f64, kp: f64, amplitude: f64) -> Record {
-    let mut plant = TwoInertiaPlant::new(m, BacklashModel::DeadZone);
-    let wb = m.derived().base_speed_rad_s;
+fn run(cfg: &PlantConfig, cpr: f64, kp: f64, amplitude: f64) -> Record {
+    let mut plant = TwoInertiaPlant::torque_driven(cfg);
+    let wb = cfg.mechanics.derived().base_speed_rad_s;
     let counts_per_rad = cpr / (2.0 * PI);
     let n = (60.0 * RATE_HZ) as usize;
     let mut seed = 11u64;
@@ -51,17 +53,11 @@ fn run(m: &MechanicsConfig, cpr: f64, kp: f64, amplitude: f64) -> Record {
 }
 
 fn identify_table1(cpr: f64) {
-    let m = MechanicsConfig {
-        base_speed_rpm: 1000.0,
-        motor_inertia_s: 0.117,
-        load_inertia_s: 0.863,
-        anti_resonance_hz: 22.5,
-        shaft_damping_ratio: 0.05,
-        backlash_deg: 0.0,
-        motor_viscous_pu: 0.0,
-        load_viscous_pu: 0.0,
-    };
-    let rec = run(&m, cpr, 0.5, 0.3);
+    // Table 1 without its lost motion.
+    let mut cfg = common::table1();
+    cfg.mechanics.backlash_deg = 0.0;
+    let m = cfg.mechanics;
+    let rec = run(&cfg, cpr, 0.5, 0.3);
     let frf = closed_loop_response(
         &rec.excitation,
         &rec.torque,

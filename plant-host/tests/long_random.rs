@@ -11,17 +11,17 @@
 mod common;
 
 use common::{RefParams, Reference};
-use plant_host::{BacklashModel, PlantConfig, TwoInertiaPlant};
+use plant_host::{BacklashModel, TwoInertiaPlant};
 
 #[test]
 fn twenty_seconds_of_random_torques() {
     for clamped in [false, true] {
-        let mut cfg = PlantConfig::table1();
+        let mut cfg = common::table1();
         if clamped {
-            cfg.backlash = BacklashModel::Clamped;
+            cfg.lost_motion.model = BacklashModel::Clamped;
         }
         let m = &cfg.mechanics;
-        let mut p = TwoInertiaPlant::new(m, cfg.backlash);
+        let mut p = TwoInertiaPlant::torque_driven(&cfg);
         let mut r = Reference::new(
             RefParams::from_raw(
                 m.base_speed_rpm,

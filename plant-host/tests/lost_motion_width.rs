@@ -3,19 +3,16 @@
 //! total backlash (the dead-zone edge), not earlier and not later.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use plant_host::{PlantConfig, TwoInertiaPlant};
+mod common;
+
+use plant_host::TwoInertiaPlant;
 
 #[test]
 fn the_gears_engage_at_half_the_backlash_from_the_centre() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../configs/table1.toml"
-    ))
-    .unwrap();
-    let cfg = PlantConfig::from_toml_str(&text).unwrap();
+    let cfg = common::table1();
     let half_gap_rad = 0.5 * cfg.mechanics.backlash_deg.to_radians();
     assert!(half_gap_rad > 0.0);
-    let mut plant = TwoInertiaPlant::new(&cfg.mechanics, cfg.backlash);
+    let mut plant = TwoInertiaPlant::torque_driven(&cfg);
     let dt = 1e-5;
     let mut engaged_at = None;
     for _ in 0..200_000 {

@@ -2,7 +2,9 @@
 //! column and its range, before it simulates anything.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use plant_host::{parse_torque_csv, simulate, PlantConfig, COLUMN_RANGES, MAX_SPAN_S};
+mod common;
+
+use plant_host::{parse_torque_csv, simulate, COLUMN_RANGES, MAX_SPAN_S};
 use std::path::Path;
 
 fn csv(rows: &[&str]) -> String {
@@ -55,12 +57,7 @@ fn torques_and_times_outside_their_ranges_name_the_column_and_range() {
 
 #[test]
 fn the_largest_allowed_torque_over_the_longest_span_stays_finite() {
-    let text = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../configs/table1.toml"
-    ))
-    .unwrap();
-    let cfg: PlantConfig = PlantConfig::from_toml_str(&text).unwrap();
+    let cfg = common::table1();
     let rows = parse_torque_csv(
         &csv(&[
             "0,1000,-1000",

@@ -7,22 +7,30 @@ use controller_core::DriveConfig;
 use plant_host::PlantConfig;
 use toml::{Table, Value};
 
-/// The `[drive]` keys that describe the machine, with the plant's value each defaults to:
-/// set them in `[drive]` only to model a drive tuned for another machine.
-fn machine_keys(plant: &PlantConfig) -> [(&'static str, Value); 6] {
+/// The `[drive]` keys that describe the machine. Each defaults to the plant's value
+/// ([`machine_values`]): set them in `[drive]` only to model a drive tuned for another
+/// machine.
+pub const MACHINE_KEYS: [&str; 6] = [
+    "base_speed_rpm",
+    "encoder_cpr",
+    "motor_inertia_s",
+    "load_inertia_s",
+    "winding_resistance_pu",
+    "winding_inductance_pu_s",
+];
+
+/// The plant's value of each of [`MACHINE_KEYS`], in order.
+fn machine_values(plant: &PlantConfig) -> [Value; 6] {
     let m = &plant.mechanics;
     let e = &plant.electrics;
     [
-        ("base_speed_rpm", Value::Float(m.base_speed_rpm)),
+        Value::Float(m.base_speed_rpm),
         // The drive counts what the interpolator delivers.
-        (
-            "encoder_cpr",
-            Value::Integer(i64::from(plant.sensors.counts_per_rev())),
-        ),
-        ("motor_inertia_s", Value::Float(m.motor_inertia_s)),
-        ("load_inertia_s", Value::Float(m.load_inertia_s)),
-        ("winding_resistance_pu", Value::Float(e.winding_resistance_pu)),
-        ("winding_inductance_pu_s", Value::Float(e.winding_inductance_pu_s)),
+        Value::Integer(i64::from(plant.counts_per_rev())),
+        Value::Float(m.motor_inertia_s),
+        Value::Float(m.load_inertia_s),
+        Value::Float(e.winding_resistance_pu),
+        Value::Float(e.winding_inductance_pu_s),
     ]
 }
 
@@ -36,7 +44,7 @@ pub fn machine(mut doc: Table) -> Result<(PlantConfig, DriveConfig)> {
     };
     let plant =
         PlantConfig::from_table(doc).map_err(|e| HarnessError::config(e.key(), e.to_string()))?;
-    for (key, value) in machine_keys(&plant) {
+    for (key, value) in MACHINE_KEYS.into_iter().zip(machine_values(&plant)) {
         drive.entry(key).or_insert(value);
     }
     let drive: DriveConfig = typed("drive", Value::Table(drive))?;
@@ -44,4 +52,167 @@ pub fn machine(mut doc: Table) -> Result<(PlantConfig, DriveConfig)> {
         .validate()
         .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
     Ok((plant, drive))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use controller_core::{AfbMode, Estimator, FilterConfig, ObserverInertia, ObserverTorque};
+    use controller_core::{ObserverConfig, PiInertia};
+
+    /// configs/table1.toml with `extra` TOML appended (a table given twice is merged key by
+    /// key, the later value winning).
+    fn parse(extra: &str) -> Result<DriveConfig> {
+        let path = crate::config::configs_dir().join("table1.toml");
+        let mut doc = crate::config::read_table(&path).unwrap();
+        let extra: Table = extra.parse().unwrap();
+        merge(&mut doc, extra);
+        machine(doc).map(|(_, d)| d)
+    }
+
+    fn merge(into: &mut Table, from: Table) {
+        for (k, v) in from {
+            match (into.get_mut(&k), v) {
+                (Some(Value::Table(a)), Value::Table(b)) => merge(a, b),
+                (_, v) => {
+                    into.insert(k, v);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn machine_values_come_from_the_plant_and_keys_override_them() {
+        let path = crate::config::configs_dir().join("table1.toml");
+        let (plant, _) = machine(crate::config::read_table(&path).unwrap()).unwrap();
+        let cfg = parse("[drive]\nvelocity_bandwidth_rad_s = 50\n").unwrap();
+        assert_eq!(cfg.velocity_bandwidth_rad_s, 50.0);
+        assert_eq!(
+            cfg.winding_inductance_pu_s,
+            plant.electrics.winding_inductance_pu_s as f32
+        );
+        assert_eq!(cfg.encoder_cpr, plant.counts_per_rev());
+        assert_eq!(cfg.motor_inertia_s, plant.mechanics.motor_inertia_s as f32);
+        let cfg = parse("[drive]\nload_inertia_s = 0.5\n").unwrap();
+        assert_eq!(cfg.load_inertia_s, 0.5);
+    }
+
+    #[test]
+    fn nested_tables_and_words_map_onto_the_config() {
+        let cfg = parse(
+            "[drive.accel_feedback]\nmode = \"plain\"\nsource = \"differentiation\"\n\
+             filter = { corner_hz = 40, kind = \"second_order\" }\n\
+             [drive.observer]\nmodel_inertia = \"total\"\n",
+        )
+        .unwrap();
+        assert_eq!(cfg.accel_feedback.mode, AfbMode::Plain);
+        assert_eq!(cfg.accel_feedback.source, Estimator::Differentiation);
+        // The kind is read wherever it is in the table; q takes its default.
+        assert!(matches!(
+            cfg.accel_feedback.filter,
+            FilterConfig::SecondOrder { corner_hz, q }
+                if corner_hz == 40.0 && q == core::f32::consts::FRAC_1_SQRT_2
+        ));
+        assert_eq!(cfg.observer.model_inertia, ObserverInertia::Total);
+        // A key not given keeps the design default.
+        let default = ObserverConfig::default();
+        assert_eq!(cfg.observer.torque_input, default.torque_input);
+        let cfg = parse("[drive.observer]\ntorque_input = \"measured_current\"\n").unwrap();
+        assert_eq!(cfg.observer.torque_input, ObserverTorque::MeasuredCurrent);
+        let e = parse("[drive.observer]\ntorque_input = \"current\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.observer.torque_input") && e.contains("measured_current"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn velocity_pi_inertia_sizes_the_pi() {
+        let plus = parse("[drive]\nvelocity_pi_inertia = \"total_plus_afb\"\n").unwrap();
+        assert_eq!(plus.velocity_pi_inertia, PiInertia::TotalPlusAfb);
+        let total = parse("[drive]\nvelocity_pi_inertia = \"total\"\n").unwrap();
+        let (gt, gp) = (
+            controller_core::design(&total).unwrap(),
+            controller_core::design(&plus).unwrap(),
+        );
+        assert_eq!(
+            gt.kp_vel,
+            total.velocity_bandwidth_rad_s * total.total_inertia_s()
+        );
+        assert!(gp.kp_vel > gt.kp_vel, "Ka adds to the PI's inertia");
+        for bad in ["\"motor\"", "1", "\"Total\""] {
+            let e = parse(&format!("[drive]\nvelocity_pi_inertia = {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("drive.velocity_pi_inertia"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn counts_bits_and_rates_must_be_whole_numbers() {
+        for text in [
+            "[drive]\nencoder_cpr = 4096.5\n",
+            "[drive]\ncounter_bits = 20.7\n",
+            "[drive]\ncurrent_rate_hz = 4000.25\n",
+            "[drive]\nvelocity_rate_hz = 1999.9\n",
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains("must be a whole number"), "{text}: {e}");
+        }
+        assert_eq!(
+            parse("[drive]\ncounter_bits = 24.0\n")
+                .unwrap()
+                .counter_bits,
+            24
+        );
+    }
+
+    #[test]
+    fn errors_name_the_key_and_the_range_or_the_allowed_keys() {
+        let e = parse("[drive]\nvelocity_bandwith_rad_s = 5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.velocity_bandwith_rad_s") && e.contains("velocity_bandwidth_rad_s"),
+            "{e}"
+        );
+        let e = parse("[drive]\nvelocity_damping = 20\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.velocity_damping") && e.contains("0.1") && e.contains("10"),
+            "{e}"
+        );
+        let e = parse("[drive.accel_feedback]\nmode = \"on\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.accel_feedback.mode") && e.contains("error"),
+            "{e}"
+        );
+        let e = parse("[drive.nosuch]\nx = 1\n").unwrap_err().to_string();
+        assert!(e.contains("drive.nosuch"), "{e}");
+        // A combination only the whole drive can judge: above the loop's Nyquist.
+        let e = parse("[drive]\nvelocity_bandwidth_rad_s = 9000\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("drive.velocity_bandwidth_rad_s"), "{e}");
+        // A misspelt table of the file: nothing reads it.
+        let e = parse("[drivee]\nx = 1\n").unwrap_err().to_string();
+        assert!(e.contains("drivee"), "{e}");
+    }
+
+    #[test]
+    fn a_file_without_the_drives_loop_keys_is_an_error_naming_them() {
+        let path = crate::config::configs_dir().join("table1.toml");
+        let mut doc = crate::config::read_table(&path).unwrap();
+        if let Some(Value::Table(d)) = doc.get_mut("drive") {
+            d.remove("current_rate_hz");
+        }
+        let e = machine(doc).unwrap_err().to_string();
+        assert!(e.contains("current_rate_hz") && e.contains("drive"), "{e}");
+    }
 }

@@ -33,7 +33,7 @@ pub struct RunConfig {
 /// The AFB run a comparison run takes its regulator gains from. "The same gains without
 /// AFB" means bit-identical gains: the run builds its controller with
 /// `Controller::from_gains(design(AFB drive) with Ka = 0, carrying its own drive)`
-/// ([`crate::runner::regulator_gains`]), never by designing its own.
+/// ([`crate::engine::runner::regulator_gains`]), never by designing its own.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GainsOf {
     /// What the gains are: a scenario name (`scenario.comparison.gains_of`) or the

@@ -2,8 +2,8 @@
 //! the run length, the metric windows, which drive/plant config is used by default and
 //! the overrides that make this scenario what it is.
 
+use crate::engine::metrics::MetricWindows;
 use crate::error::{HarnessError, Result};
-use crate::metrics::MetricWindows;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 

@@ -4,6 +4,7 @@
 //! `minimum`/`maximum`. An editor with a TOML language server (taplo, Even Better TOML)
 //! completes and checks a drive file against it: `hil-harness schema --out FILE`.
 
+use super::machine::MACHINE_KEYS;
 use crate::error::{HarnessError, Result};
 use serde_json::{Map, Value};
 
@@ -118,13 +119,19 @@ pub fn machine_schema() -> Result<Value> {
         };
         bound(&mut root, "", r.key, &b)?;
     }
+    // The machine keys of `[drive]` default to the plant's values (`machine`).
+    if let Some(Value::Array(req)) = root.pointer_mut("/properties/drive/required") {
+        req.retain(|k| !k.as_str().is_some_and(|k| MACHINE_KEYS.contains(&k)));
+    }
+    // An f32 bound as the decimal it was written as (0.1, not 0.10000000149).
+    let decimal = |v: f32| format!("{v}").parse::<f64>().unwrap_or(f64::from(v));
     for r in controller_core::RANGES {
         let low = if r.min_exclusive {
             "exclusiveMinimum"
         } else {
             "minimum"
         };
-        let b = [(low, f64::from(r.min)), ("maximum", f64::from(r.max))];
+        let b = [(low, decimal(r.min)), ("maximum", decimal(r.max))];
         bound(&mut root, "/properties/drive", r.key, &b)?;
     }
     Ok(root)
@@ -139,4 +146,45 @@ pub fn write_schema(out: &std::path::Path) -> Result<String> {
     }
     std::fs::write(out, text + "\n").map_err(|e| HarnessError::io(out, e))?;
     Ok(format!("machine-file JSON Schema -> {}", out.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+
+    #[test]
+    fn every_range_is_in_the_schema_and_the_committed_schema_is_current() {
+        let s = machine_schema().unwrap();
+        let drive = &s["properties"]["drive"];
+        assert_eq!(
+            resolved(
+                &s,
+                &s["$defs"]["AccelFeedbackConfig"]["properties"]["gain_fraction"]
+            )["maximum"],
+            20.0
+        );
+        let required: Vec<&str> = drive["required"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(Value::as_str)
+            .collect();
+        assert!(required.contains(&"current_rate_hz"), "{required:?}");
+        assert!(!required.contains(&"motor_inertia_s"), "{required:?}");
+        let text = serde_json::to_string_pretty(&s).unwrap() + "\n";
+        let committed =
+            std::fs::read_to_string(crate::config::configs_dir().join("machine.schema.json"))
+                .unwrap();
+        assert!(
+            committed == text,
+            "configs/machine.schema.json is stale: run `cargo run --release -- schema`"
+        );
+    }
+
+    #[test]
+    fn a_key_the_schema_lacks_is_an_error() {
+        let mut s = machine_schema().unwrap();
+        assert!(bound(&mut s, "", "plant.no_such_key", &[("minimum", 0.0)]).is_err());
+    }
 }

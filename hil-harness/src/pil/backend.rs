@@ -1,6 +1,6 @@
 //! The firmware in QEMU as a [`ControlBackend`], and a recorder of any backend's ticks.
 
-use crate::runner::ControlBackend;
+use crate::engine::runner::ControlBackend;
 use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
 use pil_link::host::{HostError, HostLink};
 use pil_link::tick::{Commands, Sensors};

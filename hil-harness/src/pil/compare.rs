@@ -2,7 +2,7 @@
 //! controller output and every trace value bit for bit.
 
 use super::backend::TickLog;
-use crate::runner::RunOutput;
+use crate::engine::runner::RunOutput;
 use controller_core::words::{CURRENT_FIELDS, VELOCITY_FIELDS};
 use controller_core::{CurrentOutputs, VelocityOutputs};
 use serde::{Deserialize, Serialize};

@@ -105,9 +105,9 @@ mod tests {
     use super::compare::compare;
     use super::session::cut_at;
     use crate::config::resolve;
-    use crate::metrics::compute;
-    use crate::runner::RunOutput;
-    use crate::trace::{Trace, TraceRow};
+    use crate::engine::metrics::compute;
+    use crate::engine::runner::RunOutput;
+    use crate::engine::trace::{Trace, TraceRow};
     use controller_core::Pu;
     use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
 

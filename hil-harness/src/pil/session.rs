@@ -8,10 +8,10 @@ use super::image::build_pil_image;
 use super::PilArgs;
 use crate::commands::write_run;
 use crate::config::{resolve, RunConfig};
+use crate::engine::metrics::compute;
+use crate::engine::runner::{run_with_backend, RunOutput};
 use crate::error::{HarnessError, Result};
-use crate::metrics::compute;
 use crate::output::Staging;
-use crate::runner::{run_with_backend, RunOutput};
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
 use pil_link::host::{FaultPlan, HostError, HostLink};
@@ -120,7 +120,7 @@ fn resolve_for_firmware(args: &PilArgs) -> Result<RunConfig> {
     let cfg = resolve(&run.scenario, run.config.as_deref(), &run.set)?;
     let own = controller_core::design(&cfg.drive)
         .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
-    if crate::runner::regulator_gains(&cfg)? != own {
+    if crate::engine::runner::regulator_gains(&cfg)? != own {
         return Err(HarnessError::config(
             "scenario.comparison.gains_of",
             format!(
@@ -329,7 +329,7 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
 /// The same scenario on the host build of controller-core, compared bit for bit.
 fn compare_with_host(cfg: &RunConfig, pil: &TickLog, pil_run: &RunOutput) -> Result<Comparison> {
     let mut host = Recorder {
-        inner: crate::runner::controller(cfg)?,
+        inner: crate::engine::runner::controller(cfg)?,
         log: TickLog::default(),
     };
     let host_run = run_with_backend(cfg, &mut host)?;

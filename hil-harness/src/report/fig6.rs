@@ -10,7 +10,7 @@ use crate::error::Result;
 /// Fig. 4: the gears separate and the twist is visible in counts.
 pub fn fig4(runs: &Runs) -> Result<Section> {
     let (c4, f4) = get(runs, "fig4")?;
-    let cpr = c4.plant.sensors.counts_per_rev();
+    let cpr = c4.plant.counts_per_rev();
     let gap_counts = c4.plant.mechanics.backlash_deg / 360.0 * f64::from(cpr);
     let m4 = &f4.metrics;
     let ok4 = m4.max_twist_counts >= 0.5 * gap_counts;
@@ -65,7 +65,7 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
         format!(
             "Fig. 6 and Fig. 7: trapezoid to rated speed with a 50 % load step, acceleration \
              feedback on ({what}, {} counts/rev)",
-            sens.counts_per_rev()
+            ca.plant.counts_per_rev()
         ),
         &[&format!("{afb}/trace.png"), figure],
         "At 1 s the velocity stops ramping and the load overshoots slightly; the 50 % load \
@@ -77,7 +77,7 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
              pu; droop after the step {} pu; settling {} s; torque at its limit for {:.3} s. \
              Shaft-torque ripple after the step {:.4} pu with AFB, {:.4} pu without at the same \
              gains (`{off}`, stable: {}): {}. Motor-torque ripple {:.4} / {:.4} pu. {}.",
-            sens.encoder_cpr,
+            ca.plant.mechanics.encoder_cpr,
             sens.encoder_interpolation,
             afb_cfg.mode,
             afb_cfg.gain_fraction,

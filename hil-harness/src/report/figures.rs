@@ -1,9 +1,9 @@
 //! The comparison figures of the report: one signal of several runs per panel.
 
 use super::{get, Runs};
+use crate::engine::trace::TraceRow;
 use crate::error::Result;
 use crate::plot::{save, Figure, Panel, Series};
-use crate::trace::TraceRow;
 use std::path::Path;
 
 /// One panel: a signal of several runs, each with its legend label.

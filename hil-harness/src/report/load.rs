@@ -4,8 +4,8 @@ use super::runs::gains_line;
 use super::section::{change, pct, verdict, Section};
 use super::{get, Runs, DYNO_REDUCTION};
 use crate::commands::fmt_opt;
+use crate::engine::runner::RunOutput;
 use crate::error::Result;
-use crate::runner::RunOutput;
 
 /// Fig. 9/10: the dyno accelerates with 150 % load, torque saturated.
 pub fn dyno(runs: &Runs) -> Result<Section> {

@@ -20,9 +20,9 @@ pub mod sweep;
 
 use crate::commands::write_run;
 use crate::config::{resolve, RunConfig};
+use crate::engine::runner::{run_scenario, RunOutput};
 use crate::error::{HarnessError, Result};
 use crate::output::Staging;
-use crate::runner::{run_scenario, RunOutput};
 use rayon::prelude::*;
 use section::Section;
 use std::collections::BTreeMap;
@@ -106,9 +106,9 @@ pub fn run_all(names: &[&str]) -> Result<Runs> {
 /// What `reproduce` ran: the paper's scenarios, the sweep, the stiffness grid, the Sec. II map.
 struct Results {
     runs: Runs,
-    sweep: Vec<crate::sweep::SweepResult>,
-    stiffness: Vec<crate::stiffness::StiffnessPoint>,
-    sec2: Vec<crate::sec2::MapPoint>,
+    sweep: Vec<crate::experiments::sweep::SweepResult>,
+    stiffness: Vec<crate::experiments::stiffness::StiffnessPoint>,
+    sec2: Vec<crate::experiments::sec2::MapPoint>,
 }
 
 fn subdir(dir: &Path, name: &str) -> Result<std::path::PathBuf> {
@@ -174,9 +174,10 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
     for (name, (cfg, out)) in &runs {
         write_run(&dir.join(name), cfg, out)?;
     }
-    let (sweep, sweep_text) = crate::sweep::sweep_into(&subdir(dir, "sweep")?)?;
-    let (stiffness, stiff_text) = crate::stiffness::stiffness_into(&subdir(dir, "stiffness")?)?;
-    let sec2 = crate::sec2::map_into(&subdir(dir, "sec2")?)?;
+    let (sweep, sweep_text) = crate::experiments::sweep::sweep_into(&subdir(dir, "sweep")?)?;
+    let (stiffness, stiff_text) =
+        crate::experiments::stiffness::stiffness_into(&subdir(dir, "stiffness")?)?;
+    let sec2 = crate::experiments::sec2::map_into(&subdir(dir, "sec2")?)?;
     figures::write_all(&runs, dir)?;
     let results = Results {
         runs,
@@ -192,12 +193,15 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
     report.push_str(pil);
     let path = dir.join("REPORT.md");
     std::fs::write(&path, report).map_err(|e| HarnessError::io(&path, e))?;
-    let sec2_text: Vec<String> = crate::sec2::ENCODER_INTERPOLATIONS
+    let sec2_text: Vec<String> = crate::experiments::sec2::ENCODER_INTERPOLATIONS
         .iter()
         .map(|n| {
             format!(
                 "Sec. II map, encoder x{n}: {}",
-                crate::sec2::summary_text(&crate::sec2::at(&results.sec2, *n))
+                crate::experiments::sec2::summary_text(&crate::experiments::sec2::at(
+                    &results.sec2,
+                    *n
+                ))
             )
         })
         .collect();

@@ -6,7 +6,9 @@ use super::section::{verdict, Section};
 use super::{get, Runs, HIGHLY_OSCILLATORY_PU};
 use crate::commands::fmt_opt;
 use crate::error::Result;
-use crate::sec2::{at, summarize, summary_text, table, MapPoint, ENCODER_INTERPOLATIONS};
+use crate::experiments::sec2::{
+    at, summarize, summary_text, table, MapPoint, ENCODER_INTERPOLATIONS,
+};
 use std::fmt::Write as _;
 
 /// Sec. II with the drive's own estimator (fig6 without AFB).
@@ -61,7 +63,7 @@ pub fn differentiation(runs: &Runs, map: &[MapPoint]) -> Result<Section> {
          limit. Every cell is in `sec2/sec2.csv`. The criterion was fixed for the Table 1 map \
          before it ran; the interpolated map was added after the first map had been seen, and \
          is judged by the same criterion.\n",
-        crate::sec2::SCENARIO,
+        crate::experiments::sec2::SCENARIO,
         ENCODER_INTERPOLATIONS
     );
     for n in ENCODER_INTERPOLATIONS {
@@ -82,8 +84,8 @@ pub fn differentiation(runs: &Runs, map: &[MapPoint]) -> Result<Section> {
              at least half of the cells; \"partly agrees\" if it is stable in fewer than half \
              but in one or more; \"does not agree\" otherwise). The map, not one point of it, \
              is the result.\n",
-            c.plant.sensors.encoder_cpr,
-            c.plant.sensors.encoder_cpr.saturating_mul(n),
+            c.plant.mechanics.encoder_cpr,
+            c.plant.mechanics.encoder_cpr.saturating_mul(n),
             table(&m),
             summary_text(&m)
         );

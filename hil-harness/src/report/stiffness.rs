@@ -3,7 +3,7 @@
 use super::section::{pct, Section};
 use super::{STIFFNESS_HIGH_MIN, STIFFNESS_LOW_BAND, STIFFNESS_MODEL_TOLERANCE};
 use crate::error::Result;
-use crate::stiffness::StiffnessPoint;
+use crate::experiments::stiffness::StiffnessPoint;
 
 /// Stiffness ratios (with AFB / without) at each frequency; `None` where the AFB run was
 /// unstable.
@@ -111,7 +111,10 @@ fn holds(ok: bool) -> &'static str {
 
 /// The stiffness section, from the measured points and the stiffness scenario's config.
 pub fn section(stiff: &[StiffnessPoint]) -> Result<Section> {
-    let cfg = crate::stiffness::stiffness_config(Some(controller_core::Estimator::Observer), &[])?;
+    let cfg = crate::experiments::stiffness::stiffness_config(
+        Some(controller_core::Estimator::Observer),
+        &[],
+    )?;
     let bw = f64::from(cfg.drive.velocity_bandwidth_rad_s);
     let w_obs = std::f64::consts::TAU * f64::from(cfg.drive.observer.bandwidth_hz);
     let f = findings(stiff, bw, w_obs);
@@ -120,7 +123,7 @@ pub fn section(stiff: &[StiffnessPoint]) -> Result<Section> {
         (false, true) => "**partly agrees**",
         _ => "**does not agree**",
     };
-    let g0 = crate::runner::regulator_gains(&cfg)?;
+    let g0 = crate::engine::runner::regulator_gains(&cfg)?;
     let afb = &cfg.drive.accel_feedback;
     let model_dev = f
         .model_dev

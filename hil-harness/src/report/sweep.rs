@@ -3,7 +3,7 @@
 use super::section::Section;
 use super::{SWEEP_NO_AFB_MAX_RAD_S, SWEEP_RATIO_MIN};
 use crate::error::Result;
-use crate::sweep::SweepResult;
+use crate::experiments::sweep::SweepResult;
 use std::fmt::Write as _;
 
 /// The sweep's findings per plant, and the printing press against the paper.
@@ -18,7 +18,7 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
             s.without_afb_rad_s,
             s.with_afb_rad_s,
             s.best_design,
-            crate::sweep::QUIET_TORQUE_PU,
+            crate::experiments::sweep::QUIET_TORQUE_PU,
             s.quiet_without_afb_rad_s,
             s.quiet_with_afb_rad_s,
             s.best_quiet_design
@@ -35,7 +35,7 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
         _ => "**does not agree**",
     };
     let press = crate::config::resolve("sweep", Some("printing-press"), &[])?;
-    let (mech, cpr) = (&press.plant.mechanics, press.plant.sensors.counts_per_rev());
+    let (mech, cpr) = (&press.plant.mechanics, press.plant.counts_per_rev());
     Ok(Section::claim(
         "Sec. III-D: largest stable velocity bandwidth, printing-press stand (and Table 1)",
         &["sweep/sweep.png"],
@@ -53,10 +53,10 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
              gives the velocity feedback); \"without AFB\" is the better of them. The modelled \
              press: {cpr} counts/rev, lost motion {} deg ({:.0} counts), Jm {} s, Jl {} s \
              (`configs/printing-press.toml`).",
-            crate::sweep::BANDWIDTHS_RAD_S,
-            crate::sweep::GAINS,
-            crate::sweep::FILTERS,
-            crate::sweep::OBSERVER_HZ,
+            crate::experiments::sweep::BANDWIDTHS_RAD_S,
+            crate::experiments::sweep::GAINS,
+            crate::experiments::sweep::FILTERS,
+            crate::experiments::sweep::OBSERVER_HZ,
             mech.backlash_deg,
             mech.backlash_deg / 360.0 * f64::from(cpr),
             mech.motor_inertia_s,

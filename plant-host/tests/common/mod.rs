@@ -1,4 +1,5 @@
-//! An independent reference integrator for the accuracy tests: fine fixed-step classical RK4
+//! Test support: the shipped machine files (Table 1 lives only in `configs/table1.toml`),
+//! and an independent reference integrator for the accuracy tests: fine fixed-step classical RK4
 //! on the equations as the issue writes them, with the contact law classified from the state
 //! (memoryless) and frozen within a step; when the classification changes across a step, the
 //! step is bisected (re-integrated from its start) to locate the switching instant. It shares
@@ -13,7 +14,31 @@
     missing_docs
 )]
 
+use plant_host::PlantConfig;
 use std::f64::consts::PI;
+use std::path::PathBuf;
+
+/// `configs/NAME` of the workspace.
+pub fn config_path(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../configs")
+        .join(name)
+}
+
+/// The text of `configs/NAME`.
+pub fn config_text(name: &str) -> String {
+    std::fs::read_to_string(config_path(name)).unwrap()
+}
+
+/// The plant of `configs/NAME` (its `[drive]` table ignored).
+pub fn config(name: &str) -> PlantConfig {
+    PlantConfig::from_machine_file(&config_path(name)).unwrap()
+}
+
+/// The paper's Table 1 plant, from `configs/table1.toml`.
+pub fn table1() -> PlantConfig {
+    config("table1.toml")
+}
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefParams {

@@ -1,70 +1,14 @@
-//! The harness's view of plant-host's `DrivePlant`, and the conversions between the
-//! plant's f64 per-unit values and the controller's fixed-point signals.
+//! The conversions between plant-host's f64 per-unit values and the controller's
+//! fixed-point signals (the runner drives `plant_host::TwoInertiaPlant` directly).
 
-use crate::error::{HarnessError, Result};
+use crate::error::HarnessError;
 use controller_core::per_unit::{Counts, Pu, PuPerS};
 use plant_host::rounding::{round_i64, round_ties_even_i64};
-use plant_host::{DrivePlant, PlantConfig};
+use plant_host::PlantError;
 
-/// The true plant state at one instant (what a perfect sensor would see).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Snapshot {
-    /// Motor angle (rad).
-    pub motor_pos_rad: f64,
-    /// Load angle reflected to the motor side (rad).
-    pub load_pos_rad: f64,
-    /// Motor speed (pu).
-    pub motor_vel_pu: f64,
-    /// Load speed (pu).
-    pub load_vel_pu: f64,
-    /// Coupling torque (pu).
-    pub shaft_torque_pu: f64,
-    /// Exact winding current (pu).
-    pub current_pu: f64,
-}
-
-/// plant-host's drive (winding + two inertias + sensors).
-#[derive(Clone, Debug)]
-pub struct Plant {
-    inner: DrivePlant,
-}
-
-impl Plant {
-    /// A plant at rest.
-    pub fn new(config: &PlantConfig) -> Result<Self> {
-        Ok(Self {
-            inner: DrivePlant::new(config),
-        })
-    }
-
-    /// Raw motor encoder count (unwrapped; the runner wraps it to the counter width).
-    pub fn encoder_count(&self) -> i64 {
-        self.inner.encoder_count()
-    }
-
-    /// Current as the ADC reports it (pu).
-    pub fn current_sample(&self) -> f64 {
-        self.inner.current_sample()
-    }
-
-    /// Advances `dt_s` with the voltage and load torque held.
-    pub fn advance(&mut self, dt_s: f64, voltage_pu: f64, load_torque_pu: f64) -> Result<()> {
-        self.inner
-            .try_advance(dt_s, voltage_pu, load_torque_pu)
-            .map_err(|e| HarnessError::Backend(format!("plant: {e}")))
-    }
-
-    /// The true state.
-    pub fn snapshot(&self) -> Snapshot {
-        Snapshot {
-            motor_pos_rad: self.inner.motor_pos_rad(),
-            load_pos_rad: self.inner.load_pos_rad(),
-            motor_vel_pu: self.inner.motor_vel_pu(),
-            load_vel_pu: self.inner.load_vel_pu(),
-            shaft_torque_pu: self.inner.shaft_torque_pu(),
-            current_pu: self.inner.current_pu(),
-        }
-    }
+/// A plant-host error (an invalid step or input) as the harness reports it.
+pub fn plant_error(e: PlantError) -> HarnessError {
+    HarnessError::Backend(format!("plant: {e}"))
 }
 
 /// Q16.16 and Q48.16: 2^16 LSBs per unit. Scaling by it is exact in f64.

@@ -2,7 +2,7 @@
 //! windowed RMS and zero crossings of the high-passed signals, each summed in trace order.
 
 use super::{in_window, MetricWindows};
-use crate::trace::TraceRow;
+use crate::engine::trace::TraceRow;
 
 /// The signals that are high-passed: the speed error, the motor torque (measured current)
 /// and the shaft torque.

@@ -12,12 +12,13 @@
 //! bit-for-bit repeatable.
 
 use crate::config::RunConfig;
+use crate::engine::metrics::{compute, Metrics};
+use crate::engine::trace::{Trace, TraceRow};
 use crate::error::{HarnessError, Result};
-use crate::metrics::{compute, Metrics};
-use crate::trace::{Trace, TraceRow};
 use controller_core::{
     Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
 };
+use plant_host::TwoInertiaPlant;
 use serde::Serialize;
 use std::time::Instant;
 
@@ -226,7 +227,7 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
     cfg: &RunConfig,
     backend: &mut B,
 ) -> Result<RunOutput> {
-    let mut plant = crate::plant::Plant::new(&cfg.plant)?;
+    let mut plant = TwoInertiaPlant::voltage_driven(&cfg.plant);
     let drive = &cfg.drive;
     let scenario = &cfg.scenario;
 
@@ -239,7 +240,7 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
 
     // Position command: counts = pu·s · (base rpm / 60) · cpr, in the counts the drive
     // reads (after sin/cos interpolation).
-    let cpr = f64::from(cfg.plant.sensors.counts_per_rev());
+    let cpr = f64::from(cfg.plant.counts_per_rev());
     let counts_per_pu_s = cfg.plant.mechanics.base_speed_rpm / 60.0 * cpr;
     let counts_per_rad = cpr / std::f64::consts::TAU;
     let mask: u64 = if drive.counter_bits >= 32 {
@@ -268,61 +269,64 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
             let cmd = scenario.profile.command(t_s);
             let pos_counts = cmd.position_pu_s * counts_per_pu_s;
             let setpoint = Setpoint {
-                position_counts: crate::plant::counts(initial_count as f64 + pos_counts),
-                velocity_pu: crate::plant::pu(cmd.velocity_pu),
-                acceleration_pu_s: crate::plant::pu_s(cmd.acceleration_pu_s),
+                position_counts: crate::engine::plant::counts(initial_count as f64 + pos_counts),
+                velocity_pu: crate::engine::plant::pu(cmd.velocity_pu),
+                acceleration_pu_s: crate::engine::plant::pu_s(cmd.acceleration_pu_s),
             };
             let last_vel = backend.velocity_tick(VelocityInputs {
                 encoder_count,
                 setpoint,
                 fault_input: false,
             });
-            let s = plant.snapshot();
             rows.push(TraceRow {
                 t_s,
                 pos_cmd_counts: pos_counts,
-                motor_pos_counts: s.motor_pos_rad * counts_per_rad,
-                load_pos_counts: s.load_pos_rad * counts_per_rad,
+                motor_pos_counts: plant.motor_pos_rad() * counts_per_rad,
+                load_pos_counts: plant.load_pos_rad() * counts_per_rad,
                 vel_cmd_pu: cmd.velocity_pu,
-                motor_vel_pu: s.motor_vel_pu,
-                load_vel_pu: s.load_vel_pu,
-                vel_est_pu: crate::plant::f(last_vel.velocity_est_pu),
-                torque_cmd_pu: crate::plant::f(last_vel.current_ref_pu),
-                current_pu: s.current_pu,
-                accel_fb_pu: crate::plant::f(last_vel.accel_fb_pu),
-                shaft_torque_pu: s.shaft_torque_pu,
+                motor_vel_pu: plant.motor_vel_pu(),
+                load_vel_pu: plant.load_vel_pu(),
+                vel_est_pu: crate::engine::plant::f(last_vel.velocity_est_pu),
+                torque_cmd_pu: crate::engine::plant::f(last_vel.current_ref_pu),
+                current_pu: plant.current_pu(),
+                accel_fb_pu: crate::engine::plant::f(last_vel.accel_fb_pu),
+                shaft_torque_pu: plant.shaft_torque_pu(),
                 load_torque_pu: scenario.load_torque_pu(t_s),
                 voltage_pu,
-                accel_est_pu_s: crate::plant::f(last_vel.acceleration_est_pu_s),
+                accel_est_pu_s: crate::engine::plant::f(last_vel.acceleration_est_pu_s),
                 fault: if last_vel.fault.is_some() { 1.0 } else { 0.0 },
             });
         }
         let out = backend.current_tick(CurrentInputs {
             encoder_count,
-            current_pu: crate::plant::pu(current_pu),
+            current_pu: crate::engine::plant::pu(current_pu),
         });
         if delay_s > 0.0 {
-            plant.advance(
-                delay_s,
-                voltage_pu,
-                scenario.load_torque_pu(t_s + 0.5 * delay_s),
-            )?;
+            plant
+                .try_advance(
+                    delay_s,
+                    voltage_pu,
+                    scenario.load_torque_pu(t_s + 0.5 * delay_s),
+                )
+                .map_err(crate::engine::plant::plant_error)?;
         }
-        voltage_pu = delay_line.push(crate::plant::f(out.voltage_cmd_pu), voltage_pu);
+        voltage_pu = delay_line.push(crate::engine::plant::f(out.voltage_cmd_pu), voltage_pu);
         let rest_s = tc_s - delay_s;
         if rest_s > 0.0 {
-            plant.advance(
-                rest_s,
-                voltage_pu,
-                scenario.load_torque_pu(t_s + delay_s + 0.5 * rest_s),
-            )?;
+            plant
+                .try_advance(
+                    rest_s,
+                    voltage_pu,
+                    scenario.load_torque_pu(t_s + delay_s + 0.5 * rest_s),
+                )
+                .map_err(crate::engine::plant::plant_error)?;
         }
         if k % u64::from(ratio) == 0 {
             if let Some(row) = rows.last_mut() {
                 // Torque reference and AFB term as the current tick of this instant formed
                 // them (the velocity tick's output plus the AFB path at the current rate).
-                row.torque_cmd_pu = crate::plant::f(out.current_ref_pu);
-                row.accel_fb_pu = crate::plant::f(out.accel_fb_pu);
+                row.torque_cmd_pu = crate::engine::plant::f(out.current_ref_pu);
+                row.accel_fb_pu = crate::engine::plant::f(out.accel_fb_pu);
                 if out.fault.is_some() {
                     row.fault = 1.0;
                 }

@@ -98,7 +98,7 @@ impl LoopModel {
             coef,
             plant: sampled,
             gears,
-            counts_per_rad: f64::from(plant.sensors.counts_per_rev()) / (2.0 * PI),
+            counts_per_rad: f64::from(plant.counts_per_rev()) / (2.0 * PI),
             whole_delay,
             period_s: tick * ratio as f64,
             base_speed_rad_s: plant.mechanics.derived().base_speed_rad_s,
@@ -430,7 +430,7 @@ fn drop_unused(m: &DMatrix<f64>, shift: &DVector<f64>) -> (DMatrix<f64>, DVector
 /// margin the smallest at the −180° (mod 360°) crossings after it.
 ///
 /// ```
-/// use hil_harness::linear::model::margins_of;
+/// use hil_harness::experiments::linear::model::margins_of;
 /// use nalgebra::Complex;
 /// // L = K·e^(−sτ)/s, K = 10 rad/s, τ = 10 ms: crossover 10 rad/s, PM = 90° − 5.7°,
 /// // the −180° crossing at π/(2τ) with |L| = 2Kτ/π: GM = 20·log10(π/(2Kτ)) = 17.9 dB.

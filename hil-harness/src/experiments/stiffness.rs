@@ -19,10 +19,10 @@
 //! observer bandwidth.
 
 use crate::config::{borrow_gains, resolve, RunConfig};
+use crate::engine::runner::run_scenario;
+use crate::engine::trace::Trace;
 use crate::error::{HarnessError, Result};
 use crate::plot::{save, Figure, Legend, Panel, Series};
-use crate::runner::run_scenario;
-use crate::trace::Trace;
 use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig};
 use num_complex::Complex64;
 use rayon::prelude::*;
@@ -97,11 +97,11 @@ pub fn estimator_response(d: &DriveConfig, w: f64) -> Complex64 {
 }
 
 /// Eq. 1 at ω for the run `cfg` (with AFB's J + Ka·F(jω)·G(jω) if it is on), with the
-/// gains the run uses ([`crate::runner::regulator_gains`]).
+/// gains the run uses ([`crate::engine::runner::regulator_gains`]).
 pub fn analytic(cfg: &RunConfig, w: f64) -> f64 {
     let d = &cfg.drive;
     let j = f64::from(d.total_inertia_s());
-    let Ok(g) = crate::runner::regulator_gains(cfg) else {
+    let Ok(g) = crate::engine::runner::regulator_gains(cfg) else {
         return f64::NAN;
     };
     let (kp, ki) = (f64::from(g.kp_vel), f64::from(g.ki_vel));
@@ -149,12 +149,12 @@ pub fn source_name(source: Option<Estimator>) -> &'static str {
 /// Fundamental phasor (re, im) of `f(row)` at ω over the rows in [t0, t1).
 fn phasor(
     trace: &Trace,
-    f: impl Fn(&crate::trace::TraceRow) -> f64,
+    f: impl Fn(&crate::engine::trace::TraceRow) -> f64,
     w: f64,
     t0: f64,
     t1: f64,
 ) -> (f64, f64) {
-    let rows: Vec<&crate::trace::TraceRow> = trace
+    let rows: Vec<&crate::engine::trace::TraceRow> = trace
         .rows
         .iter()
         .filter(|r| r.t_s >= t0 && r.t_s < t1)

@@ -8,9 +8,9 @@
 //! the sweep judges it.
 
 use super::for_run;
+use crate::engine::runner::run_scenario;
 use crate::error::Result;
-use crate::runner::run_scenario;
-use crate::sweep::{point_config, AfbDesign};
+use crate::experiments::sweep::{point_config, AfbDesign};
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;

@@ -1,7 +1,7 @@
 //! `tune`'s grid: candidates as typed drive settings (a velocity bandwidth and the sweep's
 //! [`AfbDesign`]).
 
-use crate::sweep::AfbDesign;
+use crate::experiments::sweep::AfbDesign;
 use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig, PiInertia};
 use core::f32::consts::FRAC_1_SQRT_2;
 use serde::Serialize;

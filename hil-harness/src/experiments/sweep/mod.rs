@@ -11,9 +11,9 @@ pub mod grid;
 pub use grid::{designs, without_afb_of, AfbDesign, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
 
 use crate::config::{borrow_gains, resolve, RunConfig};
+use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
 use crate::plot::save;
-use crate::runner::run_scenario;
 use controller_core::AfbMode;
 use grid::{filter_parts, word};
 use rayon::prelude::*;
@@ -384,14 +384,14 @@ mod tests {
                     let off =
                         point_config(plant, &without_afb_of(d, default_observer_hz()), bw, &[])
                             .unwrap();
-                    let g_off = crate::runner::regulator_gains(&off).unwrap();
+                    let g_off = crate::engine::runner::regulator_gains(&off).unwrap();
                     assert_eq!(g_off.ka, 0.0);
                     let Ok(on) = point_config(plant, d, bw, &[]) else {
                         continue; // rejected by the configuration checks (see sweep.csv)
                     };
-                    let g = crate::runner::regulator_gains(&on).unwrap();
+                    let g = crate::engine::runner::regulator_gains(&on).unwrap();
                     assert!(
-                        crate::runner::same_regulator_gains(&g_off, &g),
+                        crate::engine::runner::same_regulator_gains(&g_off, &g),
                         "{plant} {bw} rad/s {}:\n{g_off:?}\n{g:?}",
                         d.label()
                     );

@@ -3,7 +3,7 @@
 
 mod pass;
 
-use crate::trace::{Trace, TraceRow};
+use crate::engine::trace::{Trace, TraceRow};
 use pass::{hp_inputs, Pass, HP_SIGNALS};
 use serde::Serialize;
 

@@ -15,9 +15,9 @@ use crate::error::Result;
 use plant_host::analysis::Gears;
 
 /// The model of a run: its controller's coefficients (the gains it runs with, see
-/// [`crate::runner::regulator_gains`]) and its plant, with the gears `gears`.
+/// [`crate::engine::runner::regulator_gains`]) and its plant, with the gears `gears`.
 pub fn for_run(cfg: &RunConfig, gears: Gears) -> Result<LoopModel> {
-    let gains = crate::runner::regulator_gains(cfg)?;
+    let gains = crate::engine::runner::regulator_gains(cfg)?;
     let coef = Coefficients::new(&cfg.drive, &gains);
     Ok(LoopModel::new(
         coef,

@@ -12,9 +12,10 @@
 //! is fig6's `stable` metric. Every cell is reported; no point is picked from the map.
 
 use crate::config::{borrow_gains, resolve, RunConfig};
+use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
 use crate::plot::{save, Figure, Legend, Panel, Series};
-use crate::runner::run_scenario;
+use controller_core::{AfbMode, Estimator, FilterConfig};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -62,42 +63,41 @@ pub struct MapPoint {
     pub error: String,
 }
 
-/// `--set` overrides of one cell (AFB on).
-pub fn sets(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: f64) -> Vec<String> {
-    let trip =
-        controller_core::config::defaults::FAULTS.following_error_counts * interpolation as f32;
-    vec![
-        format!("sensors.encoder_interpolation={interpolation}"),
-        format!("drive.faults.following_error_counts={trip}"),
-        "drive.velocity_estimator=differentiation".into(),
-        "drive.velocity_filter=first_order".into(),
-        format!("drive.velocity_filter_corner_hz={velocity_corner_hz}"),
-        "drive.accel_feedback.source=differentiation".into(),
-        "drive.accel_feedback.filter=first_order".into(),
-        format!("drive.accel_feedback.filter_corner_hz={afb_corner_hz}"),
-    ]
-}
-
-/// The AFB run of a cell.
-pub fn afb_config(
-    interpolation: u32,
-    velocity_corner_hz: f64,
-    afb_corner_hz: f64,
-) -> Result<RunConfig> {
+/// The map's scenario with the encoder interpolated `interpolation` times: a plant key, so
+/// it goes through the file's value tree (the drive then counts what the plant delivers).
+pub fn base_config(interpolation: u32) -> Result<RunConfig> {
     resolve(
         SCENARIO,
         None,
-        &sets(interpolation, velocity_corner_hz, afb_corner_hz),
+        &[format!("sensors.encoder_interpolation={interpolation}")],
     )
 }
 
+/// The AFB run of a cell: differentiated velocity and acceleration behind first-order
+/// filters at the two corners, the following-error trip kept at the same angle.
+pub fn afb_config(base: &RunConfig, velocity_corner_hz: f64, afb_corner_hz: f64) -> RunConfig {
+    let mut cfg = base.clone();
+    let interpolation = cfg.plant.sensors.encoder_interpolation;
+    let d = &mut cfg.drive;
+    d.faults.following_error_counts =
+        controller_core::config::defaults::FAULTS.following_error_counts * interpolation as f32;
+    d.velocity_estimator = Estimator::Differentiation;
+    d.velocity_filter = FilterConfig::FirstOrder {
+        corner_hz: velocity_corner_hz as f32,
+    };
+    d.accel_feedback.source = Estimator::Differentiation;
+    d.accel_feedback.filter = FilterConfig::FirstOrder {
+        corner_hz: afb_corner_hz as f32,
+    };
+    cfg
+}
+
 /// The run without AFB of a row, at the gains of the row's AFB design.
-pub fn no_afb_config(interpolation: u32, velocity_corner_hz: f64) -> Result<RunConfig> {
+pub fn no_afb_config(base: &RunConfig, velocity_corner_hz: f64) -> Result<RunConfig> {
     let first = AFB_CORNERS_HZ.first().copied().unwrap_or(100.0);
-    let afb = afb_config(interpolation, velocity_corner_hz, first)?;
-    let mut s = sets(interpolation, velocity_corner_hz, first);
-    s.push("drive.accel_feedback.mode=off".into());
-    let mut cfg = resolve(SCENARIO, None, &s)?;
+    let afb = afb_config(base, velocity_corner_hz, first);
+    let mut cfg = afb.clone();
+    cfg.drive.accel_feedback.mode = AfbMode::Off;
     borrow_gains(
         &mut cfg,
         &format!("{SCENARIO} with differentiation, velocity filter {velocity_corner_hz} Hz"),
@@ -106,7 +106,12 @@ pub fn no_afb_config(interpolation: u32, velocity_corner_hz: f64) -> Result<RunC
     Ok(cfg)
 }
 
-fn run_cell(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: Option<f64>) -> MapPoint {
+fn run_cell(
+    base: &Result<RunConfig>,
+    interpolation: u32,
+    velocity_corner_hz: f64,
+    afb_corner_hz: Option<f64>,
+) -> MapPoint {
     let mut p = MapPoint {
         encoder_interpolation: interpolation,
         afb: afb_corner_hz.is_some(),
@@ -121,12 +126,13 @@ fn run_cell(interpolation: u32, velocity_corner_hz: f64, afb_corner_hz: Option<f
         kp_vel: f64::NAN,
         error: String::new(),
     };
-    let cfg = match afb_corner_hz {
-        Some(fa) => afb_config(interpolation, velocity_corner_hz, fa),
-        None => no_afb_config(interpolation, velocity_corner_hz),
+    let cfg = match (base, afb_corner_hz) {
+        (Err(e), _) => Err(HarnessError::Backend(e.to_string())),
+        (Ok(b), Some(fa)) => Ok(afb_config(b, velocity_corner_hz, fa)),
+        (Ok(b), None) => no_afb_config(b, velocity_corner_hz),
     };
     let run = cfg.and_then(|c| {
-        let g = crate::runner::regulator_gains(&c)?;
+        let g = crate::engine::runner::regulator_gains(&c)?;
         run_scenario(&c).map(|o| (g, o))
     });
     match run {
@@ -156,11 +162,18 @@ pub fn map_points() -> Vec<MapPoint> {
             })
         })
         .collect();
+    // One resolved scenario per encoder; every cell clones it and sets its fields.
+    let bases: Vec<(u32, Result<RunConfig>)> = ENCODER_INTERPOLATIONS
+        .iter()
+        .map(|n| (*n, base_config(*n)))
+        .collect();
     let pb = crate::progress::bar(jobs.len() as u64, "sec2 map");
     let points = jobs
         .par_iter()
         .map(|(n, fv, fa)| {
-            let r = run_cell(*n, *fv, *fa);
+            let base = bases.iter().find(|(m, _)| m == n).map(|(_, b)| b);
+            let missing = Err(HarnessError::Backend("no base".into()));
+            let r = run_cell(base.unwrap_or(&missing), *n, *fv, *fa);
             pb.inc(1);
             r
         })
@@ -340,21 +353,23 @@ pub fn summary_text(points: &[MapPoint]) -> String {
 
 /// `hil-harness sec2-map`.
 pub fn sec2(out: &Path) -> Result<String> {
-    let staging = crate::output::Staging::new(out)?;
-    let points = map_into(staging.dir())?;
-    let mut text = String::new();
-    for n in ENCODER_INTERPOLATIONS {
-        let m = at(&points, n);
-        let _ = write!(
-            text,
-            "\nEncoder 4096 counts x {n}:\n\n{}\n{}\n",
-            table(&m),
-            summary_text(&m)
-        );
-    }
-    staging.write("sec2-map.md", &text)?;
-    staging.commit()?;
-    Ok(text)
+    let cpr = resolve(SCENARIO, None, &[])?.plant.mechanics.encoder_cpr;
+    crate::output::staged(out, |dir| {
+        let points = map_into(dir)?;
+        let mut text = String::new();
+        for n in ENCODER_INTERPOLATIONS {
+            let m = at(&points, n);
+            let _ = write!(
+                text,
+                "\nEncoder {cpr} counts x {n}:\n\n{}\n{}\n",
+                table(&m),
+                summary_text(&m)
+            );
+        }
+        let path = dir.join("sec2-map.md");
+        std::fs::write(&path, &text).map_err(|e| HarnessError::io(&path, e))?;
+        Ok(text)
+    })
 }
 
 #[cfg(test)]
@@ -405,15 +420,17 @@ mod tests {
             .iter()
             .flat_map(|n| VELOCITY_CORNERS_HZ.iter().map(move |fv| (*n, *fv)))
         {
-            let off = no_afb_config(n, fv).unwrap();
-            let g_off = crate::runner::regulator_gains(&off).unwrap();
+            let base = base_config(n).unwrap();
+            assert_eq!(base.drive.encoder_cpr, base.plant.counts_per_rev());
+            let off = no_afb_config(&base, fv).unwrap();
+            let g_off = crate::engine::runner::regulator_gains(&off).unwrap();
             assert_eq!(g_off.ka, 0.0);
             for fa in AFB_CORNERS_HZ {
-                let on = afb_config(n, fv, fa).unwrap();
-                let g_on = crate::runner::regulator_gains(&on).unwrap();
+                let on = afb_config(&base, fv, fa);
+                let g_on = crate::engine::runner::regulator_gains(&on).unwrap();
                 assert!(g_on.ka > 0.0);
                 assert!(
-                    crate::runner::same_regulator_gains(&g_off, &g_on),
+                    crate::engine::runner::same_regulator_gains(&g_off, &g_on),
                     "{fv} Hz / {fa} Hz"
                 );
             }

@@ -1,6 +1,6 @@
 //! `hil-harness tune`: design the acceleration feedback, the estimator and (with
 //! `--max-bandwidth`) the velocity bandwidth of a machine from its config, on the linear
-//! model of the whole loop ([`crate::linear`]), then prove the design in the nonlinear loop.
+//! model of the whole loop ([`crate::experiments::linear`]), then prove the design in the nonlinear loop.
 //!
 //! 1. Every candidate of a fixed grid (form, Ka, filter, acceleration source, observer
 //!    bandwidth, and the velocity bandwidth when asked for the maximum) is judged on the
@@ -21,10 +21,10 @@ pub mod grid;
 pub use grid::{candidates, without_afb, Candidate, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
 
 use crate::config::{resolve, RunConfig};
+use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
-use crate::linear::{for_run, Break};
+use crate::experiments::linear::{for_run, Break};
 use crate::output::Staging;
-use crate::runner::run_scenario;
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -120,7 +120,7 @@ pub struct Verification {
     /// Motor-torque chatter in the stability window \[pu\].
     pub limit_cycle_torque_pu: f64,
     /// Whether the run passes: stable, no fault, and on the sweep probe also quiet
-    /// (chatter below [`crate::sweep::QUIET_TORQUE_PU`], the sweep's own test).
+    /// (chatter below [`crate::experiments::sweep::QUIET_TORQUE_PU`], the sweep's own test).
     pub passed: bool,
 }
 
@@ -148,7 +148,8 @@ fn verify(bases: &[RunConfig], c: &Candidate) -> Result<Vec<Verification>> {
                 cfg.drive.position_bandwidth_rad_s = 0.0;
             }
             let m = run_scenario(&cfg)?.metrics;
-            let quiet = *s != "sweep" || m.limit_cycle_torque_pu < crate::sweep::QUIET_TORQUE_PU;
+            let quiet = *s != "sweep"
+                || m.limit_cycle_torque_pu < crate::experiments::sweep::QUIET_TORQUE_PU;
             Ok(Verification {
                 scenario: s,
                 stable: m.stable,
@@ -228,7 +229,7 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
 
 /// The `[drive]` keys a design sets, as a TOML tree.
 fn design_table(c: &Candidate) -> toml::Table {
-    use crate::sweep::grid::{filter_parts, word};
+    use crate::experiments::sweep::grid::{filter_parts, word};
     use toml::Value;
     let mut drive = toml::Table::new();
     let put = |t: &mut toml::Table, k: &str, v: Value| {
