@@ -186,7 +186,7 @@ pub fn regulator_gains(cfg: &RunConfig) -> Result<Gains> {
         Some(of) => {
             // The AFB run's gains without AFB, carrying this run's own (validated) drive for
             // its limits, modes and rates.
-            controller_core::design(&cfg.drive).map_err(drive_error)?;
+            cfg.drive.validate().map_err(drive_error)?;
             let mut g = controller_core::design(&of.drive)
                 .map_err(drive_error)?
                 .without_afb();
@@ -222,37 +222,129 @@ pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
     run_with_backend(cfg, &mut controller)
 }
 
+/// The fixed quantities of a run: tick lengths and the count scales.
+struct Timing {
+    /// Current tick \[s\].
+    tc_s: f64,
+    /// The part of the computational delay within one tick \[s\].
+    delay_s: f64,
+    /// Current ticks per velocity tick.
+    ratio: u64,
+    /// Position command: counts = pu·s · (base rpm / 60) · cpr, in the counts the drive
+    /// reads (after sin/cos interpolation).
+    counts_per_pu_s: f64,
+    /// Counts per radian of the motor shaft.
+    counts_per_rad: f64,
+    /// The hardware counter's range: the plant's unwrapped count modulo 2^counter_bits.
+    mask: u64,
+    /// The controller takes its first reading as the position origin; commands are
+    /// unwrapped counts relative to the same origin.
+    initial_count: i64,
+}
+
+impl Timing {
+    fn new(cfg: &RunConfig, plant: &TwoInertiaPlant, delay_s: f64) -> Self {
+        let drive = &cfg.drive;
+        let cpr = f64::from(cfg.plant.counts_per_rev());
+        Self {
+            tc_s: 1.0 / f64::from(drive.current_rate_hz),
+            delay_s,
+            ratio: u64::from((drive.current_rate_hz / drive.velocity_rate_hz.max(1)).max(1)),
+            counts_per_pu_s: cfg.plant.mechanics.base_speed_rpm / 60.0 * cpr,
+            counts_per_rad: cpr / std::f64::consts::TAU,
+            mask: if drive.counter_bits >= 32 {
+                u64::from(u32::MAX)
+            } else {
+                (1u64 << drive.counter_bits) - 1
+            },
+            initial_count: plant.encoder_count(),
+        }
+    }
+}
+
+/// The velocity tick at `t_s`, and the trace row of this instant.
+fn velocity_step<B: ControlBackend + ?Sized>(
+    backend: &mut B,
+    plant: &TwoInertiaPlant,
+    cfg: &RunConfig,
+    tm: &Timing,
+    (t_s, encoder_count, voltage_pu): (f64, u32, f64),
+) -> TraceRow {
+    use crate::engine::plant::{counts, f, pu, pu_s};
+    let scenario = &cfg.scenario;
+    let cmd = scenario.profile.command(t_s);
+    let pos_counts = cmd.position_pu_s * tm.counts_per_pu_s;
+    let setpoint = Setpoint {
+        position_counts: counts(tm.initial_count as f64 + pos_counts),
+        velocity_pu: pu(cmd.velocity_pu),
+        acceleration_pu_s: pu_s(cmd.acceleration_pu_s),
+    };
+    let last_vel = backend.velocity_tick(VelocityInputs {
+        encoder_count,
+        setpoint,
+        fault_input: false,
+    });
+    TraceRow {
+        t_s,
+        pos_cmd_counts: pos_counts,
+        motor_pos_counts: plant.motor_pos_rad() * tm.counts_per_rad,
+        load_pos_counts: plant.load_pos_rad() * tm.counts_per_rad,
+        vel_cmd_pu: cmd.velocity_pu,
+        motor_vel_pu: plant.motor_vel_pu(),
+        load_vel_pu: plant.load_vel_pu(),
+        vel_est_pu: f(last_vel.velocity_est_pu),
+        torque_cmd_pu: f(last_vel.current_ref_pu),
+        current_pu: plant.current_pu(),
+        accel_fb_pu: f(last_vel.accel_fb_pu),
+        shaft_torque_pu: plant.shaft_torque_pu(),
+        load_torque_pu: scenario.load_torque_pu(t_s),
+        voltage_pu,
+        accel_est_pu_s: f(last_vel.acceleration_est_pu_s),
+        fault: if last_vel.fault.is_some() { 1.0 } else { 0.0 },
+    }
+}
+
+/// The plant over one current tick from `t_s`: the held voltage until the delayed command
+/// arrives, then the new one. Returns the voltage applied at the end of the tick.
+fn plant_step(
+    plant: &mut TwoInertiaPlant,
+    delay_line: &mut DelayLine,
+    cfg: &RunConfig,
+    tm: &Timing,
+    (t_s, voltage_pu, command_pu): (f64, f64, f64),
+) -> Result<f64> {
+    let load = |t: f64| cfg.scenario.load_torque_pu(t);
+    let delay_s = tm.delay_s;
+    if delay_s > 0.0 {
+        plant
+            .try_advance(delay_s, voltage_pu, load(t_s + 0.5 * delay_s))
+            .map_err(crate::engine::plant::plant_error)?;
+    }
+    let voltage_pu = delay_line.push(command_pu, voltage_pu);
+    let rest_s = tm.tc_s - delay_s;
+    if rest_s > 0.0 {
+        plant
+            .try_advance(rest_s, voltage_pu, load(t_s + delay_s + 0.5 * rest_s))
+            .map_err(crate::engine::plant::plant_error)?;
+    }
+    Ok(voltage_pu)
+}
+
 /// Runs `cfg` with any [`ControlBackend`].
 pub fn run_with_backend<B: ControlBackend + ?Sized>(
     cfg: &RunConfig,
     backend: &mut B,
 ) -> Result<RunOutput> {
+    use crate::engine::plant::{f, pu};
     let mut plant = TwoInertiaPlant::voltage_driven(&cfg.plant);
-    let drive = &cfg.drive;
-    let scenario = &cfg.scenario;
-
-    let current_rate_hz = f64::from(drive.current_rate_hz);
-    let ratio = (drive.current_rate_hz / drive.velocity_rate_hz.max(1)).max(1);
-    let tc_s = 1.0 / current_rate_hz;
-    let mut delay_line = DelayLine::new(cfg.plant.electrics.computational_delay_s, tc_s);
-    let delay_s = delay_line.remainder_s();
-    let ticks = (scenario.duration_s * current_rate_hz).round() as u64;
-
-    // Position command: counts = pu·s · (base rpm / 60) · cpr, in the counts the drive
-    // reads (after sin/cos interpolation).
-    let cpr = f64::from(cfg.plant.counts_per_rev());
-    let counts_per_pu_s = cfg.plant.mechanics.base_speed_rpm / 60.0 * cpr;
-    let counts_per_rad = cpr / std::f64::consts::TAU;
-    let mask: u64 = if drive.counter_bits >= 32 {
-        u64::from(u32::MAX)
-    } else {
-        (1u64 << drive.counter_bits) - 1
-    };
-    // The controller takes its first reading as the position origin; commands are
-    // unwrapped counts relative to the same origin.
-    let initial_count = plant.encoder_count();
-
-    let mut rows = Vec::with_capacity((ticks / u64::from(ratio) + 1) as usize);
+    let current_rate_hz = f64::from(cfg.drive.current_rate_hz);
+    let mut delay_line = DelayLine::new(
+        cfg.plant.electrics.computational_delay_s,
+        1.0 / current_rate_hz,
+    );
+    let tm = Timing::new(cfg, &plant, delay_line.remainder_s());
+    let ticks = (cfg.scenario.duration_s * current_rate_hz).round() as u64;
+    let mut rows = Vec::with_capacity((ticks / tm.ratio + 1) as usize);
     let mut voltage_pu = 0.0;
     let start = Instant::now();
     let mut ticks_run = 0;
@@ -261,86 +353,40 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
             break;
         }
         ticks_run = k + 1;
-        let t_s = k as f64 * tc_s;
-        // The hardware counter: the plant's unwrapped count modulo 2^counter_bits.
-        let encoder_count = ((plant.encoder_count() as u64) & mask) as u32;
+        let t_s = k as f64 * tm.tc_s;
+        let encoder_count = ((plant.encoder_count() as u64) & tm.mask) as u32;
         let current_pu = plant.current_sample();
-        if k % u64::from(ratio) == 0 {
-            let cmd = scenario.profile.command(t_s);
-            let pos_counts = cmd.position_pu_s * counts_per_pu_s;
-            let setpoint = Setpoint {
-                position_counts: crate::engine::plant::counts(initial_count as f64 + pos_counts),
-                velocity_pu: crate::engine::plant::pu(cmd.velocity_pu),
-                acceleration_pu_s: crate::engine::plant::pu_s(cmd.acceleration_pu_s),
-            };
-            let last_vel = backend.velocity_tick(VelocityInputs {
-                encoder_count,
-                setpoint,
-                fault_input: false,
-            });
-            rows.push(TraceRow {
-                t_s,
-                pos_cmd_counts: pos_counts,
-                motor_pos_counts: plant.motor_pos_rad() * counts_per_rad,
-                load_pos_counts: plant.load_pos_rad() * counts_per_rad,
-                vel_cmd_pu: cmd.velocity_pu,
-                motor_vel_pu: plant.motor_vel_pu(),
-                load_vel_pu: plant.load_vel_pu(),
-                vel_est_pu: crate::engine::plant::f(last_vel.velocity_est_pu),
-                torque_cmd_pu: crate::engine::plant::f(last_vel.current_ref_pu),
-                current_pu: plant.current_pu(),
-                accel_fb_pu: crate::engine::plant::f(last_vel.accel_fb_pu),
-                shaft_torque_pu: plant.shaft_torque_pu(),
-                load_torque_pu: scenario.load_torque_pu(t_s),
-                voltage_pu,
-                accel_est_pu_s: crate::engine::plant::f(last_vel.acceleration_est_pu_s),
-                fault: if last_vel.fault.is_some() { 1.0 } else { 0.0 },
-            });
+        let velocity_tick = k % tm.ratio == 0;
+        if velocity_tick {
+            let inputs = (t_s, encoder_count, voltage_pu);
+            rows.push(velocity_step(backend, &plant, cfg, &tm, inputs));
         }
         let out = backend.current_tick(CurrentInputs {
             encoder_count,
-            current_pu: crate::engine::plant::pu(current_pu),
+            current_pu: pu(current_pu),
         });
-        if delay_s > 0.0 {
-            plant
-                .try_advance(
-                    delay_s,
-                    voltage_pu,
-                    scenario.load_torque_pu(t_s + 0.5 * delay_s),
-                )
-                .map_err(crate::engine::plant::plant_error)?;
-        }
-        voltage_pu = delay_line.push(crate::engine::plant::f(out.voltage_cmd_pu), voltage_pu);
-        let rest_s = tc_s - delay_s;
-        if rest_s > 0.0 {
-            plant
-                .try_advance(
-                    rest_s,
-                    voltage_pu,
-                    scenario.load_torque_pu(t_s + delay_s + 0.5 * rest_s),
-                )
-                .map_err(crate::engine::plant::plant_error)?;
-        }
-        if k % u64::from(ratio) == 0 {
-            if let Some(row) = rows.last_mut() {
-                // Torque reference and AFB term as the current tick of this instant formed
-                // them (the velocity tick's output plus the AFB path at the current rate).
-                row.torque_cmd_pu = crate::engine::plant::f(out.current_ref_pu);
-                row.accel_fb_pu = crate::engine::plant::f(out.accel_fb_pu);
-                if out.fault.is_some() {
-                    row.fault = 1.0;
-                }
+        let step = (t_s, voltage_pu, f(out.voltage_cmd_pu));
+        voltage_pu = plant_step(&mut plant, &mut delay_line, cfg, &tm, step)?;
+        if let Some(row) = rows.last_mut().filter(|_| velocity_tick) {
+            // Torque reference and AFB term as the current tick of this instant formed
+            // them (the velocity tick's output plus the AFB path at the current rate).
+            row.torque_cmd_pu = f(out.current_ref_pu);
+            row.accel_fb_pu = f(out.accel_fb_pu);
+            if out.fault.is_some() {
+                row.fault = 1.0;
             }
         }
     }
     let wall_time_s = start.elapsed().as_secs_f64();
     let trace = Trace { rows };
-    let windows = scenario.metric_windows(f64::from(drive.torque_limit_pu));
+    let windows = cfg
+        .scenario
+        .metric_windows(f64::from(cfg.drive.torque_limit_pu));
     let metrics = compute(&trace, &windows);
     Ok(RunOutput {
         trace,
         metrics,
-        sim_time_s: ticks_run as f64 * tc_s,
+        sim_time_s: ticks_run as f64 * tm.tc_s,
         wall_time_s,
         ticks: ticks_run,
     })
