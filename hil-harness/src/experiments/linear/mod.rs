@@ -4,11 +4,14 @@
 
 pub mod analyze;
 pub mod check;
+pub mod margins;
 pub mod mirror;
 pub mod model;
+mod reduce;
 
+pub use margins::{margins_of, Margins};
 pub use mirror::{Break, Coefficients};
-pub use model::{LoopModel, Margins};
+pub use model::LoopModel;
 
 use crate::config::RunConfig;
 use crate::error::Result;

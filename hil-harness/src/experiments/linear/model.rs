@@ -19,7 +19,9 @@
 //!   unchanged, so M has an eigenvalue exactly 1 on that direction. It is deflated.
 //! - With the gears apart, the load coasts on its own. Its states are dropped.
 
+use super::margins::{margins_of, Margins};
 use super::mirror::{Break, Coefficients, Inputs, State, STATE_LEN};
+use super::reduce::{deflate, drop_unused};
 use nalgebra::{Complex, DMatrix, DVector};
 use plant_host::analysis::{state, Gears, SampledPlant};
 use plant_host::PlantConfig;
@@ -65,18 +67,6 @@ struct Period {
 
 fn unit(n: usize, i: usize) -> Vec<f64> {
     (0..n).map(|k| if k == i { 1.0 } else { 0.0 }).collect()
-}
-
-/// Margins of a loop opened at one point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Margins {
-    /// Gain margin \[dB\] at the first phase crossing of −180° above the crossover
-    /// (infinite if there is none).
-    pub gain_margin_db: f64,
-    /// Phase margin \[deg\] at the gain crossover.
-    pub phase_margin_deg: f64,
-    /// Gain-crossover frequency \[Hz\].
-    pub crossover_hz: f64,
 }
 
 impl LoopModel {
@@ -404,119 +394,4 @@ impl LoopModel {
             })
             .collect()
     }
-}
-
-/// `m` and `shift` without the states this configuration never touches: a state j whose
-/// column and row of `m` are both e_j holds its value and acts on nothing (a filter or
-/// differentiator that is switched off), an eigenvalue 1 that is not the loop's.
-fn drop_unused(m: &DMatrix<f64>, shift: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
-    let n = m.nrows();
-    let unused: Vec<usize> = (0..n)
-        .filter(|&j| {
-            (0..n).all(|i| {
-                let want = if i == j { 1.0 } else { 0.0 };
-                m.get((i, j)) == Some(&want) && m.get((j, i)) == Some(&want)
-            })
-        })
-        .collect();
-    (
-        m.clone().remove_rows_at(&unused).remove_columns_at(&unused),
-        shift.clone().remove_rows_at(&unused),
-    )
-}
-
-/// Gain and phase margins of a loop gain `l` sampled at increasing frequencies `freqs`
-/// \[Hz\]: the phase margin at the first gain crossover (downwards through 1), the gain
-/// margin the smallest at the −180° (mod 360°) crossings after it.
-///
-/// ```
-/// use hil_harness::experiments::linear::model::margins_of;
-/// use nalgebra::Complex;
-/// // L = K·e^(−sτ)/s, K = 10 rad/s, τ = 10 ms: crossover 10 rad/s, PM = 90° − 5.7°,
-/// // the −180° crossing at π/(2τ) with |L| = 2Kτ/π: GM = 20·log10(π/(2Kτ)) = 17.9 dB.
-/// let (k, tau) = (10.0, 0.01);
-/// let f: Vec<f64> = (1..20_000).map(|i| i as f64 * 0.005).collect();
-/// let l: Vec<Complex<f64>> = f.iter().map(|f| {
-///     let s = Complex::new(0.0, 2.0 * std::f64::consts::PI * f);
-///     (s * -tau).exp() * k / s
-/// }).collect();
-/// let m = margins_of(&f, &l);
-/// assert!((m.phase_margin_deg - (90.0 - (k * tau).to_degrees())).abs() < 0.05);
-/// assert!((m.crossover_hz - k / (2.0 * std::f64::consts::PI)).abs() < 1e-3);
-/// let gm = 20.0 * (std::f64::consts::PI / (2.0 * k * tau)).log10();
-/// assert!((m.gain_margin_db - gm).abs() < 0.01);
-/// ```
-#[must_use]
-pub fn margins_of(freqs: &[f64], l: &[Complex<f64>]) -> Margins {
-    let mut out = Margins {
-        gain_margin_db: f64::INFINITY,
-        phase_margin_deg: f64::INFINITY,
-        crossover_hz: f64::NAN,
-    };
-    let phase = unwrap_phases(l);
-    let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(f64::NAN);
-    let mag = |i: usize| l.get(i).map_or(f64::NAN, |v| v.norm());
-    let mut crossed = false;
-    for i in 1..l.len() {
-        let (a, b) = (mag(i - 1), mag(i));
-        let (pa, pb) = (at(&phase, i - 1), at(&phase, i));
-        let (fa, fb) = (at(freqs, i - 1), at(freqs, i));
-        if !crossed && a >= 1.0 && b < 1.0 {
-            let t = a.ln() / (a.ln() - b.ln());
-            // 180° + ∠L, taken into (−180°, 180°]: the unwrapped phase carries whole turns.
-            let pm = (180.0 + (pa + t * (pb - pa)).to_degrees()).rem_euclid(360.0);
-            out.phase_margin_deg = if pm > 180.0 { pm - 360.0 } else { pm };
-            out.crossover_hz = fa + t * (fb - fa);
-            crossed = true;
-        }
-        // A crossing of −180° (mod 360°): (φ + π)/2π changes its integer part.
-        let turn = |p: f64| ((p + PI) / (2.0 * PI)).floor();
-        if crossed && turn(pa) != turn(pb) {
-            let target = turn(pa.max(pb)) * 2.0 * PI - PI;
-            let t = (target - pa) / (pb - pa);
-            let g = a.ln() + t * (b.ln() - a.ln());
-            out.gain_margin_db = out.gain_margin_db.min(-20.0 * g / std::f64::consts::LN_10);
-        }
-    }
-    out
-}
-
-/// The map `m` with the invariant direction `s` (m·s = s) taken out: in an orthonormal
-/// basis whose first vector is s/|s|, the first column of QᵀMQ is e1, so the remaining
-/// block holds every other eigenvalue.
-fn deflate(m: &DMatrix<f64>, s: &DVector<f64>) -> DMatrix<f64> {
-    let n = m.nrows();
-    let mut basis = DMatrix::zeros(n, n + 1);
-    basis.set_column(0, s);
-    basis
-        .view_mut((0, 1), (n, n))
-        .copy_from(&DMatrix::identity(n, n));
-    let q = basis.qr().q();
-    let q = q.columns(0, n).into_owned();
-    let t = q.transpose() * m * &q;
-    t.view((1, 1), (n - 1, n - 1)).into_owned()
-}
-
-fn unwrap_phases(l: &[Complex<f64>]) -> Vec<f64> {
-    let mut out = Vec::with_capacity(l.len());
-    let mut offset = 0.0;
-    let mut last: Option<f64> = None;
-    for v in l {
-        let p = v.arg();
-        if let Some(prev) = last {
-            let mut d = p + offset - prev;
-            while d > PI {
-                offset -= 2.0 * PI;
-                d -= 2.0 * PI;
-            }
-            while d < -PI {
-                offset += 2.0 * PI;
-                d += 2.0 * PI;
-            }
-        }
-        let u = p + offset;
-        out.push(u);
-        last = Some(u);
-    }
-    out
 }
