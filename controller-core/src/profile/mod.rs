@@ -15,8 +15,12 @@
 
 use crate::config::DriveConfig;
 use crate::controller::Setpoint;
+use crate::design::Gains;
 use crate::error::ConfigError;
 use crate::per_unit::{counts_per_pu_s, mul_bits, sat_i32, Counts, Gain, Pu, TickGain};
+
+mod plan;
+use plan::{Planner, Settings};
 
 /// Shape of the acceleration phases.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -99,14 +103,6 @@ impl Segment {
     }
 }
 
-/// Split an f64 position \[counts\] into whole counts and a Q0.32 fraction.
-fn split_counts(p: f64) -> (i64, i64) {
-    let whole = p as i64;
-    let whole = if (whole as f64) > p { whole - 1 } else { whole };
-    let frac = ((p - whole as f64) * Q32) as i64;
-    (whole, frac.clamp(0, (1 << 32) - 1))
-}
-
 /// A running profile: call [`Profile::next`] once per velocity tick.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Profile {
@@ -127,32 +123,22 @@ pub struct Profile {
 
 const Q32: f64 = 4_294_967_296.0;
 
-fn to_q32(x: f64) -> i64 {
-    (x * Q32) as i64
-}
-
-fn check(
-    v: f32,
-    param: &'static str,
-    min: f32,
-    max: f32,
-    min_exclusive: bool,
-) -> Result<f32, ConfigError> {
-    if !v.is_finite() {
-        return Err(ConfigError::NotFinite { param });
-    }
-    let ok_low = if min_exclusive { v > min } else { v >= min };
-    if ok_low && v <= max {
-        Ok(v)
-    } else {
-        Err(ConfigError::OutOfRange {
-            param,
-            value: v,
-            min,
-            max,
-            min_exclusive,
-        })
-    }
+/// The fixed-point scale factors of the outputs: velocity per Q32.32 count/tick and
+/// acceleration per Q32.32 count/tick².
+fn output_gains(g: &Gains) -> Result<(TickGain, Gain), ConfigError> {
+    let k_vel = crate::per_unit::checked_q::<TickGain>(g.vel_tick_pu_per_count).ok_or(
+        ConfigError::overflow::<TickGain>(
+            "pu per count per velocity tick",
+            g.vel_tick_pu_per_count,
+        ),
+    )?;
+    let k_acc = crate::per_unit::checked_q::<Gain>(g.vel_tick_pu_s_per_count).ok_or(
+        ConfigError::overflow::<Gain>(
+            "pu/s per count per velocity tick²",
+            g.vel_tick_pu_s_per_count,
+        ),
+    )?;
+    Ok((k_vel, k_acc))
 }
 
 impl Profile {
@@ -168,142 +154,36 @@ impl Profile {
     /// assert!((sp.velocity_pu.to_num::<f32>() - 1.0).abs() < 1e-3);
     /// ```
     pub fn new(cfg: &ProfileConfig, drive: &DriveConfig) -> Result<Self, ConfigError> {
-        let g = crate::design(drive)?;
-        let v_pu = check(
-            cfg.peak_velocity_pu,
-            "profile.peak_velocity_pu",
-            -10.0,
-            10.0,
-            false,
-        )?;
-        let ta = check(
-            cfg.accel_time_s,
-            "profile.accel_time_s",
-            0.0,
-            10_000.0,
-            true,
-        )?;
-        let td = check(
-            cfg.decel_time_s,
-            "profile.decel_time_s",
-            0.0,
-            10_000.0,
-            true,
-        )?;
-        let delay = check(
-            cfg.start_delay_s,
-            "profile.start_delay_s",
-            0.0,
-            10_000.0,
-            false,
-        )?;
-        let hold = if cfg.hold_time_s == f32::INFINITY {
-            None
-        } else {
-            Some(check(
-                cfg.hold_time_s,
-                "profile.hold_time_s",
-                0.0,
-                10_000.0,
-                false,
-            )?)
-        };
-        let tj = match cfg.kind {
-            ProfileKind::Trapezoid => 0.0,
-            ProfileKind::SCurve { jerk_time_s } => check(
-                jerk_time_s,
-                "profile.kind.jerk_time_s",
-                0.0,
-                ta.min(td) / 2.0,
-                true,
-            )?,
-        };
-        let f = f64::from(drive.velocity_rate_hz);
-        let ticks = |t: f32| (f64::from(t) * f + 0.5) as u32;
-        let cpps = f64::from(counts_per_pu_s(drive.encoder_cpr, drive.base_speed_rpm));
-        let v_cpt = f64::from(v_pu) * cpps / f; // counts per tick at the peak
+        Self::from_gains(cfg, &crate::design(drive)?)
+    }
 
-        // Phase tick counts: the ramp of a phase of n ticks with n_j jerk ticks at each end.
-        let nj = ticks(tj);
-        let ramp = |t: f32| -> (u32, u32) {
-            let n = ticks(t).max(1);
-            let nj = nj.min(n / 2);
-            (nj, n - 2 * nj)
-        };
-        let (nja, nca) = ramp(ta);
-        let (njd, ncd) = ramp(td);
-        let mut segs = [Segment::default(); MAX_SEGMENTS];
-        let mut count = 0usize;
-        let (mut p, mut v, mut a) = (0.0f64, 0.0f64, 0.0f64);
-        let mut push = |n: u32, a_start: f64, j: f64, p: &mut f64, v: &mut f64, a: &mut f64| {
-            if n == 0 {
-                return;
-            }
-            *a = a_start;
-            if let Some(s) = segs.get_mut(count) {
-                let (p0_int, p0_frac) = split_counts(*p);
-                *s = Segment {
-                    ticks: n,
-                    p0_int,
-                    p0_frac,
-                    v0: to_q32(*v),
-                    a0: to_q32(*a),
-                    jerk: to_q32(j),
-                    jerk_over_6: to_q32(j / 6.0),
-                };
-                count += 1;
-            }
-            let nf = f64::from(n);
-            *p += *v * nf + *a * nf * nf / 2.0 + j * nf * nf * nf / 6.0;
-            *v += *a * nf + j * nf * nf / 2.0;
-            *a += j * nf;
-        };
-        let ndelay = ticks(delay);
-        push(ndelay, 0.0, 0.0, &mut p, &mut v, &mut a);
-        // Acceleration: peak acceleration so that v reaches v_cpt exactly after nca + 2·nja ticks.
-        let acc = v_cpt / f64::from(nca + nja);
-        let jerk_a = if nja > 0 { acc / f64::from(nja) } else { 0.0 };
-        if nja > 0 {
-            push(nja, 0.0, jerk_a, &mut p, &mut v, &mut a);
-        }
-        push(nca, acc, 0.0, &mut p, &mut v, &mut a);
-        if nja > 0 {
-            push(nja, acc, -jerk_a, &mut p, &mut v, &mut a);
-        }
-        v = v_cpt;
-        let dec = v_cpt / f64::from(ncd + njd);
-        let jerk_d = if njd > 0 { dec / f64::from(njd) } else { 0.0 };
-        match hold {
-            None => push(u32::MAX, 0.0, 0.0, &mut p, &mut v, &mut a),
-            Some(h) => {
-                push(ticks(h), 0.0, 0.0, &mut p, &mut v, &mut a);
-                if njd > 0 {
-                    push(njd, 0.0, -jerk_d, &mut p, &mut v, &mut a);
-                }
-                push(ncd, -dec, 0.0, &mut p, &mut v, &mut a);
-                if njd > 0 {
-                    push(njd, -dec, jerk_d, &mut p, &mut v, &mut a);
-                }
-                v = 0.0;
-                push(u32::MAX, 0.0, 0.0, &mut p, &mut v, &mut a);
-            }
-        }
-        let k_vel = crate::per_unit::checked_q::<TickGain>(g.vel_tick_pu_per_count).ok_or(
-            ConfigError::overflow::<TickGain>(
-                "pu per count per velocity tick",
-                g.vel_tick_pu_per_count,
-            ),
-        )?;
-        let k_acc = crate::per_unit::checked_q::<Gain>(g.vel_tick_pu_s_per_count).ok_or(
-            ConfigError::overflow::<Gain>(
-                "pu/s per count per velocity tick²",
-                g.vel_tick_pu_s_per_count,
-            ),
-        )?;
-        let first = segs.first().copied().unwrap_or_default();
-        let bounded = segs.iter().take(count).all(Segment::adds_are_bounded);
+    /// Build a profile from a drive's designed gains ([`crate::design()`], whose
+    /// [`Gains::cfg`] supplies the rates and the encoder), starting at position 0 counts:
+    /// the same profile as [`Profile::new`] without designing the drive again.
+    ///
+    /// ```
+    /// use controller_core::{design, Profile, ProfileConfig};
+    /// # let drive: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let g = design(&drive).unwrap();
+    /// let p = Profile::from_gains(&ProfileConfig::fig6(), &g).unwrap();
+    /// assert_eq!(p, Profile::new(&ProfileConfig::fig6(), &drive).unwrap());
+    /// ```
+    pub fn from_gains(cfg: &ProfileConfig, g: &Gains) -> Result<Self, ConfigError> {
+        let s = Settings::validate(cfg)?;
+        let drive = &g.cfg;
+        let f = f64::from(drive.velocity_rate_hz);
+        let cpps = f64::from(counts_per_pu_s(drive.encoder_cpr, drive.base_speed_rpm));
+        let Planner {
+            segs: segments,
+            count,
+            ..
+        } = Planner::plan(&s, f, cpps);
+        let (k_vel, k_acc) = output_gains(g)?;
+        let first = segments.first().copied().unwrap_or_default();
+        let bounded = segments.iter().take(count).all(Segment::adds_are_bounded);
         Ok(Self {
-            segments: segs,
+            segments,
             count,
             k_vel,
             k_acc,
