@@ -121,16 +121,8 @@ mod target {
         let Some(mut core) = cortex_m::Peripherals::take() else {
             exit(false)
         };
-        // The drive baked from configs/table1.toml; an image whose settings do not decode
-        // stays in its safe state (outputs never enabled) and reports it.
-        let cfg = match firmware::drive::baked() {
-            Ok(cfg) => cfg,
-            Err(e) => {
-                defmt::error!("baked drive settings: {}", defmt::Debug2Format(&e));
-                exit(false)
-            }
-        };
-        let mut b = board::init(&mut core, &cfg);
+        let cfg = baked_settings();
+        let b = board::init(&mut core, &cfg);
         defmt::info!(
             "stiffdrive firmware {=str} on {=str}: current loop {=u32} Hz, velocity loop {=u32} Hz",
             env!("CARGO_PKG_VERSION"),
@@ -138,26 +130,49 @@ mod target {
             cfg.current_rate_hz,
             cfg.velocity_rate_hz
         );
-        let app = match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
-            Ok(app) => app,
-            Err(e) => {
-                defmt::error!("bad settings: {}", defmt::Debug2Format(&e));
-                exit(false)
-            }
-        };
-        let profile = match Profile::new(&MOVE, &cfg) {
-            Ok(p) => p,
-            Err(e) => {
-                defmt::error!("bad profile: {}", defmt::Display2Format(&e));
-                exit(false)
-            }
-        };
+        let (app, motion) = app_and_motion(&cfg);
         let mem = firmware::rt::memory_use();
         defmt::info!(
             "image: {=u32} bytes of flash, {=u32} bytes of static RAM",
             mem.flash_bytes,
             mem.static_ram_bytes
         );
+        LOOPS.install(app, b.current_io, b.velocity_io, motion);
+        // QEMU demo: enable at once. The real board waits for `e` on the console.
+        #[cfg(not(feature = "board-stm32f4"))]
+        enable(true);
+        board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+        run(b.console)
+    }
+
+    /// The drive baked from configs/table1.toml; an image whose settings do not decode
+    /// stays in its safe state (outputs never enabled) and reports it.
+    fn baked_settings() -> DriveConfig {
+        match firmware::drive::baked() {
+            Ok(cfg) => cfg,
+            Err(e) => {
+                defmt::error!("baked drive settings: {}", defmt::Debug2Format(&e));
+                exit(false)
+            }
+        }
+    }
+
+    /// The app for `cfg` and the gated demo move; exits on bad settings.
+    fn app_and_motion(cfg: &DriveConfig) -> (App, GatedMove) {
+        let app = match App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+            Ok(app) => app,
+            Err(e) => {
+                defmt::error!("bad settings: {}", defmt::Debug2Format(&e));
+                exit(false)
+            }
+        };
+        let profile = match Profile::new(&MOVE, cfg) {
+            Ok(p) => p,
+            Err(e) => {
+                defmt::error!("bad profile: {}", defmt::Display2Format(&e));
+                exit(false)
+            }
+        };
         let motion = GatedMove {
             base: profile,
             profile,
@@ -165,12 +180,12 @@ mod target {
             moving: false,
             counter_bits: cfg.counter_bits,
         };
-        LOOPS.install(app, b.current_io, b.velocity_io, motion);
-        // QEMU demo: enable at once. The real board waits for `e` on the console.
-        #[cfg(not(feature = "board-stm32f4"))]
-        enable(true);
-        board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+        (app, motion)
+    }
 
+    /// Thread mode with the loops running: serve dump requests (and, under QEMU, ask for
+    /// one dump itself and finish the run after `RUN_TICKS`).
+    fn run(mut console: board::Console) -> ! {
         let mut dumps = 0_u32;
         #[cfg(not(feature = "board-stm32f4"))]
         let mut self_dump_asked = false;
@@ -186,7 +201,7 @@ mod target {
                 defmt::info!("dump requested at tick {=u32}", ticks);
                 LOOPS.with_app(|app| app.request_dump());
             }
-            if let Some(n) = dump(&mut b.console) {
+            if let Some(n) = dump(&mut console) {
                 dumps += 1;
                 defmt::info!(
                     "trace dump {=u32}: {=usize} samples on the console",

@@ -51,79 +51,39 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         observer,
         faults,
     } = *cfg;
-    let AccelFeedbackConfig {
-        mode,
-        gain_fraction,
-        filter,
-        rate,
-        source,
-    } = accel_feedback;
-    let ObserverConfig {
-        bandwidth_hz,
-        model_inertia,
-        torque_input,
-    } = observer;
-    let FaultLimits {
-        overspeed_pu,
-        following_error_counts,
-        encoder_jump_margin,
-    } = faults;
-    w.u32(base_speed_rpm.to_bits())?
-        .u32(encoder_cpr)?
-        .u8(counter_bits)?
-        .u32(current_rate_hz)?
-        .u32(velocity_rate_hz)?;
-    for x in [
-        motor_inertia_s,
-        load_inertia_s,
-        position_bandwidth_rad_s,
-        velocity_bandwidth_rad_s,
-        velocity_damping,
-    ] {
-        w.u32(x.to_bits())?;
-    }
-    w.u8(match velocity_pi_inertia {
-        PiInertia::Total => 0,
-        PiInertia::TotalPlusAfb => 1,
-    })?;
-    for x in [
-        current_bandwidth_rad_s,
-        winding_resistance_pu,
-        winding_inductance_pu_s,
-        torque_limit_pu,
-        voltage_limit_pu,
-        velocity_ff_gain,
-        accel_ff_gain,
-    ] {
-        w.u32(x.to_bits())?;
-    }
+    put_machine(
+        w,
+        &Machine {
+            base_speed_rpm,
+            encoder_cpr,
+            counter_bits,
+            current_rate_hz,
+            velocity_rate_hz,
+            motor_inertia_s,
+            load_inertia_s,
+        },
+    )?;
+    put_loops(
+        w,
+        &Loops {
+            position_bandwidth_rad_s,
+            velocity_bandwidth_rad_s,
+            velocity_damping,
+            velocity_pi_inertia,
+            current_bandwidth_rad_s,
+            winding_resistance_pu,
+            winding_inductance_pu_s,
+            torque_limit_pu,
+            voltage_limit_pu,
+            velocity_ff_gain,
+            accel_ff_gain,
+        },
+    )?;
     put_filter(w, velocity_filter)?;
     w.u8(estimator_byte(velocity_estimator))?;
-    w.u8(match mode {
-        AfbMode::Off => 0,
-        AfbMode::Plain => 1,
-        AfbMode::Error => 2,
-    })?
-    .u32(gain_fraction.to_bits())?;
-    put_filter(w, filter)?;
-    w.u8(match rate {
-        AfbRate::Current => 0,
-        AfbRate::Velocity => 1,
-    })?
-    .u8(estimator_byte(source))?
-    .u32(bandwidth_hz.to_bits())?
-    .u8(match model_inertia {
-        ObserverInertia::Total => 0,
-        ObserverInertia::Motor => 1,
-    })?
-    .u8(match torque_input {
-        ObserverTorque::Command => 0,
-        ObserverTorque::MeasuredCurrent => 1,
-    })?
-    .u32(overspeed_pu.to_bits())?
-    .u32(following_error_counts.to_bits())?
-    .u32(encoder_jump_margin.to_bits())?;
-    Ok(())
+    put_accel_feedback(w, accel_feedback)?;
+    put_observer(w, observer)?;
+    put_faults(w, faults)
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
@@ -136,60 +96,33 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         kind: FrameKind::Config as u8,
         len: u8::try_from(payload.len()).unwrap_or(u8::MAX),
     };
-    let base_speed_rpm = f(&mut r)?;
-    let encoder_cpr = r.u32()?;
-    let counter_bits = r.u8()?;
-    let current_rate_hz = r.u32()?;
-    let velocity_rate_hz = r.u32()?;
-    let motor_inertia_s = f(&mut r)?;
-    let load_inertia_s = f(&mut r)?;
-    let position_bandwidth_rad_s = f(&mut r)?;
-    let velocity_bandwidth_rad_s = f(&mut r)?;
-    let velocity_damping = f(&mut r)?;
-    let velocity_pi_inertia = match r.u8()? {
-        0 => PiInertia::Total,
-        1 => PiInertia::TotalPlusAfb,
-        _ => return Err(bad),
-    };
-    let current_bandwidth_rad_s = f(&mut r)?;
-    let winding_resistance_pu = f(&mut r)?;
-    let winding_inductance_pu_s = f(&mut r)?;
-    let torque_limit_pu = f(&mut r)?;
-    let voltage_limit_pu = f(&mut r)?;
-    let velocity_ff_gain = f(&mut r)?;
-    let accel_ff_gain = f(&mut r)?;
+    let Machine {
+        base_speed_rpm,
+        encoder_cpr,
+        counter_bits,
+        current_rate_hz,
+        velocity_rate_hz,
+        motor_inertia_s,
+        load_inertia_s,
+    } = get_machine(&mut r)?;
+    let Loops {
+        position_bandwidth_rad_s,
+        velocity_bandwidth_rad_s,
+        velocity_damping,
+        velocity_pi_inertia,
+        current_bandwidth_rad_s,
+        winding_resistance_pu,
+        winding_inductance_pu_s,
+        torque_limit_pu,
+        voltage_limit_pu,
+        velocity_ff_gain,
+        accel_ff_gain,
+    } = get_loops(&mut r, bad)?;
     let velocity_filter = get_filter(&mut r, bad)?;
     let velocity_estimator = get_estimator(&mut r, bad)?;
-    let mode = match r.u8()? {
-        0 => AfbMode::Off,
-        1 => AfbMode::Plain,
-        2 => AfbMode::Error,
-        _ => return Err(bad),
-    };
-    let gain_fraction = f(&mut r)?;
-    let filter = get_filter(&mut r, bad)?;
-    let rate = match r.u8()? {
-        0 => AfbRate::Current,
-        1 => AfbRate::Velocity,
-        _ => return Err(bad),
-    };
-    let source = get_estimator(&mut r, bad)?;
-    let bandwidth_hz = f(&mut r)?;
-    let model_inertia = match r.u8()? {
-        0 => ObserverInertia::Total,
-        1 => ObserverInertia::Motor,
-        _ => return Err(bad),
-    };
-    let torque_input = match r.u8()? {
-        0 => ObserverTorque::Command,
-        1 => ObserverTorque::MeasuredCurrent,
-        _ => return Err(bad),
-    };
-    let faults = FaultLimits {
-        overspeed_pu: f(&mut r)?,
-        following_error_counts: f(&mut r)?,
-        encoder_jump_margin: f(&mut r)?,
-    };
+    let accel_feedback = get_accel_feedback(&mut r, bad)?;
+    let observer = get_observer(&mut r, bad)?;
+    let faults = get_faults(&mut r)?;
     r.finish()?;
     Ok(DriveConfig {
         base_speed_rpm,
@@ -212,19 +145,212 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         accel_ff_gain,
         velocity_filter,
         velocity_estimator,
-        accel_feedback: AccelFeedbackConfig {
-            mode,
-            gain_fraction,
-            filter,
-            rate,
-            source,
-        },
-        observer: ObserverConfig {
-            bandwidth_hz,
-            model_inertia,
-            torque_input,
-        },
+        accel_feedback,
+        observer,
         faults,
+    })
+}
+
+/// The machine group of [`DriveConfig`]: speed base, encoder, loop rates, inertias.
+struct Machine {
+    base_speed_rpm: f32,
+    encoder_cpr: u32,
+    counter_bits: u8,
+    current_rate_hz: u32,
+    velocity_rate_hz: u32,
+    motor_inertia_s: f32,
+    load_inertia_s: f32,
+}
+
+/// The loops group of [`DriveConfig`]: bandwidths, the current loop's winding model,
+/// limits and feedforward gains.
+struct Loops {
+    position_bandwidth_rad_s: f32,
+    velocity_bandwidth_rad_s: f32,
+    velocity_damping: f32,
+    velocity_pi_inertia: PiInertia,
+    current_bandwidth_rad_s: f32,
+    winding_resistance_pu: f32,
+    winding_inductance_pu_s: f32,
+    torque_limit_pu: f32,
+    voltage_limit_pu: f32,
+    velocity_ff_gain: f32,
+    accel_ff_gain: f32,
+}
+
+fn put_machine(w: &mut Writer, m: &Machine) -> Result<(), LinkError> {
+    w.u32(m.base_speed_rpm.to_bits())?
+        .u32(m.encoder_cpr)?
+        .u8(m.counter_bits)?
+        .u32(m.current_rate_hz)?
+        .u32(m.velocity_rate_hz)?
+        .u32(m.motor_inertia_s.to_bits())?
+        .u32(m.load_inertia_s.to_bits())?;
+    Ok(())
+}
+
+fn get_machine(r: &mut Reader<'_>) -> Result<Machine, LinkError> {
+    Ok(Machine {
+        base_speed_rpm: f(r)?,
+        encoder_cpr: r.u32()?,
+        counter_bits: r.u8()?,
+        current_rate_hz: r.u32()?,
+        velocity_rate_hz: r.u32()?,
+        motor_inertia_s: f(r)?,
+        load_inertia_s: f(r)?,
+    })
+}
+
+fn put_loops(w: &mut Writer, l: &Loops) -> Result<(), LinkError> {
+    for x in [
+        l.position_bandwidth_rad_s,
+        l.velocity_bandwidth_rad_s,
+        l.velocity_damping,
+    ] {
+        w.u32(x.to_bits())?;
+    }
+    w.u8(match l.velocity_pi_inertia {
+        PiInertia::Total => 0,
+        PiInertia::TotalPlusAfb => 1,
+    })?;
+    for x in [
+        l.current_bandwidth_rad_s,
+        l.winding_resistance_pu,
+        l.winding_inductance_pu_s,
+        l.torque_limit_pu,
+        l.voltage_limit_pu,
+        l.velocity_ff_gain,
+        l.accel_ff_gain,
+    ] {
+        w.u32(x.to_bits())?;
+    }
+    Ok(())
+}
+
+fn get_loops(r: &mut Reader<'_>, bad: LinkError) -> Result<Loops, LinkError> {
+    Ok(Loops {
+        position_bandwidth_rad_s: f(r)?,
+        velocity_bandwidth_rad_s: f(r)?,
+        velocity_damping: f(r)?,
+        velocity_pi_inertia: match r.u8()? {
+            0 => PiInertia::Total,
+            1 => PiInertia::TotalPlusAfb,
+            _ => return Err(bad),
+        },
+        current_bandwidth_rad_s: f(r)?,
+        winding_resistance_pu: f(r)?,
+        winding_inductance_pu_s: f(r)?,
+        torque_limit_pu: f(r)?,
+        voltage_limit_pu: f(r)?,
+        velocity_ff_gain: f(r)?,
+        accel_ff_gain: f(r)?,
+    })
+}
+
+fn put_accel_feedback(w: &mut Writer, afb: AccelFeedbackConfig) -> Result<(), LinkError> {
+    let AccelFeedbackConfig {
+        mode,
+        gain_fraction,
+        filter,
+        rate,
+        source,
+    } = afb;
+    w.u8(match mode {
+        AfbMode::Off => 0,
+        AfbMode::Plain => 1,
+        AfbMode::Error => 2,
+    })?
+    .u32(gain_fraction.to_bits())?;
+    put_filter(w, filter)?;
+    w.u8(match rate {
+        AfbRate::Current => 0,
+        AfbRate::Velocity => 1,
+    })?
+    .u8(estimator_byte(source))?;
+    Ok(())
+}
+
+fn get_accel_feedback(
+    r: &mut Reader<'_>,
+    bad: LinkError,
+) -> Result<AccelFeedbackConfig, LinkError> {
+    let mode = match r.u8()? {
+        0 => AfbMode::Off,
+        1 => AfbMode::Plain,
+        2 => AfbMode::Error,
+        _ => return Err(bad),
+    };
+    let gain_fraction = f(r)?;
+    let filter = get_filter(r, bad)?;
+    let rate = match r.u8()? {
+        0 => AfbRate::Current,
+        1 => AfbRate::Velocity,
+        _ => return Err(bad),
+    };
+    let source = get_estimator(r, bad)?;
+    Ok(AccelFeedbackConfig {
+        mode,
+        gain_fraction,
+        filter,
+        rate,
+        source,
+    })
+}
+
+fn put_observer(w: &mut Writer, observer: ObserverConfig) -> Result<(), LinkError> {
+    let ObserverConfig {
+        bandwidth_hz,
+        model_inertia,
+        torque_input,
+    } = observer;
+    w.u32(bandwidth_hz.to_bits())?
+        .u8(match model_inertia {
+            ObserverInertia::Total => 0,
+            ObserverInertia::Motor => 1,
+        })?
+        .u8(match torque_input {
+            ObserverTorque::Command => 0,
+            ObserverTorque::MeasuredCurrent => 1,
+        })?;
+    Ok(())
+}
+
+fn get_observer(r: &mut Reader<'_>, bad: LinkError) -> Result<ObserverConfig, LinkError> {
+    let bandwidth_hz = f(r)?;
+    let model_inertia = match r.u8()? {
+        0 => ObserverInertia::Total,
+        1 => ObserverInertia::Motor,
+        _ => return Err(bad),
+    };
+    let torque_input = match r.u8()? {
+        0 => ObserverTorque::Command,
+        1 => ObserverTorque::MeasuredCurrent,
+        _ => return Err(bad),
+    };
+    Ok(ObserverConfig {
+        bandwidth_hz,
+        model_inertia,
+        torque_input,
+    })
+}
+
+fn put_faults(w: &mut Writer, faults: FaultLimits) -> Result<(), LinkError> {
+    let FaultLimits {
+        overspeed_pu,
+        following_error_counts,
+        encoder_jump_margin,
+    } = faults;
+    w.u32(overspeed_pu.to_bits())?
+        .u32(following_error_counts.to_bits())?
+        .u32(encoder_jump_margin.to_bits())?;
+    Ok(())
+}
+
+fn get_faults(r: &mut Reader<'_>) -> Result<FaultLimits, LinkError> {
+    Ok(FaultLimits {
+        overspeed_pu: f(r)?,
+        following_error_counts: f(r)?,
+        encoder_jump_margin: f(r)?,
     })
 }
 

@@ -20,14 +20,19 @@
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
+#[path = "fw_bench/blocks.rs"]
+mod blocks;
+#[cfg(target_os = "none")]
+#[path = "fw_bench/report.rs"]
+mod report;
+#[cfg(target_os = "none")]
+#[path = "fw_bench/window.rs"]
+mod window;
+
+#[cfg(target_os = "none")]
 mod target {
     use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
 
-    use controller_core::controller::Blocks;
-    use controller_core::filter::LowPassState;
-    use controller_core::observer::ObserverState;
-    use controller_core::per_unit::count_diff;
-    use controller_core::pi::PiState;
     use controller_core::{
         Controller, CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu, Setpoint,
         VelocityInputs,
@@ -42,144 +47,46 @@ mod target {
     use firmware::rt::{exit, memory_use, paint_stack, stack_high_water_bytes};
     use firmware::synthetic::{SyntheticCurrentIo, SyntheticSensors, SyntheticVelocityIo};
 
-    /// Instructions per SysTick count: 1 instruction = 1 ns (icount shift=0), 25 MHz clock.
-    const INSTRUCTIONS_PER_COUNT: u32 = 1_000_000_000 / board::CORE_CLOCK_HZ;
+    use crate::blocks::{current_blocks, velocity_blocks};
+    use crate::report::{self, Results};
+    use crate::window::{calibrate, dither, elapsed, per_call};
+
     /// Budget of one 4 kHz period: current tick + half a velocity tick [instructions]: the
     /// 786 measured after issue 15 plus 10 %, so a regression of that size fails the bench.
-    const PERIOD_BUDGET: u32 = 865;
+    pub(crate) const PERIOD_BUDGET: u32 = 865;
     /// Current ticks before measuring (start-up: estimator priming).
     const WARMUP_TICKS: u32 = 100;
     /// Measured current ticks (and half as many velocity ticks).
-    const MEASURED_TICKS: u32 = 2000;
+    pub(crate) const MEASURED_TICKS: u32 = 2000;
 
-    static LOOPS: Loops<SyntheticCurrentIo, SyntheticVelocityIo, Profile> = Loops::new();
+    pub(crate) static LOOPS: Loops<SyntheticCurrentIo, SyntheticVelocityIo, Profile> = Loops::new();
     /// The sensor generator and its own copy of the profile (the motion it follows).
     static SENSORS: TaskLocal<(SyntheticSensors, Profile, Setpoint)> = TaskLocal::new();
 
     static CURRENT_TICKS: AtomicU32 = AtomicU32::new(0);
     static CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
-    static CURRENT_SAMPLES: AtomicU32 = AtomicU32::new(0);
-    static CURRENT_OVERHEAD: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static CURRENT_SAMPLES: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static CURRENT_OVERHEAD: AtomicU32 = AtomicU32::new(0);
     static VELOCITY_TICKS: AtomicU32 = AtomicU32::new(0);
     static VELOCITY_COUNTS: AtomicU32 = AtomicU32::new(0);
-    static VELOCITY_SAMPLES: AtomicU32 = AtomicU32::new(0);
-    static VELOCITY_OVERHEAD: AtomicU32 = AtomicU32::new(0);
-    static DISTURBED: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static VELOCITY_SAMPLES: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static VELOCITY_OVERHEAD: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static DISTURBED: AtomicU32 = AtomicU32::new(0);
     /// Longest single window [SysTick counts].
-    static CURRENT_MAX: AtomicU32 = AtomicU32::new(0);
-    static VELOCITY_MAX: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static CURRENT_MAX: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static VELOCITY_MAX: AtomicU32 = AtomicU32::new(0);
     /// A second, bare controller fed the same inputs: the core's share of the figures.
     static BARE: TaskLocal<(Controller, Profile)> = TaskLocal::new();
-    static BARE_CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
-    static BARE_VELOCITY_COUNTS: AtomicU32 = AtomicU32::new(0);
-    static BARE_PROFILE_COUNTS: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static BARE_CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static BARE_VELOCITY_COUNTS: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static BARE_PROFILE_COUNTS: AtomicU32 = AtomicU32::new(0);
     /// The commanded acceleration of the last velocity tick (raw Q16.16), for the AFB block.
     static LAST_ACCEL_CMD: AtomicI32 = AtomicI32::new(0);
-
-    /// The bare controller's blocks, each timed on its own with its own state, fed the
-    /// bare controller's signals: where the core's instructions go.
-    struct BlockBench {
-        blocks: Blocks,
-        observer: ObserverState,
-        afb_filter: LowPassState,
-        filter_alone: LowPassState,
-        current_pi: PiState,
-        velocity_pi: PiState,
-        /// Unwrapped encoder position [counts] and the last raw reading.
-        position: i64,
-        last_raw: u32,
-        /// Torque reference of the last current tick (the observer's input) [pu].
-        torque: Pu,
-    }
-    static BLOCKS: TaskLocal<BlockBench> = TaskLocal::new();
-
-    /// The timed blocks, in table order.
-    #[derive(Clone, Copy)]
-    enum Block {
-        ObserverUpdate,
-        ObserverReads,
-        AfbClosed,
-        FirstOrderFilter,
-        CurrentPi,
-        VelocityPi,
-    }
-    const BLOCK_COUNT: usize = 6;
-    static BLOCK_COUNTS: [AtomicU32; BLOCK_COUNT] = [const { AtomicU32::new(0) }; BLOCK_COUNT];
-
-    /// Run `f` in a measured window (dithered, like the ticks) and add its SysTick counts
-    /// to `block`'s total.
-    #[inline(always)]
-    fn timed<R>(block: Block, phase: u32, f: impl FnOnce() -> R) -> R {
-        dither(phase);
-        let t0 = SYST::get_current();
-        let r = core::hint::black_box(f());
-        let t1 = SYST::get_current();
-        if let Some(total) = BLOCK_COUNTS.get(block as usize) {
-            total.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-        }
-        r
-    }
-
-    /// The current-rate blocks (observer, closed-form AFB with its filter, the filter step
-    /// alone, current PI) on this tick's encoder reading and the bare tick's current
-    /// reference.
-    fn current_blocks(tick: u32, raw: u32, current: Pu, a_cmd: Pu, i_vel: Pu) {
-        let _ = BLOCKS.with(|b| {
-            let d = count_diff(raw, b.last_raw, 16);
-            b.last_raw = raw;
-            b.position = b.position.wrapping_add(i64::from(d));
-            let (position, torque) = core::hint::black_box((b.position, b.torque));
-            let obs = b.blocks.observer;
-            timed(Block::ObserverUpdate, tick % 11, || {
-                obs.update(&mut b.observer, position, torque)
-            });
-            let afb = b.blocks.accel_feedback;
-            let os = b.observer;
-            let (p, c) = core::hint::black_box((i_vel, a_cmd));
-            let term = timed(Block::AfbClosed, tick % 7, || {
-                afb.update_closed_from(&mut b.afb_filter, p, c, |t| {
-                    obs.predicted_acceleration_pu_s(&os, t)
-                })
-            });
-            let x = core::hint::black_box(c);
-            let _ = timed(Block::FirstOrderFilter, tick % 5, || {
-                afb.filter.process(&mut b.filter_alone, x)
-            });
-            let limit = afb.limit;
-            let i_ref = i_vel.saturating_add(term).max(-limit).min(limit);
-            b.torque = i_ref;
-            let e = core::hint::black_box(i_ref.saturating_sub(current));
-            let pi = b.blocks.current_regulator;
-            let _ = timed(Block::CurrentPi, tick % 13, || {
-                pi.update(&mut b.current_pi, e, Pu::ZERO)
-            });
-        });
-    }
-
-    /// The velocity-rate blocks (observer outputs, velocity PI) on the bare tick's signals.
-    fn velocity_blocks(tick: u32, e: Pu, ff: Pu, afb: Pu) {
-        let _ = BLOCKS.with(|b| {
-            let obs = b.blocks.observer;
-            let os = core::hint::black_box(b.observer);
-            let _ = timed(Block::ObserverReads, tick % 11, || {
-                (
-                    obs.velocity_pu(&os),
-                    obs.acceleration_pu_s(&os),
-                    obs.load_torque_pu(&os),
-                )
-            });
-            let (e, ff, afb) = core::hint::black_box((e, ff, afb));
-            let pi = b.blocks.velocity_regulator;
-            let _ = timed(Block::VelocityPi, tick % 13, || {
-                pi.update_with_offset(&mut b.velocity_pi, e, ff, afb)
-            });
-        });
-    }
 
     /// Velocity tick (after the measurement) that checks the priorities.
     const PREEMPTION_CHECK_TICK: u32 = (WARMUP_TICKS + MEASURED_TICKS) / 2 + 10;
     /// Current ticks that ran inside the stretched velocity interrupt.
-    static PREEMPTIONS: AtomicU32 = AtomicU32::new(0);
+    pub(crate) static PREEMPTIONS: AtomicU32 = AtomicU32::new(0);
 
     /// Check that the current loop preempts the velocity loop: stay in the velocity
     /// interrupt for 600 µs (2.4 current periods, timed on SysTick) and count the current
@@ -192,19 +99,6 @@ mod target {
         while elapsed(start, SYST::get_current()) < counts {}
         let ran = CURRENT_TICKS.load(Ordering::Relaxed).wrapping_sub(before);
         PREEMPTIONS.store(ran, Ordering::Relaxed);
-    }
-
-    /// Spin `n` short iterations: shifts the window's phase against the SysTick edges.
-    #[inline(never)]
-    fn dither(n: u32) {
-        for i in 0..n {
-            core::hint::black_box(i);
-        }
-    }
-
-    /// SysTick counts elapsed between two readings of the 24-bit down-counter.
-    fn elapsed(start: u32, end: u32) -> u32 {
-        start.wrapping_sub(end) & 0x00FF_FFFF
     }
 
     fn measuring(tick: u32) -> bool {
@@ -339,57 +233,6 @@ mod target {
         start_delay_s: 0.0,
     };
 
-    /// Check the method on known code: 1,000 NOPs, timed like a tick (dithered windows net
-    /// of the empty-window overhead), 500 times. Returns instructions per block.
-    fn calibrate() -> u32 {
-        let (mut counts, mut overhead) = (0_u32, 0_u32);
-        for k in 0..500_u32 {
-            dither(k % 23);
-            let t0 = SYST::get_current();
-            let t1 = SYST::get_current();
-            overhead += elapsed(t0, t1);
-            dither(k % 17);
-            let t0 = SYST::get_current();
-            thousand_nops();
-            let t1 = SYST::get_current();
-            counts += elapsed(t0, t1);
-        }
-        (counts.saturating_sub(overhead) * INSTRUCTIONS_PER_COUNT + 250) / 500
-    }
-
-    /// Exactly 1,000 NOP instructions, plus the call and return.
-    #[inline(never)]
-    fn thousand_nops() {
-        // SAFETY: NOPs have no effect.
-        #[allow(unsafe_code)]
-        unsafe {
-            core::arch::asm!(
-                ".rept 1000",
-                "nop",
-                ".endr",
-                options(nomem, nostack, preserves_flags)
-            );
-        }
-    }
-
-    /// Average net instructions per window.
-    fn per_call(counts: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32) -> u32 {
-        let n = samples.load(Ordering::Relaxed).max(1);
-        let net = counts
-            .load(Ordering::Relaxed)
-            .saturating_sub(overhead.load(Ordering::Relaxed));
-        // Rounded: (net · 40 + n/2) / n.
-        (net.saturating_mul(INSTRUCTIONS_PER_COUNT) + n / 2) / n
-    }
-
-    /// Longest window net of the mean measuring overhead [instructions].
-    fn longest(max: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32) -> u32 {
-        let n = samples.load(Ordering::Relaxed).max(1);
-        let max = max.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT;
-        let mean_overhead = overhead.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT / n;
-        max.saturating_sub(mean_overhead)
-    }
-
     #[entry]
     fn main() -> ! {
         paint_stack();
@@ -402,9 +245,25 @@ mod target {
         };
         // The board brings up its console and outputs; the drive I/O here is synthetic.
         let _board = board::init(&mut core, &cfg);
+        install(&cfg);
+        start_systick(&mut core.SYST);
+        let calibration = calibrate();
+        board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+        while CURRENT_TICKS.load(Ordering::Relaxed) < WARMUP_TICKS + MEASURED_TICKS + 60 {
+            cortex_m::asm::wfi();
+        }
+        board::stop();
+        let results = results(calibration);
+        report::print(&results);
+        report::verdict(&results)
+    }
+
+    /// The app and its synthetic I/O in the loops, the bare controller and its block bench,
+    /// the sensor generator; the drive told to enable. Exits on bad settings.
+    fn install(cfg: &DriveConfig) {
         let (app, profile, generator) = match (
-            App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE),
-            Profile::new(&MOVE, &cfg),
+            App::new(cfg, cfg.counter_bits, DEFAULT_TRACE),
+            Profile::new(&MOVE, cfg),
         ) {
             (Ok(app), Ok(profile)) => (app, profile, profile),
             _ => {
@@ -412,19 +271,9 @@ mod target {
                 exit(false)
             }
         };
-        match Controller::new(&cfg) {
+        match Controller::new(cfg) {
             Ok(c) => {
-                let _ = BLOCKS.install(BlockBench {
-                    blocks: c.blocks(),
-                    observer: ObserverState::default(),
-                    afb_filter: LowPassState::default(),
-                    filter_alone: LowPassState::default(),
-                    current_pi: PiState::default(),
-                    velocity_pi: PiState::default(),
-                    position: 0,
-                    last_raw: 0,
-                    torque: Pu::ZERO,
-                });
+                crate::blocks::install(c.blocks());
                 let _ = BARE.install((c, profile));
             }
             Err(_) => exit(false),
@@ -436,140 +285,33 @@ mod target {
         ));
         LOOPS.install(app, SyntheticCurrentIo, SyntheticVelocityIo, profile);
         LOOPS.with_app(|app| app.set_enable_request(true));
+    }
 
-        core.SYST.set_clock_source(SystClkSource::Core);
-        core.SYST.set_reload(0x00FF_FFFF);
-        core.SYST.clear_current();
-        core.SYST.enable_counter();
-        let calibration = calibrate();
-        board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
-        while CURRENT_TICKS.load(Ordering::Relaxed) < WARMUP_TICKS + MEASURED_TICKS + 60 {
-            cortex_m::asm::wfi();
-        }
-        board::stop();
+    /// SysTick free-running on the core clock over its full 24 bits.
+    fn start_systick(syst: &mut SYST) {
+        syst.set_clock_source(SystClkSource::Core);
+        syst.set_reload(0x00FF_FFFF);
+        syst.clear_current();
+        syst.enable_counter();
+    }
 
+    /// The figures of the stopped run (before anything else uses the stack).
+    fn results(calibration: u32) -> Results {
         let current = per_call(&CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES);
         let velocity = per_call(&VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES);
         let period = current + velocity / 2;
         let fault = LOOPS.with_app(|app| app.fault()).flatten();
         let mem = memory_use();
         let stack = stack_high_water_bytes();
-        defmt::info!("fw-bench: instruction counts (QEMU -icount shift=0: 1 instruction = 1 ns, SysTick at {=u32} Hz = {=u32} instructions per count); these are instructions, not cycles", board::CORE_CLOCK_HZ, INSTRUCTIONS_PER_COUNT);
-        defmt::info!(
-            "calibration: a block of 1000 NOPs (+ call/return) measures {=u32} instructions",
-            calibration
-        );
-        defmt::info!(
-            "measured: {=u32} current ticks, {=u32} velocity ticks ({=u32} disturbed), averaged",
-            CURRENT_SAMPLES.load(Ordering::Relaxed),
-            VELOCITY_SAMPLES.load(Ordering::Relaxed),
-            DISTURBED.load(Ordering::Relaxed)
-        );
-        defmt::info!("current_tick_instructions: {=u32}", current);
-        defmt::info!("velocity_tick_instructions: {=u32}", velocity);
-        defmt::info!(
-            "longest single tick: current {=u32}, velocity {=u32} instructions (one window, ±{=u32})",
-            longest(&CURRENT_MAX, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
-            longest(&VELOCITY_MAX, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
-            INSTRUCTIONS_PER_COUNT
-        );
-        defmt::info!(
-            "period_instructions: {=u32} (current + velocity/2; budget {=u32})",
+        Results {
+            calibration,
+            current,
+            velocity,
             period,
-            PERIOD_BUDGET
-        );
-        defmt::info!(
-            "of which controller-core alone: Controller::current_tick {=u32}, Controller::velocity_tick {=u32}, Profile::next {=u32} (the rest is the firmware's board I/O, locking and trend buffer)",
-            per_call(&BARE_CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
-            per_call(&BARE_VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
-            per_call(&BARE_PROFILE_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES)
-        );
-        let bare_current = per_call(&BARE_CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES);
-        let bare_velocity = per_call(&BARE_VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES);
-        let profile_next = per_call(&BARE_PROFILE_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES);
-        let block = |b: Block, velocity_rate: bool| {
-            let (overhead, samples) = if velocity_rate {
-                (&VELOCITY_OVERHEAD, &VELOCITY_SAMPLES)
-            } else {
-                (&CURRENT_OVERHEAD, &CURRENT_SAMPLES)
-            };
-            BLOCK_COUNTS
-                .get(b as usize)
-                .map_or(0, |total| per_call(total, overhead, samples))
-        };
-        let observer_update = block(Block::ObserverUpdate, false);
-        let afb_closed = block(Block::AfbClosed, false);
-        let current_pi = block(Block::CurrentPi, false);
-        let observer_reads = block(Block::ObserverReads, true);
-        let velocity_pi = block(Block::VelocityPi, true);
-        defmt::info!("per-block instructions (each block timed alone on the bare controller's signals; a 4 kHz period runs the current-rate rows once and the velocity-rate rows half the time):");
-        defmt::info!("block current  observer_update: {=u32}", observer_update);
-        defmt::info!(
-            "block current  afb_closed_form (incl. its first-order filter and two observer predictions): {=u32}",
-            afb_closed
-        );
-        defmt::info!(
-            "block current  first_order_filter (LowPass::process alone, for reference): {=u32}",
-            block(Block::FirstOrderFilter, false)
-        );
-        defmt::info!("block current  current_pi: {=u32}", current_pi);
-        defmt::info!(
-            "block current  rest_of_current_tick (encoder, observer input, clamps, outputs): {=u32}",
-            bare_current.saturating_sub(observer_update + afb_closed + current_pi)
-        );
-        defmt::info!(
-            "block current  glue (board I/O, locking, enable logic, trend buffer): {=u32}",
-            current.saturating_sub(bare_current)
-        );
-        defmt::info!(
-            "block velocity observer_outputs (velocity, acceleration, load torque): {=u32}",
-            observer_reads
-        );
-        defmt::info!("block velocity velocity_pi: {=u32}", velocity_pi);
-        defmt::info!(
-            "block velocity rest_of_velocity_tick (encoder, position loop, faults, filter, outputs): {=u32}",
-            bare_velocity.saturating_sub(observer_reads + velocity_pi)
-        );
-        defmt::info!("block velocity profile: {=u32}", profile_next);
-        defmt::info!(
-            "block velocity glue (board reads, locking): {=u32}",
-            velocity.saturating_sub(bare_velocity + profile_next)
-        );
-        defmt::info!("flash_bytes: {=u32}", mem.flash_bytes);
-        defmt::info!("static_ram_bytes: {=u32}", mem.static_ram_bytes);
-        defmt::info!("stack_high_water_bytes: {=u32}", stack);
-        let ok_samples = CURRENT_SAMPLES.load(Ordering::Relaxed) == MEASURED_TICKS
-            && VELOCITY_SAMPLES.load(Ordering::Relaxed) >= MEASURED_TICKS / 2 - 1;
-        if fault.is_some() {
-            defmt::error!(
-                "FAIL: the drive faulted ({}): the figures would not be the full path",
-                defmt::Debug2Format(&fault)
-            );
-            exit(false)
+            fault,
+            mem,
+            stack,
         }
-        if !ok_samples || LOOPS.overruns() != 0 {
-            defmt::error!("FAIL: measurement incomplete or disturbed");
-            exit(false)
-        }
-        let preemptions = PREEMPTIONS.load(Ordering::Relaxed);
-        defmt::info!(
-            "preemption: {=u32} current ticks ran inside one 600 µs velocity interrupt",
-            preemptions
-        );
-        if preemptions < 2 {
-            defmt::error!("FAIL: the current loop did not preempt the velocity loop");
-            exit(false)
-        }
-        if period > PERIOD_BUDGET {
-            defmt::error!(
-                "FAIL: {=u32} instructions per 4 kHz period exceeds the budget of {=u32}",
-                period,
-                PERIOD_BUDGET
-            );
-            exit(false)
-        }
-        defmt::info!("PASS: within budget");
-        exit(true)
     }
 }
 

@@ -1,0 +1,154 @@
+//! The bench's log: the figures, the per-block table, the image's memory use, and the
+//! pass/fail verdict.
+
+use core::sync::atomic::Ordering;
+
+use controller_core::Fault;
+use firmware::boards::active as board;
+use firmware::rt::{exit, MemoryUse};
+
+use crate::blocks::{per_block, Block};
+use crate::target::{
+    BARE_CURRENT_COUNTS, BARE_PROFILE_COUNTS, BARE_VELOCITY_COUNTS, CURRENT_MAX, CURRENT_OVERHEAD,
+    CURRENT_SAMPLES, DISTURBED, LOOPS, MEASURED_TICKS, PERIOD_BUDGET, PREEMPTIONS, VELOCITY_MAX,
+    VELOCITY_OVERHEAD, VELOCITY_SAMPLES,
+};
+use crate::window::{longest, per_call, INSTRUCTIONS_PER_COUNT};
+
+/// What the run measured, gathered as soon as the loops stopped.
+pub(crate) struct Results {
+    /// Net instructions of the 1,000-NOP calibration block.
+    pub(crate) calibration: u32,
+    /// Mean current-loop interrupt body [instructions].
+    pub(crate) current: u32,
+    /// Mean velocity-loop interrupt body [instructions].
+    pub(crate) velocity: u32,
+    /// One 4 kHz period: current + velocity / 2 [instructions].
+    pub(crate) period: u32,
+    /// The drive's latched fault, if any.
+    pub(crate) fault: Option<Fault>,
+    pub(crate) mem: MemoryUse,
+    pub(crate) stack: u32,
+}
+
+/// Log the figures: method, interrupt bodies, the core's share, the per-block table, and
+/// the image's memory use.
+pub(crate) fn print(r: &Results) {
+    defmt::info!("fw-bench: instruction counts (QEMU -icount shift=0: 1 instruction = 1 ns, SysTick at {=u32} Hz = {=u32} instructions per count); these are instructions, not cycles", board::CORE_CLOCK_HZ, INSTRUCTIONS_PER_COUNT);
+    defmt::info!(
+        "calibration: a block of 1000 NOPs (+ call/return) measures {=u32} instructions",
+        r.calibration
+    );
+    defmt::info!(
+        "measured: {=u32} current ticks, {=u32} velocity ticks ({=u32} disturbed), averaged",
+        CURRENT_SAMPLES.load(Ordering::Relaxed),
+        VELOCITY_SAMPLES.load(Ordering::Relaxed),
+        DISTURBED.load(Ordering::Relaxed)
+    );
+    defmt::info!("current_tick_instructions: {=u32}", r.current);
+    defmt::info!("velocity_tick_instructions: {=u32}", r.velocity);
+    defmt::info!(
+        "longest single tick: current {=u32}, velocity {=u32} instructions (one window, ±{=u32})",
+        longest(&CURRENT_MAX, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
+        longest(&VELOCITY_MAX, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
+        INSTRUCTIONS_PER_COUNT
+    );
+    defmt::info!(
+        "period_instructions: {=u32} (current + velocity/2; budget {=u32})",
+        r.period,
+        PERIOD_BUDGET
+    );
+    defmt::info!(
+        "of which controller-core alone: Controller::current_tick {=u32}, Controller::velocity_tick {=u32}, Profile::next {=u32} (the rest is the firmware's board I/O, locking and trend buffer)",
+        per_call(&BARE_CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
+        per_call(&BARE_VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
+        per_call(&BARE_PROFILE_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES)
+    );
+    print_blocks(r.current, r.velocity);
+    defmt::info!("flash_bytes: {=u32}", r.mem.flash_bytes);
+    defmt::info!("static_ram_bytes: {=u32}", r.mem.static_ram_bytes);
+    defmt::info!("stack_high_water_bytes: {=u32}", r.stack);
+}
+
+/// The per-block table: each block of the core timed alone, the rest of each tick, and the
+/// firmware glue (the interrupt body minus the core).
+fn print_blocks(current: u32, velocity: u32) {
+    let bare_current = per_call(&BARE_CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES);
+    let bare_velocity = per_call(&BARE_VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES);
+    let profile_next = per_call(&BARE_PROFILE_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES);
+    let observer_update = per_block(Block::ObserverUpdate, false);
+    let afb_closed = per_block(Block::AfbClosed, false);
+    let current_pi = per_block(Block::CurrentPi, false);
+    let observer_reads = per_block(Block::ObserverReads, true);
+    let velocity_pi = per_block(Block::VelocityPi, true);
+    defmt::info!("per-block instructions (each block timed alone on the bare controller's signals; a 4 kHz period runs the current-rate rows once and the velocity-rate rows half the time):");
+    defmt::info!("block current  observer_update: {=u32}", observer_update);
+    defmt::info!(
+        "block current  afb_closed_form (incl. its first-order filter and two observer predictions): {=u32}",
+        afb_closed
+    );
+    defmt::info!(
+        "block current  first_order_filter (LowPass::process alone, for reference): {=u32}",
+        per_block(Block::FirstOrderFilter, false)
+    );
+    defmt::info!("block current  current_pi: {=u32}", current_pi);
+    defmt::info!(
+        "block current  rest_of_current_tick (encoder, observer input, clamps, outputs): {=u32}",
+        bare_current.saturating_sub(observer_update + afb_closed + current_pi)
+    );
+    defmt::info!(
+        "block current  glue (board I/O, locking, enable logic, trend buffer): {=u32}",
+        current.saturating_sub(bare_current)
+    );
+    defmt::info!(
+        "block velocity observer_outputs (velocity, acceleration, load torque): {=u32}",
+        observer_reads
+    );
+    defmt::info!("block velocity velocity_pi: {=u32}", velocity_pi);
+    defmt::info!(
+        "block velocity rest_of_velocity_tick (encoder, position loop, faults, filter, outputs): {=u32}",
+        bare_velocity.saturating_sub(observer_reads + velocity_pi)
+    );
+    defmt::info!("block velocity profile: {=u32}", profile_next);
+    defmt::info!(
+        "block velocity glue (board reads, locking): {=u32}",
+        velocity.saturating_sub(bare_velocity + profile_next)
+    );
+}
+
+/// Exit 1 if the drive faulted, the measurement was incomplete or disturbed, the current
+/// loop did not preempt the velocity loop, or the period is over budget; else exit 0.
+pub(crate) fn verdict(r: &Results) -> ! {
+    let ok_samples = CURRENT_SAMPLES.load(Ordering::Relaxed) == MEASURED_TICKS
+        && VELOCITY_SAMPLES.load(Ordering::Relaxed) >= MEASURED_TICKS / 2 - 1;
+    if r.fault.is_some() {
+        defmt::error!(
+            "FAIL: the drive faulted ({}): the figures would not be the full path",
+            defmt::Debug2Format(&r.fault)
+        );
+        exit(false)
+    }
+    if !ok_samples || LOOPS.overruns() != 0 {
+        defmt::error!("FAIL: measurement incomplete or disturbed");
+        exit(false)
+    }
+    let preemptions = PREEMPTIONS.load(Ordering::Relaxed);
+    defmt::info!(
+        "preemption: {=u32} current ticks ran inside one 600 µs velocity interrupt",
+        preemptions
+    );
+    if preemptions < 2 {
+        defmt::error!("FAIL: the current loop did not preempt the velocity loop");
+        exit(false)
+    }
+    if r.period > PERIOD_BUDGET {
+        defmt::error!(
+            "FAIL: {=u32} instructions per 4 kHz period exceeds the budget of {=u32}",
+            r.period,
+            PERIOD_BUDGET
+        );
+        exit(false)
+    }
+    defmt::info!("PASS: within budget");
+    exit(true)
+}

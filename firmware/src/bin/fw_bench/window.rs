@@ -1,0 +1,74 @@
+//! The measuring window: SysTick readings around a body at a dithered phase, the
+//! calibration on known code, and the conversion of summed counts into instructions.
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m::peripheral::SYST;
+use firmware::boards::active as board;
+
+/// Instructions per SysTick count: 1 instruction = 1 ns (icount shift=0), 25 MHz clock.
+pub(crate) const INSTRUCTIONS_PER_COUNT: u32 = 1_000_000_000 / board::CORE_CLOCK_HZ;
+
+/// Spin `n` short iterations: shifts the window's phase against the SysTick edges.
+#[inline(never)]
+pub(crate) fn dither(n: u32) {
+    for i in 0..n {
+        core::hint::black_box(i);
+    }
+}
+
+/// SysTick counts elapsed between two readings of the 24-bit down-counter.
+pub(crate) fn elapsed(start: u32, end: u32) -> u32 {
+    start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+/// Check the method on known code: 1,000 NOPs, timed like a tick (dithered windows net
+/// of the empty-window overhead), 500 times. Returns instructions per block.
+pub(crate) fn calibrate() -> u32 {
+    let (mut counts, mut overhead) = (0_u32, 0_u32);
+    for k in 0..500_u32 {
+        dither(k % 23);
+        let t0 = SYST::get_current();
+        let t1 = SYST::get_current();
+        overhead += elapsed(t0, t1);
+        dither(k % 17);
+        let t0 = SYST::get_current();
+        thousand_nops();
+        let t1 = SYST::get_current();
+        counts += elapsed(t0, t1);
+    }
+    (counts.saturating_sub(overhead) * INSTRUCTIONS_PER_COUNT + 250) / 500
+}
+
+/// Exactly 1,000 NOP instructions, plus the call and return.
+#[inline(never)]
+fn thousand_nops() {
+    // SAFETY: NOPs have no effect.
+    #[allow(unsafe_code)]
+    unsafe {
+        core::arch::asm!(
+            ".rept 1000",
+            "nop",
+            ".endr",
+            options(nomem, nostack, preserves_flags)
+        );
+    }
+}
+
+/// Average net instructions per window.
+pub(crate) fn per_call(counts: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32) -> u32 {
+    let n = samples.load(Ordering::Relaxed).max(1);
+    let net = counts
+        .load(Ordering::Relaxed)
+        .saturating_sub(overhead.load(Ordering::Relaxed));
+    // Rounded: (net · 40 + n/2) / n.
+    (net.saturating_mul(INSTRUCTIONS_PER_COUNT) + n / 2) / n
+}
+
+/// Longest window net of the mean measuring overhead [instructions].
+pub(crate) fn longest(max: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32) -> u32 {
+    let n = samples.load(Ordering::Relaxed).max(1);
+    let max = max.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT;
+    let mean_overhead = overhead.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT / n;
+    max.saturating_sub(mean_overhead)
+}
