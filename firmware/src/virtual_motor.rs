@@ -24,6 +24,24 @@ pub struct VirtualMotorConfig {
     pub period_s: f32,
 }
 
+impl VirtualMotorConfig {
+    /// The motor a drive is set up for: its winding and total inertia, stepped each current
+    /// tick, counting as its encoder does.
+    #[must_use]
+    pub fn for_drive(cfg: &controller_core::DriveConfig) -> Self {
+        Self {
+            resistance_pu: cfg.winding_resistance_pu,
+            inductance_pu_s: cfg.winding_inductance_pu_s,
+            inertia_s: cfg.total_inertia_s(),
+            counts_per_pu_s: controller_core::per_unit::counts_per_pu_s(
+                cfg.encoder_cpr,
+                cfg.base_speed_rpm,
+            ),
+            period_s: 1.0 / cfg.current_rate_hz.max(1) as f32,
+        }
+    }
+}
+
 /// The virtual motor's state.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VirtualMotor {

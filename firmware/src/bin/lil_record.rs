@@ -39,17 +39,8 @@ fn run() -> Result<(), firmware::app::AppError> {
     let mut profile = controller_core::Profile::new(&words::profile_config(), &cfg)
         .map_err(firmware::app::AppError::Config)?;
     let ratio = words::tick_ratio(&cfg);
-    let mut motor = VirtualMotor::new(VirtualMotorConfig {
-        resistance_pu: cfg.winding_resistance_pu,
-        inductance_pu_s: cfg.winding_inductance_pu_s,
-        inertia_s: cfg.total_inertia_s(),
-        counts_per_pu_s: controller_core::per_unit::counts_per_pu_s(
-            cfg.encoder_cpr,
-            cfg.base_speed_rpm,
-        ),
-        period_s: 1.0 / cfg.current_rate_hz as f32,
-    })
-    .with_counts(START_COUNTS);
+    let mut motor =
+        VirtualMotor::new(VirtualMotorConfig::for_drive(&cfg)).with_counts(START_COUNTS);
     // Park–Miller LCG: deterministic noise, same file on every machine.
     let mut seed: u32 = 12_345;
     let mut noise = move || {

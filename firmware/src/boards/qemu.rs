@@ -360,18 +360,9 @@ pub struct Board {
     pub console: Console,
 }
 
-/// The virtual motor for a drive: its winding and total inertia, stepped each current tick.
+/// The virtual motor for a drive ([`VirtualMotorConfig::for_drive`]).
 pub fn virtual_motor_config(cfg: &controller_core::DriveConfig) -> VirtualMotorConfig {
-    VirtualMotorConfig {
-        resistance_pu: cfg.winding_resistance_pu,
-        inductance_pu_s: cfg.winding_inductance_pu_s,
-        inertia_s: cfg.total_inertia_s(),
-        counts_per_pu_s: controller_core::per_unit::counts_per_pu_s(
-            cfg.encoder_cpr,
-            cfg.base_speed_rpm,
-        ),
-        period_s: 1.0 / cfg.current_rate_hz.max(1) as f32,
-    }
+    VirtualMotorConfig::for_drive(cfg)
 }
 
 /// Bring the board up for a drive (UART, outputs off, virtual motor at rest); timers and
