@@ -14,16 +14,16 @@ export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target/mutants}"
 mutants=(
   "pi output: feed-forward sign@controller-core/src/pi.rs@s/let u = i64::from\(p\) \+ i64::from\(ff\.to_bits\(\)\)/let u = i64::from(p) - i64::from(ff.to_bits())/@cargo test -q -p controller-core"
   "pi anti-windup: feed-forward sign@controller-core/src/pi.rs@s/i64::from\(p\) \+ i64::from\(ff\.to_bits\(\)\) \+ i64::from\(offset/i64::from(p) - i64::from(ff.to_bits()) + i64::from(offset/@cargo test -q -p controller-core"
-  "differentiator in velocity tick: || to &&@controller-core/src/controller.rs@s/(diff_in_velocity_tick: cfg\.velocity_estimator == Estimator::Differentiation\s*)\|\|/\1&&/@cargo test -q -p controller-core"
-  "observer load torque: sign@controller-core/src/controller.rs@s/k_load: q\(-g\.observer_inertia_s/k_load: q(g.observer_inertia_s/@cargo test -q -p controller-core"
+  "differentiator in velocity tick: || to &&@controller-core/src/controller/coefficients.rs@s/(diff_in_velocity_tick: cfg\.velocity_estimator == Estimator::Differentiation\s*)\|\|/\1&&/@cargo test -q -p controller-core"
+  "observer load torque: sign@controller-core/src/controller/coefficients.rs@s/k_load: quantize\(-g\.observer_inertia_s/k_load: quantize(g.observer_inertia_s/@cargo test -q -p controller-core"
   "differentiator: first-sample arm deleted@controller-core/src/differentiator.rs@s/\s*0 => \(0, 0\),//@cargo test -q -p controller-core"
   "differentiator: second-sample arm deleted@controller-core/src/differentiator.rs@s/\s*1 => \(delta, 0\),//@cargo test -q -p controller-core"
-  "encoder jump: > to >=@controller-core/src/controller.rs@s/d\.unsigned_abs\(\) > self\.coef\.max_count_step/d.unsigned_abs() >= self.coef.max_count_step/@cargo test -q -p controller-core"
-  "overspeed: > to >=@controller-core/src/controller.rs@s/v_fb\.unsigned_abs\(\) > self\.coef\.overspeed/v_fb.unsigned_abs() >= self.coef.overspeed/@cargo test -q -p controller-core"
-  "following error: > to >=@controller-core/src/controller.rs@s/err\.unsigned_abs\(\) > self\.coef\.following_error/err.unsigned_abs() >= self.coef.following_error/@cargo test -q -p controller-core"
+  "encoder jump: > to >=@controller-core/src/controller/mod.rs@s/d\.unsigned_abs\(\) > self\.coef\.max_count_step/d.unsigned_abs() >= self.coef.max_count_step/@cargo test -q -p controller-core"
+  "overspeed: > to >=@controller-core/src/controller/mod.rs@s/v_fb\.unsigned_abs\(\) > self\.coef\.overspeed/v_fb.unsigned_abs() >= self.coef.overspeed/@cargo test -q -p controller-core"
+  "following error: > to >=@controller-core/src/controller/mod.rs@s/err\.unsigned_abs\(\) > self\.coef\.following_error/err.unsigned_abs() >= self.coef.following_error/@cargo test -q -p controller-core"
   "closed-form AFB: input sign@controller-core/src/accel_feedback.rs@s/let x_p = c\.saturating_sub\(predict\(p\)\);/let x_p = predict(p).saturating_sub(c);/@cargo test -q -p controller-core"
   "closed-form AFB: filter finished with P, not the applied T@controller-core/src/accel_feedback.rs@s/filter\.finish\(s, h46, c\.saturating_sub\(predict\(t\)\)\);/filter.finish(s, h46, c.saturating_sub(predict(p)));/@cargo test -q -p controller-core"
-  "closed-form AFB: error form loses the commanded acceleration@controller-core/src/controller.rs@s/AfbStep::ClosedError => self\.afb_closed_step\(self\.state\.accel_cmd\)/AfbStep::ClosedError => self.afb_closed_step(PuPerS::ZERO)/@cargo test -q -p controller-core"
+  "closed-form AFB: error form loses the commanded acceleration@controller-core/src/controller/mod.rs@s/AfbStep::ClosedError => self\.afb_closed_step\(self\.state\.accel_cmd\)/AfbStep::ClosedError => self.afb_closed_step(PuPerS::ZERO)/@cargo test -q -p controller-core"
   "closed-form AFB: applied torque P - afb@controller-core/src/accel_feedback.rs@s/let t = p\.saturating_add\(afb\)/let t = p.saturating_sub(afb)/@cargo test -q -p controller-core"
   "lost motion: half the dead zone@plant-host/src/config/mod.rs@s/half_gap_rad: 0\.5 \* self\.backlash_deg/half_gap_rad: 0.25 * self.backlash_deg/@cargo test -q -p plant-host"
 )
@@ -31,6 +31,9 @@ mutants=(
 killed=0; survived=0; broken=0
 for m in "${mutants[@]}"; do
   IFS='@' read -r name file subst cmd <<<"$m"
+  if [[ ! -f "$root/$file" ]]; then
+    echo "NOT APPLIED  $name (no file $file)"; broken=$((broken + 1)); continue
+  fi
   cp "$root/$file" "$work/$file.orig"
   perl -0pi -e "$subst" "$work/$file"
   if cmp -s "$work/$file" "$work/$file.orig"; then
