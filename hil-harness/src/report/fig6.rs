@@ -1,6 +1,7 @@
 //! Fig. 4 (resonance and lost motion) and Fig. 6/7 (trapezoid with a load step), at the
 //! Table 1 encoder and interpolated.
 
+use super::facts::fill;
 use super::runs::gains_line;
 use super::section::{change, verdict, Section};
 use super::{get, Runs, SLIGHT_OVERSHOOT_PU};
@@ -63,8 +64,12 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
     let afb_cfg = &ca.drive.accel_feedback;
     Ok(Section::claim(
         format!(
-            "Fig. 6 and Fig. 7: trapezoid to rated speed with a 50 % load step, acceleration \
-             feedback on ({what}, {} counts/rev)",
+            "{} ({what}, {} counts/rev)",
+            fill(
+                "Fig. 6 and Fig. 7: trapezoid to rated speed with a {load} load step, \
+                 acceleration feedback on",
+                ca
+            ),
             ca.plant.counts_per_rev()
         ),
         &[&format!("{afb}/trace.png"), figure],

@@ -1,18 +1,35 @@
 //! The comparison figures of the report: one signal of several runs per panel.
 
+use super::facts::fill;
 use super::{get, Runs};
 use crate::engine::trace::TraceRow;
 use crate::error::Result;
 use crate::plot::{save, Figure, Panel, Series};
 use std::path::Path;
 
-/// One panel: a signal of several runs, each with its legend label.
+/// One panel: a signal of several runs, each with its legend label. The title and the
+/// labels may hold the placeholders of [`fill`], taken from the config of the panel's
+/// first run (for a title) or of the labelled run.
 struct PanelSpec {
     title: &'static str,
     y_label: &'static str,
     /// (legend label, scenario).
     runs: &'static [(&'static str, &'static str)],
     signal: fn(&TraceRow) -> f64,
+}
+
+const fn spec(
+    title: &'static str,
+    y_label: &'static str,
+    runs: &'static [(&'static str, &'static str)],
+    signal: fn(&TraceRow) -> f64,
+) -> PanelSpec {
+    PanelSpec {
+        title,
+        y_label,
+        runs,
+        signal,
+    }
 }
 
 const SPEED: &str = "speed (pu)";
@@ -32,119 +49,54 @@ const SHOCK: &[(&str, &str)] = &[
 ];
 const SHOCK_30: &[(&str, &str)] = &[("AFB off", "shock-30-no-afb"), ("AFB on", "shock-30")];
 
+const SHOCK_50: &[(&str, &str)] = &[
+    ("AFB off, same gains", "shock-50-no-afb"),
+    ("AFB on", "shock-50"),
+];
+const FIG6_ON: &[(&str, &str)] = &[("AFB on", "fig6")];
+const LOW_BW: &[(&str, &str)] = &[("AFB off, {bw} rad/s", "fig6-low-bw")];
+
 /// The figures: (file name without extension, panels).
+#[rustfmt::skip] // a table: one panel a line
 const FIGURES: &[(&str, &[PanelSpec])] = &[
-    (
-        "fig6-compare",
-        &[
-            PanelSpec {
-                title: "Fig. 6: load speed",
-                y_label: SPEED,
-                runs: FIG6,
-                signal: |r| r.load_vel_pu,
-            },
-            PanelSpec {
-                title: "Fig. 7: motor torque (current)",
-                y_label: TORQUE,
-                runs: FIG6,
-                signal: |r| r.current_pu,
-            },
-            PanelSpec {
-                title: "Fig. 7: acceleration compensation signal",
-                y_label: TORQUE,
-                runs: &[("AFB on", "fig6")],
-                signal: |r| r.accel_fb_pu,
-            },
-            PanelSpec {
-                title: "AFB off at 1.5 rad/s: load speed",
-                y_label: SPEED,
-                runs: &[("AFB off, 1.5 rad/s", "fig6-low-bw")],
-                signal: |r| r.load_vel_pu,
-            },
-        ],
-    ),
-    (
-        "fig6-65k-compare",
-        &[
-            PanelSpec {
-                title: "65,536 interpolated counts: load speed",
-                y_label: SPEED,
-                runs: FIG6_65K,
-                signal: |r| r.load_vel_pu,
-            },
-            PanelSpec {
-                title: "65,536 interpolated counts: shaft torque",
-                y_label: TORQUE,
-                runs: FIG6_65K,
-                signal: |r| r.shaft_torque_pu,
-            },
-        ],
-    ),
-    (
-        "dyno-accel-compare",
-        &[
-            PanelSpec {
-                title: "Dyno acceleration, 150 % load: speed",
-                y_label: SPEED,
-                runs: DYNO,
-                signal: |r| r.motor_vel_pu,
-            },
-            PanelSpec {
-                title: "Dyno acceleration: transducer (shaft) torque",
-                y_label: TORQUE,
-                runs: DYNO,
-                signal: |r| r.shaft_torque_pu,
-            },
-        ],
-    ),
-    (
-        "shock-compare",
-        &[
-            PanelSpec {
-                title: "150 % shock at rated speed, 100 rad/s: speed",
-                y_label: SPEED,
-                runs: SHOCK,
-                signal: |r| r.motor_vel_pu,
-            },
-            PanelSpec {
-                title: "100 rad/s: shaft torque",
-                y_label: TORQUE,
-                runs: SHOCK,
-                signal: |r| r.shaft_torque_pu,
-            },
-            PanelSpec {
-                title: "50 % shock at rated speed, 100 rad/s: shaft torque",
-                y_label: TORQUE,
-                runs: &[
-                    ("AFB off, same gains", "shock-50-no-afb"),
-                    ("AFB on", "shock-50"),
-                ],
-                signal: |r| r.shaft_torque_pu,
-            },
-            PanelSpec {
-                title: "30 rad/s (Fig. 13): speed",
-                y_label: SPEED,
-                runs: SHOCK_30,
-                signal: |r| r.motor_vel_pu,
-            },
-            PanelSpec {
-                title: "30 rad/s (Fig. 13): shaft torque",
-                y_label: TORQUE,
-                runs: SHOCK_30,
-                signal: |r| r.shaft_torque_pu,
-            },
-        ],
-    ),
+    ("fig6-compare", &[
+        spec("Fig. 6: load speed", SPEED, FIG6, |r| r.load_vel_pu),
+        spec("Fig. 7: motor torque (current)", TORQUE, FIG6, |r| r.current_pu),
+        spec("Fig. 7: acceleration compensation signal", TORQUE, FIG6_ON, |r| r.accel_fb_pu),
+        spec("AFB off at {bw} rad/s: load speed", SPEED, LOW_BW, |r| r.load_vel_pu),
+    ]),
+    ("fig6-65k-compare", &[
+        spec("{counts} counts/rev: load speed", SPEED, FIG6_65K, |r| r.load_vel_pu),
+        spec("{counts} counts/rev: shaft torque", TORQUE, FIG6_65K, |r| r.shaft_torque_pu),
+    ]),
+    ("dyno-accel-compare", &[
+        spec("Dyno acceleration, {load} load: speed", SPEED, DYNO, |r| r.motor_vel_pu),
+        spec("Dyno acceleration: transducer (shaft) torque", TORQUE, DYNO, |r| r.shaft_torque_pu),
+    ]),
+    ("shock-compare", &[
+        spec("{load} shock at rated speed, {bw} rad/s: speed", SPEED, SHOCK, |r| r.motor_vel_pu),
+        spec("{bw} rad/s: shaft torque", TORQUE, SHOCK, |r| r.shaft_torque_pu),
+        spec("{load} shock at rated speed, {bw} rad/s: shaft torque", TORQUE, SHOCK_50, |r| r.shaft_torque_pu),
+        spec("{bw} rad/s (Fig. 13): speed", SPEED, SHOCK_30, |r| r.motor_vel_pu),
+        spec("{bw} rad/s (Fig. 13): shaft torque", TORQUE, SHOCK_30, |r| r.shaft_torque_pu),
+    ]),
 ];
 
 fn panel(runs: &Runs, spec: &PanelSpec) -> Result<Panel> {
     let mut series = Vec::with_capacity(spec.runs.len());
-    for (label, name) in spec.runs {
-        let (_, out) = get(runs, name)?;
-        series.push(Series::line(*label, out.trace.series(spec.signal)));
+    let mut title = spec.title.to_string();
+    for (i, (label, name)) in spec.runs.iter().enumerate() {
+        let (cfg, out) = get(runs, name)?;
+        if i == 0 {
+            title = fill(spec.title, cfg);
+        }
+        series.push(Series::line(
+            fill(label, cfg),
+            out.trace.series(spec.signal),
+        ));
     }
     Ok(Panel {
-        title: spec.title.into(),
+        title,
         y_label: spec.y_label.into(),
         series,
         ..Default::default()

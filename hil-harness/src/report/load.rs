@@ -1,5 +1,6 @@
 //! Load disturbances: the dyno acceleration (Fig. 9/10) and the shock loads (Fig. 11-13).
 
+use super::facts::{fill, load_step_pu};
 use super::runs::gains_line;
 use super::section::{change, pct, verdict, Section};
 use super::{get, Runs, DYNO_REDUCTION};
@@ -17,7 +18,11 @@ pub fn dyno(runs: &Runs) -> Result<Section> {
     let mech = &cd.plant.mechanics;
     let end_speed = |o: &RunOutput| o.trace.rows.last().map_or(f64::NAN, |r| r.motor_vel_pu);
     Ok(Section::claim(
-        "Fig. 9 and Fig. 10: dyno, accelerate with 150 % load in 0.1 s, torque saturated",
+        fill(
+            "Fig. 9 and Fig. 10: dyno, accelerate with {load} load in {accel_s} s, torque \
+             saturated",
+            cd,
+        ),
         &[
             "dyno-accel-compare.png",
             "dyno-accel-no-afb/trace.png",
@@ -68,17 +73,11 @@ pub fn shock(runs: &Runs, afb: &str, off: &str, figures: &str) -> Result<Section
     let (ca, s_on) = get(runs, afb)?;
     let (_, s_off) = get(runs, off)?;
     let (on, offm) = (&s_on.metrics, &s_off.metrics);
-    let step = ca
-        .scenario
-        .load
-        .iter()
-        .find(|l| l.torque_pu != 0.0)
-        .map_or(0.0, |l| l.torque_pu);
+    let step = load_step_pu(ca);
     let oks = on.shaft_torque_ripple_rms_pu < offm.shaft_torque_ripple_rms_pu;
     let title = format!(
-        "{figures}: {:.0} % shock load at rated speed, {} rad/s",
-        100.0 * step,
-        ca.drive.velocity_bandwidth_rad_s
+        "{figures}: {}",
+        fill("{load} shock load at rated speed, {bw} rad/s", ca)
     );
     Ok(Section::claim(
         title,
@@ -124,7 +123,7 @@ pub fn shock_30(runs: &Runs) -> Result<Section> {
     let ok30 = droop(s30_off) > droop(s_off)
         && s30_off.metrics.shaft_torque_ripple_rms_pu > s30_on.metrics.shaft_torque_ripple_rms_pu;
     Ok(Section::claim(
-        "Fig. 13: the same shock at 30 rad/s",
+        format!("Fig. 13: the same shock at {bw30} rad/s"),
         &["shock-compare.png"],
         "At 30 rad/s the speed droops slightly when the shock is applied; the torque shows more \
          noise with acceleration feedback disabled.",

@@ -9,6 +9,7 @@
 //! [`sweep`] (Sec. III-D), [`stiffness`] (Fig. 2, Eq. 1), [`runs`] (gains, all runs, speed);
 //! [`figures`] draws the comparison plots.
 
+pub mod facts;
 pub mod fig6;
 pub mod figures;
 pub mod load;

@@ -1,6 +1,7 @@
 //! Sec. II: without acceleration feedback the system becomes unstable, with the drive's
 //! observer and with the paper's differentiation; and the 1-2 rad/s loop.
 
+use super::facts::fill;
 use super::runs::gains_line;
 use super::section::{verdict, Section};
 use super::{get, Runs, HIGHLY_OSCILLATORY_PU};
@@ -107,7 +108,11 @@ pub fn low_bandwidth(runs: &Runs) -> Result<Section> {
         _ => "**does not agree**",
     };
     Ok(Section::claim(
-        "Sec. II: at 1-2 rad/s velocity bandwidth stable but highly oscillatory",
+        fill(
+            "Sec. II: at {bw} rad/s velocity bandwidth (the paper's 1-2 rad/s) stable but \
+             highly oscillatory",
+            cl,
+        ),
         &["fig6-low-bw/trace.png"],
         "With the velocity loop bandwidth reduced to 1-2 rad/s the system could be stabilized, \
          but would remain highly oscillatory.",

@@ -36,6 +36,24 @@ pub enum Reading {
     Word(&'static str),
 }
 
+impl From<f64> for Reading {
+    fn from(v: f64) -> Self {
+        Self::Real(v)
+    }
+}
+
+impl From<u32> for Reading {
+    fn from(v: u32) -> Self {
+        Self::Integer(v.into())
+    }
+}
+
+impl From<u64> for Reading {
+    fn from(v: u64) -> Self {
+        Self::Integer(v.into())
+    }
+}
+
 /// One key of the range table.
 #[derive(Debug, Clone, Copy)]
 pub struct KeyRange {
@@ -65,6 +83,30 @@ impl KeyRange {
         text.trim_end().to_string()
     }
 
+    /// A key a file must set.
+    const fn new(
+        key: &'static str,
+        allowed: Allowed,
+        unit: &'static str,
+        get: fn(&PlantConfig) -> Reading,
+    ) -> Self {
+        Self {
+            key,
+            allowed,
+            unit,
+            required: true,
+            get,
+        }
+    }
+
+    /// The same key with a default, so a file may leave it out.
+    const fn optional(self) -> Self {
+        Self {
+            required: false,
+            ..self
+        }
+    }
+
     /// The table part of the key (`plant` of `plant.encoder_cpr`).
     pub fn table(&self) -> &'static str {
         self.key.split_once('.').map_or(self.key, |(t, _)| t)
@@ -85,168 +127,38 @@ const fn real(min: f64, max: f64) -> Allowed {
     Allowed::Real { min, max }
 }
 
+const fn integer(min: i64, max: i64) -> Allowed {
+    Allowed::Integer { min, max }
+}
+
 /// Largest counts per motor revolution the drive takes (controller-core `design()`).
 pub(crate) const MAX_COUNTS_PER_REV: i64 = 1 << 30;
 
 /// Every key of the plant's tables, in file order.
+#[rustfmt::skip] // a table: one key a line
 pub const RANGES: &[KeyRange] = &[
-    KeyRange {
-        key: "plant.base_speed_rpm",
-        allowed: real(1.0, 100_000.0),
-        unit: "rpm",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.base_speed_rpm),
-    },
-    KeyRange {
-        // The drive's range (controller-core design()) is (0, 1000] s.
-        key: "plant.motor_inertia_s",
-        allowed: real(1e-5, 1e3),
-        unit: "s",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.motor_inertia_s),
-    },
-    KeyRange {
-        key: "plant.load_inertia_s",
-        allowed: real(1e-5, 1e3),
-        unit: "s",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.load_inertia_s),
-    },
-    KeyRange {
-        key: "plant.anti_resonance_hz",
-        allowed: real(0.1, 5000.0),
-        unit: "Hz",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.anti_resonance_hz),
-    },
-    KeyRange {
-        key: "plant.shaft_damping_ratio",
-        allowed: real(0.0, 2.0),
-        unit: "",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.shaft_damping_ratio),
-    },
-    KeyRange {
-        key: "plant.backlash_deg",
-        allowed: real(0.0, 45.0),
-        unit: "deg",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.backlash_deg),
-    },
-    KeyRange {
-        key: "plant.motor_viscous_pu",
-        allowed: real(0.0, 100.0),
-        unit: "pu torque/pu speed",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.motor_viscous_pu),
-    },
-    KeyRange {
-        key: "plant.load_viscous_pu",
-        allowed: real(0.0, 100.0),
-        unit: "pu torque/pu speed",
-        required: true,
-        get: |c| Reading::Real(c.mechanics.load_viscous_pu),
-    },
-    KeyRange {
-        // The drive's range (controller-core design()): up to 2^30 counts/rev.
-        key: "plant.encoder_cpr",
-        allowed: Allowed::Integer {
-            min: 4,
-            max: MAX_COUNTS_PER_REV,
-        },
-        unit: "counts/rev",
-        required: true,
-        get: |c| Reading::Integer(c.mechanics.encoder_cpr.into()),
-    },
-    KeyRange {
-        key: "electrics.winding_resistance_pu",
-        allowed: real(1e-4, 10.0),
-        unit: "pu",
-        required: false,
-        get: |c| Reading::Real(c.electrics.winding_resistance_pu),
-    },
-    KeyRange {
-        key: "electrics.winding_inductance_pu_s",
-        allowed: real(1e-6, 1.0),
-        unit: "pu*s",
-        required: false,
-        get: |c| Reading::Real(c.electrics.winding_inductance_pu_s),
-    },
-    KeyRange {
-        key: "electrics.computational_delay_s",
-        allowed: real(0.0, 0.01),
-        unit: "s",
-        required: true,
-        get: |c| Reading::Real(c.electrics.computational_delay_s),
-    },
-    KeyRange {
-        key: "electrics.current_adc_bits",
-        allowed: Allowed::Integer { min: 4, max: 24 },
-        unit: "bits",
-        required: false,
-        get: |c| Reading::Integer(c.electrics.current_adc_bits.into()),
-    },
-    KeyRange {
-        key: "electrics.current_full_scale_pu",
-        allowed: real(0.1, 100.0),
-        unit: "pu",
-        required: false,
-        get: |c| Reading::Real(c.electrics.current_full_scale_pu),
-    },
-    KeyRange {
-        // 1 (a square-wave encoder) up to 4096, a 12-bit interpolator.
-        key: "sensors.encoder_interpolation",
-        allowed: Allowed::Integer { min: 1, max: 4096 },
-        unit: "interpolated counts per encoder count",
-        required: false,
-        get: |c| Reading::Integer(c.sensors.encoder_interpolation.into()),
-    },
-    KeyRange {
-        key: "sensors.load_encoder_cpr",
-        allowed: Allowed::Integer {
-            min: 0,
-            max: 1 << 31,
-        },
-        unit: "counts/rev (0 = no load encoder)",
-        required: false,
-        get: |c| Reading::Integer(c.sensors.load_encoder_cpr.into()),
-    },
-    KeyRange {
-        key: "sensors.gear_ratio",
-        allowed: real(1e-3, 1e4),
-        unit: "motor rev/load rev",
-        required: false,
-        get: |c| Reading::Real(c.sensors.gear_ratio),
-    },
-    KeyRange {
-        key: "sensors.encoder_noise_counts",
-        allowed: real(0.0, 1e6),
-        unit: "counts rms",
-        required: false,
-        get: |c| Reading::Real(c.sensors.encoder_noise_counts),
-    },
-    KeyRange {
-        key: "sensors.current_noise_pu",
-        allowed: real(0.0, 10.0),
-        unit: "pu rms",
-        required: false,
-        get: |c| Reading::Real(c.sensors.current_noise_pu),
-    },
-    KeyRange {
-        key: "sensors.noise_seed",
-        allowed: Allowed::Integer {
-            min: 0,
-            max: i64::MAX,
-        },
-        unit: "",
-        required: false,
-        get: |c| Reading::Integer(c.sensors.noise_seed.into()),
-    },
-    KeyRange {
-        key: "lost_motion.model",
-        allowed: Allowed::Words(&["dead_zone", "clamped"]),
-        unit: "",
-        required: false,
-        get: |c| Reading::Word(c.lost_motion.model.as_str()),
-    },
+    KeyRange::new("plant.base_speed_rpm", real(1.0, 100_000.0), "rpm", |c| c.mechanics.base_speed_rpm.into()),
+    // The drive's range (controller-core design()) is (0, 1000] s.
+    KeyRange::new("plant.motor_inertia_s", real(1e-5, 1e3), "s", |c| c.mechanics.motor_inertia_s.into()),
+    KeyRange::new("plant.load_inertia_s", real(1e-5, 1e3), "s", |c| c.mechanics.load_inertia_s.into()),
+    KeyRange::new("plant.anti_resonance_hz", real(0.1, 5000.0), "Hz", |c| c.mechanics.anti_resonance_hz.into()),
+    KeyRange::new("plant.shaft_damping_ratio", real(0.0, 2.0), "", |c| c.mechanics.shaft_damping_ratio.into()),
+    KeyRange::new("plant.backlash_deg", real(0.0, 45.0), "deg", |c| c.mechanics.backlash_deg.into()),
+    KeyRange::new("plant.motor_viscous_pu", real(0.0, 100.0), "pu torque/pu speed", |c| c.mechanics.motor_viscous_pu.into()),
+    KeyRange::new("plant.load_viscous_pu", real(0.0, 100.0), "pu torque/pu speed", |c| c.mechanics.load_viscous_pu.into()),
+    // The drive's range (controller-core design()): up to 2^30 counts/rev.
+    KeyRange::new("plant.encoder_cpr", integer(4, MAX_COUNTS_PER_REV), "counts/rev", |c| c.mechanics.encoder_cpr.into()),
+    KeyRange::new("electrics.winding_resistance_pu", real(1e-4, 10.0), "pu", |c| c.electrics.winding_resistance_pu.into()).optional(),
+    KeyRange::new("electrics.winding_inductance_pu_s", real(1e-6, 1.0), "pu*s", |c| c.electrics.winding_inductance_pu_s.into()).optional(),
+    KeyRange::new("electrics.computational_delay_s", real(0.0, 0.01), "s", |c| c.electrics.computational_delay_s.into()),
+    KeyRange::new("electrics.current_adc_bits", integer(4, 24), "bits", |c| c.electrics.current_adc_bits.into()).optional(),
+    KeyRange::new("electrics.current_full_scale_pu", real(0.1, 100.0), "pu", |c| c.electrics.current_full_scale_pu.into()).optional(),
+    // 1 (a square-wave encoder) up to 4096, a 12-bit interpolator.
+    KeyRange::new("sensors.encoder_interpolation", integer(1, 4096), "interpolated counts per encoder count", |c| c.sensors.encoder_interpolation.into()).optional(),
+    KeyRange::new("sensors.load_encoder_cpr", integer(0, 1 << 31), "counts/rev (0 = no load encoder)", |c| c.sensors.load_encoder_cpr.into()).optional(),
+    KeyRange::new("sensors.gear_ratio", real(1e-3, 1e4), "motor rev/load rev", |c| c.sensors.gear_ratio.into()).optional(),
+    KeyRange::new("sensors.encoder_noise_counts", real(0.0, 1e6), "counts rms", |c| c.sensors.encoder_noise_counts.into()).optional(),
+    KeyRange::new("sensors.current_noise_pu", real(0.0, 10.0), "pu rms", |c| c.sensors.current_noise_pu.into()).optional(),
+    KeyRange::new("sensors.noise_seed", integer(0, i64::MAX), "", |c| c.sensors.noise_seed.into()).optional(),
+    KeyRange::new("lost_motion.model", Allowed::Words(&["dead_zone", "clamped"]), "", |c| Reading::Word(c.lost_motion.model.as_str())).optional(),
 ];

@@ -12,19 +12,26 @@ pub const BANDWIDTHS_RAD_S: [f64; 17] = [
 
 /// Filters tried on the acceleration (second order: Q = 1/√2).
 pub const FILTERS: [FilterConfig; 6] = [
-    FilterConfig::FirstOrder { corner_hz: 25.0 },
-    FilterConfig::FirstOrder { corner_hz: 50.0 },
-    FilterConfig::FirstOrder { corner_hz: 100.0 },
-    FilterConfig::FirstOrder { corner_hz: 250.0 },
-    FilterConfig::SecondOrder {
-        corner_hz: 100.0,
-        q: FRAC_1_SQRT_2,
-    },
-    FilterConfig::SecondOrder {
-        corner_hz: 250.0,
-        q: FRAC_1_SQRT_2,
-    },
+    first_order(25.0),
+    first_order(50.0),
+    first_order(100.0),
+    first_order(250.0),
+    butterworth(100.0),
+    butterworth(250.0),
 ];
+
+/// A first-order low-pass at `corner_hz`.
+pub const fn first_order(corner_hz: f32) -> FilterConfig {
+    FilterConfig::FirstOrder { corner_hz }
+}
+
+/// A second-order Butterworth (Q = 1/√2) low-pass at `corner_hz`.
+pub const fn butterworth(corner_hz: f32) -> FilterConfig {
+    FilterConfig::SecondOrder {
+        corner_hz,
+        q: FRAC_1_SQRT_2,
+    }
+}
 
 /// Gains tried (Ka / J_total).
 pub const GAINS: [f32; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
