@@ -1,7 +1,7 @@
 //! Sec. II: without acceleration feedback the system becomes unstable, with the drive's
 //! observer and with the paper's differentiation; and the 1-2 rad/s loop.
 
-use super::facts::fill;
+use super::facts::{fill, stable_window};
 use super::runs::gains_line;
 use super::section::{verdict, Section};
 use super::{get, Runs, HIGHLY_OSCILLATORY_PU};
@@ -14,7 +14,7 @@ use std::fmt::Write as _;
 
 /// Sec. II with the drive's own estimator (fig6 without AFB).
 pub fn observer(runs: &Runs) -> Result<Section> {
-    let (_, n6) = get(runs, "fig6-no-afb")?;
+    let (c6, n6) = get(runs, "fig6-no-afb")?;
     let m = &n6.metrics;
     let okn = !m.stable;
     Ok(Section::claim(
@@ -24,9 +24,10 @@ pub fn observer(runs: &Runs) -> Result<Section> {
         "If the acceleration signal was not fed back, the system would become unstable.",
         format!(
             "same gains as fig6, AFB off, velocity from the drive's observer: stable {}; \
-             speed-error oscillation in the last 0.5 s {:.4} pu; motor-torque ripple {:.3} pu \
-             RMS; droop {} pu; twist up to {:.1} counts. {}.",
+             speed-error oscillation in the stability window ({}) {:.4} pu; motor-torque ripple \
+             {:.3} pu RMS; droop {} pu; twist up to {:.1} counts. {}.",
             m.stable,
+            stable_window(c6),
             m.oscillation_pu,
             m.torque_ripple_rms_pu,
             fmt_opt(m.load_step_droop_pu),
@@ -59,13 +60,14 @@ pub fn differentiation(runs: &Runs, map: &[MapPoint]) -> Result<Section> {
          the drive's default AFB gain and form, for the Table 1 encoder and the same encoder \
          interpolated (interpolation factors {:?}; the following-error trip kept at the same \
          angle). Each row's run without AFB is at the gains of that row's AFB design. Each \
-         cell: fig6's `stable` metric, the speed-error oscillation in the last 0.5 s (pu), and \
-         for an unstable run whether the drive tripped and how long the torque sat at its \
-         limit. Every cell is in `sec2/sec2.csv`. The criterion was fixed for the Table 1 map \
+         cell: fig6's `stable` metric, the speed-error oscillation in its stability window ({}, \
+         pu), and for an unstable run whether the drive tripped and how long the torque sat at \
+         its limit. Every cell is in `sec2/sec2.csv`. The criterion was fixed for the Table 1 map \
          before it ran; the interpolated map was added after the first map had been seen, and \
          is judged by the same criterion.\n",
         crate::experiments::sec2::SCENARIO,
-        ENCODER_INTERPOLATIONS
+        ENCODER_INTERPOLATIONS,
+        stable_window(c)
     );
     for n in ENCODER_INTERPOLATIONS {
         let m = at(map, n);
