@@ -99,81 +99,43 @@ fn wait(mut ready: impl FnMut() -> bool) -> bool {
 mod setup;
 pub use setup::init;
 
-fn tim1() -> &'static pac::tim1::RegisterBlock {
-    // SAFETY: TIM1 is configured once in `init`; afterwards the current loop's `Tim1Pwm`
-    // writes CCR1 and only `emergency_stop` (fault handlers) writes BDTR: a shared
-    // reference to the MMIO block is sound (vcell).
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::TIM1::ptr()
-    }
+/// `fn $name() -> &'static pac::$block::RegisterBlock`, the registers of `pac::$periph`.
+/// Each call carries a `SAFETY:` line: why a shared `'static` reference to that block is
+/// sound (who writes which registers after `init`).
+macro_rules! register_block {
+    ($name:ident: $periph:ident => $block:ident) => {
+        fn $name() -> &'static pac::$block::RegisterBlock {
+            // SAFETY: the `SAFETY:` line above the macro call.
+            #[allow(unsafe_code)]
+            unsafe {
+                &*pac::$periph::ptr()
+            }
+        }
+    };
 }
 
-fn tim3() -> &'static pac::tim3::RegisterBlock {
-    // SAFETY: after `init`, TIM3 (encoder) is only read (CNT).
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::TIM3::ptr()
-    }
-}
-
-fn adc1() -> &'static pac::adc1::RegisterBlock {
-    // SAFETY: after `init`, ADC1 is touched only by the current loop's `AdcCurrent`.
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::ADC1::ptr()
-    }
-}
-
-fn usart2() -> &'static pac::usart1::RegisterBlock {
-    // SAFETY: USART2 TX is used by thread mode only, RX by its interrupt only; SR/DR reads
-    // and DR writes do not race on shared bits.
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::USART2::ptr()
-    }
-}
-
-fn gpiod() -> &'static pac::gpioi::RegisterBlock {
-    // SAFETY: after `init`, GPIOD is written only through BSRR (atomic set/reset).
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::GPIOD::ptr()
-    }
-}
-
-fn gpioe() -> &'static pac::gpioi::RegisterBlock {
-    // SAFETY: after `init`, GPIOE is only read (IDR).
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::GPIOE::ptr()
-    }
-}
-
-fn iwdg() -> &'static pac::iwdg::RegisterBlock {
-    // SAFETY: the watchdog is started in `start` and afterwards only refreshed (KR writes)
-    // by the current loop.
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::IWDG::ptr()
-    }
-}
-
-fn tim6() -> &'static pac::tim6::RegisterBlock {
-    // SAFETY: after `init`, TIM6 SR is cleared only by its own interrupt.
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::TIM6::ptr()
-    }
-}
-
-fn tim7() -> &'static pac::tim6::RegisterBlock {
-    // SAFETY: after `init`, TIM7 SR is cleared only by its own interrupt.
-    #[allow(unsafe_code)]
-    unsafe {
-        &*pac::TIM7::ptr()
-    }
-}
+// SAFETY: TIM1 is configured once in `init`; afterwards the current loop's `Tim1Pwm`
+// writes CCR1 and only `emergency_stop` (fault handlers) writes BDTR: a shared reference
+// to the MMIO block is sound (vcell).
+register_block!(tim1: TIM1 => tim1);
+// SAFETY: after `init`, TIM3 (encoder) is only read (CNT).
+register_block!(tim3: TIM3 => tim3);
+// SAFETY: after `init`, ADC1 is touched only by the current loop's `AdcCurrent`.
+register_block!(adc1: ADC1 => adc1);
+// SAFETY: USART2 TX is used by thread mode only, RX by its interrupt only; SR/DR reads and
+// DR writes do not race on shared bits.
+register_block!(usart2: USART2 => usart1);
+// SAFETY: after `init`, GPIOD is written only through BSRR (atomic set/reset).
+register_block!(gpiod: GPIOD => gpioi);
+// SAFETY: after `init`, GPIOE is only read (IDR).
+register_block!(gpioe: GPIOE => gpioi);
+// SAFETY: the watchdog is started in `start` and afterwards only refreshed (KR writes) by
+// the current loop.
+register_block!(iwdg: IWDG => iwdg);
+// SAFETY: after `init`, TIM6 SR is cleared only by its own interrupt.
+register_block!(tim6: TIM6 => tim6);
+// SAFETY: after `init`, TIM7 SR is cleared only by its own interrupt.
+register_block!(tim7: TIM7 => tim6);
 
 /// TIM1 channel 1 (complementary) as the bridge PWM.
 pub struct Tim1Pwm;
