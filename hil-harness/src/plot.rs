@@ -159,7 +159,10 @@ fn tick_label(v: f64, log: bool) -> String {
         sig2(10f64.powf(v))
     } else {
         let a = v.abs();
-        if a != 0.0 && !(1e-3..1e4).contains(&a) {
+        if a < 1e-12 {
+            // A tick at zero computed as a rounding residue (−2.2e-16).
+            "0".into()
+        } else if !(1e-3..1e4).contains(&a) {
             format!("{v:.1e}")
         } else {
             format!("{}", (v * 1000.0).round() / 1000.0)

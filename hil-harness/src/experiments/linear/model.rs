@@ -379,6 +379,25 @@ impl LoopModel {
         mean_var.max(0.0).sqrt()
     }
 
+    /// The load speed \[pu\] at the end of each of `periods`
+    /// velocity periods after a load torque step of `step_pu` from rest: the linear loop's
+    /// own step response, for checking a fit to the nonlinear loop's.
+    #[must_use]
+    pub fn load_step_response(&self, step_pu: f64, periods: usize) -> Vec<f64> {
+        let load = vec![step_pu; self.coef.ticks_per_velocity];
+        let ex = Exogenous {
+            load: &load,
+            encoder: &[],
+        };
+        let mut z = vec![0.0; self.state_len()];
+        (0..periods)
+            .map(|_| {
+                z = self.period(&z, &ex, &Inputs::default(), Break::None).next;
+                z.get(state::LOAD_SPEED).copied().unwrap_or(0.0)
+            })
+            .collect()
+    }
+
     /// Dynamic stiffness |τ_L/θl| at each frequency \[pu torque per pu·s of load position\],
     /// the quantity `hil-harness stiffness` measures.
     #[must_use]

@@ -1,14 +1,16 @@
 //! The damping of a design measured in the nonlinear loop, against the linear model's.
 //!
 //! The run: the design on its machine's `fig6` move (to 1 pu in the ramp), a load held from
-//! just before the ramp ends ([`PRELOAD_PU`]), so that the gears stay engaged, and then a
-//! step of [`STEP_PU`] on top of it. After the step nothing else changes, so the load speed
-//! error is the loop's free response: a sum of its modes, Σ hᵢ·zᵢᵏ. The modes are fitted
-//! to it with the matrix-pencil method ([`fit_modes`]), and the oscillatory mode with the
-//! most energy in the response is the one the step excites. Its damping is compared with
-//! the damping of the linear model's pole nearest to it, and the smallest damping of the
-//! model is reported beside it. The load speed is fitted rather than the motor speed,
-//! because the shaft filters the quantization chatter out of it; the poles are the same.
+//! just before the ramp ends ([`PRELOAD_PU`]), so that the gears stay engaged, and then
+//! [`STEPS`] steps of [`STEP_PU`] on and off it, [`RECORD_S`] apart. After each step
+//! nothing else changes, so the load speed error is the loop's free response: a sum of its
+//! modes, Σ hᵢ·zᵢᵏ. The records (sign turned after a step off) are averaged, which averages
+//! the quantization noise down, and the modes are fitted to the mean with the matrix-pencil
+//! method ([`fit_modes`]); the oscillatory mode with the most energy in the response is
+//! the one the steps excite. Its damping is compared with the damping of the linear
+//! model's pole nearest to it, and the smallest damping of the model is reported beside
+//! it. The load speed is fitted rather than the motor speed, because the shaft filters the
+//! quantization chatter out of it; the poles are the same.
 
 use crate::config::RunConfig;
 use crate::engine::runner::run_scenario;
@@ -17,19 +19,22 @@ use crate::experiments::linear::LoopModel;
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 
-/// Load torque held while the step is applied \[pu\]: keeps the gears pressed together.
-pub const PRELOAD_PU: f64 = 0.2;
-/// The step on top of the preload \[pu\]: large against the quantization chatter (with
-/// 0.3 pu on Table 1 the fit merges the slow real poles into a spurious pair), small
+/// Load torque held under the steps \[pu\]: keeps the gears pressed together, also in the
+/// shaft torque's undershoot after a step down.
+pub const PRELOAD_PU: f64 = 0.4;
+/// The step on and off the preload \[pu\]: large against the quantization chatter, small
 /// enough that the torque stays below its limit ([`StepFit::max_torque_pu`]).
-pub const STEP_PU: f64 = 0.8;
+pub const STEP_PU: f64 = 0.6;
+/// Steps, alternately on and off; their responses (those of the steps off with the sign
+/// turned) are averaged before the fit, which averages the quantization noise down.
+pub const STEPS: usize = 8;
 /// The preload starts this long before the ramp ends \[s\] (the ramp already engages the
-/// gears in the same direction), the step this long after it \[s\].
+/// gears in the same direction), the first step this long after it \[s\].
 pub const PRELOAD_LEAD_S: f64 = 0.1;
 /// See [`PRELOAD_LEAD_S`].
 pub const STEP_DELAY_S: f64 = 0.6;
-/// Length of the fitted window after the step \[s\].
-pub const WINDOW_S: f64 = 0.8;
+/// Time from one step to the next, the length of each fitted record \[s\].
+pub const RECORD_S: f64 = 0.5;
 /// Velocity ticks averaged into one fitted sample (an anti-alias filter: block means of a
 /// sum of exponentials are a sum of the same exponentials).
 pub const DECIMATION: usize = 4;
@@ -63,9 +68,11 @@ impl Mode {
 /// What the step run measured and the model predicted.
 #[derive(Debug, Clone, Serialize)]
 pub struct StepFit {
-    /// Load torque before the step and after it \[pu\].
+    /// Load torque off and on \[pu\].
     pub load_pu: [f64; 2],
-    /// The fitted window \[s\].
+    /// Steps applied (and records averaged).
+    pub steps: usize,
+    /// The steps' window \[s\].
     pub window_s: [f64; 2],
     /// Smallest shaft torque in the window \[pu\]: above 0, the gears stayed engaged.
     pub min_shaft_torque_pu: f64,
@@ -80,6 +87,9 @@ pub struct StepFit {
     pub fitted_damping: f64,
     /// Its damped frequency \[Hz\].
     pub fitted_hz: f64,
+    /// The same fit applied to the linear model's own response to the step: how far the
+    /// method itself lands from the model's pole.
+    pub fitted_to_model_damping: f64,
     /// The model's pole nearest to it (gears engaged): damping.
     pub nearest_pole_damping: f64,
     /// That pole's damped frequency \[Hz\].
@@ -97,18 +107,17 @@ pub fn step_config(fig6: &RunConfig) -> RunConfig {
     let mut cfg = fig6.clone();
     let ramp_end = cfg.scenario.profile.ramp_end_s();
     let step_t = ramp_end + STEP_DELAY_S;
-    cfg.scenario.load = vec![
-        crate::config::scenario::LoadStep {
-            t_s: ramp_end - PRELOAD_LEAD_S,
-            torque_pu: PRELOAD_PU,
-        },
-        crate::config::scenario::LoadStep {
-            t_s: step_t,
-            torque_pu: PRELOAD_PU + STEP_PU,
-        },
-    ];
+    let mut load = vec![crate::config::scenario::LoadStep {
+        t_s: ramp_end - PRELOAD_LEAD_S,
+        torque_pu: PRELOAD_PU,
+    }];
+    load.extend((0..STEPS).map(|k| crate::config::scenario::LoadStep {
+        t_s: step_t + k as f64 * RECORD_S,
+        torque_pu: PRELOAD_PU + if k % 2 == 0 { STEP_PU } else { 0.0 },
+    }));
+    cfg.scenario.load = load;
     cfg.scenario.sine_load = None;
-    cfg.scenario.duration_s = step_t + WINDOW_S;
+    cfg.scenario.duration_s = step_t + STEPS as f64 * RECORD_S;
     cfg.scenario.metrics = Default::default();
     cfg
 }
@@ -136,12 +145,14 @@ pub fn fit_modes(y: &[f64], dt_s: f64) -> Vec<Mode> {
     let Some(v_t) = svd.v_t else {
         return Vec::new();
     };
-    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
-    order.sort_by(|a, b| svd.singular_values[*b].total_cmp(&svd.singular_values[*a]));
-    let top = order.first().map_or(0.0, |i| svd.singular_values[*i]);
-    let m = order
+    // (σ, row of Vᵀ), largest first.
+    let mut sv: Vec<(f64, usize)> = svd.singular_values.iter().copied().zip(0..).collect();
+    sv.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let top = sv.first().map_or(0.0, |p| p.0);
+    let order: Vec<usize> = sv.iter().map(|p| p.1).collect();
+    let m = sv
         .iter()
-        .filter(|i| svd.singular_values[**i] > SINGULAR_FLOOR * top)
+        .filter(|p| p.0 > SINGULAR_FLOOR * top)
         .count()
         .clamp(2, 12)
         .min(l);
@@ -176,12 +187,14 @@ pub fn fit_modes(y: &[f64], dt_s: f64) -> Vec<Mode> {
         .collect()
 }
 
-/// The oscillatory mode with the most energy (positive frequency, decaying).
+/// The oscillatory mode with the most energy: decaying, and of at least one period in
+/// a record of `record_s` (a slower pair is the fit's split of real poles, not a swing
+/// the record shows).
 #[must_use]
-pub fn dominant(modes: &[Mode]) -> Option<Mode> {
+pub fn dominant(modes: &[Mode], record_s: f64) -> Option<Mode> {
     modes
         .iter()
-        .filter(|m| m.s[1] > 0.0 && m.s[0] < 0.0)
+        .filter(|m| m.hz() * record_s >= 1.0 && m.s[0] < 0.0)
         .copied()
         .max_by(|a, b| a.energy.total_cmp(&b.energy))
 }
@@ -190,8 +203,8 @@ pub fn dominant(modes: &[Mode]) -> Option<Mode> {
 /// gears engaged).
 pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
     let cfg = step_config(fig6);
-    let step_t = cfg.scenario.load.last().map_or(0.0, |s| s.t_s);
-    let window_s = [step_t, cfg.scenario.duration_s];
+    let first = cfg.scenario.load.get(1).map_or(0.0, |s| s.t_s);
+    let window_s = [first, cfg.scenario.duration_s];
     let out = run_scenario(&cfg)?;
     let rows: Vec<_> = out
         .trace
@@ -207,10 +220,23 @@ pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
         .iter()
         .map(|r| r.torque_cmd_pu.abs())
         .fold(0.0, f64::max);
-    let error: Vec<f64> = rows.iter().map(|r| r.load_vel_pu - r.vel_cmd_pu).collect();
+    // The mean of the records, each the load speed error after one step (sign turned
+    // after a step off).
+    let per_record = (RECORD_S * f64::from(cfg.drive.velocity_rate_hz)).round() as usize;
+    let mut error = vec![0.0; per_record];
+    for (k, record) in rows.chunks_exact(per_record.max(1)).enumerate() {
+        let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+        for (e, r) in error.iter_mut().zip(record) {
+            *e += sign * (r.load_vel_pu - r.vel_cmd_pu) / STEPS as f64;
+        }
+    }
     let dt = DECIMATION as f64 / f64::from(cfg.drive.velocity_rate_hz);
     let modes = fit_modes(&decimate(&error, DECIMATION), dt);
-    let fitted = dominant(&modes).ok_or_else(|| {
+    // The same fit on the linear model's own response to the step: the method's error.
+    let linear = model.load_step_response(STEP_PU, per_record);
+    let fitted_to_model = dominant(&fit_modes(&decimate(&linear, DECIMATION), dt), RECORD_S)
+        .map_or(f64::NAN, |m| m.damping());
+    let fitted = dominant(&modes, RECORD_S).ok_or_else(|| {
         HarnessError::Backend("the step response has no decaying oscillatory mode".into())
     })?;
     let period = 1.0 / f64::from(cfg.drive.velocity_rate_hz);
@@ -232,6 +258,7 @@ pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
     let nearest_pole_damping = zeta(nearest);
     Ok(StepFit {
         load_pu: [PRELOAD_PU, PRELOAD_PU + STEP_PU],
+        steps: STEPS,
         window_s,
         min_shaft_torque_pu,
         max_torque_pu,
@@ -239,6 +266,7 @@ pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
         fitted,
         fitted_damping: fitted.damping(),
         fitted_hz: fitted.hz(),
+        fitted_to_model_damping: fitted_to_model,
         nearest_pole_damping,
         nearest_pole_hz: nearest.im / (2.0 * std::f64::consts::PI),
         smallest_damping,
@@ -266,7 +294,7 @@ mod tests {
                     - 0.3 * (-(k as f64) * dt * 20.0).exp()
             })
             .collect();
-        let d = dominant(&fit_modes(&y, dt)).unwrap();
+        let d = dominant(&fit_modes(&y, dt), 0.8).unwrap();
         assert!((d.damping() - 0.3).abs() < 1e-6, "{d:?}");
         assert!((d.hz() - 8.0).abs() < 1e-6, "{d:?}");
     }

@@ -15,11 +15,16 @@
 //!    with a load step), `shock` (a 150 % step at speed) and the sweep's probe. The first
 //!    that is stable in all three without a fault, and quiet on the probe, is the design.
 //!    A design that fails is refused and the next one is tried.
+//! 4. The design's damping is measured in the nonlinear loop ([`damping`]: load steps with
+//!    the gears engaged, the dominant mode fitted) against the model's, and `tune.md` gets
+//!    the Bode plot and the pole map ([`plots`]) and, per bandwidth, which constraint
+//!    stopped the search ([`summary`]).
 
 pub mod damping;
 pub mod grid;
 pub mod output;
 pub mod plots;
+pub mod summary;
 
 pub use grid::{candidates, without_afb, Candidate, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
 
@@ -35,7 +40,7 @@ use serde::Serialize;
 use std::path::Path;
 
 /// The constraints of a design.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Constraints {
     /// Smallest damping ratio of the loop, gears engaged and apart.
     pub min_damping: f64,
@@ -170,6 +175,8 @@ fn verify(bases: &[RunConfig], c: &Candidate) -> Result<Vec<Verification>> {
 pub struct TuneResult {
     /// The config tuned.
     pub config: String,
+    /// The constraints it was tuned to.
+    pub constraints: Constraints,
     /// Candidates judged and feasible.
     pub judged: usize,
     /// Feasible on the linear model.
@@ -180,6 +187,8 @@ pub struct TuneResult {
     pub design: Judged,
     /// Its verification runs.
     pub verification: Vec<Verification>,
+    /// Per velocity bandwidth: the constraints met, the best damping and stiffness.
+    pub per_bandwidth: Vec<summary::AtBandwidth>,
     /// Its damping measured in the nonlinear loop against the model's
     /// ([`damping::measure`]); `None` until [`tune`] has run it.
     pub step: Option<damping::StepFit>,
@@ -209,6 +218,7 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
         .collect();
     pb.finish_and_clear();
     let total = judged.len();
+    let all = judged.clone();
     judged.retain(|j| j.feasible);
     let feasible = judged.len();
     judged.sort_by(|a, b| {
@@ -223,8 +233,10 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
         if runs.iter().all(|r| r.passed) {
             return Ok(TuneResult {
                 config: config.into(),
+                constraints: *k,
                 judged: total,
                 feasible,
+                per_bandwidth: summary::per_bandwidth(&all, &refused, k),
                 refused,
                 design: j,
                 verification: runs,

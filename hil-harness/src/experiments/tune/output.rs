@@ -103,19 +103,22 @@ pub fn merged_config(
 fn damping_text(f: &StepFit, tolerance: f64) -> String {
     let diff = (f.fitted.damping() - f.smallest_damping).abs();
     format!(
-        "## Damping in the nonlinear loop\n\nA load step from {:.2} to {:.2} pu at {:.2} s on the \
-         `fig6` move (held from before the ramp ends, so the gears stay engaged: smallest shaft \
-         torque in the window {:.3} pu; largest torque reference {:.3} pu). The load-speed error over {:.2} … {:.2} s is fitted with \
-         the matrix-pencil method; its dominant oscillatory mode: **ζ = {:.3} at {:.2} Hz**. The \
-         linear model's pole nearest to it: ζ = {:.3} at {:.2} Hz ({}). The model's smallest \
-         damping, {:.3}, is {:.3} from the fitted one: {} (tolerance {tolerance}).\n",
+        "## Damping in the nonlinear loop\n\n{} load steps between {:.2} and {:.2} pu, {:.2} s apart, \
+         from {:.2} s on the `fig6` move (the load held from before the ramp ends, so the gears \
+         stay engaged: smallest shaft torque {:.3} pu; largest torque reference {:.3} pu). The \
+         mean of their load-speed error responses (the steps off with the sign turned) is \
+         fitted with the matrix-pencil method; its dominant oscillatory mode: **ζ = {:.3} at \
+         {:.2} Hz**. The linear model's pole nearest to it: ζ = {:.3} at {:.2} Hz ({}). The \
+         model's smallest damping, {:.3}, is {:.3} from the fitted one: {} (tolerance \
+         {tolerance}). The same fit on the linear model's own step response gives ζ = {:.3}: \
+         the part of the difference that is the method's.\n",
+        f.steps,
         f.load_pu[0],
         f.load_pu[1],
+        (f.window_s[1] - f.window_s[0]) / f.steps.max(1) as f64,
         f.window_s[0],
         f.min_shaft_torque_pu,
         f.max_torque_pu,
-        f.window_s[0],
-        f.window_s[1],
         f.fitted.damping(),
         f.fitted.hz(),
         f.nearest_pole_damping,
@@ -128,6 +131,7 @@ fn damping_text(f: &StepFit, tolerance: f64) -> String {
         f.smallest_damping,
         diff,
         if diff <= tolerance { "within" } else { "outside" },
+        f.fitted_to_model_damping,
     )
 }
 
@@ -177,6 +181,11 @@ pub fn markdown(r: &TuneResult, drive_toml: &str, images: &[String; 2]) -> Strin
             v.scenario, v.stable, v.faulted, v.shaft_torque_ripple_rms_pu, v.limit_cycle_torque_pu
         );
     }
+    let _ = write!(
+        s,
+        "\n{}",
+        super::summary::markdown(&r.per_bandwidth, &r.constraints)
+    );
     if let Some(f) = &r.step {
         let _ = write!(s, "\n{}", damping_text(f, super::DAMPING_TOLERANCE));
     }
