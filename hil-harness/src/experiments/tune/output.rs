@@ -13,8 +13,8 @@ fn toml_error(e: impl std::fmt::Display) -> HarnessError {
     HarnessError::config("tune", e.to_string())
 }
 
-/// Every float of the drive is an `f32`: written in its shortest decimal form (0.117, not
-/// the f64 value of the nearest f32, 0.11699999868869781), which reads back to the same f32.
+/// Every float of the drive is an `f32`: written in its shortest decimal form (0.1, not
+/// the f64 value of the nearest f32, 0.10000000149011612), which reads back to the same f32.
 fn shortest_f32(v: &mut Value) {
     match v {
         Value::Float(f) => {
