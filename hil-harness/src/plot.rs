@@ -159,7 +159,10 @@ fn tick_label(v: f64, log: bool) -> String {
         sig2(10f64.powf(v))
     } else {
         let a = v.abs();
-        if a != 0.0 && !(1e-3..1e4).contains(&a) {
+        if a < 1e-12 {
+            // A tick at zero computed as a rounding residue (−2.2e-16).
+            "0".into()
+        } else if !(1e-3..1e4).contains(&a) {
             format!("{v:.1e}")
         } else {
             format!("{}", (v * 1000.0).round() / 1000.0)
@@ -253,12 +256,17 @@ fn draw_figure<DB: DrawingBackend>(
     root.present().map_err(|e| format!("{e:?}"))
 }
 
-/// Writes `stem.png` and `stem.svg`; returns the two paths.
+/// Writes `stem.png` and `stem.svg`, 1000 pixels wide and 300 high per panel (at least
+/// 480); returns the two paths.
 pub fn save(fig: &Figure, stem: &Path) -> Result<(PathBuf, PathBuf)> {
+    let height = (300 * fig.panels.len().max(1) as u32).max(480);
+    save_sized(fig, stem, (1000, height))
+}
+
+/// [`save`] at `size` (width, height) in pixels: a square one for a map in the z-plane.
+pub fn save_sized(fig: &Figure, stem: &Path, size: (u32, u32)) -> Result<(PathBuf, PathBuf)> {
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
-    let height = (300 * fig.panels.len().max(1) as u32).max(480);
-    let size = (1000u32, height);
     draw_figure(BitMapBackend::new(&png, size).into_drawing_area(), fig)
         .map_err(|e| HarnessError::Plot(format!("{}: {e}", png.display())))?;
     draw_figure(SVGBackend::new(&svg, size).into_drawing_area(), fig)

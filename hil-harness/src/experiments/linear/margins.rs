@@ -13,6 +13,8 @@ pub struct Margins {
     pub phase_margin_deg: f64,
     /// Gain-crossover frequency \[Hz\].
     pub crossover_hz: f64,
+    /// Frequency of the −180° crossing the gain margin is read at \[Hz\] (NaN if none).
+    pub phase_crossover_hz: f64,
 }
 
 /// Gain and phase margins of a loop gain `l` sampled at increasing frequencies `freqs`
@@ -42,6 +44,7 @@ pub fn margins_of(freqs: &[f64], l: &[Complex<f64>]) -> Margins {
         gain_margin_db: f64::INFINITY,
         phase_margin_deg: f64::INFINITY,
         crossover_hz: f64::NAN,
+        phase_crossover_hz: f64::NAN,
     };
     let phase = unwrap_phases(l);
     let at = |v: &[f64], i: usize| v.get(i).copied().unwrap_or(f64::NAN);
@@ -65,13 +68,19 @@ pub fn margins_of(freqs: &[f64], l: &[Complex<f64>]) -> Margins {
             let target = turn(pa.max(pb)) * 2.0 * PI - PI;
             let t = (target - pa) / (pb - pa);
             let g = a.ln() + t * (b.ln() - a.ln());
-            out.gain_margin_db = out.gain_margin_db.min(-20.0 * g / std::f64::consts::LN_10);
+            let gm = -20.0 * g / std::f64::consts::LN_10;
+            if gm < out.gain_margin_db {
+                out.gain_margin_db = gm;
+                out.phase_crossover_hz = fa + t * (fb - fa);
+            }
         }
     }
     out
 }
 
-fn unwrap_phases(l: &[Complex<f64>]) -> Vec<f64> {
+/// The phases of `l` \[rad\], unwrapped along the samples (no jump over π).
+#[must_use]
+pub fn unwrap_phases(l: &[Complex<f64>]) -> Vec<f64> {
     let mut out = Vec::with_capacity(l.len());
     let mut offset = 0.0;
     let mut last: Option<f64> = None;

@@ -15,17 +15,24 @@ pub use model::LoopModel;
 
 use crate::config::RunConfig;
 use crate::error::Result;
+use controller_core::Gains;
 use plant_host::analysis::Gears;
 
 /// The model of a run: its controller's coefficients (the gains it runs with, see
 /// [`crate::engine::runner::regulator_gains`]) and its plant, with the gears `gears`.
 pub fn for_run(cfg: &RunConfig, gears: Gears) -> Result<LoopModel> {
     let gains = crate::engine::runner::regulator_gains(cfg)?;
-    let coef = Coefficients::new(&cfg.drive, &gains);
-    Ok(LoopModel::new(
-        coef,
+    Ok(for_gains(cfg, &gains, gears))
+}
+
+/// The model of a run whose controller runs with `gains` (designed once by the caller,
+/// [`crate::engine::runner::regulator_gains`] of `cfg`), with the gears `gears`.
+#[must_use]
+pub fn for_gains(cfg: &RunConfig, gains: &Gains, gears: Gears) -> LoopModel {
+    LoopModel::new(
+        Coefficients::new(&cfg.drive, gains),
         &cfg.plant,
         f64::from(cfg.drive.current_rate_hz),
         gears,
-    ))
+    )
 }

@@ -26,6 +26,11 @@ use nalgebra::{Complex, DMatrix, DVector};
 use plant_host::analysis::{state, Gears, SampledPlant};
 use plant_host::PlantConfig;
 use std::f64::consts::PI;
+use std::sync::OnceLock;
+
+/// The period map with the loop opened at one break: M, the break input column B_w, the
+/// break output row C and the feed-through D (reported = C·z + D·w).
+type Maps = (DMatrix<f64>, DVector<f64>, DVector<f64>, f64);
 
 /// The linear loop of one drive, plant and contact state.
 #[derive(Debug, Clone)]
@@ -41,6 +46,11 @@ pub struct LoopModel {
     period_s: f64,
     /// ω_b \[rad/s per pu\].
     base_speed_rad_s: f64,
+    /// The period maps, computed on first use: one per [`Break`] (closed, velocity
+    /// regulator, acceleration feedback), each probed once however often it is queried.
+    maps: [OnceLock<Maps>; 3],
+    /// The poles (invariances removed), computed on first use.
+    poles: OnceLock<Vec<Complex<f64>>>,
 }
 
 /// Exogenous signals of one period, per current tick (missing entries are zero).
@@ -92,6 +102,8 @@ impl LoopModel {
             whole_delay,
             period_s: tick * ratio as f64,
             base_speed_rad_s: plant.mechanics.derived().base_speed_rad_s,
+            maps: Default::default(),
+            poles: OnceLock::new(),
         }
     }
 
@@ -153,8 +165,19 @@ impl LoopModel {
         }
     }
 
-    /// M, the break input column B_w, and the break output row C (reported = C·z + D·w).
-    fn matrices(&self, brk: Break) -> (DMatrix<f64>, DVector<f64>, DVector<f64>, f64) {
+    /// The period map opened at `brk` ([`Maps`]), probed on the first query only.
+    fn matrices(&self, brk: Break) -> &Maps {
+        let slot = match brk {
+            Break::None => &self.maps[0],
+            Break::VelocityRegulator => &self.maps[1],
+            Break::AccelerationFeedback => &self.maps[2],
+        };
+        slot.get_or_init(|| self.probe(brk))
+    }
+
+    /// M, the break input column B_w, and the break output row C (reported = C·z + D·w),
+    /// read off the mirror with unit vectors.
+    fn probe(&self, brk: Break) -> Maps {
         let n = self.state_len();
         let quiet = Inputs::default();
         let none = Exogenous::NONE;
@@ -182,7 +205,7 @@ impl LoopModel {
     /// The closed loop's one-period map.
     #[must_use]
     pub fn closed_loop(&self) -> DMatrix<f64> {
-        self.matrices(Break::None).0
+        self.matrices(Break::None).0.clone()
     }
 
     /// The direction of a shift of every position by one motor radian.
@@ -200,6 +223,10 @@ impl LoopModel {
     /// The eigenvalues of the loop's dynamics (invariances removed, module docs).
     #[must_use]
     pub fn poles(&self) -> Vec<Complex<f64>> {
+        self.poles.get_or_init(|| self.eigenvalues()).clone()
+    }
+
+    fn eigenvalues(&self) -> Vec<Complex<f64>> {
         let mut m = self.closed_loop();
         let mut shift = self.shift();
         // (The load states go first, then the states this configuration never uses.)
@@ -256,6 +283,7 @@ impl LoopModel {
     #[must_use]
     pub fn loop_gain(&self, brk: Break, freq_hz: &[f64]) -> Vec<Complex<f64>> {
         let (m, bw, c, d) = self.matrices(brk);
+        let d = *d;
         let n = m.nrows();
         let mc = m.map(Complex::from);
         let bc = bw.map(Complex::from);
@@ -340,7 +368,7 @@ impl LoopModel {
             let y = &c * &x;
             let add = &y * y.transpose();
             cov += &add;
-            x = &m * x;
+            x = m * x;
             k += 1;
             if k > 100 && add.norm() < 1e-15 * cov.norm() {
                 break;
@@ -349,6 +377,25 @@ impl LoopModel {
         let cov = cov * var;
         let mean_var = cov.diagonal().iter().sum::<f64>() / ratio as f64;
         mean_var.max(0.0).sqrt()
+    }
+
+    /// The load speed \[pu\] at the end of each of `periods`
+    /// velocity periods after a load torque step of `step_pu` from rest: the linear loop's
+    /// own step response, for checking a fit to the nonlinear loop's.
+    #[must_use]
+    pub fn load_step_response(&self, step_pu: f64, periods: usize) -> Vec<f64> {
+        let load = vec![step_pu; self.coef.ticks_per_velocity];
+        let ex = Exogenous {
+            load: &load,
+            encoder: &[],
+        };
+        let mut z = vec![0.0; self.state_len()];
+        (0..periods)
+            .map(|_| {
+                z = self.period(&z, &ex, &Inputs::default(), Break::None).next;
+                z.get(state::LOAD_SPEED).copied().unwrap_or(0.0)
+            })
+            .collect()
     }
 
     /// Dynamic stiffness |τ_L/θl| at each frequency \[pu torque per pu·s of load position\],

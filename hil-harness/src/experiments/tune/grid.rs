@@ -6,14 +6,17 @@ use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig, PiInertia};
 use core::f32::consts::FRAC_1_SQRT_2;
 use serde::Serialize;
 
-/// Velocity bandwidths tried with `--max-bandwidth` \[rad/s\].
-pub const BANDWIDTHS_RAD_S: [f64; 10] = [
-    30.0, 45.0, 60.0, 94.25, 120.0, 150.0, 200.0, 250.0, 350.0, 500.0,
+/// Velocity bandwidths tried with `--max-bandwidth` \[rad/s\] (110: a step of about 15 %
+/// between Table 1's 94.25 and 120, where Table 1's limit lies).
+pub const BANDWIDTHS_RAD_S: [f64; 11] = [
+    30.0, 45.0, 60.0, 94.25, 110.0, 120.0, 150.0, 200.0, 250.0, 350.0, 500.0,
 ];
 /// Ka / J_total tried.
 pub const GAINS: [f32; 4] = [0.25, 0.5, 1.0, 2.0];
-/// AFB filters tried (second order: Q = 1/√2).
-pub const FILTERS: [FilterConfig; 6] = [
+/// AFB filters tried (second order: Q = 1/√2); 25 Hz is the sweep's lowest corner, the
+/// best damped at Table 1's higher bandwidths.
+pub const FILTERS: [FilterConfig; 7] = [
+    FilterConfig::FirstOrder { corner_hz: 25.0 },
     FilterConfig::FirstOrder { corner_hz: 50.0 },
     FilterConfig::FirstOrder { corner_hz: 100.0 },
     FilterConfig::FirstOrder { corner_hz: 200.0 },

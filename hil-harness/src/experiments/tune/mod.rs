@@ -15,24 +15,32 @@
 //!    with a load step), `shock` (a 150 % step at speed) and the sweep's probe. The first
 //!    that is stable in all three without a fault, and quiet on the probe, is the design.
 //!    A design that fails is refused and the next one is tried.
+//! 4. The design's damping is measured in the nonlinear loop ([`damping`]: load steps with
+//!    the gears engaged, the dominant mode fitted) against the model's, and `tune.md` gets
+//!    the Bode plot and the pole map ([`plots`]) and, per bandwidth, which constraint
+//!    stopped the search ([`summary`]).
 
+pub mod damping;
 pub mod grid;
+pub mod output;
+pub mod plots;
+pub mod summary;
 
 pub use grid::{candidates, without_afb, Candidate, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
 
 use crate::config::{resolve, RunConfig};
+use crate::engine::runner::regulator_gains;
 use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
-use crate::experiments::linear::{for_run, Break};
+use crate::experiments::linear::{for_gains, Break, LoopModel};
 use crate::output::Staging;
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::fmt::Write as _;
 use std::path::Path;
 
 /// The constraints of a design.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Constraints {
     /// Smallest damping ratio of the loop, gears engaged and apart.
     pub min_damping: f64,
@@ -75,11 +83,11 @@ pub struct Judged {
 fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
     let mut cfg = fig6.clone();
     c.apply(&mut cfg.drive);
-    controller_core::design(&cfg.drive)
-        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
-    let engaged = for_run(&cfg, Gears::Engaged)?;
-    let apart = if cfg.plant.mechanics.backlash_deg > 0.0 {
-        for_run(&cfg, Gears::Apart)?.smallest_damping()
+    // The one design of this candidate; both contact states are modelled from it.
+    let gains = regulator_gains(&cfg)?;
+    let engaged = for_gains(&cfg, &gains, Gears::Engaged);
+    let apart = if has_lost_motion(&cfg) {
+        for_gains(&cfg, &gains, Gears::Apart).smallest_damping()
     } else {
         f64::INFINITY
     };
@@ -167,6 +175,8 @@ fn verify(bases: &[RunConfig], c: &Candidate) -> Result<Vec<Verification>> {
 pub struct TuneResult {
     /// The config tuned.
     pub config: String,
+    /// The constraints it was tuned to.
+    pub constraints: Constraints,
     /// Candidates judged and feasible.
     pub judged: usize,
     /// Feasible on the linear model.
@@ -177,6 +187,19 @@ pub struct TuneResult {
     pub design: Judged,
     /// Its verification runs.
     pub verification: Vec<Verification>,
+    /// Per velocity bandwidth: the constraints met, the best damping and stiffness.
+    pub per_bandwidth: Vec<summary::AtBandwidth>,
+    /// Its damping measured in the nonlinear loop against the model's
+    /// ([`damping::measure`]); `None` until [`tune`] has run it.
+    pub step: Option<damping::StepFit>,
+}
+
+/// How far the damping fitted to the nonlinear loop's step response may be from the
+/// model's smallest damping (the issue's acceptance figure).
+pub const DAMPING_TOLERANCE: f64 = 0.05;
+
+fn has_lost_motion(cfg: &RunConfig) -> bool {
+    cfg.plant.mechanics.backlash_deg > 0.0
 }
 
 /// Searches `grid`, ranks and verifies (module docs).
@@ -195,6 +218,7 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
         .collect();
     pb.finish_and_clear();
     let total = judged.len();
+    let all = judged.clone();
     judged.retain(|j| j.feasible);
     let feasible = judged.len();
     judged.sort_by(|a, b| {
@@ -209,11 +233,14 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
         if runs.iter().all(|r| r.passed) {
             return Ok(TuneResult {
                 config: config.into(),
+                constraints: *k,
                 judged: total,
                 feasible,
+                per_bandwidth: summary::per_bandwidth(&all, &refused, k),
                 refused,
                 design: j,
                 verification: runs,
+                step: None,
             });
         }
         refused.push((j, runs));
@@ -225,122 +252,6 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
              stable in the loop ({feasible} met the constraints)"
         ),
     ))
-}
-
-/// The `[drive]` keys a design sets, as a TOML tree.
-fn design_table(c: &Candidate) -> toml::Table {
-    use crate::experiments::sweep::grid::{filter_parts, word};
-    use toml::Value;
-    let mut drive = toml::Table::new();
-    let put = |t: &mut toml::Table, k: &str, v: Value| {
-        t.insert(k.into(), v);
-    };
-    put(
-        &mut drive,
-        "velocity_bandwidth_rad_s",
-        Value::Float(c.bandwidth_rad_s),
-    );
-    put(
-        &mut drive,
-        "velocity_pi_inertia",
-        Value::String("total".into()),
-    );
-    let a = &c.afb;
-    let mut afb = toml::Table::new();
-    put(&mut afb, "mode", Value::String(word(a.mode)));
-    if a.mode != controller_core::AfbMode::Off {
-        let (kind, corner) = filter_parts(a.filter);
-        put(
-            &mut afb,
-            "gain_fraction",
-            Value::Float(f64::from(a.gain_fraction)),
-        );
-        put(&mut afb, "filter", Value::String(kind.into()));
-        put(
-            &mut afb,
-            "filter_corner_hz",
-            Value::Float(f64::from(corner)),
-        );
-        put(&mut afb, "source", Value::String(word(a.source)));
-    }
-    drive.insert("accel_feedback".into(), Value::Table(afb));
-    if a.observer_hz > 0.0 {
-        let mut obs = toml::Table::new();
-        put(
-            &mut obs,
-            "bandwidth_hz",
-            Value::Float(f64::from(a.observer_hz)),
-        );
-        drive.insert("observer".into(), Value::Table(obs));
-    }
-    drive
-}
-
-/// The `[drive]` table of a design, as TOML text.
-pub fn drive_toml(c: &Candidate) -> Result<String> {
-    let mut doc = toml::Table::new();
-    doc.insert("drive".into(), toml::Value::Table(design_table(c)));
-    toml::to_string(&doc).map_err(|e| HarnessError::config("tune", e.to_string()))
-}
-
-/// `config` with its `[drive]` table's keys set to the design's.
-fn merged_config(config_path: &Path, c: &Candidate) -> Result<String> {
-    let mut doc = crate::config::read_table(config_path)?;
-    let drive = doc
-        .entry("drive")
-        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-    if let toml::Value::Table(d) = drive {
-        for (k, v) in design_table(c) {
-            match (d.get_mut(&k), v) {
-                (Some(toml::Value::Table(old)), toml::Value::Table(new)) => old.extend(new),
-                (_, v) => {
-                    d.insert(k, v);
-                }
-            }
-        }
-    }
-    toml::to_string(&doc).map_err(|e| HarnessError::config("tune", e.to_string()))
-}
-
-fn markdown(r: &TuneResult, drive_toml: &str) -> String {
-    let d = &r.design;
-    let mut s = format!(
-        "# tune: `{}`\n\n{} candidates judged on the linear model, {} met the constraints; {} \
-         refused in the nonlinear loop before this one.\n\n## Design\n\n```toml\n{}```\n\n",
-        r.config,
-        r.judged,
-        r.feasible,
-        r.refused.len(),
-        drive_toml
-    );
-    let _ = writeln!(
-        s,
-        "Predicted (linear model): smallest damping {:.3} engaged, {} apart; velocity-loop phase \
-         margin {:.1}°, gain margin {:.1} dB; quantization torque noise {:.4} pu RMS; weakest \
-         stiffness over ω_v … 10·ω_v {:.4e} pu per pu·s.\n",
-        d.damping[0],
-        if d.damping[1].is_finite() {
-            format!("{:.3}", d.damping[1])
-        } else {
-            "(no lost motion)".into()
-        },
-        d.margins[0],
-        d.margins[1],
-        d.noise_pu,
-        d.stiffness
-    );
-    let _ = writeln!(
-        s,
-        "| verification | stable | faulted | shaft-torque ripple (pu) |\n|---|---|---|---|"
-    );
-    for v in &r.verification {
-        let _ = writeln!(
-            s,
-            "| {} | {} | {} | {:.4} |",
-            v.scenario, v.stable, v.faulted, v.shaft_torque_ripple_rms_pu
-        );
-    }
-    s
 }
 
 /// `hil-harness tune`.
@@ -362,32 +273,57 @@ pub fn tune(
     };
     // Resolve once first, so a bad config is reported before the search.
     let base: RunConfig = resolve("fig6", Some(config), &[])?;
-    let result = search(config, &candidates(&bws), constraints)?;
+    let mut result = search(config, &candidates(&bws), constraints)?;
+    let mut fig6 = base.clone();
+    result.design.candidate.apply(&mut fig6.drive);
+    let gains = regulator_gains(&fig6)?;
+    let engaged = for_gains(&fig6, &gains, Gears::Engaged);
+    let apart = has_lost_motion(&fig6).then(|| for_gains(&fig6, &gains, Gears::Apart));
+    result.step = Some(damping::measure(&fig6, &engaged)?);
     let staging = Staging::new(out)?;
     let dir = staging.dir();
-    let json = serde_json::to_string_pretty(&result)
+    write_files(dir, &result, &base, &fig6, &engaged, apart.as_ref())?;
+    staging.commit()?;
+    let c = &result.design.candidate;
+    Ok(format!(
+        "tune {config}: {} rad/s, {}; damping {:.3} (fitted in the loop {}); -> {}",
+        c.bandwidth_rad_s,
+        c.afb.label(),
+        result.design.damping[0],
+        result
+            .step
+            .as_ref()
+            .map_or_else(|| "-".into(), |f| format!("{:.3}", f.fitted.damping())),
+        out.display()
+    ))
+}
+
+/// The figures, `drive.toml`, `config.toml`, `tune.md` and `tune.json` into `dir`.
+fn write_files(
+    dir: &Path,
+    result: &TuneResult,
+    base: &RunConfig,
+    tuned: &RunConfig,
+    engaged: &LoopModel,
+    apart: Option<&LoopModel>,
+) -> Result<()> {
+    let nyquist_hz = 0.5 * f64::from(tuned.drive.velocity_rate_hz);
+    let images = plots::write(dir, engaged, apart, nyquist_hz)?;
+    let json = serde_json::to_string_pretty(result)
         .map_err(|e| HarnessError::io(dir.join("tune.json"), e))?;
-    let drive = drive_toml(&result.design.candidate)?;
+    let drive = output::drive_toml(&tuned.drive)?;
     let files = [
-        ("tune.md", markdown(&result, &drive)),
-        ("drive.toml", drive),
+        ("tune.md", output::markdown(result, &drive, &images)),
         (
             "config.toml",
-            merged_config(&base.config_path, &result.design.candidate)?,
+            output::merged_config(&base.config_path, &base.drive, &tuned.drive)?,
         ),
+        ("drive.toml", drive),
         ("tune.json", json + "\n"),
     ];
     for (name, text) in files {
         let path = dir.join(name);
         std::fs::write(&path, text).map_err(|e| HarnessError::io(&path, e))?;
     }
-    staging.commit()?;
-    let c = &result.design.candidate;
-    Ok(format!(
-        "tune {config}: {} rad/s, {}; damping {:.3}; -> {}",
-        c.bandwidth_rad_s,
-        c.afb.label(),
-        result.design.damping[0],
-        out.display()
-    ))
+    Ok(())
 }
