@@ -42,7 +42,11 @@ fn check(name: &str, ident: &Identification) -> Vec<String> {
     ];
     let mut failures = Vec::new();
     for (what, err, limit) in rows {
-        eprintln!("{name}: {what} error {:+.3} % (limit {} %)", 100.0 * err, 100.0 * limit);
+        eprintln!(
+            "{name}: {what} error {:+.3} % (limit {} %)",
+            100.0 * err,
+            100.0 * limit
+        );
         if err.abs() > limit {
             failures.push(format!("{name}: {what} off by {:+.3} %", 100.0 * err));
         }
@@ -90,12 +94,17 @@ fn table1_is_identified_and_the_files_load_back() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("id");
     identify("table1", &sets(), &out).unwrap();
-    for f in ["plant.toml", "identify.json", "identify.md", "bode.png", "bode.svg"] {
+    for f in [
+        "plant.toml",
+        "identify.json",
+        "identify.md",
+        "bode.png",
+        "bode.svg",
+    ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("identify.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("identify.json")).unwrap()).unwrap();
     let estimate = |name: &str| {
         json["estimates"]
             .as_array()
@@ -119,7 +128,12 @@ fn table1_is_identified_and_the_files_load_back() {
     assert_eq!(m.anti_resonance_hz, estimate("anti_resonance_hz").0);
     assert_eq!(m.backlash_deg, estimate("backlash_deg").0);
     // Every estimate carries a finite, positive standard error.
-    for name in ["motor_inertia_s", "load_inertia_s", "anti_resonance_hz", "resonance_hz"] {
+    for name in [
+        "motor_inertia_s",
+        "load_inertia_s",
+        "anti_resonance_hz",
+        "resonance_hz",
+    ] {
         let (_, e) = estimate(name);
         assert!(e.is_some_and(|e| e > 0.0 && e.is_finite()), "{name}: {e:?}");
     }

@@ -90,6 +90,19 @@ fn mismatch(measured: &Record, model: &Record) -> f64 {
         .sum()
 }
 
+/// σ = √(2·s²/S'') from S at `lower`, `deg`, `upper` (`s` = (S(lower), S(deg), S(upper))),
+/// s² = S(deg)/(n − 1); NaN where the curvature is not positive.
+fn std_error(deg: f64, (lower, upper): (f64, f64), s: (f64, f64, f64), n: f64) -> f64 {
+    let (hl, hu) = ((deg - lower).max(1e-12), (upper - deg).max(1e-12));
+    let curvature = 2.0 * ((s.2 - s.1) / hu - (s.1 - s.0) / hl) / (hl + hu);
+    let s2 = s.1 / (n - 1.0);
+    if curvature > 0.0 {
+        (2.0 * s2 / curvature).sqrt()
+    } else {
+        f64::NAN
+    }
+}
+
 /// Fits the lost motion to the measured reversal test `measured` (module docs).
 pub fn fit_lost_motion(
     base: &RunConfig,
@@ -152,17 +165,10 @@ pub fn fit_lost_motion(
     // Curvature of S at the optimum, a quarter count (or 1 % of the width) either side.
     let count_deg = 360.0 / f64::from(base.drive.encoder_cpr.max(1));
     let h = (0.25 * count_deg).max(0.01 * deg);
-    let (s_minus, s_plus) = (cost((deg - h).max(0.0))?, cost(deg + h)?);
     let lower = (deg - h).max(0.0);
-    let curvature = 2.0 * ((s_plus - s_min) / h - (s_min - s_minus) / (deg - lower).max(1e-12))
-        / (h + (deg - lower)).max(1e-12);
+    let sides = (cost(lower)?, cost(deg + h)?);
     let n = measured.torque_ref.len().max(2) as f64;
-    let s2 = s_min / (n - 1.0);
-    let std_error_deg = if curvature > 0.0 {
-        (2.0 * s2 / curvature).sqrt()
-    } else {
-        f64::NAN
-    };
+    let std_error_deg = std_error(deg, (lower, deg + h), (sides.0, s_min, sides.1), n);
     Ok(LostMotionFit {
         backlash_deg: deg,
         std_error_deg,

@@ -135,10 +135,7 @@ fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
             .map(|(i, &f)| (f, g(i, f)))
             .collect()
     };
-    let model = |i: usize, f: f64| {
-        let _ = i;
-        ident.fit.fit.response(f, wb)
-    };
+    let model = |_: usize, f: f64| ident.fit.fit.response(f, wb);
     let meas = |i: usize, _| r.h.get(i).copied().unwrap_or_default();
     let deg = |h: nalgebra::Complex<f64>| h.arg().to_degrees();
     let panel = |title: &str, y: &str, series, log_y| Panel {
