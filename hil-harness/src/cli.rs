@@ -1,4 +1,4 @@
-//! The command line: `run`, `linear`, `sweep`, `stiffness`, `sec2-map`, `reproduce`, `pil`,
+//! The command line: `run`, `linear`, `identify`, `sweep`, `stiffness`, `sec2-map`, `reproduce`, `pil`,
 //! `replay`.
 
 use clap::{Args, Parser, Subcommand};
@@ -46,6 +46,21 @@ pub enum Command {
         /// Largest torque noise from encoder quantization (pu RMS).
         #[arg(long, default_value_t = 0.2)]
         max_noise_pu: f64,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Measure the machine in the closed loop (PRBS on the torque reference, H1 with Welch
+    /// averaging, lost-motion reversal test) and fit its two-inertia model; writes
+    /// DIR/plant.toml, DIR/identify.json, DIR/identify.md and DIR/bode.png|svg.
+    Identify {
+        /// Configuration (path, or name under configs/); its optional `[identify]` table
+        /// holds the measurement settings.
+        #[arg(long)]
+        config: String,
+        /// Override `section.key=value` (repeatable), e.g. identify.amplitude_pu=0.2.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,

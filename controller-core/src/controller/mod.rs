@@ -6,12 +6,14 @@
 //! observer ← (position, torque of the last tick: command or measured current)
 //! afb      ← AccelerationFeedback(â, a_cmd)               (if AFB runs at this rate;
 //!            with the observer's â solved in closed form for this tick's torque)
-//! i_ref    = clamp(i_vel + afb, ±torque_limit)            (0 when faulted)
+//! i_ref    = clamp(i_vel + afb + r, ±torque_limit)        (0 when faulted; r the
+//!            torque-reference excitation, 0 unless one is set)
 //! v_cmd    = CurrentRegulator(i_ref − i_meas)             (PI, ±voltage_limit)
 //! ```
 //! Velocity tick (every 1/velocity_rate_hz):
 //! ```text
-//! ω_cmd = vff·ω_sp + k_pos·(θ_sp − θ)                      (position P; ω_sp in velocity mode)
+//! ω_cmd = vff·ω_sp + k_pos·(θ_sp − θ) + r                  (position P; ω_sp in velocity mode;
+//!                                                          r a velocity-reference excitation)
 //! i_vel = VelocityRegulator(ω_cmd − ω_fb) + k_aff·a_sp     (PI, ±torque_limit)
 //! afb   ← AccelerationFeedback(...)                         (if AFB runs at this rate)
 //! ```
@@ -29,6 +31,9 @@ use crate::config::{DriveConfig, Estimator, ObserverTorque};
 use crate::design::{design, Gains};
 use crate::differentiator::DifferentiatorState;
 use crate::error::ConfigError;
+use crate::excitation::{
+    Excitation, ExcitationConfig, ExcitationParams, ExcitationState, Injection,
+};
 use crate::fault::Fault;
 use crate::filter::LowPassState;
 use crate::observer::ObserverState;
@@ -57,6 +62,9 @@ struct State {
     /// Measured current of the last current tick \[pu\] (observer torque input).
     last_current: Pu,
     accel_cmd: PuPerS,
+    /// The excitation's state and its latest sample \[pu\] (zero without one).
+    excitation: ExcitationState,
+    excitation_pu: Pu,
     fault: Option<Fault>,
 }
 
@@ -65,6 +73,9 @@ struct State {
 pub struct Controller {
     gains: Gains,
     coef: Coefficients,
+    /// The identification excitation, if any ([`Controller::with_excitation`]); none by
+    /// default, and then every output is what it is without this feature.
+    excitation: Option<Excitation>,
     state: State,
 }
 
@@ -99,8 +110,86 @@ impl Controller {
         Ok(Self {
             gains: *gains,
             coef: Coefficients::from_gains(gains)?,
+            excitation: None,
             state: State::default(),
         })
+    }
+
+    /// The same controller with an excitation for measuring the machine (a chirp or a
+    /// PRBS, [`crate::excitation`]): on the torque reference it is designed at the current
+    /// rate and added to the torque reference every current tick before the clamp; on the
+    /// velocity reference it is designed at the velocity rate and added to ω_cmd every
+    /// velocity tick. It starts with the next tick, ends after its length (zero from then
+    /// on), restarts with [`Controller::reset`] and is zero while a fault is latched.
+    /// `names` are the settings' paths for the errors.
+    ///
+    /// ```
+    /// use controller_core::excitation::*;
+    /// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// let e = ExcitationConfig {
+    ///     waveform: Waveform::Prbs { bits: 7, hold_ticks: 1, periods: 1 },
+    ///     amplitude_pu: 0.1,
+    ///     injection: Injection::TorqueReference,
+    /// };
+    /// let names = ExcitationParams {
+    ///     amplitude_pu: "a", start_or_bits: "b", end_or_hold: "h", duration_or_periods: "p",
+    /// };
+    /// let mut c = controller_core::Controller::new(&cfg).unwrap().with_excitation(&e, names)?;
+    /// let out = c.current_tick(controller_core::CurrentInputs::default());
+    /// // The first PRBS bit is +amplitude; it reaches the torque reference at once.
+    /// assert_eq!(c.excitation_pu(), controller_core::Pu::from_num(0.1));
+    /// assert!(out.current_ref_pu > controller_core::Pu::ZERO);
+    /// # Ok::<(), controller_core::ConfigError>(())
+    /// ```
+    pub fn with_excitation(
+        mut self,
+        cfg: &ExcitationConfig,
+        names: ExcitationParams,
+    ) -> Result<Self, ConfigError> {
+        let c = &self.gains.cfg;
+        let rate_hz = match cfg.injection {
+            Injection::TorqueReference => c.current_rate_hz,
+            Injection::VelocityReference => c.velocity_rate_hz,
+        };
+        self.excitation = Some(Excitation::new(cfg, rate_hz as f32, names)?);
+        self.state.excitation = ExcitationState::default();
+        self.state.excitation_pu = Pu::ZERO;
+        Ok(self)
+    }
+
+    /// The excitation's latest sample \[pu of torque or speed\]: what the last tick at its
+    /// injection point added (zero without an excitation, after it ended, or when faulted).
+    #[must_use]
+    pub fn excitation_pu(&self) -> Pu {
+        self.state.excitation_pu
+    }
+
+    /// The next excitation sample if the excitation enters at `at` (and no fault is
+    /// latched), recorded as the latest; zero otherwise.
+    #[inline(always)]
+    fn excite(&mut self, at: Injection) -> Pu {
+        match self.excitation {
+            Some(e) if e.injection() == at => {
+                let v = if self.state.fault.is_none() {
+                    e.next(&mut self.state.excitation)
+                } else {
+                    Pu::ZERO
+                };
+                self.state.excitation_pu = v;
+                v
+            }
+            _ => Pu::ZERO,
+        }
+    }
+
+    /// The torque-reference excitation of this current tick (zero unless it enters there).
+    #[inline(always)]
+    fn torque_excitation(&self) -> Pu {
+        match self.excitation {
+            Some(e) if e.injection() == Injection::TorqueReference => self.state.excitation_pu,
+            _ => Pu::ZERO,
+        }
     }
 
     /// The designed gains (f32).
@@ -184,12 +273,13 @@ impl Controller {
         if self.state.fault.is_none() {
             let obs = &self.coef.observer;
             let os = &self.state.observer;
-            self.state.afb = self.coef.afb.update_closed_from(
-                &mut self.state.afb_filter,
-                self.state.i_vel,
-                c,
-                |t| obs.predicted_acceleration_pu_s(os, t),
-            );
+            let base = self.state.i_vel.saturating_add(self.torque_excitation());
+            self.state.afb =
+                self.coef
+                    .afb
+                    .update_closed_from(&mut self.state.afb_filter, base, c, |t| {
+                        obs.predicted_acceleration_pu_s(os, t)
+                    });
         }
     }
 
@@ -216,6 +306,7 @@ impl Controller {
             self.state
                 .i_vel
                 .saturating_add(self.state.afb)
+                .saturating_add(self.torque_excitation())
                 .max(-lim)
                 .min(lim)
         }
@@ -245,6 +336,7 @@ impl Controller {
             )),
         };
         self.state.last_current = inp.current_pu;
+        let _ = self.excite(Injection::TorqueReference);
         self.coef
             .observer
             .update(&mut self.state.observer, position, torque);
@@ -348,6 +440,7 @@ impl Controller {
         }
 
         let (pos_err, v_cmd) = self.position_loop(position, &sp);
+        let v_cmd = v_cmd.saturating_add(self.excite(Injection::VelocityReference));
 
         if self.state.fault.is_none() {
             let ff = mul_gain(sp.acceleration_pu_s, self.coef.k_accel_ff);

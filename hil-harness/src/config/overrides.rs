@@ -5,13 +5,14 @@ use crate::error::{HarnessError, Result};
 use toml::{Table, Value};
 
 /// Top-level tables a `--set` may address.
-pub const SECTIONS: [&str; 6] = [
+pub const SECTIONS: [&str; 7] = [
     "plant",
     "electrics",
     "sensors",
     "lost_motion",
     "drive",
     "scenario",
+    "identify",
 ];
 
 /// Parses the right-hand side of `key=value` as a TOML value; a bare word that is not

@@ -35,6 +35,28 @@ pub trait ControlBackend {
     fn halted(&self) -> bool {
         false
     }
+    /// The excitation sample the last tick added \[pu\] (0 without one).
+    fn excitation_pu(&self) -> f64 {
+        0.0
+    }
+}
+
+/// The signals of one current tick as the drive records them, for a
+/// [`run_recorded`] recorder (identification): what a drive can log, no plant state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TickRecord {
+    /// Tick instant \[s\].
+    pub t_s: f64,
+    /// Motor encoder count at the tick, unwrapped (noise and quantization included).
+    pub encoder_count: i64,
+    /// Load encoder count, where one is fitted.
+    pub load_encoder_count: Option<i64>,
+    /// Measured current (= torque) sample \[pu\] (ADC, noise).
+    pub current_pu: f64,
+    /// Torque reference the tick formed \[pu\].
+    pub current_ref_pu: f64,
+    /// Excitation sample the tick added \[pu\].
+    pub excitation_pu: f64,
 }
 
 impl ControlBackend for Controller {
@@ -44,6 +66,10 @@ impl ControlBackend for Controller {
 
     fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
         Controller::velocity_tick(self, inputs)
+    }
+
+    fn excitation_pu(&self) -> f64 {
+        crate::engine::plant::f(Controller::excitation_pu(self))
     }
 }
 
@@ -335,6 +361,15 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
     cfg: &RunConfig,
     backend: &mut B,
 ) -> Result<RunOutput> {
+    run_recorded(cfg, backend, |_| {})
+}
+
+/// [`run_with_backend`], handing every current tick's [`TickRecord`] to `record`.
+pub fn run_recorded<B: ControlBackend + ?Sized>(
+    cfg: &RunConfig,
+    backend: &mut B,
+    mut record: impl FnMut(&TickRecord),
+) -> Result<RunOutput> {
     use crate::engine::plant::{f, pu};
     let mut plant = TwoInertiaPlant::voltage_driven(&cfg.plant);
     let current_rate_hz = f64::from(cfg.drive.current_rate_hz);
@@ -364,6 +399,14 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
         let out = backend.current_tick(CurrentInputs {
             encoder_count,
             current_pu: pu(current_pu),
+        });
+        record(&TickRecord {
+            t_s,
+            encoder_count: plant.encoder_count(),
+            load_encoder_count: plant.load_encoder_count(),
+            current_pu: f(pu(current_pu)),
+            current_ref_pu: f(out.current_ref_pu),
+            excitation_pu: backend.excitation_pu(),
         });
         let step = (t_s, voltage_pu, f(out.voltage_cmd_pu));
         voltage_pu = plant_step(&mut plant, &mut delay_line, cfg, &tm, step)?;
