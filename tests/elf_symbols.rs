@@ -1,13 +1,10 @@
 //! The built Cortex-M images hold no `RefCell` panic path (`panic_already_borrowed`): the
 //! interrupt glue shares the app through `isr::Shared`, which refuses a second borrower
 //! instead of panicking. The test builds the firmware's release images itself (installing
-//! the ARM target if it is missing, as the PIL tests do) into `target/elf-check`, and reads
-//! their symbol tables. The same check by hand:
-//! `llvm-nm -C target/thumbv7em-none-eabihf/release/fw-bench | grep borrowed`.
+//! the ARM target if it is missing, as the PIL tests do) into `target/firmware`, the
+//! directory every host-side firmware build shares, and reads their symbol tables. The same
+//! check by hand: `llvm-nm -C target/thumbv7em-none-eabihf/release/fw-bench | grep borrowed`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
-
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 /// Symbol names that must not be linked into a firmware image.
 const FORBIDDEN: &[&str] = &["panic_already_borrowed", "panic_already_mutably_borrowed"];
@@ -52,36 +49,19 @@ fn symbol_names(elf: &[u8]) -> Vec<String> {
     names
 }
 
-/// Builds every firmware binary (release, QEMU board) into `target/elf-check`; returns the
-/// directory of the images.
-fn build_images() -> PathBuf {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    fw_runner::provision::ensure_arm_target(root).unwrap();
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
-        .map_or_else(|| root.join("target"), PathBuf::from)
-        .join("elf-check");
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let status = Command::new(cargo)
-        .current_dir(root)
-        .args(["build", "-p", "firmware", "--release", "--bins"])
-        .args(["--target", fw_runner::provision::ARM_TARGET])
-        .env("CARGO_TARGET_DIR", &target_dir)
-        .stderr(Stdio::inherit())
-        .status()
-        .unwrap();
-    assert!(status.success(), "building the firmware images failed");
-    target_dir
-        .join(fw_runner::provision::ARM_TARGET)
-        .join("release")
-}
-
 #[test]
 fn firmware_images_hold_no_refcell_panic_path() {
-    let release = build_images();
+    // The images are read while the build lock is held, so no feature build replaces one.
+    let images = hil_harness::pil::with_all_images(|release| {
+        let read = |image: &str| {
+            let path = release.join(image);
+            std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        };
+        Ok(["firmware", "fw-bench", "fw-lil", "pil"].map(|image| (image, read(image))))
+    })
+    .unwrap();
     let mut checked = 0;
-    for image in ["firmware", "fw-bench", "fw-lil", "pil"] {
-        let path = release.join(image);
-        let elf = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    for (image, elf) in images {
         let names = symbol_names(&elf);
         assert!(
             names

@@ -65,6 +65,36 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Commission a machine: identify it, tune on the identified model (with AFB, and
+    /// without for the comparison), and verify both drives on the machine itself; writes
+    /// DIR/identify/, DIR/identified.toml, DIR/tune/, DIR/commission.md and .json.
+    Commission {
+        /// Configuration (path, or name under configs/): the machine to commission.
+        #[arg(long)]
+        config: String,
+        /// Override `section.key=value` (repeatable) on the machine file.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Velocity bandwidth to design for (rad/s).
+        #[arg(
+            long,
+            conflicts_with = "max_bandwidth",
+            required_unless_present = "max_bandwidth"
+        )]
+        target_bandwidth: Option<f64>,
+        /// Search the velocity bandwidth too, for the largest that meets the constraints.
+        #[arg(long)]
+        max_bandwidth: bool,
+        /// Smallest damping ratio, gears engaged and apart.
+        #[arg(long, default_value_t = 0.3)]
+        min_damping: f64,
+        /// Largest torque noise from encoder quantization (pu RMS).
+        #[arg(long, default_value_t = 0.2)]
+        max_noise_pu: f64,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// Largest stable velocity bandwidth with and without acceleration feedback.
     Sweep {
         /// Output directory.

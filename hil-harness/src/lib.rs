@@ -59,7 +59,7 @@ pub fn main_with_default(default_command: &str) -> ExitCode {
 /// Runs one parsed command; returns the text to print.
 pub fn dispatch(command: cli::Command) -> Result<String> {
     use cli::Command;
-    use experiments::{identify, linear, sec2, stiffness, sweep, tune};
+    use experiments::{commission, identify, linear, sec2, stiffness, sweep, tune};
     match command {
         Command::Run(a) => commands::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
         Command::Linear(a) => {
@@ -81,6 +81,23 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             tune::tune(&config, target_bandwidth, &constraints, &out)
         }
         Command::Identify { config, set, out } => identify::identify(&config, &set, &out),
+        Command::Commission {
+            config,
+            set,
+            target_bandwidth,
+            max_bandwidth: _,
+            min_damping,
+            max_noise_pu,
+            out,
+        } => {
+            let constraints = tune::Constraints {
+                min_damping,
+                max_noise_pu,
+                ..tune::Constraints::default()
+            };
+            commission::commission(&config, &set, target_bandwidth, &constraints, &out)
+        }
+
         Command::Sweep { out } => sweep::sweep(&out),
         Command::Stiffness { out } => stiffness::stiffness(&out),
         Command::Sec2Map { out } => sec2::sec2(&out),

@@ -4,7 +4,9 @@
 //! (gears engaged throughout, torque below its limit) against the model's smallest damping.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::experiments::tune::{tune, Constraints, DAMPING_TOLERANCE};
+use hil_harness::experiments::linear::for_gains;
+use hil_harness::experiments::tune::{damping, tune, Constraints, DAMPING_TOLERANCE};
+use plant_host::analysis::Gears;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -83,13 +85,39 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
         (f("fitted_to_model_damping") - f("nearest_pole_damping")).abs() <= DAMPING_TOLERANCE / 5.0,
         "{step}"
     );
+
+    // Why the Must-show below fails at 4096 counts: the same tuned drive, measured with a
+    // 4x interpolated encoder (16,384 counts; the following-error trip scaled with it),
+    // fits within the tolerance of the model. The gap at 4096 counts is the quantization,
+    // which adds damping the linear model does not have.
+    let sets = [
+        "sensors.encoder_interpolation=4".to_string(),
+        "drive.faults.following_error_counts=16384".to_string(),
+    ];
+    let fine = hil_harness::resolve("fig6", Some(&config), &sets).unwrap();
+    let gains = hil_harness::engine::runner::regulator_gains(&fine).unwrap();
+    let model = for_gains(&fine, &gains, Gears::Engaged);
+    let fit = damping::measure(&fine, &model).unwrap();
+    eprintln!(
+        "16,384 counts: predicted {:.3}, fitted {:.3} at {:.2} Hz (4096 counts: fitted {:.3})",
+        fit.smallest_damping,
+        fit.fitted_damping,
+        fit.fitted_hz,
+        f("fitted_damping")
+    );
+    assert!(
+        (fit.fitted_damping - fit.smallest_damping).abs() <= DAMPING_TOLERANCE,
+        "{fit:?}"
+    );
 }
 
 /// The Must-show: the model's smallest damping within 0.05 of the damping fitted
 /// to the nonlinear loop's step response. On this tree it fails at the design `tune`
-/// chooses: the nonlinear loop is better damped than the model (both in `tune.md`).
+/// chooses for Table 1's 4096-count encoder: the nonlinear loop is better damped than the
+/// model (both in `tune.md`). The test above shows the cause: with a 4x finer encoder the
+/// same drive fits within the tolerance.
 #[test]
-#[ignore = "not met on this tree: the loop is better damped than the model at the chosen design (tune.md)"]
+#[ignore = "not met at 4096 counts: quantization damps the loop more than the model (tune.md; the finer-encoder check above passes)"]
 fn tune_table1_predicted_damping_is_within_0_05_of_the_fitted() {
     let tmp = tempfile::tempdir().unwrap();
     let json = tune_table1(&out_dir(&tmp));

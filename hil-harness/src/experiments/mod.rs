@@ -2,6 +2,7 @@
 //! paper's Sec. II map, the linear model of the loop, and `tune`, which designs on that
 //! model and proves the design in the loop.
 
+pub mod commission;
 pub mod identify;
 pub mod linear;
 pub mod sec2;

@@ -1,72 +1,115 @@
-//! Building the firmware's `pil` image for the Cortex-M4F.
+//! Building the firmware's images for the Cortex-M4F from the host.
+//!
+//! Every host-side build of the firmware (the `pil` image, its test-feature variants, the
+//! symbol check of all images) goes to one target directory, `<target>/firmware`:
+//! - its own, so a build started from a running host process (e.g. a test of `cargo test`)
+//!   never waits on the lock of the build that runs it;
+//! - one for all, so the ARM dependencies are compiled once and a feature variant rebuilds
+//!   only the firmware crate. CI points its `cargo fw-*` steps at it as well.
+//!
+//! The builds are serialized by a lock file, and each image is copied out (atomically, by
+//! rename) to a name of its own feature set before the lock is released. So a concurrent
+//! build of another feature set, which replaces cargo's `release/pil`, never changes an
+//! image a caller is running.
 
 use crate::error::{HarnessError, Result};
 use fw_runner::provision;
+use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-/// Builds the firmware's `pil` image for thumbv7em-none-eabihf and returns the ELF path.
-/// Uses its own target directory (`<target>/pil-firmware`) so it never waits on the lock of
-/// a host build that is running it (e.g. `cargo test`). Adds the ARM target to the
-/// toolchain first if it lacks it.
+/// The workspace root (this crate's parent).
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+}
+
+/// The target directory of the host-side firmware builds: `<target>/firmware`, where
+/// `<target>` is `CARGO_TARGET_DIR` or the workspace's `target/`.
+pub fn firmware_target_dir() -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| workspace_root().join("target"), PathBuf::from)
+        .join("firmware")
+}
+
+fn backend(what: &str, e: impl std::fmt::Display) -> HarnessError {
+    HarnessError::Backend(format!("firmware build: {what}: {e}"))
+}
+
+/// Runs `cargo build -p firmware --release --target thumbv7em-none-eabihf` with `args`
+/// into [`firmware_target_dir`], holding its lock file while `then` runs on the release
+/// directory. Adds the ARM target to the toolchain first if it lacks it.
+fn build_locked<T>(args: &[&str], then: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
+    let root = workspace_root();
+    provision::ensure_arm_target(&root).map_err(|e| backend("ARM target", e))?;
+    let target_dir = firmware_target_dir();
+    std::fs::create_dir_all(&target_dir).map_err(|e| backend("target directory", e))?;
+    let lock = File::create(target_dir.join("stiffdrive-images.lock"))
+        .map_err(|e| backend("lock file", e))?;
+    lock.lock().map_err(|e| backend("lock", e))?;
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(&cargo)
+        .current_dir(&root)
+        .args(["build", "-p", "firmware", "--release"])
+        .args(["--target", provision::ARM_TARGET])
+        .args(args)
+        .env("CARGO_TARGET_DIR", &target_dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::inherit())
+        .status()
+        .map_err(|e| backend("cannot run cargo", e))?;
+    if !status.success() {
+        return Err(HarnessError::Backend(format!(
+            "firmware build failed ({status}): cargo build -p firmware --release --target {} {}",
+            provision::ARM_TARGET,
+            args.join(" ")
+        )));
+    }
+    // The lock is released when `lock` drops, after `then`.
+    then(&target_dir.join(provision::ARM_TARGET).join("release"))
+}
+
+/// Builds the firmware's `pil` image and returns the ELF path.
 pub fn build_pil_image() -> Result<PathBuf> {
     build_pil_image_with(&[])
 }
 
-/// [`build_pil_image`] with extra firmware features (each feature set in a target
-/// directory of its own, `<target>/pil-firmware-<features>`).
+/// [`build_pil_image`] with extra firmware features. The image is returned as a copy named
+/// after its feature set (`images/pil` or `images/pil-<features>`), which no later build
+/// of another feature set replaces.
 pub fn build_pil_image_with(features: &[&str]) -> Result<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."));
-    provision::ensure_arm_target(&root).map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
-    let dir_name = if features.is_empty() {
-        "pil-firmware".to_string()
-    } else {
-        format!("pil-firmware-{}", features.join("-"))
-    };
-    let target_dir = std::env::var_os("CARGO_TARGET_DIR")
-        .map_or_else(|| root.join("target"), PathBuf::from)
-        .join(dir_name);
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let mut cmd = Command::new(&cargo);
-    cmd.current_dir(&root)
-        .args(["build", "-p", "firmware", "--release"])
-        .args(["--target", provision::ARM_TARGET, "--bin", "pil"]);
+    let joined = features.join(",");
+    let mut args = vec!["--bin", "pil"];
     if !features.is_empty() {
-        cmd.arg("--features").arg(features.join(","));
+        args.extend(["--features", joined.as_str()]);
     }
-    let output = cmd
-        .arg("--message-format=json-render-diagnostics")
-        .env("CARGO_TARGET_DIR", &target_dir)
-        .stderr(Stdio::inherit())
-        .output()
-        .map_err(|e| {
-            HarnessError::Backend(format!("PIL: cannot run cargo to build the image: {e}"))
-        })?;
-    if !output.status.success() {
-        return Err(HarnessError::Backend(format!(
-            "PIL: building the firmware image failed ({}): cargo build -p firmware --release \
-             --target thumbv7em-none-eabihf --bin pil",
-            output.status
-        )));
-    }
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let from_json = stdout.lines().find_map(|line| {
-        let v: serde_json::Value = serde_json::from_str(line).ok()?;
-        (v.get("reason")?.as_str()? == "compiler-artifact"
-            && v.get("target")?.get("name")?.as_str()? == "pil")
-            .then(|| v.get("executable")?.as_str().map(PathBuf::from))
-            .flatten()
-    });
-    let elf = from_json.unwrap_or_else(|| target_dir.join("thumbv7em-none-eabihf/release/pil"));
-    if elf.is_file() {
+    build_locked(&args, |release| {
+        let built = release.join("pil");
+        if !built.is_file() {
+            return Err(HarnessError::Backend(format!(
+                "PIL: the firmware image {} was not produced",
+                built.display()
+            )));
+        }
+        let images = release.join("images");
+        std::fs::create_dir_all(&images).map_err(|e| backend("images directory", e))?;
+        let name = if features.is_empty() {
+            "pil".to_string()
+        } else {
+            format!("pil-{}", features.join("-"))
+        };
+        let elf = images.join(&name);
+        let tmp = images.join(format!("{name}.tmp"));
+        std::fs::copy(&built, &tmp).map_err(|e| backend("copy of the image", e))?;
+        std::fs::rename(&tmp, &elf).map_err(|e| backend("rename of the image", e))?;
         Ok(elf)
-    } else {
-        Err(HarnessError::Backend(format!(
-            "PIL: the firmware image {} was not produced",
-            elf.display()
-        )))
-    }
+    })
+}
+
+/// Builds every firmware binary for the QEMU board (default features) and calls `check`
+/// on the release directory that holds them, with the build lock held (so no concurrent
+/// feature build replaces an image while it is read).
+pub fn with_all_images<T>(check: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
+    build_locked(&["--bins"], check)
 }

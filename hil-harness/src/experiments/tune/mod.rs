@@ -254,6 +254,77 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
     ))
 }
 
+/// A finished design: what [`search`] chose, with its damping measured in the loop.
+#[derive(Debug, Clone)]
+pub struct Tuned {
+    /// The search's result, [`TuneResult::step`] filled in.
+    pub result: TuneResult,
+    /// `fig6` on the config as given.
+    pub base: RunConfig,
+    /// `fig6` with the design applied.
+    pub tuned: RunConfig,
+}
+
+/// The velocity bandwidths to search: `target_bandwidth` alone, or the whole grid.
+pub fn bandwidths(target_bandwidth: Option<f64>) -> Result<Vec<f64>> {
+    match target_bandwidth {
+        Some(w) if w.is_finite() && w > 0.0 => Ok(vec![w]),
+        Some(w) => Err(HarnessError::config(
+            "--target-bandwidth",
+            format!("{w}: must be a positive number of rad/s"),
+        )),
+        None => Ok(BANDWIDTHS_RAD_S.to_vec()),
+    }
+}
+
+/// Searches (module docs, steps 1-3) and measures the chosen design's damping (step 4).
+pub fn design(
+    config: &str,
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+) -> Result<Tuned> {
+    let bws = bandwidths(target_bandwidth)?;
+    // Resolve once first, so a bad config is reported before the search.
+    let base: RunConfig = resolve("fig6", Some(config), &[])?;
+    let mut result = search(config, &candidates(&bws), constraints)?;
+    let mut tuned = base.clone();
+    result.design.candidate.apply(&mut tuned.drive);
+    let gains = regulator_gains(&tuned)?;
+    let engaged = for_gains(&tuned, &gains, Gears::Engaged);
+    result.step = Some(damping::measure(&tuned, &engaged)?);
+    Ok(Tuned {
+        result,
+        base,
+        tuned,
+    })
+}
+
+/// Writes the design's files into `dir` (module docs, and [`write_files`]).
+pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
+    let gains = regulator_gains(&t.tuned)?;
+    let engaged = for_gains(&t.tuned, &gains, Gears::Engaged);
+    let apart = has_lost_motion(&t.tuned).then(|| for_gains(&t.tuned, &gains, Gears::Apart));
+    write_files(dir, &t.result, &t.base, &t.tuned, &engaged, apart.as_ref())
+}
+
+/// The one-line summary of a design.
+#[must_use]
+pub fn summary_line(t: &Tuned, out: &Path) -> String {
+    let r = &t.result;
+    let c = &r.design.candidate;
+    format!(
+        "tune {}: {} rad/s, {}; damping {:.3} (fitted in the loop {}); -> {}",
+        r.config,
+        c.bandwidth_rad_s,
+        c.afb.label(),
+        r.design.damping[0],
+        r.step
+            .as_ref()
+            .map_or_else(|| "-".into(), |f| format!("{:.3}", f.fitted.damping())),
+        out.display()
+    )
+}
+
 /// `hil-harness tune`.
 pub fn tune(
     config: &str,
@@ -261,41 +332,11 @@ pub fn tune(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
-    let bws: Vec<f64> = match target_bandwidth {
-        Some(w) if w.is_finite() && w > 0.0 => vec![w],
-        Some(w) => {
-            return Err(HarnessError::config(
-                "--target-bandwidth",
-                format!("{w}: must be a positive number of rad/s"),
-            ))
-        }
-        None => BANDWIDTHS_RAD_S.to_vec(),
-    };
-    // Resolve once first, so a bad config is reported before the search.
-    let base: RunConfig = resolve("fig6", Some(config), &[])?;
-    let mut result = search(config, &candidates(&bws), constraints)?;
-    let mut fig6 = base.clone();
-    result.design.candidate.apply(&mut fig6.drive);
-    let gains = regulator_gains(&fig6)?;
-    let engaged = for_gains(&fig6, &gains, Gears::Engaged);
-    let apart = has_lost_motion(&fig6).then(|| for_gains(&fig6, &gains, Gears::Apart));
-    result.step = Some(damping::measure(&fig6, &engaged)?);
+    let t = design(config, target_bandwidth, constraints)?;
     let staging = Staging::new(out)?;
-    let dir = staging.dir();
-    write_files(dir, &result, &base, &fig6, &engaged, apart.as_ref())?;
+    write_design(staging.dir(), &t)?;
     staging.commit()?;
-    let c = &result.design.candidate;
-    Ok(format!(
-        "tune {config}: {} rad/s, {}; damping {:.3} (fitted in the loop {}); -> {}",
-        c.bandwidth_rad_s,
-        c.afb.label(),
-        result.design.damping[0],
-        result
-            .step
-            .as_ref()
-            .map_or_else(|| "-".into(), |f| format!("{:.3}", f.fitted.damping())),
-        out.display()
-    ))
+    Ok(summary_line(&t, out))
 }
 
 /// The figures, `drive.toml`, `config.toml`, `tune.md` and `tune.json` into `dir`.

@@ -1,0 +1,95 @@
+//! `commission.md` and `commission.json`.
+
+use super::Commissioning;
+use crate::config::RunConfig;
+use crate::error::{HarnessError, Result};
+use crate::experiments::identify::{write::estimates, Identification};
+use crate::experiments::tune::Tuned;
+use crate::output::Staging;
+use std::fmt::Write as _;
+
+/// The simulated machine's own value of an identified `[plant]` key (a real machine has
+/// none: it is shown only to judge the measurement).
+fn file_value(base: &RunConfig, name: &str) -> Option<f64> {
+    let m = &base.plant.mechanics;
+    match name {
+        "motor_inertia_s" => Some(m.motor_inertia_s),
+        "load_inertia_s" => Some(m.load_inertia_s),
+        "anti_resonance_hz" => Some(m.anti_resonance_hz),
+        "shaft_damping_ratio" => Some(m.shaft_damping_ratio),
+        "backlash_deg" => Some(m.backlash_deg),
+        _ => None,
+    }
+}
+
+fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &Tuned) -> String {
+    let mut md = format!(
+        "# Commissioning of {}\n\n## 1. Identified ([identify/identify.md](identify/identify.md))\n\n\
+         | parameter | identified | standard error | the simulated machine's file | unit |\n\
+         |---|---|---|---|---|\n",
+        c.config
+    );
+    for e in estimates(base, ident) {
+        let truth = file_value(base, e.name).map_or_else(|| "-".into(), |v| format!("{v:.6}"));
+        let _ = writeln!(
+            md,
+            "| {} | {:.6} | {:.2e} | {truth} | {} |",
+            e.name, e.value, e.std_error, e.unit
+        );
+    }
+    let d = &with.result.design;
+    let _ = write!(
+        md,
+        "\n`identified.toml` is the machine file with that `[plant]` table.\n\n\
+         ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
+         {} rad/s, {}; smallest damping {:.3} (engaged), phase margin {:.1} deg, gain margin \
+         {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the `[drive]` \
+         table to flash; `tune/config.toml` is the identified file with it.\n\n\
+         ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
+         | design | bandwidth (rad/s) | AFB | stable | fault | shaft-torque ripple (pu) | droop (pu) |\n\
+         |---|---|---|---|---|---|---|\n",
+        d.candidate.bandwidth_rad_s,
+        d.candidate.afb.label(),
+        d.damping[0],
+        d.margins[0],
+        d.margins[1],
+        d.noise_pu,
+    );
+    for r in &c.runs {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {:.4} | {} |",
+            r.design,
+            r.bandwidth_rad_s,
+            r.afb,
+            r.stable,
+            r.faulted,
+            r.shaft_torque_ripple_rms_pu,
+            r.load_step_droop_pu
+                .map_or_else(|| "-".into(), |d| format!("{d:.4}"))
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\n**{}** (criterion, fixed before the run: the AFB design is stable without a fault \
+         and leaves less shaft-torque ripple than the no-AFB design tuned by the same \
+         constraints).",
+        if c.passed { "Passed" } else { "Failed" }
+    );
+    md
+}
+
+/// Writes `commission.md` and `commission.json` into the staging directory.
+pub fn write_all(
+    staging: &Staging,
+    c: &Commissioning,
+    base: &RunConfig,
+    ident: &Identification,
+    with: &Tuned,
+) -> Result<()> {
+    staging.write("commission.md", &markdown(c, base, ident, with))?;
+    let json = serde_json::to_string_pretty(c)
+        .map_err(|e| HarnessError::Backend(format!("commission.json: {e}")))?;
+    staging.write("commission.json", &(json + "\n"))?;
+    Ok(())
+}
