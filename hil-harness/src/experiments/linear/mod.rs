@@ -4,6 +4,7 @@
 
 pub mod analyze;
 pub mod check;
+pub mod hessenberg;
 pub mod margins;
 pub mod mirror;
 pub mod model;

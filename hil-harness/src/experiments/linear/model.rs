@@ -19,6 +19,7 @@
 //!   unchanged, so M has an eigenvalue exactly 1 on that direction. It is deflated.
 //! - With the gears apart, the load coasts on its own. Its states are dropped.
 
+use super::hessenberg::HessenbergResponse;
 use super::margins::{margins_of, Margins};
 use super::mirror::{Break, Coefficients, Inputs, State, STATE_LEN};
 use super::reduce::{deflate, drop_unused};
@@ -284,19 +285,13 @@ impl LoopModel {
     pub fn loop_gain(&self, brk: Break, freq_hz: &[f64]) -> Vec<Complex<f64>> {
         let (m, bw, c, d) = self.matrices(brk);
         let d = *d;
-        let n = m.nrows();
-        let mc = m.map(Complex::from);
-        let bc = bw.map(Complex::from);
-        let cc = c.map(Complex::from);
+        let form = HessenbergResponse::new(m, bw, c);
         freq_hz
             .iter()
             .map(|f| {
                 let z = Complex::from_polar(1.0, 2.0 * PI * f * self.period_s);
-                let a = DMatrix::<Complex<f64>>::identity(n, n) * z - &mc;
-                match a.lu().solve(&bc) {
-                    Some(x) => -(cc.dot(&x) + d),
-                    None => Complex::new(f64::INFINITY, 0.0),
-                }
+                form.at(z)
+                    .map_or(Complex::new(f64::INFINITY, 0.0), |g| -(g + d))
             })
             .collect()
     }
