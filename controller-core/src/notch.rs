@@ -28,16 +28,9 @@
 use crate::error::ConfigError;
 use crate::per_unit::{checked_q, sat_i32, Coef, Pu};
 
-/// The settings of a notch (configuration, not state).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NotchConfig {
-    /// Centre frequency f0 \[Hz\], below the tick rate's Nyquist limit.
-    pub centre_hz: f32,
-    /// −3 dB width of the notch \[Hz\], (0, f0].
-    pub width_hz: f32,
-    /// Attenuation at the centre \[dB\], [0, 80]; 0 is a pass-through.
-    pub depth_db: f32,
-}
+/// The settings of a notch (configuration, not state): defined with the drive settings,
+/// `[drive.notch]`.
+pub use crate::config::NotchConfig;
 
 /// Largest depth accepted \[dB\] (a gain of 1e-4 at the centre).
 pub const MAX_DEPTH_DB: f32 = 80.0;
