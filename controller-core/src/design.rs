@@ -138,6 +138,13 @@ fn observer_poles(f_obs: f32, f_cur: f32) -> (f32, [f32; 3]) {
     (theta, l)
 }
 
+/// The torque-reference notch of `cfg` at the current rate `f_cur`, if it has one.
+fn notch_design(cfg: &DriveConfig, f_cur: f32) -> Result<Option<NotchDesign>, ConfigError> {
+    cfg.notch
+        .map(|n| NotchDesign::new(&n, f_cur, NOTCH_PARAMS))
+        .transpose()
+}
+
 /// Design all gains from the drive settings, after [`DriveConfig::validate`].
 ///
 /// ```
@@ -176,10 +183,7 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
         &ranges::VELOCITY_FILTER_CORNER_HZ,
         &ranges::VELOCITY_FILTER_Q,
     )?;
-    let notch = match &cfg.notch {
-        Some(n) => Some(NotchDesign::new(n, f_cur, NOTCH_PARAMS)?),
-        None => None,
-    };
+    let notch = notch_design(cfg, f_cur)?;
     let j_obs = match cfg.observer.model_inertia {
         ObserverInertia::Total => j_total,
         ObserverInertia::Motor => jm,

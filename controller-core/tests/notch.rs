@@ -61,7 +61,7 @@ fn component(x: &[f64], f: f64, rate: f64) -> f64 {
 fn run_ticks(c: &mut Controller, ratio: u32, settle: usize, n: usize) -> (Vec<f64>, Vec<f64>) {
     let (mut x, mut y) = (Vec::new(), Vec::new());
     for k in 0..settle + n {
-        if k as u32 % ratio == 0 {
+        if (k as u32).is_multiple_of(ratio) {
             let out = c.velocity_tick(VelocityInputs::default());
             assert!(out.fault.is_none());
         }
