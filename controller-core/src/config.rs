@@ -144,6 +144,21 @@ pub struct ObserverConfig {
     pub torque_input: ObserverTorque,
 }
 
+/// A notch filter on the torque reference (`[drive.notch]`), designed at the current rate
+/// ([`crate::notch`]). All three keys are required when the table is present.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+pub struct NotchConfig {
+    /// Centre frequency f0 \[Hz\], > 0 and below current_rate_hz/2.
+    pub centre_hz: f32,
+    /// −3 dB width of the notch \[Hz\], > 0 and at most `centre_hz`.
+    pub width_hz: f32,
+    /// Attenuation at the centre \[dB\], 0..=80 (0 is a pass-through).
+    pub depth_db: f32,
+}
+
 /// Fault thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -167,8 +182,8 @@ pub struct FaultLimits {
 /// `winding_resistance_pu`, `winding_inductance_pu_s`) and the loop keys (`current_rate_hz`,
 /// `velocity_rate_hz`, `position_bandwidth_rad_s`, `velocity_bandwidth_rad_s`,
 /// `current_bandwidth_rad_s`) are required; every other key defaults to stiffdrive's design
-/// default (see [`defaults`]). Ranges: [`crate::ranges::RANGES`], checked by
-/// [`DriveConfig::validate`].
+/// default (see [`defaults`]); without a `[drive.notch]` table there is no notch. Ranges:
+/// [`crate::ranges::RANGES`], checked by [`DriveConfig::validate`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
@@ -243,6 +258,12 @@ pub struct DriveConfig {
     /// Fault thresholds.
     #[cfg_attr(feature = "serde", serde(default))]
     pub faults: FaultLimits,
+    /// Notch filter on the torque reference; `None` (no `[drive.notch]` table): no notch.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub notch: Option<NotchConfig>,
 }
 
 impl DriveConfig {

@@ -14,10 +14,13 @@
 //! * Position P: Kpp = ω_pos \[rad/s\] → k_pos = Kpp/counts_per_pu_s \[pu per count\].
 //! * Current PI: Kp = L·ω_c, Ki = R·ω_c.
 //! * Filters and observer from their corners (see [`crate::filter`], [`crate::observer`]).
+//! * The torque-reference notch from its centre, width and depth at the current rate
+//!   ([`crate::notch`]), if the settings have one.
 
 use crate::config::{AfbMode, AfbRate, DriveConfig, ObserverInertia, PiInertia};
 use crate::error::ConfigError;
 use crate::filter::{design_low_pass, LowPassDesign};
+use crate::notch::{NotchDesign, NotchParams};
 use crate::per_unit::counts_per_pu_s;
 use crate::ranges;
 use crate::validate::max_count_step;
@@ -77,7 +80,16 @@ pub struct Gains {
     pub max_count_step: f32,
     /// Current ticks per velocity tick.
     pub ticks_per_velocity: u32,
+    /// The torque-reference notch, designed at the current rate (f64); `None` without one.
+    pub notch: Option<NotchDesign>,
 }
+
+/// The keys a notch's design errors name.
+const NOTCH_PARAMS: NotchParams = NotchParams {
+    centre_hz: ranges::NOTCH_CENTRE_HZ.key,
+    width_hz: ranges::NOTCH_WIDTH_HZ.key,
+    depth_db: ranges::NOTCH_DEPTH_DB.key,
+};
 
 impl Gains {
     /// These gains with the acceleration feedback taken out, for "the same gains without
@@ -126,6 +138,13 @@ fn observer_poles(f_obs: f32, f_cur: f32) -> (f32, [f32; 3]) {
     (theta, l)
 }
 
+/// The torque-reference notch of `cfg` at the current rate `f_cur`, if it has one.
+fn notch_design(cfg: &DriveConfig, f_cur: f32) -> Result<Option<NotchDesign>, ConfigError> {
+    cfg.notch
+        .map(|n| NotchDesign::new(&n, f_cur, NOTCH_PARAMS))
+        .transpose()
+}
+
 /// Design all gains from the drive settings, after [`DriveConfig::validate`].
 ///
 /// ```
@@ -164,6 +183,7 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
         &ranges::VELOCITY_FILTER_CORNER_HZ,
         &ranges::VELOCITY_FILTER_Q,
     )?;
+    let notch = notch_design(cfg, f_cur)?;
     let j_obs = match cfg.observer.model_inertia {
         ObserverInertia::Total => j_total,
         ObserverInertia::Motor => jm,
@@ -211,5 +231,6 @@ pub fn design(cfg: &DriveConfig) -> Result<Gains, ConfigError> {
         observer_k_u: ts_cur * ts_cur * cpps / j_obs,
         max_count_step: max_count_step(cfg),
         ticks_per_velocity: (f_cur / f_vel) as u32,
+        notch,
     })
 }

@@ -1,6 +1,7 @@
 //! controller-core: the regulators of the paper's Fig. 5 as a `no_std`, no-alloc,
 //! fixed-point crate. Cascaded position P, velocity PI and current PI regulators, the
-//! acceleration-feedback path with its filters and a state observer, profiles and faults.
+//! acceleration-feedback path with its filters and a state observer, an optional notch on
+//! the torque reference, profiles and faults.
 //! The same code runs, bit for bit, in the firmware's interrupts and in the host harness.
 //!
 //! Configuration ([`DriveConfig`] → [`design()`] → [`Gains`]) uses `f32` once; the ticks
@@ -34,7 +35,7 @@ pub mod words;
 
 pub use config::{
     AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
-    ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
+    NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
 };
 pub use controller::{
     Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs,

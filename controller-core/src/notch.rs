@@ -21,23 +21,22 @@
 //!   b0 = (1 + 2·ζz·K + K²)/a0,  b1 = a1 = 2·(K² − 1)/a0,  b2 = (1 − 2·ζz·K + K²)/a0
 //!   a2 = (1 − 2·ζp·K + K²)/a0
 //!
-//! Q-formats: signals Q16.16 ([`Pu`]); coefficients Q2.30 ([`Coef`]); the accumulator is
-//! Q.46 in an `i64`, Direct Form I, with the truncated bits fed back into the next sample
-//! (first-order error feedback), so a slow signal has no dead band and no DC error.
+//! Q-formats: signals Q16.16 ([`Pu`]); coefficients Q2.30 ([`Coef`]), with b0, b2 and a2
+//! in [−1, 1] (every design has |b0|, |b2| ≤ 1, |a2| < 1 and |b1| < 2; [`Notch::quantize`]
+//! refuses others); the accumulator is Q.46 in an `i64`, Direct Form I, with the truncated
+//! bits fed back into the next sample (first-order error feedback), so a slow signal has no
+//! dead band and no DC error.
+//!
+//! The sum b0·x0 + b2·x2 − a2·y2 + residual is below 3·2^61 + 2^30 and b1·(x1 − y1) below
+//! 2^31·(2^32 − 1) in magnitude for any i32 signals, so each is exact in an `i64` and only
+//! their sum saturates (one saturating add per sample: what fits the tick's budget).
 
 use crate::error::ConfigError;
 use crate::per_unit::{checked_q, sat_i32, Coef, Pu};
 
-/// The settings of a notch (configuration, not state).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NotchConfig {
-    /// Centre frequency f0 \[Hz\], below the tick rate's Nyquist limit.
-    pub centre_hz: f32,
-    /// −3 dB width of the notch \[Hz\], (0, f0].
-    pub width_hz: f32,
-    /// Attenuation at the centre \[dB\], [0, 80]; 0 is a pass-through.
-    pub depth_db: f32,
-}
+/// The settings of a notch (configuration, not state): defined with the drive settings,
+/// `[drive.notch]`.
+pub use crate::config::NotchConfig;
 
 /// Largest depth accepted \[dB\] (a gain of 1e-4 at the centre).
 pub const MAX_DEPTH_DB: f32 = 80.0;
@@ -126,6 +125,9 @@ impl NotchDesign {
 /// ln 10.
 const LN_10: f64 = core::f64::consts::LN_10;
 
+/// The bits of the accumulator below the output's LSB (Q.46 → Q16.16 drops 30).
+const RESIDUAL_MASK: i64 = (1 << 30) - 1;
+
 /// The field paths a notch's errors name.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NotchParams {
@@ -185,16 +187,31 @@ pub struct NotchState {
 }
 
 impl Notch {
-    /// Quantize a design to Q2.30. `param` names the coefficient set in an error.
+    /// Quantize a design to Q2.30; b0, b2 and a2 must lie in [−1, 1] (module docs). `param`
+    /// names the coefficient set in an error.
     pub fn quantize(d: &NotchDesign, param: &'static str) -> Result<Self, ConfigError> {
         let q = |v: f64| {
             checked_q::<Coef>(v as f32).ok_or(ConfigError::overflow::<Coef>(param, v as f32))
         };
+        let unit = |v: f64| {
+            let c = q(v)?;
+            if c.unsigned_abs() <= Coef::ONE.unsigned_abs() {
+                Ok(c)
+            } else {
+                Err(ConfigError::OutOfRange {
+                    param,
+                    value: v as f32,
+                    min: -1.0,
+                    max: 1.0,
+                    min_exclusive: false,
+                })
+            }
+        };
         Ok(Self {
-            b0: q(d.b0)?,
+            b0: unit(d.b0)?,
             b1: q(d.b1)?,
-            b2: q(d.b2)?,
-            a2: q(d.a2)?,
+            b2: unit(d.b2)?,
+            a2: unit(d.a2)?,
         })
     }
 
@@ -217,22 +234,22 @@ impl Notch {
     #[inline]
     pub fn process(&self, s: &mut NotchState, x: Pu) -> Pu {
         // acc = b0·x0 + b1·(x1 − y1) + b2·x2 − a2·y2 + residual, Q.46 (a1 = b1).
-        // Each product of two i32 is below 2^62 in magnitude; the sums saturate, so a
-        // hand-made state or a saturated input gives a clamped output, never a wrap.
+        // With |b0|, |b2|, |a2| ≤ 2^30 (quantize) and the residual masked to its 30 bits,
+        // `p` is below 3·2^61 + 2^30 and `q` below 2^63 in magnitude for any i32 signals
+        // (module docs): both exact; their sum saturates, so a hand-made state or a
+        // saturated input gives a clamped output, never a wrap.
         let x0 = x.to_bits();
         let [x1, x2] = s.x;
         let [y1, y2] = s.y;
-        let c = |k: Coef, v: i64| i64::from(k.to_bits()).saturating_mul(v);
-        let acc = c(self.b0, i64::from(x0))
-            .saturating_add(c(self.b1, i64::from(x1) - i64::from(y1)))
-            .saturating_add(c(self.b2, i64::from(x2)))
-            .saturating_sub(c(self.a2, i64::from(y2)))
-            .saturating_add(s.residual);
+        let c = |k: Coef, v: i32| i64::from(k.to_bits()) * i64::from(v);
+        let p = c(self.b0, x0) + c(self.b2, x2) - c(self.a2, y2) + (s.residual & RESIDUAL_MASK);
+        let q = i64::from(self.b1.to_bits()) * (i64::from(x1) - i64::from(y1));
+        let acc = p.saturating_add(q);
         let y0 = sat_i32(acc >> 30);
         // The residual is the part the output dropped; after a saturation it is zero, so the
         // clamp does not wind up.
         s.residual = if i64::from(y0) == acc >> 30 {
-            acc & ((1 << 30) - 1)
+            acc & RESIDUAL_MASK
         } else {
             0
         };
@@ -390,6 +407,68 @@ mod tests {
             y = n.process(&mut s, Pu::ZERO);
         }
         assert!(y.abs() < Pu::from_num(0.001), "{y}");
+    }
+
+    /// The bound behind the one saturating add: at every extreme of the coefficients quantize
+    /// accepts and of the signals and the state, the step does not overflow (tests run with
+    /// overflow checks) and the residual stays in its 30 bits.
+    #[test]
+    fn extreme_coefficients_and_states_do_not_overflow() {
+        let one = 1.0;
+        // The largest b1 below 2 an f32 holds (quantize goes through f32).
+        let b1_max = 2.0 - f64::from(f32::EPSILON);
+        let signals = [i32::MIN, -1, 0, 1, i32::MAX];
+        for (b0, b1, b2, a2) in [
+            (one, -2.0, one, -one),
+            (-one, b1_max, -one, one),
+            (one, b1_max, -one, -one),
+            (-one, -2.0, one, one),
+        ] {
+            let d = NotchDesign { b0, b1, b2, a2 };
+            let n = match Notch::quantize(&d, "notch") {
+                Ok(n) => n,
+                Err(e) => unreachable!("{e}"),
+            };
+            for &x1 in &signals {
+                for &y1 in &signals {
+                    for &z in &signals {
+                        let mut s = NotchState {
+                            x: [x1, z],
+                            y: [y1, z.saturating_neg()],
+                            residual: i64::MAX,
+                        };
+                        let _ = n.process(&mut s, Pu::from_bits(z));
+                        assert!((0..1 << 30).contains(&s.residual));
+                    }
+                }
+            }
+        }
+        // A design outside [−1, 1] in b0, b2 or a2 is refused naming the set.
+        for d in [
+            NotchDesign {
+                b0: 1.5,
+                b1: 0.0,
+                b2: 0.0,
+                a2: 0.0,
+            },
+            NotchDesign {
+                b0: 0.5,
+                b1: 0.0,
+                b2: -1.01,
+                a2: 0.0,
+            },
+            NotchDesign {
+                b0: 0.5,
+                b1: 0.0,
+                b2: 0.0,
+                a2: 1.2,
+            },
+        ] {
+            match Notch::quantize(&d, "notch coefficients") {
+                Err(e) => assert_eq!(e.param(), "notch coefficients"),
+                Ok(_) => unreachable!("{d:?} accepted"),
+            }
+        }
     }
 
     #[test]

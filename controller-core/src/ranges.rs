@@ -140,6 +140,13 @@ pub const FOLLOWING_ERROR_COUNTS: Range =
 /// Encoder-jump margin.
 pub const ENCODER_JUMP_MARGIN: Range =
     Range::real("faults.encoder_jump_margin", 1.0, 1000.0, false);
+/// Notch centre \[Hz\] (and below current_rate_hz/2).
+pub const NOTCH_CENTRE_HZ: Range = Range::real("notch.centre_hz", 0.0, INF, true);
+/// Notch −3 dB width \[Hz\] (and at most `notch.centre_hz`).
+pub const NOTCH_WIDTH_HZ: Range = Range::real("notch.width_hz", 0.0, INF, true);
+/// Notch depth at the centre \[dB\].
+pub const NOTCH_DEPTH_DB: Range =
+    Range::real("notch.depth_db", 0.0, crate::notch::MAX_DEPTH_DB, false);
 
 /// Every numeric setting of [`crate::DriveConfig`] with its range, in declaration order.
 pub const RANGES: &[Range] = &[
@@ -169,6 +176,9 @@ pub const RANGES: &[Range] = &[
     OVERSPEED_PU,
     FOLLOWING_ERROR_COUNTS,
     ENCODER_JUMP_MARGIN,
+    NOTCH_CENTRE_HZ,
+    NOTCH_WIDTH_HZ,
+    NOTCH_DEPTH_DB,
 ];
 
 /// The range of `key` (a dotted path below `[drive]`), if it has one.

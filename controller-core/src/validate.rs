@@ -1,7 +1,7 @@
 //! [`DriveConfig::validate`]: every setting against its entry of [`crate::ranges::RANGES`],
 //! then the ranges that depend on other settings.
 
-use crate::config::{AfbRate, DriveConfig, FilterConfig};
+use crate::config::{AfbRate, DriveConfig, FilterConfig, NotchConfig};
 use crate::error::ConfigError;
 use crate::per_unit::counts_per_pu_s;
 use crate::ranges::{self, Range};
@@ -35,6 +35,25 @@ pub(crate) fn check_filter(
         }
     };
     below_nyquist(corner.check(corner_hz)?, corner.key, rate_hz / 2.0)?;
+    Ok(())
+}
+
+/// A notch at the current rate `rate_hz`: each key against its range, the centre below
+/// `rate_hz / 2` and the width at most the centre (the error's range then ends there).
+pub(crate) fn check_notch(n: &NotchConfig, rate_hz: f32) -> Result<(), ConfigError> {
+    let (c, w) = (&ranges::NOTCH_CENTRE_HZ, &ranges::NOTCH_WIDTH_HZ);
+    let centre = below_nyquist(c.check(n.centre_hz)?, c.key, rate_hz / 2.0)?;
+    let width = w.check(n.width_hz)?;
+    if width > centre {
+        return Err(ConfigError::OutOfRange {
+            param: w.key,
+            value: width,
+            min: w.min,
+            max: centre,
+            min_exclusive: w.min_exclusive,
+        });
+    }
+    ranges::NOTCH_DEPTH_DB.check(n.depth_db)?;
     Ok(())
 }
 
@@ -98,6 +117,9 @@ impl DriveConfig {
         )?;
         let obs = ranges::OBSERVER_BANDWIDTH_HZ.check(self.observer.bandwidth_hz)?;
         nyq(obs, &ranges::OBSERVER_BANDWIDTH_HZ, f_cur / 2.0)?;
+        if let Some(n) = &self.notch {
+            check_notch(n, f_cur)?;
+        }
         self.validate_counter_bits()
     }
 

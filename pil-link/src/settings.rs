@@ -3,14 +3,16 @@
 //! comparison also checks that `design` (the one place floats are used) gives the same
 //! fixed-point coefficients on the Cortex-M4F as on the host.
 //!
-//! Layout (110 bytes): the scalar fields in declaration order, each filter as
-//! `tag u8 (0 none, 1 first order, 2 second order) | corner_hz f32 | q f32`, each enum as u8.
+//! Layout (123 bytes): the scalar fields in declaration order, each filter as
+//! `tag u8 (0 none, 1 first order, 2 second order) | corner_hz f32 | q f32`, each enum as u8,
+//! and last the notch as `present u8 (0 none, 1 notch) | centre_hz f32 | width_hz f32 |
+//! depth_db f32` (zeros without one).
 
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 use controller_core::{
     AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
-    ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
+    NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
 };
 
 /// Payload bytes of a [`DriveConfig`].
@@ -50,6 +52,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         accel_feedback,
         observer,
         faults,
+        notch,
     } = *cfg;
     put_machine(
         w,
@@ -83,11 +86,12 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
     w.u8(estimator_byte(velocity_estimator))?;
     put_accel_feedback(w, accel_feedback)?;
     put_observer(w, observer)?;
-    put_faults(w, faults)
+    put_faults(w, faults)?;
+    put_notch(w, notch)
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 110;
+pub const LEN: usize = 123;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -123,6 +127,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
     let accel_feedback = get_accel_feedback(&mut r, bad)?;
     let observer = get_observer(&mut r, bad)?;
     let faults = get_faults(&mut r)?;
+    let notch = get_notch(&mut r, bad)?;
     r.finish()?;
     Ok(DriveConfig {
         base_speed_rpm,
@@ -148,6 +153,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         accel_feedback,
         observer,
         faults,
+        notch,
     })
 }
 
@@ -352,6 +358,44 @@ fn get_faults(r: &mut Reader<'_>) -> Result<FaultLimits, LinkError> {
         following_error_counts: f(r)?,
         encoder_jump_margin: f(r)?,
     })
+}
+
+fn put_notch(w: &mut Writer, notch: Option<NotchConfig>) -> Result<(), LinkError> {
+    let (present, n) = match notch {
+        Some(n) => (1, n),
+        None => (
+            0,
+            NotchConfig {
+                centre_hz: 0.0,
+                width_hz: 0.0,
+                depth_db: 0.0,
+            },
+        ),
+    };
+    let NotchConfig {
+        centre_hz,
+        width_hz,
+        depth_db,
+    } = n;
+    w.u8(present)?
+        .u32(centre_hz.to_bits())?
+        .u32(width_hz.to_bits())?
+        .u32(depth_db.to_bits())?;
+    Ok(())
+}
+
+fn get_notch(r: &mut Reader<'_>, bad: LinkError) -> Result<Option<NotchConfig>, LinkError> {
+    let present = r.u8()?;
+    let n = NotchConfig {
+        centre_hz: f(r)?,
+        width_hz: f(r)?,
+        depth_db: f(r)?,
+    };
+    match present {
+        0 => Ok(None),
+        1 => Ok(Some(n)),
+        _ => Err(bad),
+    }
 }
 
 fn f(r: &mut Reader<'_>) -> Result<f32, LinkError> {

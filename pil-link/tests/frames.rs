@@ -329,6 +329,13 @@ mod payloads {
             if bits[5] & 2 == 2 {
                 cfg.observer.torque_input = controller_core::ObserverTorque::MeasuredCurrent;
             }
+            if bits[5] & 4 == 4 {
+                cfg.notch = Some(controller_core::NotchConfig {
+                    centre_hz: f32::from_bits(bits[6]),
+                    width_hz: f32::from_bits(bits[7]),
+                    depth_db: f32::from_bits(bits[8]),
+                });
+            }
             let mut w = Writer::new();
             settings::encode(&cfg, &mut w).unwrap();
             prop_assert_eq!(w.as_slice().len(), settings::LEN);
@@ -354,5 +361,41 @@ mod payloads {
         let mut bytes = w.as_slice().to_vec();
         bytes[37] = 2; // velocity_pi_inertia
         assert!(settings::decode(&bytes).is_err());
+        let mut bytes = w.as_slice().to_vec();
+        bytes[settings::LEN - 13] = 2; // the notch's present byte
+        assert!(settings::decode(&bytes).is_err());
+    }
+
+    #[test]
+    fn the_notch_travels_with_the_drive() {
+        let mut cfg = common::table1();
+        let mut w = Writer::new();
+        settings::encode(&cfg, &mut w).unwrap();
+        let without = w.as_slice().to_vec();
+        // No notch: a zero present byte and zeros.
+        assert_eq!(&without[settings::LEN - 13..], &[0; 13]);
+        assert_eq!(settings::decode(&without).unwrap().notch, None);
+        let n = controller_core::NotchConfig {
+            centre_hz: 65.25,
+            width_hz: 20.0,
+            depth_db: 30.0,
+        };
+        cfg.notch = Some(n);
+        let mut w = Writer::new();
+        settings::encode(&cfg, &mut w).unwrap();
+        let with = w.as_slice();
+        assert_eq!(with.len(), settings::LEN);
+        // Everything before the notch is the same bytes.
+        assert_eq!(&with[..settings::LEN - 13], &without[..settings::LEN - 13]);
+        assert_eq!(with[settings::LEN - 13], 1);
+        assert_eq!(
+            &with[settings::LEN - 12..settings::LEN - 8],
+            &65.25_f32.to_le_bytes()
+        );
+        assert_eq!(settings::decode(with).unwrap(), cfg);
+        // Any truncation is refused.
+        for k in 0..with.len() {
+            assert!(settings::decode(&with[..k]).is_err(), "{k} bytes");
+        }
     }
 }

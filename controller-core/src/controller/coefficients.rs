@@ -8,6 +8,7 @@ use crate::design::Gains;
 use crate::differentiator::Differentiator;
 use crate::error::ConfigError;
 use crate::filter::LowPass;
+use crate::notch::Notch;
 use crate::observer::Observer;
 use crate::per_unit::{counter_shift, quantize, Coef, CountsErr, Gain, PosGain, Pu, TickGain};
 use crate::pi::PiCoefficients;
@@ -42,6 +43,9 @@ pub(super) struct Coefficients {
     pub(super) overspeed: Pu,
     pub(super) following_error: CountsErr,
     pub(super) max_count_step: i32,
+    /// The torque-reference notch (Q2.30), `None` without one: the current tick then does
+    /// exactly what it did before the notch existed.
+    pub(super) notch: Option<Notch>,
 }
 
 /// Which acceleration-feedback step a tick runs: source and form resolved once, when the
@@ -171,7 +175,8 @@ impl Coefficients {
         let cfg = &g.cfg;
         let lim: Pu = quantize(cfg.torque_limit_pu, "torque_limit_pu")?;
         let vlim: Pu = quantize(cfg.voltage_limit_pu, "voltage_limit_pu")?;
-        // Quantized in the order of the error precedence: AFB, observer, position, regulators.
+        // Quantized in the order of the error precedence: AFB, observer, position, regulators,
+        // notch.
         let afb = accel_feedback(g, lim)?;
         let observer = observer(g)?;
         let k_pos = if g.kpp > 0.0 {
@@ -185,6 +190,13 @@ impl Coefficients {
         let velocity_ff = quantize(cfg.velocity_ff_gain, "velocity_ff_gain")?;
         let k_accel_ff = quantize(g.k_accel_ff, "k_accel_ff (accel_ff_gain × inertia)")?;
         let (velocity_regulator, current_regulator) = regulators(g, lim, vlim)?;
+        let notch = match &g.notch {
+            Some(d) => Some(Notch::quantize(
+                d,
+                "notch coefficients (notch.centre_hz, notch.width_hz, notch.depth_db)",
+            )?),
+            None => None,
+        };
         Ok(Self {
             counter_bits: cfg.counter_bits,
             counter_shift: counter_shift(cfg.counter_bits),
@@ -227,6 +239,7 @@ impl Coefficients {
                 "max count step (faults.encoder_jump_margin × overspeed)",
             )?
             .to_num::<i32>(),
+            notch,
         })
     }
 }

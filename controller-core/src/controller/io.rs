@@ -4,6 +4,7 @@
 use crate::accel_feedback::AccelerationFeedback;
 use crate::fault::Fault;
 use crate::filter::LowPass;
+use crate::notch::Notch;
 use crate::observer::Observer;
 use crate::per_unit::{Counts, CountsErr, Pu, PuPerS};
 use crate::pi::PiCoefficients;
@@ -22,7 +23,8 @@ pub struct CurrentInputs {
 pub struct CurrentOutputs {
     /// Voltage command \[pu\], within ±voltage_limit_pu.
     pub voltage_cmd_pu: Pu,
-    /// Current (= torque) reference \[pu\], within ±torque_limit_pu; 0 when faulted.
+    /// Current (= torque) reference \[pu\], after the notch if one is set, within
+    /// ±torque_limit_pu; 0 when faulted.
     pub current_ref_pu: Pu,
     /// Acceleration-feedback term added to the torque reference \[pu\].
     pub accel_fb_pu: Pu,
@@ -56,7 +58,7 @@ pub struct VelocityInputs {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VelocityOutputs {
     /// Torque reference from the velocity regulator plus feed-forward, plus the AFB term
-    /// held at that moment, clamped \[pu\].
+    /// held at that moment, clamped \[pu\]; before the notch, which runs in the current tick.
     pub current_ref_pu: Pu,
     /// Acceleration-feedback term \[pu torque\].
     pub accel_fb_pu: Pu,
@@ -87,4 +89,6 @@ pub struct Blocks {
     pub velocity_regulator: PiCoefficients,
     /// Current PI.
     pub current_regulator: PiCoefficients,
+    /// The torque-reference notch, if one is configured (current rate).
+    pub notch: Option<Notch>,
 }

@@ -6,10 +6,17 @@
 //! observer ← (position, torque of the last tick: command or measured current)
 //! afb      ← AccelerationFeedback(â, a_cmd)               (if AFB runs at this rate;
 //!            with the observer's â solved in closed form for this tick's torque)
-//! i_ref    = clamp(i_vel + afb + r, ±torque_limit)        (0 when faulted; r the
+//! i_sum    = clamp(i_vel + afb + r, ±torque_limit)        (0 when faulted; r the
 //!            torque-reference excitation, 0 unless one is set)
+//! i_ref    = clamp(N(i_sum), ±torque_limit)               (N the notch if one is set,
+//!            else i_ref = i_sum; 0 when faulted)
 //! v_cmd    = CurrentRegulator(i_ref − i_meas)             (PI, ±voltage_limit)
 //! ```
+//! The notch N ([`crate::notch`]) shapes everything that reaches the current loop (the
+//! velocity PI, the AFB term and the excitation) and runs only in the current tick; its
+//! output is clamped again because its transient can overshoot. The AFB's closed form
+//! solves for i_sum, the torque before the notch; the observer's torque input (`command`)
+//! is i_ref, the torque the current loop is asked for. A fault clears the notch's state.
 //! Velocity tick (every 1/velocity_rate_hz):
 //! ```text
 //! ω_cmd = vff·ω_sp + k_pos·(θ_sp − θ) + r                  (position P; ω_sp in velocity mode;
@@ -36,6 +43,7 @@ use crate::excitation::{
 };
 use crate::fault::Fault;
 use crate::filter::LowPassState;
+use crate::notch::NotchState;
 use crate::observer::ObserverState;
 use crate::per_unit::{
     count_diff_shifted, count_signed, mul_bits, mul_gain, sat_i32, CountsErr, Pu, PuPerS,
@@ -65,6 +73,8 @@ struct State {
     /// The excitation's state and its latest sample \[pu\] (zero without one).
     excitation: ExcitationState,
     excitation_pu: Pu,
+    /// The torque-reference notch's state (untouched without a notch).
+    notch: NotchState,
     fault: Option<Fault>,
 }
 
@@ -209,6 +219,7 @@ impl Controller {
             accel_feedback: c.afb,
             velocity_regulator: c.velocity_regulator,
             current_regulator: c.current_regulator,
+            notch: c.notch,
         }
     }
 
@@ -234,6 +245,7 @@ impl Controller {
         s.afb_filter = LowPassState::default();
         s.i_vel = Pu::ZERO;
         s.afb = Pu::ZERO;
+        s.notch = NotchState::default();
     }
 
     /// Update the unwrapped position from a raw counter reading; trips on a count jump.
@@ -312,6 +324,21 @@ impl Controller {
         }
     }
 
+    /// The torque reference of a current tick: [`Self::total_ref`] through the notch and
+    /// clamped again, advancing the notch's state; without a notch (or when faulted),
+    /// `total_ref` itself.
+    #[inline(always)]
+    fn notched_ref(&mut self) -> Pu {
+        let t = self.total_ref();
+        match self.coef.notch {
+            Some(n) if self.state.fault.is_none() => {
+                let lim = self.coef.torque_limit;
+                n.process(&mut self.state.notch, t).max(-lim).min(lim)
+            }
+            _ => t,
+        }
+    }
+
     /// The current tick: run every 1/current_rate_hz.
     ///
     /// ```
@@ -347,7 +374,7 @@ impl Controller {
                 .update(&mut c.state.diff_current_rate, position)
                 .1
         });
-        let i_ref = self.total_ref();
+        let i_ref = self.notched_ref();
         self.state.current_ref = i_ref;
         let e = i_ref.saturating_sub(inp.current_pu);
         let v = self

@@ -13,10 +13,14 @@
 //!
 //! Prints `current_tick_instructions: N`, `velocity_tick_instructions: N`, the budget check,
 //! a per-block table (each block of the core timed alone on the bare controller's signals,
-//! and the firmware glue as the interrupt body minus the core), the image's flash and RAM
-//! use, and exits 1 if one 4 kHz period (current tick plus half a velocity tick) exceeds
-//! `PERIOD_BUDGET` (865) instructions, if a fault latched (the fault path is shorter
-//! and would flatter the figures) or if any measurement was disturbed.
+//! and the firmware glue as the interrupt body minus the core), the period with a
+//! torque-reference notch configured (a third controller, the bare one plus `BENCH_NOTCH`,
+//! fed the same inputs: its current tick's difference added to the period), the image's
+//! flash and RAM use, and exits 1 if one 4 kHz period (current tick plus half a velocity
+//! tick) of the baked drive exceeds `PERIOD_BUDGET` (865) instructions (the period with the
+//! notch is reported, with a warning when it is over), if a fault latched in the firmware
+//! or the notched controller (the fault path is shorter and would flatter the figures) or
+//! if any measurement was disturbed.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -34,8 +38,8 @@ mod target {
     use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
 
     use controller_core::{
-        Controller, CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu, Setpoint,
-        VelocityInputs,
+        Controller, CurrentInputs, DriveConfig, NotchConfig, Profile, ProfileConfig, ProfileKind,
+        Pu, Setpoint, VelocityInputs,
     };
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m::peripheral::SYST;
@@ -80,6 +84,17 @@ mod target {
     pub(crate) static BARE_CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
     pub(crate) static BARE_VELOCITY_COUNTS: AtomicU32 = AtomicU32::new(0);
     pub(crate) static BARE_PROFILE_COUNTS: AtomicU32 = AtomicU32::new(0);
+    /// The notch of the third controller: near the shipped machine's engaged resonance (the
+    /// instructions of a notch step do not depend on its coefficients).
+    pub(crate) const BENCH_NOTCH: NotchConfig = NotchConfig {
+        centre_hz: 65.0,
+        width_hz: 20.0,
+        depth_db: 20.0,
+    };
+    /// The bare controller with [`BENCH_NOTCH`] configured, fed the same inputs: what a
+    /// configured notch adds to the core's ticks.
+    pub(crate) static NOTCHED: TaskLocal<Controller> = TaskLocal::new();
+    pub(crate) static NOTCHED_CURRENT_COUNTS: AtomicU32 = AtomicU32::new(0);
     /// The commanded acceleration of the last velocity tick (raw Q16.16), for the AFB block.
     static LAST_ACCEL_CMD: AtomicI32 = AtomicI32::new(0);
 
@@ -132,6 +147,14 @@ mod target {
                 BARE_CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
                 out.current_ref_pu.saturating_sub(out.accel_fb_pu)
             });
+            dither(tick % 19);
+            let _ = NOTCHED.with(|c| {
+                let t0 = SYST::get_current();
+                let out = core::hint::black_box(c.current_tick(core::hint::black_box(inputs)));
+                let t1 = SYST::get_current();
+                NOTCHED_CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+                out
+            });
             let a_cmd = LAST_ACCEL_CMD.load(Ordering::Relaxed);
             current_blocks(
                 tick,
@@ -148,6 +171,7 @@ mod target {
                 current_pu: io.current_pu().unwrap_or_default(),
             };
             let _ = BARE.with(|(c, _)| c.current_tick(inputs));
+            let _ = NOTCHED.with(|c| c.current_tick(inputs));
         }
         // Next sensor values: outside the measured window.
         let _ = SENSORS.with(|(sensors, profile, setpoint)| {
@@ -194,6 +218,7 @@ mod target {
                     (out, setpoint)
                 })
                 .map(|(out, setpoint)| {
+                    notched_velocity_tick(setpoint);
                     let e = out.velocity_cmd_pu.saturating_sub(out.velocity_est_pu);
                     velocity_blocks(tick, e, setpoint.acceleration_pu_s, out.accel_fb_pu);
                 });
@@ -207,14 +232,31 @@ mod target {
             }
         } else {
             let _ = LOOPS.velocity_isr();
-            let _ = BARE.with(|(c, profile)| {
-                c.velocity_tick(VelocityInputs {
+            let setpoint = BARE.with(|(c, profile)| {
+                let setpoint = profile.next();
+                let _ = c.velocity_tick(VelocityInputs {
                     encoder_count: SyntheticVelocityIo.encoder_count(),
-                    setpoint: profile.next(),
+                    setpoint,
                     fault_input: false,
-                })
+                });
+                setpoint
             });
+            if let Some(setpoint) = setpoint {
+                notched_velocity_tick(setpoint);
+            }
         }
+    }
+
+    /// The notched controller's velocity tick on the bare one's inputs (not timed: the
+    /// notch runs in the current tick only).
+    fn notched_velocity_tick(setpoint: Setpoint) {
+        let _ = NOTCHED.with(|c| {
+            c.velocity_tick(VelocityInputs {
+                encoder_count: SyntheticVelocityIo.encoder_count(),
+                setpoint,
+                fault_input: false,
+            })
+        });
     }
 
     fn command() {
@@ -271,12 +313,17 @@ mod target {
                 exit(false)
             }
         };
-        match Controller::new(cfg) {
-            Ok(c) => {
-                crate::blocks::install(c.blocks());
+        let notched = DriveConfig {
+            notch: Some(BENCH_NOTCH),
+            ..*cfg
+        };
+        match (Controller::new(cfg), Controller::new(&notched)) {
+            (Ok(c), Ok(n)) => {
+                crate::blocks::install(c.blocks(), n.blocks().notch);
                 let _ = BARE.install((c, profile));
+                let _ = NOTCHED.install(n);
             }
-            Err(_) => exit(false),
+            _ => exit(false),
         }
         let _ = SENSORS.install((
             SyntheticSensors::new(cfg.counter_bits),
@@ -300,7 +347,14 @@ mod target {
         let current = per_call(&CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES);
         let velocity = per_call(&VELOCITY_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES);
         let period = current + velocity / 2;
-        let fault = LOOPS.with_app(|app| app.fault()).flatten();
+        let bare_current = per_call(&BARE_CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES);
+        let notched_current =
+            per_call(&NOTCHED_CURRENT_COUNTS, &CURRENT_OVERHEAD, &CURRENT_SAMPLES);
+        let period_with_notch = (period + notched_current).saturating_sub(bare_current);
+        let fault = LOOPS
+            .with_app(|app| app.fault())
+            .flatten()
+            .or(NOTCHED.with(|c| c.fault()).flatten());
         let mem = memory_use();
         let stack = stack_high_water_bytes();
         Results {
@@ -308,6 +362,8 @@ mod target {
             current,
             velocity,
             period,
+            notched_current,
+            period_with_notch,
             fault,
             mem,
             stack,

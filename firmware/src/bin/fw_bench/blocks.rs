@@ -5,6 +5,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use controller_core::controller::Blocks;
 use controller_core::filter::LowPassState;
+use controller_core::notch::{Notch, NotchState};
 use controller_core::observer::ObserverState;
 use controller_core::per_unit::count_diff;
 use controller_core::pi::PiState;
@@ -28,6 +29,9 @@ struct BlockBench {
     last_raw: u32,
     /// Torque reference of the last current tick (the observer's input) [pu].
     torque: Pu,
+    /// The notched controller's notch (the bare controller has none), with its own state.
+    notch: Option<Notch>,
+    notch_state: NotchState,
 }
 static BLOCKS: TaskLocal<BlockBench> = TaskLocal::new();
 
@@ -40,12 +44,14 @@ pub(crate) enum Block {
     FirstOrderFilter,
     CurrentPi,
     VelocityPi,
+    Notch,
 }
-const BLOCK_COUNT: usize = 6;
+const BLOCK_COUNT: usize = 7;
 static BLOCK_COUNTS: [AtomicU32; BLOCK_COUNT] = [const { AtomicU32::new(0) }; BLOCK_COUNT];
 
-/// Install the block bench on the bare controller's blocks (fresh states).
-pub(crate) fn install(blocks: Blocks) {
+/// Install the block bench on the bare controller's blocks and the notched controller's
+/// notch (fresh states).
+pub(crate) fn install(blocks: Blocks, notch: Option<Notch>) {
     let _ = BLOCKS.install(BlockBench {
         blocks,
         observer: ObserverState::default(),
@@ -56,6 +62,8 @@ pub(crate) fn install(blocks: Blocks) {
         position: 0,
         last_raw: 0,
         torque: Pu::ZERO,
+        notch,
+        notch_state: NotchState::default(),
     });
 }
 
@@ -74,8 +82,8 @@ fn timed<R>(block: Block, phase: u32, f: impl FnOnce() -> R) -> R {
 }
 
 /// The current-rate blocks (observer, closed-form AFB with its filter, the filter step
-/// alone, current PI) on this tick's encoder reading and the bare tick's current
-/// reference.
+/// alone, the notch step, current PI) on this tick's encoder reading and the bare tick's
+/// current reference.
 pub(crate) fn current_blocks(tick: u32, raw: u32, current: Pu, a_cmd: Pu, i_vel: Pu) {
     let _ = BLOCKS.with(|b| {
         let d = count_diff(raw, b.last_raw, 16);
@@ -100,6 +108,10 @@ pub(crate) fn current_blocks(tick: u32, raw: u32, current: Pu, a_cmd: Pu, i_vel:
         });
         let limit = afb.limit;
         let i_ref = i_vel.saturating_add(term).max(-limit).min(limit);
+        if let Some(n) = b.notch {
+            let x = core::hint::black_box(i_ref);
+            let _ = timed(Block::Notch, tick % 3, || n.process(&mut b.notch_state, x));
+        }
         b.torque = i_ref;
         let e = core::hint::black_box(i_ref.saturating_sub(current));
         let pi = b.blocks.current_regulator;

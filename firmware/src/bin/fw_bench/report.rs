@@ -9,9 +9,9 @@ use firmware::rt::{exit, MemoryUse};
 
 use crate::blocks::{per_block, Block};
 use crate::target::{
-    BARE_CURRENT_COUNTS, BARE_PROFILE_COUNTS, BARE_VELOCITY_COUNTS, CURRENT_MAX, CURRENT_OVERHEAD,
-    CURRENT_SAMPLES, DISTURBED, LOOPS, MEASURED_TICKS, PERIOD_BUDGET, PREEMPTIONS, VELOCITY_MAX,
-    VELOCITY_OVERHEAD, VELOCITY_SAMPLES,
+    BARE_CURRENT_COUNTS, BARE_PROFILE_COUNTS, BARE_VELOCITY_COUNTS, BENCH_NOTCH, CURRENT_MAX,
+    CURRENT_OVERHEAD, CURRENT_SAMPLES, DISTURBED, LOOPS, MEASURED_TICKS, PERIOD_BUDGET,
+    PREEMPTIONS, VELOCITY_MAX, VELOCITY_OVERHEAD, VELOCITY_SAMPLES,
 };
 use crate::window::{longest, per_call, INSTRUCTIONS_PER_COUNT};
 
@@ -25,6 +25,11 @@ pub(crate) struct Results {
     pub(crate) velocity: u32,
     /// One 4 kHz period: current + velocity / 2 [instructions].
     pub(crate) period: u32,
+    /// The notched controller's `current_tick` [instructions].
+    pub(crate) notched_current: u32,
+    /// The period with the notch configured: `period` plus the notched controller's current
+    /// tick less the bare one's [instructions].
+    pub(crate) period_with_notch: u32,
     /// The drive's latched fault, if any.
     pub(crate) fault: Option<Fault>,
     pub(crate) mem: MemoryUse,
@@ -65,6 +70,25 @@ pub(crate) fn print(r: &Results) {
         per_call(&BARE_PROFILE_COUNTS, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES)
     );
     print_blocks(r.current, r.velocity);
+    defmt::info!(
+        "with a notch configured (centre {=f32} Hz, width {=f32} Hz, depth {=f32} dB; the bare controller plus the notch, fed the same inputs): Controller::current_tick {=u32}",
+        BENCH_NOTCH.centre_hz,
+        BENCH_NOTCH.width_hz,
+        BENCH_NOTCH.depth_db,
+        r.notched_current
+    );
+    defmt::info!(
+        "period_with_notch_instructions: {=u32} (period + the notched current tick − the bare one; reported, not gated: the budget of {=u32} is the baked drive's, which has no notch)",
+        r.period_with_notch,
+        PERIOD_BUDGET
+    );
+    if r.period_with_notch > PERIOD_BUDGET {
+        defmt::warn!(
+            "a drive with a notch configured would exceed the {=u32}-instruction budget by {=u32}",
+            PERIOD_BUDGET,
+            r.period_with_notch - PERIOD_BUDGET
+        );
+    }
     defmt::info!("flash_bytes: {=u32}", r.mem.flash_bytes);
     defmt::info!("static_ram_bytes: {=u32}", r.mem.static_ram_bytes);
     defmt::info!("stack_high_water_bytes: {=u32}", r.stack);
@@ -92,6 +116,10 @@ fn print_blocks(current: u32, velocity: u32) {
         per_block(Block::FirstOrderFilter, false)
     );
     defmt::info!("block current  current_pi: {=u32}", current_pi);
+    defmt::info!(
+        "block current  notch (Notch::process alone; runs only when a notch is configured): {=u32}",
+        per_block(Block::Notch, false)
+    );
     defmt::info!(
         "block current  rest_of_current_tick (encoder, observer input, clamps, outputs): {=u32}",
         bare_current.saturating_sub(observer_update + afb_closed + current_pi)
