@@ -157,3 +157,24 @@ fn notch_errors_name_the_key_and_the_range() {
     let e = run(&ok[..2]).unwrap_err().to_string();
     assert!(e.contains("drive.notch") && e.contains("depth_db"), "{e}");
 }
+
+/// The linear model does not cover the notch yet: `linear` and `tune` refuse a drive with
+/// one, naming the key, instead of predicting another loop than the one that runs.
+#[test]
+fn the_linear_model_refuses_a_drive_with_a_notch() {
+    let notched = resolve(&[
+        "drive.notch.centre_hz=300".into(),
+        "drive.notch.width_hz=60".into(),
+        "drive.notch.depth_db=30".into(),
+    ]);
+    let e =
+        hil_harness::experiments::linear::for_run(&notched, plant_host::analysis::Gears::Engaged)
+            .unwrap_err()
+            .to_string();
+    assert!(e.contains("drive.notch"), "{e}");
+    assert!(hil_harness::experiments::linear::for_run(
+        &resolve(&[]),
+        plant_host::analysis::Gears::Engaged
+    )
+    .is_ok());
+}

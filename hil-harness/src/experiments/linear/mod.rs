@@ -19,9 +19,24 @@ use crate::error::Result;
 use controller_core::Gains;
 use plant_host::analysis::Gears;
 
+/// Refuses a drive the model does not cover: the notch on the torque reference
+/// (`[drive.notch]`) is not in the controller mirror yet, and a model without it would
+/// predict another loop than the one that runs.
+pub fn check_covered(cfg: &RunConfig) -> Result<()> {
+    match cfg.drive.notch {
+        None => Ok(()),
+        Some(_) => Err(crate::error::HarnessError::config(
+            "drive.notch",
+            "the linear model does not model the notch filter yet: remove [drive.notch] to \
+             analyze or tune this drive",
+        )),
+    }
+}
+
 /// The model of a run: its controller's coefficients (the gains it runs with, see
 /// [`crate::engine::runner::regulator_gains`]) and its plant, with the gears `gears`.
 pub fn for_run(cfg: &RunConfig, gears: Gears) -> Result<LoopModel> {
+    check_covered(cfg)?;
     let gains = crate::engine::runner::regulator_gains(cfg)?;
     Ok(for_gains(cfg, &gains, gears))
 }

@@ -208,6 +208,7 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
     let fig6 = bases
         .first()
         .ok_or_else(|| HarnessError::config("tune", "no fig6 scenario"))?;
+    crate::experiments::linear::check_covered(fig6)?;
     let pb = crate::progress::bar(grid.len() as u64, "tune");
     let mut judged: Vec<Judged> = grid
         .par_iter()
