@@ -262,6 +262,7 @@ impl TwoInertiaPlant {
 
 /// A step must be finite and ≥ 0 and its inputs finite.
 #[inline]
+#[allow(clippy::eq_op)] // v − v on purpose: the finiteness test of every value in one sum.
 fn check_step(dt_s: f64, inputs: &[f64]) -> Result<(), PlantError> {
     // The usual case in one test: v − v is +0 for a finite v and NaN otherwise.
     let finite = inputs.iter().fold(dt_s - dt_s, |acc, v| acc + (v - v)) == 0.0;

@@ -18,6 +18,7 @@ pub(super) fn hp_inputs(r: &TraceRow) -> [f64; HP_SIGNALS] {
 
 /// Whether every value is finite: v − v is +0 for a finite v and NaN otherwise, so the
 /// sums (two lanes, to go two at a time) are 0 exactly when all are finite.
+#[allow(clippy::eq_op)] // v − v on purpose: NaN exactly for a value that is not finite.
 fn all_finite(values: &[f64; 18]) -> bool {
     let mut lanes = [0.0; 2];
     for pair in values.chunks_exact(2) {
