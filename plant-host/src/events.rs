@@ -5,6 +5,9 @@
 
 use crate::config::BacklashModel;
 use crate::model::{Contact, Mat5, Mat53, Shaft, Vec3, Vec5};
+use short::{finite, ShortGuards, TwistForm};
+
+mod short;
 
 /// Most Taylor terms kept (‖A‖·h ≤ 0.5 needs ~20 for 1e-16).
 const MAX_TERMS: usize = 28;
@@ -64,6 +67,8 @@ struct Guard {
     lins: [Linear; 2],
     two: bool,
     target: Contact,
+    /// The one part in [`TwistForm`], when it has that form.
+    twist: Option<TwistForm>,
 }
 
 impl Guard {
@@ -103,19 +108,27 @@ impl Linear {
         if d1 >= 0.0 {
             return false;
         }
-        let (l0, l1) = (self.value(x0), self.value(x1));
-        // Tangents at both ends meet above a concave arc: their intersection bounds the peak.
-        let t = ((l1 - l0 - d1 * h) / (d0 - d1)).clamp(0.0, h);
-        let peak = l0 + d0 * t;
-        // Margin: the arc is only nearly concave over one step.
-        peak > -0.5 * l0.abs().min(l1.abs())
+        peak_reaches_zero(self.value(x0), self.value(x1), d0, d1, h)
     }
+}
+
+/// Whether the tangent-line bound of an interior maximum reaches zero: l0, l1 the values at
+/// the step's ends, d0 > 0 > d1 the rates there.
+#[inline]
+fn peak_reaches_zero(l0: f64, l1: f64, d0: f64, d1: f64, h: f64) -> bool {
+    // Tangents at both ends meet above a concave arc: their intersection bounds the peak.
+    let t = ((l1 - l0 - d1 * h) / (d0 - d1)).clamp(0.0, h);
+    let peak = l0 + d0 * t;
+    // Margin: the arc is only nearly concave over one step.
+    peak > -0.5 * l0.abs().min(l1.abs())
 }
 
 /// The guards leaving one mode (none, one or two).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Guards {
     list: [Option<Guard>; 2],
+    /// The same guards in short form, when they all have it.
+    short: Option<ShortGuards>,
 }
 
 impl Guards {
@@ -127,18 +140,30 @@ impl Guards {
         a: &Mat5,
         b: &Mat53,
     ) -> Self {
+        let list = guard_list(contact, law, s, a, b);
         Self {
-            list: guard_list(contact, law, s, a, b),
+            list,
+            short: ShortGuards::of(&list),
         }
     }
 
     /// The cheap test after every step: may any guard have fired between x0 and x1?
+    ///
+    /// x1 must be the dense image of x0 (the exact map, or the Taylor series), so that a
+    /// non-finite x0 leaves no component of x1 finite: then x1 finite means both are, and
+    /// the guards in [`TwistForm`] take their short form.
     #[inline]
     pub(crate) fn suspect(&self, x0: &Vec5, x1: &Vec5, u: &Vec3, h: f64) -> bool {
-        let [g0, g1] = &self.list;
-        if g0.is_none() && g1.is_none() {
-            return false;
+        match &self.short {
+            Some(short) if finite(x1) => short.suspect(x0, x1, h),
+            _ => self.suspect_dense(x0, x1, u, h),
         }
+    }
+
+    /// [`Self::suspect`] from the guards' full sums.
+    #[inline(never)]
+    fn suspect_dense(&self, x0: &Vec5, x1: &Vec5, u: &Vec3, h: f64) -> bool {
+        let [g0, g1] = &self.list;
         g0.as_ref().is_some_and(|g| g.suspect(x0, x1, u, h))
             || g1.as_ref().is_some_and(|g| g.suspect(x0, x1, u, h))
     }
@@ -319,6 +344,7 @@ fn guard_list(
             lins: [l, l],
             two: false,
             target,
+            twist: TwistForm::of(&l),
         })
     };
     let both = |l1: Linear, l2: Linear, target| {
@@ -326,6 +352,7 @@ fn guard_list(
             lins: [l1, l2],
             two: true,
             target,
+            twist: None,
         })
     };
     let delta = [1.0, 0.0, 0.0, 0.0, 0.0];

@@ -187,10 +187,9 @@ impl Piecewise {
     /// when a guard may have fired.
     #[inline]
     fn piece(&mut self, h: f64, u: &Vec3) {
-        let x0 = self.x;
-        let x_end = self.maps.step(self.contact, h, &x0, u);
-        if self.guards().suspect(&x0, &x_end, u, h) {
-            self.search(x0, x_end, h, u);
+        let x_end = self.maps.step(self.contact, h, &self.x, u);
+        if self.guards().suspect(&self.x, &x_end, u, h) {
+            self.search(self.x, x_end, h, u);
         } else {
             self.x = x_end;
         }

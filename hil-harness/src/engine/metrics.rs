@@ -103,10 +103,15 @@ pub fn high_pass(x: &[f64], half: usize) -> Vec<f64> {
 /// v − (mean of the samples i−half ..= i+half, clipped to 0..len), from prefix sums
 /// (`at(k)` = the sum of the first k samples).
 fn centred(at: impl Fn(usize) -> f64, i: usize, half: usize, len: usize, v: f64) -> f64 {
+    let (lo, hi, n) = window(i, half, len);
+    v - (at(hi) - at(lo)) / n
+}
+
+/// The moving average's window at sample i: lo..hi, and its length as a divisor (≥ 1).
+fn window(i: usize, half: usize, len: usize) -> (usize, usize, f64) {
     let lo = i.saturating_sub(half);
     let hi = (i + half + 1).min(len);
-    let n = (hi - lo).max(1) as f64;
-    v - (at(hi) - at(lo)) / n
+    (lo, hi, (hi - lo).max(1) as f64)
 }
 
 /// Computes every metric of a trace in one pass. The high pass of row j needs the samples up
@@ -138,10 +143,13 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
             continue;
         };
         if let (Some(r), Some(h)) = (rows.get(j), half) {
+            // `centred` for the three signals, the window's two prefix rows fetched once.
+            let (lo, hi, n) = window(j, h, len);
+            let [below, upto] = [lo, hi].map(|k| prefix.get(k).copied().unwrap_or_default());
             let x = hp_inputs(r);
             let hp = core::array::from_fn(|s| {
-                let at = |k: usize| prefix.get(k).and_then(|p| p.get(s)).copied().unwrap_or(0.0);
-                centred(at, j, h, len, x.get(s).copied().unwrap_or(0.0))
+                let at = |p: &[f64; HP_SIGNALS]| p.get(s).copied().unwrap_or(0.0);
+                at(&x) - (at(&upto) - at(&below)) / n
             });
             pass.high_passed(r, hp);
         }

@@ -190,6 +190,10 @@ impl DelayLine {
     /// Takes this tick's command; returns the command that arrives r into this interval
     /// (`held`, the one applied so far, while the line is still filling).
     pub fn push(&mut self, command: f64, held: f64) -> f64 {
+        if self.whole_ticks == 0 {
+            // Shorter than a tick: this tick's command, as the queue would return it.
+            return command;
+        }
         self.in_flight.push_back(command);
         if self.in_flight.len() > self.whole_ticks {
             self.in_flight.pop_front().unwrap_or(held)

@@ -16,6 +16,20 @@ pub(super) fn hp_inputs(r: &TraceRow) -> [f64; HP_SIGNALS] {
     [speed_err(r), r.current_pu, r.shaft_torque_pu]
 }
 
+/// Whether every value is finite: v − v is +0 for a finite v and NaN otherwise, so the
+/// sums (two lanes, to go two at a time) are 0 exactly when all are finite.
+#[allow(clippy::eq_op)] // v − v on purpose: NaN exactly for a value that is not finite.
+fn all_finite(values: &[f64; 18]) -> bool {
+    let mut lanes = [0.0; 2];
+    for pair in values.chunks_exact(2) {
+        for (lane, v) in lanes.iter_mut().zip(pair) {
+            *lane += v - v;
+        }
+    }
+    let [a, b] = lanes;
+    a + b == 0.0
+}
+
 /// RMS and zero crossings of a high-passed signal inside a window, accumulated in order.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Ripple {
@@ -137,7 +151,7 @@ impl<'a> Pass<'a> {
     pub(super) fn row(&mut self, r: &TraceRow) {
         let w = self.w;
         let err = speed_err(r);
-        if self.first_bad_t_s.is_none() && !r.values().iter().all(|v| v.is_finite()) {
+        if self.first_bad_t_s.is_none() && !all_finite(&r.values()) {
             self.first_bad_t_s = Some(r.t_s);
         }
         self.faulted |= r.fault != 0.0;
