@@ -42,9 +42,8 @@ impl HessenbergResponse {
             }
         });
         let mut x: DVector<Complex<f64>> = self.b.map(Complex::from);
-        let get = |a: &DMatrix<Complex<f64>>, i: usize, j: usize| {
-            a.get((i, j)).copied().unwrap_or(zero)
-        };
+        let get =
+            |a: &DMatrix<Complex<f64>>, i: usize, j: usize| a.get((i, j)).copied().unwrap_or(zero);
         for k in 0..n.saturating_sub(1) {
             if get(&a, k + 1, k).norm() > get(&a, k, k).norm() {
                 a.swap_rows(k, k + 1);
