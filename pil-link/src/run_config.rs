@@ -26,6 +26,8 @@ const TAG_CHIRP: u8 = 2;
 
 /// Longest `Config` payload (drive settings and a chirp), in bytes.
 pub const MAX_LEN: usize = settings::LEN + 18;
+// The longest payload fits a frame.
+const _: () = assert!(MAX_LEN <= crate::MAX_PAYLOAD);
 
 /// Payload bytes of a run's drive settings and excitation.
 ///

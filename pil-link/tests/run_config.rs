@@ -14,7 +14,7 @@ mod common;
 
 use controller_core::excitation::{ExcitationConfig, Injection, Waveform};
 use pil_link::wire::Writer;
-use pil_link::{run_config, settings, FrameKind, LinkError, MAX_PAYLOAD};
+use pil_link::{run_config, settings, FrameKind, LinkError};
 use proptest::prelude::*;
 
 fn payload(e: Option<&ExcitationConfig>) -> Vec<u8> {
@@ -75,7 +75,6 @@ fn payload_lengths_and_the_no_excitation_section() {
     assert_eq!(none[settings::LEN], 0);
     assert_eq!(payload(Some(&prbs())).len(), settings::LEN + 11);
     assert_eq!(payload(Some(&chirp())).len(), run_config::MAX_LEN);
-    assert!(run_config::MAX_LEN <= MAX_PAYLOAD);
     assert_eq!(run_config::decode(&none).unwrap(), (common::table1(), None));
     // The settings bytes are those of `settings::encode`, unchanged.
     let mut w = Writer::new();
