@@ -356,7 +356,7 @@ fn a_second_config_while_running_is_a_protocol_fault() {
     let (mut qemu, mut link) = raw_session(&elf(), &dir.path().join("fw.defmt"));
     link.hello(500).unwrap();
     let mut w = pil_link::wire::Writer::new();
-    pil_link::settings::encode(&common::table1(), &mut w).unwrap();
+    pil_link::run_config::encode(&common::table1(), None, &mut w).unwrap();
     link.configure(w.as_slice()).unwrap();
     match link.configure(w.as_slice()) {
         Err(HostError::FirmwareFault(r)) => assert_eq!(r.code, FaultCode::Protocol),

@@ -9,6 +9,7 @@
 //! processor-in-the-loop image ([`App::step_current`], [`App::step_velocity`]): there is
 //! one control path, whatever feeds it.
 
+use controller_core::excitation::{ExcitationConfig, ExcitationParams};
 use controller_core::per_unit::Pu;
 use controller_core::{
     ConfigError, Controller, CurrentInputs, CurrentOutputs, DriveConfig, Fault, Setpoint,
@@ -162,6 +163,29 @@ impl App {
     #[must_use]
     pub fn fault(&self) -> Option<Fault> {
         self.controller.fault()
+    }
+
+    /// The app with an identification excitation in its controller
+    /// ([`Controller::with_excitation`]; none by default). Errors name `names`' fields.
+    ///
+    /// # Errors
+    /// [`AppError::Config`] when the excitation is refused (range, Nyquist limit).
+    pub fn with_excitation(
+        mut self,
+        cfg: &ExcitationConfig,
+        names: ExcitationParams,
+    ) -> Result<Self, AppError> {
+        self.controller = self
+            .controller
+            .with_excitation(cfg, names)
+            .map_err(AppError::Config)?;
+        Ok(self)
+    }
+
+    /// The excitation's latest sample \[pu\] (zero without one).
+    #[must_use]
+    pub fn excitation_pu(&self) -> Pu {
+        self.controller.excitation_pu()
     }
 
     /// Current-loop ticks run so far.

@@ -34,6 +34,7 @@ pub static APPLIED: Mutex<Cell<Applied>> = Mutex::new(Cell::new(Applied {
     voltage_bits: 0,
     enabled: false,
     isr_ticks: 0,
+    excitation_bits: 0,
 }));
 /// Set once the link is faulted: the velocity loop then sees its fault input active, so the
 /// controller latches `Fault::External` and commands zero torque.

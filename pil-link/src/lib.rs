@@ -6,7 +6,8 @@
 //! Layers, bottom up: [`crc`] (CRC-32 written here), [`frame`] (wire format and a
 //! byte-at-a-time decoder), [`wire`] (little-endian payload fields), [`message`] (session
 //! payloads), [`tick`] and [`settings`] (controller-core's inputs, outputs and
-//! `DriveConfig` as raw bits), [`session`] (the firmware's state machine: sequence, watchdog, latched safe
+//! `DriveConfig` as raw bits), [`run_config`] (the `Config` payload: the settings and the
+//! run's identification excitation, if any), [`session`] (the firmware's state machine: sequence, watchdog, latched safe
 //! state) and, with the `std` feature, [`host`] (the harness's lock-step client with fault
 //! injection) and [`qemu`] (starts the PIL image with UART0 on a Unix socket).
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
@@ -19,6 +20,7 @@ pub mod host;
 pub mod message;
 #[cfg(feature = "std")]
 pub mod qemu;
+pub mod run_config;
 pub mod session;
 pub mod settings;
 pub mod tick;

@@ -7,9 +7,12 @@
 //! Sensors, current tick   (9 bytes):  tag 1 | encoder u32 | current_pu i32
 //! Sensors, velocity tick (22 bytes):  tag 2 | encoder u32 | position_counts i64 |
 //!                                     velocity_pu i32 | acceleration_pu_s i32 | fault_input u8
-//! Commands, current tick (20 bytes):  tag 1 | voltage_cmd i32 | current_ref i32 | accel_fb i32 |
-//!                                     fault u8 | applied_voltage i32 | enabled u8 | isr_ticks u32
-//!                                     (the last three: what the board layer applied)
+//! Commands, current tick (24 bytes):  tag 1 | voltage_cmd i32 | current_ref i32 | accel_fb i32 |
+//!                                     fault u8 | applied_voltage i32 | enabled u8 | isr_ticks u32 |
+//!                                     excitation i32
+//!                                     (applied_voltage, enabled, isr_ticks: what the board
+//!                                     layer applied; excitation: the controller's latest
+//!                                     excitation sample, 0 without one)
 //! Commands, velocity tick (30 bytes): tag 2 | current_ref i32 | accel_fb i32 | velocity_cmd i32 |
 //!                                     velocity_est i32 | acceleration_est i32 |
 //!                                     position_error i32 (Q24.8) | disturbance_est i32 | fault u8
@@ -102,6 +105,9 @@ pub struct Applied {
     pub enabled: bool,
     /// Current-loop interrupts run so far (proves the tick ran in the interrupt).
     pub isr_ticks: u32,
+    /// The identification excitation's latest sample after the tick [pu, Q16.16 bits]
+    /// (`Controller::excitation_pu`; 0 without an excitation).
+    pub excitation_bits: i32,
 }
 
 /// A `Commands` payload: the outputs of one controller tick.
@@ -125,7 +131,8 @@ impl Commands {
                     .u8(fault_code(o.fault))?
                     .i32(a.voltage_bits)?
                     .u8(u8::from(a.enabled))?
-                    .u32(a.isr_ticks)?;
+                    .u32(a.isr_ticks)?
+                    .i32(a.excitation_bits)?;
             }
             Self::Velocity(o) => {
                 w.u8(TAG_VELOCITY)?
@@ -158,6 +165,7 @@ impl Commands {
                     voltage_bits: r.i32()?,
                     enabled: bool_byte(r.u8()?, k)?,
                     isr_ticks: r.u32()?,
+                    excitation_bits: r.i32()?,
                 },
             ),
             TAG_VELOCITY => Self::Velocity(VelocityOutputs {

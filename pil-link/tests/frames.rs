@@ -295,7 +295,7 @@ mod payloads {
                         accel_fb_pu: Pu::from_bits(x[2]),
                         fault: fault(k),
                     },
-                    Applied { voltage_bits: x[3], enabled: en, isr_ticks: t },
+                    Applied { voltage_bits: x[3], enabled: en, isr_ticks: t, excitation_bits: x[7] },
                 ),
                 Commands::Velocity(VelocityOutputs {
                     current_ref_pu: Pu::from_bits(x[0]),

@@ -24,6 +24,7 @@ mod pil_board;
 mod target {
     use core::sync::atomic::{AtomicU32, Ordering};
 
+    use controller_core::excitation::ExcitationParams;
     use controller_core::{CurrentOutputs, VelocityOutputs};
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m::peripheral::NVIC;
@@ -35,7 +36,7 @@ mod target {
     use pil_link::tick::{Commands, Sensors};
     use pil_link::wire::Writer;
     use pil_link::{
-        settings, FaultCode, FirmwareSession, Frame, SafeOutputs, SessionState, Target, MAX_FRAME,
+        run_config, FaultCode, FirmwareSession, Frame, SafeOutputs, SessionState, Target, MAX_FRAME,
     };
 
     use super::pil_board::{
@@ -93,15 +94,29 @@ mod target {
         None
     }
 
+    /// The fields a refused excitation names (the `Config` payload's excitation section).
+    const EXCITATION_NAMES: ExcitationParams = ExcitationParams {
+        amplitude_pu: "excitation.amplitude_pu",
+        start_or_bits: "excitation.start_hz/bits",
+        end_or_hold: "excitation.end_hz/hold_ticks",
+        duration_or_periods: "excitation.duration_s/periods",
+    };
+
     /// The controller behind the link: the firmware's `App` in the `Loops` the interrupts
     /// share, exactly as the drive image installs it.
     struct PilTarget;
 
     impl Target for PilTarget {
         fn configure(&mut self, payload: &[u8]) -> Result<(), FaultCode> {
-            let cfg = settings::decode(payload).map_err(|_| FaultCode::BadPayload)?;
+            let (cfg, excitation) =
+                run_config::decode(payload).map_err(|_| FaultCode::BadPayload)?;
             // The link board delivers counts already wrapped at the configured width.
-            let app = match App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE) {
+            let app =
+                App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE).and_then(|app| match excitation {
+                    Some(e) => app.with_excitation(&e, EXCITATION_NAMES),
+                    None => Ok(app),
+                });
+            let app = match app {
                 Ok(app) => app,
                 Err(e) => {
                     defmt::error!("pil: settings refused: {}", defmt::Debug2Format(&e));
@@ -115,6 +130,9 @@ mod target {
                 cfg.current_rate_hz,
                 cfg.velocity_rate_hz
             );
+            if let Some(e) = excitation {
+                defmt::info!("pil: excitation {}", defmt::Debug2Format(&e));
+            }
             Ok(())
         }
 
@@ -126,6 +144,9 @@ mod target {
                         run_isr(Irq::Timer0, &CURRENT_OUT).ok_or(FaultCode::Protocol)?;
                     let mut applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
                     applied.isr_ticks = CURRENT_ISR_TICKS.load(Ordering::Relaxed);
+                    applied.excitation_bits = LOOPS
+                        .with_app(|app| app.excitation_pu().to_bits())
+                        .unwrap_or(0);
                     Commands::Current(out, applied)
                 }
                 Sensors::Velocity(inputs) => {

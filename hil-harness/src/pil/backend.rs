@@ -29,6 +29,10 @@ impl<B: ControlBackend> ControlBackend for Recorder<B> {
         self.inner.halted()
     }
 
+    fn excitation_pu(&self) -> f64 {
+        self.inner.excitation_pu()
+    }
+
     fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
         let out = self.inner.current_tick(inputs);
         self.log.current.push((inputs, out));
@@ -46,14 +50,32 @@ impl<B: ControlBackend> ControlBackend for Recorder<B> {
 /// firmware, answers with the safe state (zero commands, fault set) and reports itself
 /// halted, so the runner stops at the next tick; [`super::run_pil`] then cuts the trace exactly at
 /// the fault.
-pub(super) struct PilBackend {
+pub struct PilBackend {
     pub(super) link: HostLink<UnixStream>,
     pub(super) log: TickLog,
     pub(super) current_ticks: u64,
     pub(super) fault: Option<(HostError, u64)>,
+    /// The excitation sample the firmware reported with its last current tick (Q16.16).
+    pub(super) excitation_bits: i32,
 }
 
 impl PilBackend {
+    /// A backend on an open, configured link.
+    pub(super) fn new(link: HostLink<UnixStream>) -> Self {
+        Self {
+            link,
+            log: TickLog::default(),
+            current_ticks: 0,
+            fault: None,
+            excitation_bits: 0,
+        }
+    }
+
+    /// Every tick the firmware answered so far.
+    pub fn log(&self) -> &TickLog {
+        &self.log
+    }
+
     fn exchange(&mut self, sensors: Sensors) -> Option<Commands> {
         if self.fault.is_some() {
             return None;
@@ -86,10 +108,15 @@ impl ControlBackend for PilBackend {
         self.fault.is_some()
     }
 
+    fn excitation_pu(&self) -> f64 {
+        crate::engine::plant::f(controller_core::Pu::from_bits(self.excitation_bits))
+    }
+
     fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
         let out = match self.exchange(Sensors::Current(inputs)) {
-            Some(Commands::Current(out, _applied)) => {
+            Some(Commands::Current(out, applied)) => {
                 self.log.current.push((inputs, out));
+                self.excitation_bits = applied.excitation_bits;
                 out
             }
             Some(Commands::Velocity(_)) => {

@@ -26,11 +26,11 @@ pub mod section;
 pub mod session;
 
 pub use args::{PilArgs, REPLY_TIMEOUT_MS};
-pub use backend::{Recorder, TickLog};
+pub use backend::{PilBackend, Recorder, TickLog};
 pub use compare::{compare, Comparison, Mismatch};
 pub use image::{build_pil_image, build_pil_image_with, firmware_target_dir, with_all_images};
 pub use section::{report_section, report_section_or_hint, run_for_report, PilSection};
-pub use session::{run_pil, FirmwareFault, LinkFault, LinkReport, PilOutcome};
+pub use session::{run_pil, with_firmware, FirmwareFault, LinkFault, LinkReport, PilOutcome};
 
 use crate::error::{HarnessError, Result};
 

@@ -12,6 +12,7 @@ use crate::engine::metrics::compute;
 use crate::engine::runner::{run_with_backend, RunOutput};
 use crate::error::{HarnessError, Result};
 use crate::output::Staging;
+use controller_core::excitation::ExcitationConfig;
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
 use pil_link::host::{FaultPlan, HostError, HostLink};
@@ -120,9 +121,15 @@ fn resolve_for_firmware(args: &PilArgs) -> Result<RunConfig> {
     let cfg = resolve(&run.scenario, run.config.as_deref(), &run.set)?;
     // One design for a run of its own gains (the firmware designs the same from the same
     // settings); a comparison run is checked against its own design as well.
-    let gains = crate::engine::runner::regulator_gains(&cfg)?;
-    let borrowed = cfg.gains_of.is_some();
-    if borrowed && Ok(gains) != controller_core::design(&cfg.drive) {
+    own_design(&cfg, cfg.gains_of.is_some())?;
+    Ok(cfg)
+}
+
+/// Whether the firmware, designing its gains from the drive settings, runs `cfg`'s gains:
+/// checked for a comparison run (`borrowed`) or always (`with_firmware`).
+fn own_design(cfg: &RunConfig, check: bool) -> Result<()> {
+    let gains = crate::engine::runner::regulator_gains(cfg)?;
+    if check && Ok(gains) != controller_core::design(&cfg.drive) {
         return Err(HarnessError::config(
             "scenario.comparison.gains_of",
             format!(
@@ -132,7 +139,7 @@ fn resolve_for_firmware(args: &PilArgs) -> Result<RunConfig> {
             ),
         ));
     }
-    Ok(cfg)
+    Ok(())
 }
 
 /// QEMU running the image, with the link through Hello and the drive settings.
@@ -143,7 +150,13 @@ struct Session {
 }
 
 impl Session {
-    fn open(args: &PilArgs, cfg: &RunConfig, elf: &Path, log: &Path) -> Result<Self> {
+    fn open(
+        args: &PilArgs,
+        cfg: &RunConfig,
+        excitation: Option<&ExcitationConfig>,
+        elf: &Path,
+        log: &Path,
+    ) -> Result<Self> {
         let (qemu, stream) = Qemu::spawn(&QemuOptions {
             qemu: args.qemu.clone(),
             elf: elf.to_path_buf(),
@@ -157,7 +170,7 @@ impl Session {
             Err(e) => return Err(qemu_error(&qemu, "hello", e)),
         };
         let mut w = Writer::new();
-        let sent = pil_link::settings::encode(&cfg.drive, &mut w)
+        let sent = pil_link::run_config::encode(&cfg.drive, excitation, &mut w)
             .map_err(HostError::Link)
             .and_then(|()| link.configure(w.as_slice()));
         match sent {
@@ -267,16 +280,11 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         mut qemu,
         mut link,
         ack,
-    } = Session::open(args, &cfg, &elf, &log_path)?;
+    } = Session::open(args, &cfg, None, &elf, &log_path)?;
     if let Some(p) = plan {
         link.inject(p);
     }
-    let mut backend = PilBackend {
-        link,
-        log: TickLog::default(),
-        current_ticks: 0,
-        fault: None,
-    };
+    let mut backend = PilBackend::new(link);
     let start = Instant::now();
     let mut run = run_with_backend(&cfg, &mut backend)?;
     let wall_time_s = start.elapsed().as_secs_f64();
@@ -326,6 +334,48 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         comparison,
         out: args.run.out.clone(),
     })
+}
+
+/// Runs `f` with the firmware in QEMU as its control backend, configured with `cfg`'s drive
+/// settings and `excitation`, if any: how a run that drives its backend itself (the
+/// identification's records, `experiments::identify::measure::record`) goes through the
+/// firmware. The firmware's defmt log goes to `firmware.defmt` in `args.run.out`; `args`'
+/// scenario is not used. A link fault, seen by either side, is an error.
+pub fn with_firmware<T>(
+    args: &PilArgs,
+    cfg: &RunConfig,
+    excitation: Option<&ExcitationConfig>,
+    f: impl FnOnce(&mut PilBackend) -> Result<T>,
+) -> Result<T> {
+    args.check()?;
+    own_design(cfg, true)?;
+    let (plan, elf) = prepare(args)?;
+    std::fs::create_dir_all(&args.run.out).map_err(|e| HarnessError::io(&args.run.out, e))?;
+    let Session {
+        mut qemu, mut link, ..
+    } = Session::open(
+        args,
+        cfg,
+        excitation,
+        &elf,
+        &args.run.out.join("firmware.defmt"),
+    )?;
+    if let Some(p) = plan {
+        link.inject(p);
+    }
+    let mut backend = PilBackend::new(link);
+    let out = f(&mut backend);
+    let end = match backend.fault.take() {
+        Some((e, at)) => Err(HarnessError::Backend(format!(
+            "PIL link fault at current tick {at}: {e}"
+        ))),
+        None => backend
+            .link
+            .stop()
+            .map_err(|e| qemu_error(&qemu, "stop", e)),
+    };
+    let _ = qemu.finish(Duration::from_secs(5));
+    end.and(out)
 }
 
 /// The same scenario on the host build of controller-core, compared bit for bit.

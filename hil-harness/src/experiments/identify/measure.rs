@@ -118,6 +118,34 @@ pub fn record<B: ControlBackend>(cfg: &RunConfig, backend: &mut B, what: &str) -
 /// The frequency-response run: the PRBS on the torque reference under the preload. Returns
 /// the record after `settle_s`.
 pub fn frequency_response_run(base: &RunConfig, spec: &IdentifySpec) -> Result<Record> {
+    let (cfg, excitation) = frequency_response_setup(base, spec)?;
+    let mut ctl = excited_controller(&cfg, &excitation)?;
+    let rec = record(&cfg, &mut ctl, FREQUENCY_RESPONSE)?;
+    Ok(frequency_response_tail(&cfg, spec, &rec))
+}
+
+/// The host controller of `cfg` with `excitation` added; its errors name the
+/// `identify.*` keys.
+pub fn excited_controller(
+    cfg: &RunConfig,
+    excitation: &ExcitationConfig,
+) -> Result<controller_core::Controller> {
+    controller(cfg)?
+        .with_excitation(excitation, NAMES)
+        .map_err(|e| HarnessError::config(e.param(), e.to_string()))
+}
+
+/// What [`record`] calls the frequency-response run in its errors.
+pub const FREQUENCY_RESPONSE: &str = "frequency-response measurement";
+
+/// The frequency-response run's configuration (the rig holding zero speed under the preload
+/// for the PRBS's length) and its excitation: what [`frequency_response_run`] records with
+/// the host controller, and what a run through the firmware sends it
+/// (`crate::pil::with_firmware`).
+pub fn frequency_response_setup(
+    base: &RunConfig,
+    spec: &IdentifySpec,
+) -> Result<(RunConfig, ExcitationConfig)> {
     let rate = f64::from(base.drive.current_rate_hz);
     let duration_s = spec.prbs_ticks() as f64 / rate;
     if duration_s <= spec.settle_s + 2.0 * spec.segment_len as f64 / rate {
@@ -146,11 +174,13 @@ pub fn frequency_response_run(base: &RunConfig, spec: &IdentifySpec) -> Result<R
         amplitude_pu: spec.amplitude_pu as f32,
         injection: Injection::TorqueReference,
     };
-    let mut ctl = controller(&cfg)?
-        .with_excitation(&excitation, NAMES)
-        .map_err(|e| HarnessError::config(e.param(), e.to_string()))?;
-    let rec = record(&cfg, &mut ctl, "frequency-response measurement")?;
-    Ok(rec.tail((spec.settle_s * rate) as usize))
+    Ok((cfg, excitation))
+}
+
+/// The frequency-response record after `settle_s` (what the estimators take).
+pub fn frequency_response_tail(cfg: &RunConfig, spec: &IdentifySpec, rec: &Record) -> Record {
+    let rate = f64::from(cfg.drive.current_rate_hz);
+    rec.tail((spec.settle_s * rate) as usize)
 }
 
 /// The lost-motion test's rig load: +T from the start, then reversed every `hold` seconds,

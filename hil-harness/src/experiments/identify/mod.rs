@@ -79,6 +79,26 @@ pub fn load(config: &str, sets: &[String]) -> Result<(RunConfig, IdentifySpec)> 
 pub fn identify_machine(base: &RunConfig, spec: &IdentifySpec) -> Result<Identification> {
     let rate = f64::from(base.drive.current_rate_hz);
     let rec = measure::frequency_response_run(base, spec)?;
+    let (response, fit) = fit_response(base, spec, &rec)?;
+    let reversal = measure::reversal_run(base, spec)?;
+    let lost_motion = fit_lost_motion(base, spec, &fit.fit, &reversal)?;
+    Ok(Identification {
+        response,
+        fit,
+        lost_motion,
+        record_s: rec.counts.len() as f64 / rate,
+    })
+}
+
+/// The frequency response of a frequency-response record (after its settling, as
+/// [`measure::frequency_response_run`] returns it) and the two-inertia fit to it, whichever
+/// backend recorded it.
+pub fn fit_response(
+    base: &RunConfig,
+    spec: &IdentifySpec,
+    rec: &measure::Record,
+) -> Result<(MeasuredResponse, FitResult)> {
+    let rate = f64::from(base.drive.current_rate_hz);
     let counts_per_rad = f64::from(base.drive.encoder_cpr) / std::f64::consts::TAU;
     let position: Vec<f64> = rec.counts.iter().map(|c| c / counts_per_rad).collect();
     let response = closed_loop_response(
@@ -92,14 +112,7 @@ pub fn identify_machine(base: &RunConfig, spec: &IdentifySpec) -> Result<Identif
     let wb = f64::from(base.drive.base_speed_rpm) * std::f64::consts::TAU / 60.0;
     let fit = fit_two_inertia(&response, wb, spec.min_coherence, spec.max_freq_hz)
         .map_err(|e| HarnessError::Backend(format!("identify: {e}")))?;
-    let reversal = measure::reversal_run(base, spec)?;
-    let lost_motion = fit_lost_motion(base, spec, &fit.fit, &reversal)?;
-    Ok(Identification {
-        response,
-        fit,
-        lost_motion,
-        record_s: rec.counts.len() as f64 / rate,
-    })
+    Ok((response, fit))
 }
 
 /// `hil-harness identify`.
