@@ -74,6 +74,8 @@ pub struct LoopRun {
     pub faulted: bool,
     /// Shaft-torque ripple after the load step \[pu\].
     pub shaft_torque_ripple_rms_pu: f64,
+    /// Its dominant frequency, from zero crossings \[Hz\].
+    pub shaft_ripple_freq_hz: f64,
     /// Speed droop at the load step \[pu\] (none without a load step).
     pub load_step_droop_pu: Option<f64>,
 }
@@ -90,6 +92,7 @@ impl LoopRun {
             stable: m.stable,
             faulted: m.faulted,
             shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
+            shaft_ripple_freq_hz: m.shaft_ripple_freq_hz,
             load_step_droop_pu: m.load_step_droop_pu,
         })
     }
@@ -122,6 +125,7 @@ mod tests {
             stable,
             faulted: false,
             shaft_torque_ripple_rms_pu: ripple,
+            shaft_ripple_freq_hz: 0.0,
             load_step_droop_pu: None,
         }
     }
