@@ -2,6 +2,7 @@
 //! constraints, as the linear model predicts them and as the nonlinear loop measures them.
 
 use super::section::Section;
+use super::{SWEEP_NO_AFB_MAX_RAD_S, SWEEP_RATIO_MIN};
 use crate::error::Result;
 use crate::experiments::sweep::grid::word;
 use crate::experiments::tune::machines::{Bandwidth, MachineTune, LOOP_SCENARIO};
@@ -125,6 +126,40 @@ fn how_tuned(tunes: &[MachineTune]) -> String {
     s
 }
 
+/// The highest bandwidths with and without AFB, and the sweep section's verdict on them
+/// for the printing press (judged only when its bandwidth was searched, not given).
+fn bandwidths(tunes: &[MachineTune]) -> String {
+    let per: Vec<String> = tunes
+        .iter()
+        .map(|t| {
+            let (a, b) = (
+                t.with.candidate.bandwidth_rad_s,
+                t.without.candidate.bandwidth_rad_s,
+            );
+            format!("{} {a} / {b} rad/s ({:.1}x)", t.machine, a / b.max(1e-12))
+        })
+        .collect();
+    let press = tunes
+        .iter()
+        .find(|t| t.machine == "printing-press" && t.bandwidth == Bandwidth::Max);
+    let verdict = press.map_or(
+        "not judged (the printing press's bandwidth was not searched)",
+        |t| {
+            super::sweep::bandwidth_verdict(Some((
+                t.without.candidate.bandwidth_rad_s,
+                t.with.candidate.bandwidth_rad_s,
+            )))
+        },
+    );
+    format!(
+        "Bandwidth, by the sweep section's criteria on the printing press (with AFB at least \
+         {SWEEP_RATIO_MIN} times the bandwidth without, and without at most \
+         {SWEEP_NO_AFB_MAX_RAD_S} rad/s; one of the two: partly): {verdict}. With / without AFB: \
+         {}.",
+        per.join(", ")
+    )
+}
+
 /// The section: both designs per machine, their runs, and the verdict by [`CRITERION`].
 pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
     let mut m = format!(
@@ -186,12 +221,14 @@ pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
          the printing press) and makes the drive stiffer against load torque.",
         m,
         format!(
-            "{verdict}: {passed} of {} machines pass (criterion, fixed before the runs: on each \
-             machine, {CRITERION}; all pass: agrees, none: does not agree). {} Beside the \
+            "{} Load-step ripple: {verdict}: {passed} of {} machines pass (criterion, fixed \
+             before the runs: on each machine, {CRITERION}; all pass: agrees, none: does not \
+             agree). {} Beside the \
              criterion: the speed droop at the load step is lower with AFB on {droop_lower} of {} \
              machines. The ripple is the shaft torque's content above about 5 Hz from 0.1 s \
              after the step to the end of the run (`hil-harness/README.md`): the ringing the \
              step excites and the chatter that stays.",
+            bandwidths(tunes),
             tunes.len(),
             findings.join(" "),
             tunes.len()
@@ -298,7 +335,10 @@ mod tests {
             "| beta | without AFB | 45 | off | - | - | - | 88 |",
             "| alpha | tuned with AFB | 123 | label 123 | true | false | 0.0111 | 12.5 | 0.0011 |",
             "| beta | tuned without AFB | 45 | label 45 | true | false | 0.0222 | 12.5 | 0.0022 |",
-            "**partly agrees**: 1 of 2 machines pass",
+            "Load-step ripple: **partly agrees**: 1 of 2 machines pass",
+            "Bandwidth, by the sweep section's criteria on the printing press",
+            "alpha 123 / 45 rad/s (2.7x), beta 123 / 45 rad/s (2.7x)",
+            "not judged (the printing press's bandwidth was not searched)",
             "alpha: passes",
             "beta: **fails**: with AFB at 123 rad/s stable, ripple 0.0333 pu at 12.5 Hz against \
              0.0222 pu at 12.5 Hz without AFB at 45 rad/s (increased by 50 %; predicted \
@@ -313,5 +353,13 @@ mod tests {
         assert!(all.contains("**agrees**: 1 of 1"), "{all}");
         let none = section(&tunes[1..], &k).unwrap().markdown();
         assert!(none.contains("**does not agree**: 0 of 1"), "{none}");
+        let press = section(&[machine("printing-press", 0.1, 0.2)], &k)
+            .unwrap()
+            .markdown();
+        let v = crate::report::sweep::bandwidth_verdict(Some((45.0, 123.0)));
+        assert!(
+            press.contains(&format!("one of the two: partly): {v}.")),
+            "{press}"
+        );
     }
 }
