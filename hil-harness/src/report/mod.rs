@@ -1,7 +1,7 @@
-//! `hil-harness reproduce` (what `cargo run --release` does): every scenario, the sweep
-//! and the stiffness measurement, then `REPORT.md` with one section per paper figure or
-//! claim: the plot, the paper's statement, our measured figure, and whether they agree
-//! and why. Verdicts come from fixed criteria written next to each check, never from
+//! `hil-harness reproduce` (what `cargo run --release` does): every scenario, the sweep,
+//! the stiffness measurement and `tune` on the shipped machines, then `REPORT.md` with one
+//! section per paper figure or claim: the plot, the paper's statement, our measured figure,
+//! and whether they agree and why. Verdicts come from fixed criteria written next to each check, never from
 //! tuning a run.
 //!
 //! Each section is a function of typed results ([`section::Section`]), one file per group
@@ -114,7 +114,8 @@ pub fn run_all(names: &[&str]) -> Result<Runs> {
     Ok(results?.into_iter().collect())
 }
 
-/// What `reproduce` ran: the paper's scenarios, the sweep, the stiffness grid, the Sec. II map.
+/// What `reproduce` ran: the paper's scenarios, the sweep, the stiffness grid, the Sec. II
+/// map, the tuned machines.
 struct Results {
     runs: Runs,
     sweep: Vec<crate::experiments::sweep::SweepResult>,
