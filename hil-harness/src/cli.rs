@@ -114,8 +114,9 @@ pub enum Command {
         #[arg(long, default_value = "out/sec2")]
         out: PathBuf,
     },
-    /// The paper's scenarios, the sweep, stiffness and the Sec. II map, and out/REPORT.md (what
-    /// `cargo run --release` does).
+    /// The paper's scenarios, the sweep, stiffness, the Sec. II map, `tune` on table1, the
+    /// printing press and the dyno (out/tune/), and out/REPORT.md (what `cargo run --release`
+    /// does).
     Reproduce {
         /// Output directory.
         #[arg(long, default_value = "out")]

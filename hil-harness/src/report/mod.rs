@@ -1,12 +1,12 @@
-//! `hil-harness reproduce` (what `cargo run --release` does): every scenario, the sweep
-//! and the stiffness measurement, then `REPORT.md` with one section per paper figure or
-//! claim: the plot, the paper's statement, our measured figure, and whether they agree
-//! and why. Verdicts come from fixed criteria written next to each check, never from
+//! `hil-harness reproduce` (what `cargo run --release` does): every scenario, the sweep,
+//! the stiffness measurement and `tune` on the shipped machines, then `REPORT.md` with one
+//! section per paper figure or claim: the plot, the paper's statement, our measured figure,
+//! and whether they agree and why. Verdicts come from fixed criteria written next to each check, never from
 //! tuning a run.
 //!
 //! Each section is a function of typed results ([`section::Section`]), one file per group
 //! of figures: [`fig6`] (Fig. 4, 6, 7), [`sec2`] (Sec. II), [`load`] (Fig. 9-13),
-//! [`sweep`] (Sec. III-D), [`stiffness`] (Fig. 2, Eq. 1), [`runs`] (gains, all runs, speed);
+//! [`sweep`] and [`tune`] (Sec. III-D), [`stiffness`] (Fig. 2, Eq. 1), [`runs`] (gains, all runs, speed);
 //! [`figures`] draws the comparison plots.
 
 pub mod facts;
@@ -18,11 +18,14 @@ pub mod sec2;
 pub mod section;
 pub mod stiffness;
 pub mod sweep;
+pub mod tune;
 
 use crate::commands::write_run;
 use crate::config::{resolve, RunConfig};
 use crate::engine::runner::{run_scenario, RunOutput};
 use crate::error::{HarnessError, Result};
+use crate::experiments::tune::machines::{tune_into, Bandwidth, MachineTune, MACHINES};
+use crate::experiments::tune::Constraints;
 use crate::output::Staging;
 use rayon::prelude::*;
 use section::Section;
@@ -81,6 +84,13 @@ pub const SWEEP_RATIO_MIN: f64 = 2.0;
 /// ... and the limit without AFB is of the paper's order (rad/s).
 pub const SWEEP_NO_AFB_MAX_RAD_S: f64 = 60.0;
 
+/// Sec. III-D with `tune`: each of [`MACHINES`] is tuned at the highest bandwidth that meets
+/// the constraints (`tune --max-bandwidth`), the question of the sweep section. At its own
+/// configured bandwidth the printing press's AFB design cannot be measured in the loop (its
+/// step response has no decaying oscillatory mode), and the bandwidth the constraints allow
+/// is what Sec. III-D compares. The three run in parallel.
+pub const TUNE_BANDWIDTH: Bandwidth = Bandwidth::Max;
+
 type Runs = BTreeMap<String, (RunConfig, RunOutput)>;
 
 fn get<'a>(runs: &'a Runs, name: &str) -> Result<&'a (RunConfig, RunOutput)> {
@@ -104,12 +114,14 @@ pub fn run_all(names: &[&str]) -> Result<Runs> {
     Ok(results?.into_iter().collect())
 }
 
-/// What `reproduce` ran: the paper's scenarios, the sweep, the stiffness grid, the Sec. II map.
+/// What `reproduce` ran: the paper's scenarios, the sweep, the stiffness grid, the Sec. II
+/// map, the tuned machines.
 struct Results {
     runs: Runs,
     sweep: Vec<crate::experiments::sweep::SweepResult>,
     stiffness: Vec<crate::experiments::stiffness::StiffnessPoint>,
     sec2: Vec<crate::experiments::sec2::MapPoint>,
+    tunes: Vec<MachineTune>,
 }
 
 fn subdir(dir: &Path, name: &str) -> Result<std::path::PathBuf> {
@@ -161,6 +173,7 @@ fn sections(r: &Results, elapsed_s: f64) -> Result<Vec<Section>> {
         )?,
         load::shock_30(runs)?,
         sweep::section(&r.sweep)?,
+        tune::section(&r.tunes, &Constraints::default())?,
         stiffness::section(&r.stiffness)?,
         runs::all_runs(runs)?,
         runs::speed(runs, elapsed_s)?,
@@ -179,12 +192,20 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
     let (stiffness, stiff_text) =
         crate::experiments::stiffness::stiffness_into(&subdir(dir, "stiffness")?)?;
     let sec2 = crate::experiments::sec2::map_into(&subdir(dir, "sec2")?)?;
+    let tunes = tune_into(
+        &subdir(dir, "tune")?,
+        &MACHINES,
+        TUNE_BANDWIDTH,
+        &Constraints::default(),
+    )?;
     figures::write_all(&runs, dir)?;
+    let tune_text: String = tunes.iter().map(tune::console_line).collect();
     let results = Results {
         runs,
         sweep,
         stiffness,
         sec2,
+        tunes,
     };
     let mut report = String::from(PREAMBLE);
     for s in sections(&results, t0.elapsed().as_secs_f64())? {
@@ -207,7 +228,7 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
         })
         .collect();
     Ok(format!(
-        "{sweep_text}{stiff_text}{}\n",
+        "{sweep_text}{stiff_text}{tune_text}{}\n",
         sec2_text.join("\n")
     ))
 }

@@ -6,6 +6,21 @@ use crate::error::Result;
 use crate::experiments::sweep::SweepResult;
 use std::fmt::Write as _;
 
+/// Sec. III-D's verdict on the printing press's largest bandwidths (without AFB, with AFB)
+/// \[rad/s\]: the AFB design reaches at least [`SWEEP_RATIO_MIN`] times the bandwidth
+/// without, and the bandwidth without is at most [`SWEEP_NO_AFB_MAX_RAD_S`]; one of the
+/// two: partly. Used for the sweep and for `tune`'s designs ([`super::tune`]).
+pub fn bandwidth_verdict(press: Option<(f64, f64)>) -> &'static str {
+    let ratio_ok =
+        press.is_some_and(|(without, with)| without > 0.0 && with >= SWEEP_RATIO_MIN * without);
+    let level_ok = press.is_some_and(|(without, _)| without <= SWEEP_NO_AFB_MAX_RAD_S);
+    match (ratio_ok, level_ok) {
+        (true, true) => "**agrees**",
+        (true, false) | (false, true) => "**partly agrees**",
+        _ => "**does not agree**",
+    }
+}
+
 /// The sweep's findings per plant, and the printing press against the paper.
 pub fn section(sweep: &[SweepResult]) -> Result<Section> {
     let mut found = String::new();
@@ -25,15 +40,7 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
         );
     }
     let pp = sweep.iter().find(|s| s.plant == "printing-press");
-    let ratio_ok = pp.is_some_and(|s| {
-        s.without_afb_rad_s > 0.0 && s.with_afb_rad_s >= SWEEP_RATIO_MIN * s.without_afb_rad_s
-    });
-    let level_ok = pp.is_some_and(|s| s.without_afb_rad_s <= SWEEP_NO_AFB_MAX_RAD_S);
-    let sweep_verdict = match (ratio_ok, level_ok) {
-        (true, true) => "**agrees**",
-        (true, false) | (false, true) => "**partly agrees**",
-        _ => "**does not agree**",
-    };
+    let sweep_verdict = bandwidth_verdict(pp.map(|s| (s.without_afb_rad_s, s.with_afb_rad_s)));
     let press = crate::config::resolve("sweep", Some("printing-press"), &[])?;
     let (mech, cpr) = (&press.plant.mechanics, press.plant.counts_per_rev());
     Ok(Section::claim(
@@ -69,7 +76,8 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
              {SWEEP_NO_AFB_MAX_RAD_S} rad/s; one of the two: partly). The modelled press has no \
              friction and no gear-tooth compliance, and its inertias and coupling are \
              assumptions; which of the real stand's effects set its limit is not something this \
-             model can say."
+             model can say. The next section applies the same criteria to the highest bandwidths \
+             `tune` finds with and without AFB under its constraints."
         ),
     ))
 }

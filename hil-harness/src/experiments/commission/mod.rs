@@ -7,11 +7,11 @@
 //!    with its `[plant]` table replaced by the identified one. Everything the drive knows of
 //!    the machine now comes from the measurement.
 //! 3. **Tune** on the identified file ([`super::tune`]), with AFB (`DIR/tune/`), and the
-//!    no-AFB design by the same constraints, for the comparison.
+//!    no-AFB design by the same constraints, for the comparison ([`tune::pair`]).
 //! 4. **Verify on the machine itself**: both drives run `fig6` (a move with a load step)
-//!    against the plant of `CFG`, not the identified one. The commissioning passes when the
-//!    AFB design is stable, does not fault, and leaves less shaft-torque ripple after the
-//!    load step than the no-AFB design. `DIR/commission.md` and `DIR/commission.json`
+//!    against the plant of `CFG`, not the identified one. The commissioning passes by
+//!    [`tune::pair::CRITERION`]: the AFB design is stable, does not fault, and leaves less
+//!    shaft-torque ripple after the load step than the no-AFB design. `DIR/commission.md` and `DIR/commission.json`
 //!    hold the figures; the command fails (after writing them) when it does not pass.
 //!
 //! Everything is staged: on an error before the verification nothing is written.
@@ -19,32 +19,15 @@
 mod write;
 
 use crate::config::{config_path, overrides, read_table, resolve, RunConfig};
-use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
 use crate::experiments::identify::{self, lost_motion::identified_mechanics};
-use crate::experiments::tune::{self, Constraints, Tuned, BANDWIDTHS_RAD_S};
+use crate::experiments::tune::{self, Constraints};
 use crate::output::Staging;
 use std::path::Path;
 use toml::Value;
 
 /// The verification of one drive on the machine itself.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct OnMachine {
-    /// Which design.
-    pub design: &'static str,
-    /// The design's velocity bandwidth \[rad/s\] and AFB, as `tune` labels it.
-    pub bandwidth_rad_s: f64,
-    /// Its AFB.
-    pub afb: String,
-    /// `fig6`'s `stable`.
-    pub stable: bool,
-    /// A fault latched.
-    pub faulted: bool,
-    /// Shaft-torque ripple after the load step \[pu\].
-    pub shaft_torque_ripple_rms_pu: f64,
-    /// Speed droop at the load step \[pu\] (none without a load step).
-    pub load_step_droop_pu: Option<f64>,
-}
+pub use crate::experiments::tune::pair::LoopRun as OnMachine;
 
 /// What `commission` found.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -90,22 +73,11 @@ fn on_machine(
     label: &'static str,
     design: &tune::Candidate,
 ) -> Result<OnMachine> {
-    let mut drive_cfg = resolve(scenario, Some(identified), &[])?;
-    design.apply(&mut drive_cfg.drive);
+    let mut cfg = resolve(scenario, Some(identified), &[])?;
     let machine = resolve(scenario, Some(config), sets)?;
-    let mut cfg = drive_cfg;
     cfg.plant = machine.plant;
     cfg.config_path = machine.config_path;
-    let m = run_scenario(&cfg)?.metrics;
-    Ok(OnMachine {
-        design: label,
-        bandwidth_rad_s: design.bandwidth_rad_s,
-        afb: design.afb.label(),
-        stable: m.stable,
-        faulted: m.faulted,
-        shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
-        load_step_droop_pu: m.load_step_droop_pu,
-    })
+    OnMachine::run(cfg, label, design)
 }
 
 /// `hil-harness commission`.
@@ -116,7 +88,8 @@ pub fn commission(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
-    let bws = tune::bandwidths(target_bandwidth)?;
+    // A bad bandwidth is reported before the identification.
+    tune::bandwidths(target_bandwidth)?;
     let (base, spec) = identify::load(config, sets)?;
     let ident = identify::identify_machine(&base, &spec)?;
     let staging = Staging::new(out)?;
@@ -130,18 +103,9 @@ pub fn commission(
     )?;
     let identified = identified.display().to_string();
 
-    let mut with: Tuned = tune::design(&identified, target_bandwidth, constraints)?;
+    let pair = tune::pair::design_both(&identified, target_bandwidth, constraints)?;
+    let (mut with, without) = (pair.with, pair.without.result);
     with.result.config = "identified.toml".into();
-    // The no-AFB design by the same constraints: at the bandwidth asked for if it can be
-    // had there, else the highest of the grid below it that meets them.
-    let top = bws.iter().copied().fold(0.0, f64::max);
-    let mut no_afb_bws = bws.clone();
-    no_afb_bws.extend(BANDWIDTHS_RAD_S.iter().copied().filter(|w| *w < top));
-    let without = tune::search(
-        &identified,
-        &tune::without_afb(&tune::candidates(&no_afb_bws)),
-        constraints,
-    )?;
     let tune_md = staging.path("tune/tune.md")?;
     tune::write_design(tune_md.parent().unwrap_or(dir), &with)?;
 
@@ -164,8 +128,7 @@ pub fn commission(
         )?,
     ];
     let [a, b] = &runs;
-    let passed =
-        a.stable && !a.faulted && a.shaft_torque_ripple_rms_pu < b.shaft_torque_ripple_rms_pu;
+    let passed = tune::pair::afb_passes(a, b);
     let c = Commissioning {
         config: base.config_path.display().to_string(),
         runs,

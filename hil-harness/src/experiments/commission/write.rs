@@ -71,10 +71,9 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
     }
     let _ = writeln!(
         md,
-        "\n**{}** (criterion, fixed before the run: the AFB design is stable without a fault \
-         and leaves less shaft-torque ripple than the no-AFB design tuned by the same \
-         constraints).",
-        if c.passed { "Passed" } else { "Failed" }
+        "\n**{}** (criterion, fixed before the run: {}).",
+        if c.passed { "Passed" } else { "Failed" },
+        crate::experiments::tune::pair::CRITERION
     );
     md
 }

@@ -22,7 +22,9 @@
 
 pub mod damping;
 pub mod grid;
+pub mod machines;
 pub mod output;
+pub mod pair;
 pub mod plots;
 pub mod summary;
 

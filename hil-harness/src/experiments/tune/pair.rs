@@ -1,0 +1,151 @@
+//! The design with acceleration feedback and the design without it by the same
+//! constraints, and the nonlinear run that compares them: what `commission` verifies on a
+//! machine and `reproduce` reports for the shipped machines, written once here.
+//!
+//! The no-AFB design is searched at the bandwidths the AFB design was searched at and at
+//! every bandwidth of [`BANDWIDTHS_RAD_S`] below the highest of them, highest first: at the
+//! bandwidth asked for if it can be had there, else the highest below it that meets the
+//! constraints.
+
+use super::{bandwidths, BANDWIDTHS_RAD_S};
+use super::{candidates, design, search, without_afb, Candidate, Constraints, Tuned};
+use crate::config::RunConfig;
+use crate::engine::runner::run_scenario;
+use crate::error::Result;
+use serde::Serialize;
+
+/// The two designs of one machine.
+#[derive(Debug, Clone)]
+pub struct Pair {
+    /// Tuned with AFB ([`design`]; its damping measured in the loop).
+    pub with: Tuned,
+    /// The no-AFB design by the same constraints (its damping is not measured:
+    /// [`super::TuneResult::step`] is `None`).
+    pub without: Tuned,
+}
+
+/// The bandwidths the no-AFB design is searched at, for an AFB search at `bws` (module
+/// docs), ascending and each once.
+#[must_use]
+pub fn no_afb_bandwidths(bws: &[f64]) -> Vec<f64> {
+    let top = bws.iter().copied().fold(0.0, f64::max);
+    let mut v: Vec<f64> = bws
+        .iter()
+        .copied()
+        .chain(BANDWIDTHS_RAD_S.iter().copied().filter(|w| *w < top))
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    v
+}
+
+/// Tunes `config` with AFB ([`design`]) and without it by the same constraints.
+pub fn design_both(
+    config: &str,
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+) -> Result<Pair> {
+    let bws = bandwidths(target_bandwidth)?;
+    let with = design(config, target_bandwidth, constraints)?;
+    let grid = without_afb(&candidates(&no_afb_bandwidths(&bws)));
+    let result = search(config, &grid, constraints)?;
+    let mut tuned = with.base.clone();
+    result.design.candidate.apply(&mut tuned.drive);
+    let without = Tuned {
+        result,
+        base: with.base.clone(),
+        tuned,
+    };
+    Ok(Pair { with, without })
+}
+
+/// One design run in the nonlinear loop.
+#[derive(Clone, Debug, Serialize)]
+pub struct LoopRun {
+    /// Which design.
+    pub design: &'static str,
+    /// The design's velocity bandwidth \[rad/s\].
+    pub bandwidth_rad_s: f64,
+    /// Its AFB, as `tune` labels it.
+    pub afb: String,
+    /// The scenario's `stable`.
+    pub stable: bool,
+    /// A fault latched.
+    pub faulted: bool,
+    /// Shaft-torque ripple after the load step \[pu\].
+    pub shaft_torque_ripple_rms_pu: f64,
+    /// Its dominant frequency, from zero crossings \[Hz\].
+    pub shaft_ripple_freq_hz: f64,
+    /// Speed droop at the load step \[pu\] (none without a load step).
+    pub load_step_droop_pu: Option<f64>,
+}
+
+impl LoopRun {
+    /// Runs `cfg` (a scenario on a machine) with `design`'s drive settings.
+    pub fn run(mut cfg: RunConfig, label: &'static str, design: &Candidate) -> Result<Self> {
+        design.apply(&mut cfg.drive);
+        let m = run_scenario(&cfg)?.metrics;
+        Ok(Self {
+            design: label,
+            bandwidth_rad_s: design.bandwidth_rad_s,
+            afb: design.afb.label(),
+            stable: m.stable,
+            faulted: m.faulted,
+            shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
+            shaft_ripple_freq_hz: m.shaft_ripple_freq_hz,
+            load_step_droop_pu: m.load_step_droop_pu,
+        })
+    }
+}
+
+/// The criterion, fixed before any run: the AFB design is stable without a fault and
+/// leaves less shaft-torque ripple after the load step than the no-AFB design tuned by
+/// the same constraints.
+pub const CRITERION: &str = "the AFB design is stable without a fault and leaves less \
+    shaft-torque ripple after the load step than the no-AFB design tuned by the same \
+    constraints";
+
+/// Whether `with` passes [`CRITERION`] against `without`.
+#[must_use]
+pub fn afb_passes(with: &LoopRun, without: &LoopRun) -> bool {
+    with.stable
+        && !with.faulted
+        && with.shaft_torque_ripple_rms_pu < without.shaft_torque_ripple_rms_pu
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(stable: bool, ripple: f64) -> LoopRun {
+        LoopRun {
+            design: "d",
+            bandwidth_rad_s: 1.0,
+            afb: String::new(),
+            stable,
+            faulted: false,
+            shaft_torque_ripple_rms_pu: ripple,
+            shaft_ripple_freq_hz: 0.0,
+            load_step_droop_pu: None,
+        }
+    }
+
+    #[test]
+    fn the_criterion_needs_a_stable_afb_design_with_less_ripple() {
+        assert!(afb_passes(&run(true, 0.1), &run(true, 0.2)));
+        assert!(!afb_passes(&run(true, 0.2), &run(true, 0.1)));
+        assert!(!afb_passes(&run(false, 0.1), &run(true, 0.2)));
+    }
+
+    #[test]
+    fn no_afb_bandwidths_are_the_target_and_the_grid_below_it() {
+        let top = BANDWIDTHS_RAD_S[3];
+        let v = no_afb_bandwidths(&[top]);
+        assert_eq!(v.last().copied(), Some(top));
+        assert_eq!(v.len(), 4);
+        assert_eq!(
+            no_afb_bandwidths(&BANDWIDTHS_RAD_S),
+            BANDWIDTHS_RAD_S.to_vec()
+        );
+    }
+}
