@@ -20,7 +20,7 @@ use std::f64::consts::PI;
 fn mirror_vs_controller(cfg: &DriveConfig) -> (f64, f64) {
     let gains = design(cfg).unwrap();
     let mut fixed = Controller::new(cfg).unwrap();
-    let coef = Coefficients::new(cfg, &gains);
+    let coef = Coefficients::new(cfg, &gains).unwrap();
     let mut s = State::default();
     let ratio = gains.ticks_per_velocity as usize;
     let (mut worst_v, mut worst_t) = (0.0f64, 0.0f64);
@@ -159,7 +159,7 @@ fn rigid_body_poles_are_the_pi_roots() {
     cfg.winding_resistance_pu = plant.electrics.winding_resistance_pu as f32;
     cfg.winding_inductance_pu_s = plant.electrics.winding_inductance_pu_s as f32;
     let g = design(&cfg).unwrap();
-    let coef = Coefficients::new(&cfg, &g);
+    let coef = Coefficients::new(&cfg, &g).unwrap();
     let model = LoopModel::new(
         coef.clone(),
         &plant,
