@@ -123,6 +123,14 @@ fn variants() -> Vec<(&'static str, DriveConfig)> {
     c.accel_feedback.mode = AfbMode::Off;
     c.position_bandwidth_rad_s = 0.0;
     out.push(("speed mode, no AFB", c));
+    // The notch on the torque reference, on the sum of the PI and the AFB's closed form.
+    let mut c = base;
+    c.notch = Some(controller_core::NotchConfig {
+        centre_hz: 65.0,
+        width_hz: 20.0,
+        depth_db: 30.0,
+    });
+    out.push(("notch at 65 Hz", c));
     out
 }
 

@@ -253,9 +253,9 @@ pub fn commission(
     let passed = a.stable
         && !a.faulted
         && a.shaft_torque_ripple_rms_pu < b.shaft_torque_ripple_rms_pu
-        && without_notch.as_ref().map_or(true, |n| {
-            a.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu
-        });
+        && without_notch
+            .as_ref()
+            .is_none_or(|n| a.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu);
     let c = Commissioning {
         config: base.config_path.display().to_string(),
         runs,

@@ -42,9 +42,9 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
         md,
         "\n`identified.toml` is the machine file with that `[plant]` table.\n\n{}\
          ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
-         {} rad/s, {}; smallest damping {:.3} (engaged), phase margin {:.1} deg, gain margin \
-         {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the `[drive]` \
-         table to flash; `tune/config.toml` is the identified file with it.\n\n\
+         {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin {:.1} deg, gain \
+         margin {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the \
+         `[drive]` table to flash; `tune/config.toml` is the identified file with it.\n\n\
          ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
          | design | bandwidth (rad/s) | AFB | stable | fault | shaft-torque ripple (pu) | droop (pu) |\n\
          |---|---|---|---|---|---|---|\n",
@@ -52,6 +52,11 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
         d.candidate.bandwidth_rad_s,
         d.candidate.afb.label(),
         d.damping[0],
+        d.notch_band_damping.map_or_else(String::new, |b| format!(
+            " outside the notch's band and {b:.4} inside it (the resonance left to the \
+             machine: at least {:.0} % of its own damping)",
+            100.0 * crate::experiments::tune::NOTCH_BAND_DAMPING_SHARE
+        )),
         d.margins[0],
         d.margins[1],
         d.noise_pu,

@@ -147,7 +147,7 @@ fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
         .into_iter()
         .fold(f64::INFINITY, f64::min);
     let feasible = damping.iter().all(|d| *d >= k.min_damping)
-        && in_band.map_or(true, |d| d >= band_floor)
+        && in_band.is_none_or(|d| d >= band_floor)
         && m.phase_margin_deg >= k.min_phase_margin_deg
         && m.gain_margin_db >= k.min_gain_margin_db
         && noise_pu <= k.max_noise_pu;
