@@ -98,6 +98,14 @@ fn commissioning_a_stiff_machine_places_the_notch_on_its_resonance() {
         (placed - centre).abs() < 1e-3 * centre,
         "{placed} vs {centre}"
     );
+    let tune: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("tune/tune.json")).unwrap())
+            .unwrap();
+    let d = &tune["design"];
+    eprintln!(
+        "tuned with the notch: damping {} outside its band, {} inside; margins {}",
+        d["damping"], d["notch_band_damping"], d["margins"]
+    );
 
     // On the machine: the design with the notch is stable without a fault and leaves less
     // shaft-torque ripple than the same design with the notch taken out.
