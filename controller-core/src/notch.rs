@@ -215,6 +215,18 @@ impl Notch {
         })
     }
 
+    /// The quantized Q2.30 coefficients [`Notch::process`] uses, as f64 (for loop models).
+    #[must_use]
+    pub fn coefficients(&self) -> NotchDesign {
+        let f = |c: Coef| c.to_num::<f64>();
+        NotchDesign {
+            b0: f(self.b0),
+            b1: f(self.b1),
+            b2: f(self.b2),
+            a2: f(self.a2),
+        }
+    }
+
     /// Filter one sample of the torque reference.
     ///
     /// ```
@@ -280,6 +292,10 @@ mod tests {
             Ok(d) => d,
             Err(e) => unreachable!("{e}"),
         }
+    }
+
+    fn quantized(d: &NotchDesign) -> Notch {
+        Notch::quantize(d, "notch").unwrap_or_else(|e| unreachable!("{e}"))
     }
 
     /// Steady-state amplitude of the fixed-point notch for a sine at `f` Hz and amplitude
@@ -348,10 +364,7 @@ mod tests {
     #[test]
     fn fixed_point_follows_the_f64_reference() {
         let d = design(180.0, 50.0, 30.0);
-        let n = match Notch::quantize(&d, "notch") {
-            Ok(n) => n,
-            Err(e) => unreachable!("{e}"),
-        };
+        let n = quantized(&d);
         let mut s = NotchState::default();
         let (mut x, mut y) = ([0.0f64; 3], [0.0f64; 2]);
         let mut worst: f64 = 0.0;
@@ -376,10 +389,7 @@ mod tests {
     #[test]
     fn measured_response_matches_the_transfer_function() {
         let d = design(200.0, 60.0, 20.0);
-        let n = match Notch::quantize(&d, "notch") {
-            Ok(n) => n,
-            Err(e) => unreachable!("{e}"),
-        };
+        let n = quantized(&d);
         for f in [5.0, 100.0, 170.0, 200.0, 240.0, 900.0] {
             let want = d.gain_at(f, f64::from(RATE));
             let got = measured_gain(&n, f, 0.5);
@@ -390,16 +400,12 @@ mod tests {
     #[test]
     fn saturated_input_clamps_without_wrap() {
         let d = design(200.0, 60.0, 20.0);
-        let n = match Notch::quantize(&d, "notch") {
-            Ok(n) => n,
-            Err(e) => unreachable!("{e}"),
-        };
+        let n = quantized(&d);
         let mut s = NotchState::default();
         for k in 0..1000 {
             let x = if k % 2 == 0 { Pu::MAX } else { Pu::MIN };
-            let y = n.process(&mut s, x);
+            let _ = n.process(&mut s, x);
             assert!(s.residual >= 0 && s.residual < 1 << 30);
-            let _ = y;
         }
         // Back to a quiet input: the output returns to it.
         let mut y = Pu::ZERO;
@@ -425,10 +431,7 @@ mod tests {
             (-one, -2.0, one, one),
         ] {
             let d = NotchDesign { b0, b1, b2, a2 };
-            let n = match Notch::quantize(&d, "notch") {
-                Ok(n) => n,
-                Err(e) => unreachable!("{e}"),
-            };
+            let n = quantized(&d);
             for &x1 in &signals {
                 for &y1 in &signals {
                     for &z in &signals {

@@ -66,8 +66,10 @@ pub enum Command {
         out: PathBuf,
     },
     /// Commission a machine: identify it, tune on the identified model (with AFB, and
-    /// without for the comparison), and verify both drives on the machine itself; writes
-    /// DIR/identify/, DIR/identified.toml, DIR/tune/, DIR/commission.md and .json.
+    /// without for the comparison; with a notch placed on an identified resonance the loop
+    /// cannot damp), and verify both drives on the machine itself; writes DIR/identify/,
+    /// DIR/identified.toml, DIR/notched.toml (with a notch), DIR/tune/, DIR/commission.md
+    /// and .json.
     Commission {
         /// Configuration (path, or name under configs/): the machine to commission.
         #[arg(long)]

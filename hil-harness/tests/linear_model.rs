@@ -20,7 +20,7 @@ use std::f64::consts::PI;
 fn mirror_vs_controller(cfg: &DriveConfig) -> (f64, f64) {
     let gains = design(cfg).unwrap();
     let mut fixed = Controller::new(cfg).unwrap();
-    let coef = Coefficients::new(cfg, &gains);
+    let coef = Coefficients::new(cfg, &gains).unwrap();
     let mut s = State::default();
     let ratio = gains.ticks_per_velocity as usize;
     let (mut worst_v, mut worst_t) = (0.0f64, 0.0f64);
@@ -123,6 +123,14 @@ fn variants() -> Vec<(&'static str, DriveConfig)> {
     c.accel_feedback.mode = AfbMode::Off;
     c.position_bandwidth_rad_s = 0.0;
     out.push(("speed mode, no AFB", c));
+    // The notch on the torque reference, on the sum of the PI and the AFB's closed form.
+    let mut c = base;
+    c.notch = Some(controller_core::NotchConfig {
+        centre_hz: 65.0,
+        width_hz: 20.0,
+        depth_db: 30.0,
+    });
+    out.push(("notch at 65 Hz", c));
     out
 }
 
@@ -159,7 +167,7 @@ fn rigid_body_poles_are_the_pi_roots() {
     cfg.winding_resistance_pu = plant.electrics.winding_resistance_pu as f32;
     cfg.winding_inductance_pu_s = plant.electrics.winding_inductance_pu_s as f32;
     let g = design(&cfg).unwrap();
-    let coef = Coefficients::new(&cfg, &g);
+    let coef = Coefficients::new(&cfg, &g).unwrap();
     let model = LoopModel::new(
         coef.clone(),
         &plant,

@@ -1,9 +1,11 @@
 //! Issue 13's notch in the closed loop: a velocity PI stiff enough to excite a lightly damped
-//! shaft resonance, run with and without a notch at that resonance; and the `[drive.notch]`
-//! errors as a machine file or `--set` meets them.
+//! shaft resonance, run with and without a notch at that resonance; the same notch in the
+//! linear model of the loop; and the `[drive.notch]` errors as a machine file or `--set`
+//! meets them.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use hil_harness::engine::trace::TraceRow;
+use hil_harness::experiments::linear::Break;
 use hil_harness::RunConfig;
 
 /// The machine: Table 1's file with equal motor and load inertia (their sum is Table 1's),
@@ -158,23 +160,59 @@ fn notch_errors_name_the_key_and_the_range() {
     assert!(e.contains("drive.notch") && e.contains("depth_db"), "{e}");
 }
 
-/// The linear model does not cover the notch yet: `linear` and `tune` refuse a drive with
-/// one, naming the key, instead of predicting another loop than the one that runs.
+/// The loop gain opened at the velocity regulator's output (the torque path: regulator
+/// output, notch, current loop, machine, estimator, back to the regulator) at `hz`, on the
+/// linear model of `cfg` with the gears engaged.
+fn loop_gain(cfg: &RunConfig, hz: f64) -> num_complex::Complex<f64> {
+    let model =
+        hil_harness::experiments::linear::for_run(cfg, plant_host::analysis::Gears::Engaged)
+            .unwrap();
+    model.loop_gain(Break::VelocityRegulator, &[hz])[0]
+}
+
+/// The linear model has the notch where the controller runs it: the loop gain with the
+/// notch over the loop gain without it is the notch's attenuation, at the centre within
+/// 1 dB of the design's depth, and 1 within 1 dB a decade below. Judged with both rates at
+/// 4 kHz, so that the notch and the loop gain are sampled alike; at 2 kHz the velocity
+/// period's lifting could carry the current rate's images past the notch (printed: it
+/// measured the same within 0.03 dB). The notched loop is stable, as the nonlinear run
+/// above is (and the loop without it is not: printed).
 #[test]
-fn the_linear_model_refuses_a_drive_with_a_notch() {
-    let notched = resolve(&[
-        "drive.notch.centre_hz=300".into(),
-        "drive.notch.width_hz=60".into(),
-        "drive.notch.depth_db=30".into(),
-    ]);
-    let e =
-        hil_harness::experiments::linear::for_run(&notched, plant_host::analysis::Gears::Engaged)
-            .unwrap_err()
-            .to_string();
-    assert!(e.contains("drive.notch"), "{e}");
-    assert!(hil_harness::experiments::linear::for_run(
-        &resolve(&[]),
-        plant_host::analysis::Gears::Engaged
-    )
-    .is_ok());
+fn the_linear_model_has_the_notch_in_the_torque_path() {
+    let depth_db = 30.0;
+    let notch = |rate: &str| {
+        resolve(&[
+            rate.to_string(),
+            "drive.notch.centre_hz=300".into(),
+            "drive.notch.width_hz=60".into(),
+            format!("drive.notch.depth_db={depth_db}"),
+        ])
+    };
+    let db = |a: num_complex::Complex<f64>, b: num_complex::Complex<f64>| {
+        20.0 * (a.norm() / b.norm()).log10()
+    };
+    for rate in ["drive.velocity_rate_hz=4000", "drive.velocity_rate_hz=2000"] {
+        let (plain, notched) = (resolve(&[rate.to_string()]), notch(rate));
+        let centre = db(loop_gain(&notched, 300.0), loop_gain(&plain, 300.0));
+        let below = db(loop_gain(&notched, 30.0), loop_gain(&plain, 30.0));
+        eprintln!(
+            "{rate}: notch in the loop gain {centre:.2} dB at 300 Hz, {below:.3} dB at 30 Hz"
+        );
+        if rate.ends_with("4000") {
+            assert!((centre + depth_db).abs() < 1.0, "{centre} dB");
+            assert!(below.abs() < 1.0, "{below} dB");
+        }
+    }
+    let a =
+        hil_harness::experiments::linear::analyze::analyze(&notch("drive.velocity_rate_hz=2000"))
+            .unwrap();
+    let b = hil_harness::experiments::linear::analyze::analyze(&resolve(&[])).unwrap();
+    eprintln!(
+        "engaged spectral radius {:.5} with the notch, {:.5} without; smallest damping {:.4}, {:.4}",
+        a.engaged.spectral_radius,
+        b.engaged.spectral_radius,
+        a.engaged.smallest_damping,
+        b.engaged.smallest_damping
+    );
+    assert!(a.engaged.spectral_radius < 1.0, "{a:?}");
 }

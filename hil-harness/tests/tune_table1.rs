@@ -96,7 +96,7 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
     ];
     let fine = hil_harness::resolve("fig6", Some(&config), &sets).unwrap();
     let gains = hil_harness::engine::runner::regulator_gains(&fine).unwrap();
-    let model = for_gains(&fine, &gains, Gears::Engaged);
+    let model = for_gains(&fine, &gains, Gears::Engaged).unwrap();
     let fit = damping::measure(&fine, &model).unwrap();
     eprintln!(
         "16,384 counts: predicted {:.3}, fitted {:.3} at {:.2} Hz (4096 counts: fitted {:.3})",

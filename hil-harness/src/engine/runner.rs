@@ -203,7 +203,8 @@ impl DelayLine {
     }
 }
 
-fn drive_error(e: controller_core::ConfigError) -> HarnessError {
+/// A drive setting's error as the harness's, naming `drive.KEY`.
+pub(crate) fn drive_error(e: controller_core::ConfigError) -> HarnessError {
     HarnessError::config(format!("drive.{}", e.param()), e.to_string())
 }
 

@@ -270,6 +270,7 @@ mod tests {
             damping: [0.321, f64::INFINITY],
             margins: [45.6, 7.8],
             noise_pu: 0.0123,
+            notch_band_damping: None,
             stiffness: 1.0,
             feasible: true,
         }

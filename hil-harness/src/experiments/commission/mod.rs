@@ -8,26 +8,41 @@
 //!    the machine now comes from the measurement.
 //! 3. **Tune** on the identified file ([`super::tune`]), with AFB (`DIR/tune/`), and the
 //!    no-AFB design by the same constraints, for the comparison ([`tune::pair`]).
+//!    **The automatic notch** ([`notch`]): when no candidate meets the constraints because
+//!    the least-damped mode of the best one is the identified resonance, a notch is placed
+//!    on it, `DIR/notched.toml` is `identified.toml` with that `[drive.notch]`, and both
+//!    designs are tuned on it instead (so `tune/drive.toml` carries the notch). Otherwise
+//!    nothing changes.
 //! 4. **Verify on the machine itself**: both drives run `fig6` (a move with a load step)
 //!    against the plant of `CFG`, not the identified one. The commissioning passes by
-//!    [`tune::pair::CRITERION`]: the AFB design is stable, does not fault, and leaves less
-//!    shaft-torque ripple after the load step than the no-AFB design. `DIR/commission.md` and `DIR/commission.json`
-//!    hold the figures; the command fails (after writing them) when it does not pass.
+//!    [`tune::pair::CRITERION`] (the AFB design is stable, does not fault, and leaves less
+//!    shaft-torque ripple after the load step than the no-AFB design) and, with a notch
+//!    placed, by [`NOTCH_CRITERION`] (less ripple than the same AFB design with the notch
+//!    taken out, run too for the comparison). `DIR/commission.md` and
+//!    `DIR/commission.json` hold the figures and the notch decision with its reason; the
+//!    command fails (after writing them) when it does not pass.
 //!
 //! Everything is staged: on an error before the verification nothing is written.
 
+pub mod notch;
 mod write;
 
 use crate::config::{config_path, overrides, read_table, resolve, RunConfig};
 use crate::error::{HarnessError, Result};
 use crate::experiments::identify::{self, lost_motion::identified_mechanics};
-use crate::experiments::tune::{self, Constraints};
+use crate::experiments::tune::{self, Constraints, Tuned};
 use crate::output::Staging;
+use controller_core::NotchConfig;
+use notch::Decision;
 use std::path::Path;
-use toml::Value;
+use toml::{Table, Value};
 
 /// The verification of one drive on the machine itself.
 pub use crate::experiments::tune::pair::LoopRun as OnMachine;
+
+/// The second criterion with a notch placed, fixed before any run.
+pub const NOTCH_CRITERION: &str =
+    "less shaft-torque ripple than the same AFB design with the notch taken out";
 
 /// What `commission` found.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -36,17 +51,22 @@ pub struct Commissioning {
     pub config: String,
     /// The AFB design and the no-AFB design, verified on the machine.
     pub runs: [OnMachine; 2],
-    /// The AFB design passed (stable, no fault, less ripple than the no-AFB design).
+    /// Whether a notch was placed, where and why ([`notch`]).
+    pub notch: Decision,
+    /// With a notch placed: the AFB design with the notch taken out, on the machine.
+    pub without_notch: Option<OnMachine>,
+    /// The AFB design passed (stable, no fault, less ripple than the no-AFB design and,
+    /// with a notch placed, than itself without the notch).
     pub passed: bool,
 }
 
 /// `CFG` with `sets` applied and its `[plant]` table replaced by the identified one.
-fn identified_file(
+fn identified_doc(
     config: &str,
     sets: &[String],
     base: &RunConfig,
     ident: &identify::Identification,
-) -> Result<String> {
+) -> Result<Table> {
     let mut doc = read_table(&config_path(config)?)?;
     overrides::apply_all(&mut doc, sets)?;
     // The measurement's own settings are not part of the machine.
@@ -55,29 +75,80 @@ fn identified_file(
     let table = Value::try_from(plant)
         .map_err(|e| HarnessError::Backend(format!("identified.toml: {e}")))?;
     doc.insert("plant".into(), table);
-    let body = toml::to_string(&doc)
-        .map_err(|e| HarnessError::Backend(format!("identified.toml: {e}")))?;
-    Ok(format!(
-        "# `hil-harness commission`: {} with the [plant] table `identify` measured.\n{body}",
-        base.config_path.display()
-    ))
+    Ok(doc)
 }
 
-/// `design`'s drive (tuned on the identified machine) running `scenario` against the
-/// machine of `config` itself.
+/// A machine file's text: the comment line `header`, then `doc`.
+fn render(name: &str, header: &str, doc: &Table) -> Result<String> {
+    let body = toml::to_string(doc).map_err(|e| HarnessError::Backend(format!("{name}: {e}")))?;
+    Ok(format!("# `hil-harness commission`: {header}\n{body}"))
+}
+
+/// `doc` with `[drive.notch]` set to `notch`.
+fn with_notch(mut doc: Table, notch: &NotchConfig) -> Result<Table> {
+    let table =
+        Value::try_from(notch).map_err(|e| HarnessError::Backend(format!("notched.toml: {e}")))?;
+    if let Value::Table(d) = doc
+        .entry("drive")
+        .or_insert_with(|| Value::Table(Table::new()))
+    {
+        d.insert("notch".into(), table);
+    }
+    Ok(doc)
+}
+
+/// Where the designs are verified: the machine file `config` with `sets`, and the file the
+/// drive was tuned on (`identified.toml`, or `notched.toml` with a notch placed).
+struct Machine<'a> {
+    config: &'a str,
+    sets: &'a [String],
+    tuned_on: &'a str,
+}
+
+/// `design`'s drive (tuned on the identified machine; `strip_notch`: with its notch taken
+/// out) running `fig6` against the machine itself.
 fn on_machine(
-    scenario: &str,
-    config: &str,
-    sets: &[String],
-    identified: &str,
+    m: &Machine,
     label: &'static str,
     design: &tune::Candidate,
+    strip_notch: bool,
 ) -> Result<OnMachine> {
-    let mut cfg = resolve(scenario, Some(identified), &[])?;
+    let scenario = "fig6";
+    let (config, sets) = (m.config, m.sets);
+    let mut cfg = resolve(scenario, Some(m.tuned_on), &[])?;
+    if strip_notch {
+        cfg.drive.notch = None;
+    }
     let machine = resolve(scenario, Some(config), sets)?;
     cfg.plant = machine.plant;
     cfg.config_path = machine.config_path;
     OnMachine::run(cfg, label, design)
+}
+
+/// Identifies the machine into the staging directory: `identify/` and `identified.toml`
+/// (steps 1 and 2); returns the identification, the file's tree and its path.
+fn identify_into(
+    staging: &Staging,
+    config: &str,
+    sets: &[String],
+) -> Result<(RunConfig, identify::Identification, Table, String)> {
+    let (base, spec) = identify::load(config, sets)?;
+    let ident = identify::identify_machine(&base, &spec)?;
+    let id_md = staging.path("identify/identify.md")?;
+    identify::write::write_all(
+        id_md.parent().unwrap_or(staging.dir()),
+        &base,
+        &spec,
+        &ident,
+    )?;
+    let doc = identified_doc(config, sets, &base, &ident)?;
+    let header = format!(
+        "{} with the [plant] table `identify` measured.",
+        base.config_path.display()
+    );
+    let text = render("identified.toml", &header, &doc)?;
+    let path = staging.write("identified.toml", &text)?;
+    Ok((base, ident, doc, path.display().to_string()))
 }
 
 /// `hil-harness commission`.
@@ -88,58 +159,77 @@ pub fn commission(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
-    // A bad bandwidth is reported before the identification.
-    tune::bandwidths(target_bandwidth)?;
-    let (base, spec) = identify::load(config, sets)?;
-    let ident = identify::identify_machine(&base, &spec)?;
+    let bws = tune::bandwidths(target_bandwidth)?;
     let staging = Staging::new(out)?;
-    let dir = staging.dir();
-    let id_dir = staging.path("identify/identify.md")?;
-    let id_dir = id_dir.parent().unwrap_or(dir);
-    identify::write::write_all(id_dir, &base, &spec, &ident)?;
-    let identified = staging.write(
-        "identified.toml",
-        &identified_file(config, sets, &base, &ident)?,
-    )?;
-    let identified = identified.display().to_string();
-
-    let pair = tune::pair::design_both(&identified, target_bandwidth, constraints)?;
+    let (base, ident, doc, identified) = identify_into(&staging, config, sets)?;
+    let judged = tune::judge_grid(&identified, &tune::candidates(&bws), constraints)?;
+    let fig6 = resolve("fig6", Some(&identified), &[])?;
+    let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
+    let (tuned_on, name, judged) = match &decision.notch {
+        None => (identified, "identified.toml", Some(judged)),
+        Some(n) => {
+            let header = format!(
+                "identified.toml with the notch commission placed ({}).",
+                decision.reason
+            );
+            let text = render("notched.toml", &header, &with_notch(doc, n)?)?;
+            let path = staging.write("notched.toml", &text)?;
+            (path.display().to_string(), "notched.toml", None)
+        }
+    };
+    let pair = tune::pair::design_both_from(&tuned_on, judged, target_bandwidth, constraints)?;
     let (mut with, without) = (pair.with, pair.without.result);
-    with.result.config = "identified.toml".into();
+    with.result.config = name.into();
     let tune_md = staging.path("tune/tune.md")?;
-    tune::write_design(tune_md.parent().unwrap_or(dir), &with)?;
+    tune::write_design(tune_md.parent().unwrap_or(staging.dir()), &with)?;
 
+    let m = Machine {
+        config,
+        sets,
+        tuned_on: &tuned_on,
+    };
+    let design = &with.result.design.candidate;
     let runs = [
-        on_machine(
-            "fig6",
-            config,
-            sets,
-            &identified,
-            "tuned with AFB",
-            &with.result.design.candidate,
-        )?,
-        on_machine(
-            "fig6",
-            config,
-            sets,
-            &identified,
-            "tuned without AFB",
-            &without.design.candidate,
-        )?,
+        on_machine(&m, "tuned with AFB", design, false)?,
+        on_machine(&m, "tuned without AFB", &without.design.candidate, false)?,
     ];
+    let without_notch = match decision.notch {
+        Some(_) => Some(on_machine(
+            &m,
+            "tuned with AFB, notch taken out",
+            design,
+            true,
+        )?),
+        None => None,
+    };
     let [a, b] = &runs;
-    let passed = tune::pair::afb_passes(a, b);
+    let passed = tune::pair::afb_passes(a, b)
+        && without_notch
+            .as_ref()
+            .is_none_or(|n| a.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu);
     let c = Commissioning {
         config: base.config_path.display().to_string(),
         runs,
+        notch: decision,
+        without_notch,
         passed,
     };
     write::write_all(&staging, &c, &base, &ident, &with)?;
     staging.commit()?;
+    finish(&c, &with, out)
+}
+
+/// The command's line, or its error when the commissioning did not pass.
+fn finish(c: &Commissioning, with: &Tuned, out: &Path) -> Result<String> {
+    let notch = c.notch.notch.map_or_else(
+        || "no notch".to_string(),
+        |n| format!("notch at {:.1} Hz", n.centre_hz),
+    );
     let line = format!(
-        "commission {}: {}; on the machine: ripple {:.4} pu with AFB, {:.4} pu without -> {}",
+        "commission {}: {}; {notch}; on the machine: ripple {:.4} pu with AFB, {:.4} pu \
+         without -> {}",
         c.config,
-        tune::summary_line(&with, &out.join("tune")),
+        tune::summary_line(with, &out.join("tune")),
         c.runs[0].shaft_torque_ripple_rms_pu,
         c.runs[1].shaft_torque_ripple_rms_pu,
         out.display()

@@ -40,22 +40,28 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
     let d = &with.result.design;
     let _ = write!(
         md,
-        "\n`identified.toml` is the machine file with that `[plant]` table.\n\n\
+        "\n`identified.toml` is the machine file with that `[plant]` table.\n\n{}\
          ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
-         {} rad/s, {}; smallest damping {:.3} (engaged), phase margin {:.1} deg, gain margin \
-         {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the `[drive]` \
-         table to flash; `tune/config.toml` is the identified file with it.\n\n\
+         {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin {:.1} deg, gain \
+         margin {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the \
+         `[drive]` table to flash; `tune/config.toml` is the identified file with it.\n\n\
          ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
          | design | bandwidth (rad/s) | AFB | stable | fault | shaft-torque ripple (pu) | droop (pu) |\n\
          |---|---|---|---|---|---|---|\n",
+        notch_text(c),
         d.candidate.bandwidth_rad_s,
         d.candidate.afb.label(),
         d.damping[0],
+        d.notch_band_damping.map_or_else(String::new, |b| format!(
+            " outside the notch's band and {b:.4} inside it (the resonance left to the \
+             machine: at least {:.0} % of its own damping)",
+            100.0 * crate::experiments::tune::NOTCH_BAND_DAMPING_SHARE
+        )),
         d.margins[0],
         d.margins[1],
         d.noise_pu,
     );
-    for r in &c.runs {
+    for r in c.runs.iter().chain(&c.without_notch) {
         let _ = writeln!(
             md,
             "| {} | {} | {} | {} | {} | {:.4} | {} |",
@@ -71,11 +77,56 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
     }
     let _ = writeln!(
         md,
-        "\n**{}** (criterion, fixed before the run: {}).",
+        "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).",
         if c.passed { "Passed" } else { "Failed" },
-        crate::experiments::tune::pair::CRITERION
+        crate::experiments::tune::pair::CRITERION,
+        super::NOTCH_CRITERION
     );
     md
+}
+
+/// The notch section: whether one was placed, why (the figures of the best candidate
+/// without it) and where.
+fn notch_text(c: &Commissioning) -> String {
+    let d = &c.notch;
+    let mut s = format!(
+        "## Notch\n\n{}: {}.\n",
+        if d.notch.is_some() {
+            "**A notch was placed**"
+        } else {
+            "No notch was placed"
+        },
+        d.reason
+    );
+    if let Some(t) = &d.trigger {
+        let _ = write!(
+            s,
+            "\nWithout a notch, {} of {} candidates met the constraints. The best damped \
+             ({} rad/s, {}): smallest damping {:.3} (floor {:.2}) at {:.1} Hz; phase margin \
+             {:.1} deg, gain margin {:.1} dB. Identified resonance: {:.1} Hz.\n",
+            t.feasible,
+            t.judged,
+            t.bandwidth_rad_s,
+            t.afb,
+            t.least_damped.0,
+            t.min_damping,
+            t.least_damped.1,
+            t.margins[0],
+            t.margins[1],
+            t.resonance_hz
+        );
+    }
+    if let Some(n) = &d.notch {
+        let _ = write!(
+            s,
+            "\n`[drive.notch]`: centre {:.2} Hz, width {:.2} Hz, depth {:.1} dB \
+             ([notched.toml](notched.toml); both designs below are tuned on it, and \
+             `tune/drive.toml` carries it). On the machine, the AFB design is also run with \
+             the notch taken out (last row below).\n",
+            n.centre_hz, n.width_hz, n.depth_db
+        );
+    }
+    s + "\n"
 }
 
 /// Writes `commission.md` and `commission.json` into the staging directory.

@@ -3,7 +3,7 @@
 //!
 //! Every block follows its controller-core module equation for equation (observer,
 //! acceleration feedback in closed form, filters, PI regulators, differentiators, position
-//! loop). The order is the same, and so is the torque the observer is fed. Each
+//! loop, the torque-reference notch: [`super::notch`]). The order is the same, and so is the torque the observer is fed. Each
 //! coefficient is quantized to the Q-format the controller stores it in. What is left out
 //! is nonlinear or a start-up effect: the clamps, the 1-LSB rounding, the faults and the
 //! priming of the estimators. `tests/linear_model.rs` runs this mirror and the fixed-point
@@ -11,8 +11,17 @@
 
 use controller_core::filter::LowPassDesign;
 use controller_core::per_unit::{Coef, Counts, Gain, PosGain, TickGain};
-use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, Gains, ObserverTorque};
+use controller_core::{
+    AfbMode, AfbRate, ConfigError, DriveConfig, Estimator, Gains, ObserverTorque,
+};
 use fixed::traits::Fixed;
+
+pub use super::notch::NotchMirror;
+
+/// What a notch whose coefficients do not quantize is called in the error (the keys that
+/// designed it).
+pub const NOTCH_PARAM: &str =
+    "notch coefficients (notch.centre_hz, notch.width_hz, notch.depth_db)";
 
 /// f32 → the Q-format `T` (round to nearest, as the controller's quantizer) → f64.
 fn q<T: Fixed>(v: f32) -> f64 {
@@ -139,12 +148,14 @@ pub struct Coefficients {
     pub diff_vel: (f64, f64),
     /// Current-rate scales.
     pub diff_cur: (f64, f64),
+    /// The torque-reference notch (quantized by controller-core), `None` without one.
+    pub notch: Option<NotchMirror>,
 }
 
 impl Coefficients {
-    /// From a drive and the gains its controller runs with.
-    #[must_use]
-    pub fn new(cfg: &DriveConfig, g: &Gains) -> Self {
+    /// From a drive and the gains its controller runs with. Fails only where the
+    /// controller would refuse the gains too: a notch whose coefficients do not quantize.
+    pub fn new(cfg: &DriveConfig, g: &Gains) -> Result<Self, ConfigError> {
         let afb_filter = Filter::quantized(&g.afb_filter);
         let b0 = match afb_filter {
             Filter::None => 1.0,
@@ -154,7 +165,7 @@ impl Coefficients {
         // As controller-core: g = 1/(1 + b0·Ka/J_model) in f32 from the quantized b0.
         let gain = 1.0 / (1.0 + b0 as f32 * g.ka / g.observer_inertia_s);
         let afb_on = cfg.accel_feedback.mode != AfbMode::Off;
-        Self {
+        Ok(Self {
             ticks_per_velocity: g.ticks_per_velocity.max(1) as usize,
             position_loop: g.kpp > 0.0,
             k_pos: if g.kpp > 0.0 {
@@ -197,7 +208,16 @@ impl Coefficients {
                 q::<TickGain>(g.cur_tick_pu_per_count),
                 q::<Gain>(g.cur_tick_pu_s_per_count),
             ),
-        }
+            notch: NotchMirror::of(g)?,
+        })
+    }
+
+    /// Length of this controller's state vector ([`State::to_vec`] cut to it): the notch's
+    /// two states only when there is a notch, so a drive without one has the same loop
+    /// model, entry for entry, as before the notch existed.
+    #[must_use]
+    pub fn state_len(&self) -> usize {
+        STATE_LEN + self.notch.map_or(0, |_| NOTCH_LEN)
     }
 }
 
@@ -220,16 +240,21 @@ pub struct State {
     pub diff_current: [f64; 2],
     /// Held velocity PI output, AFB term, last torque reference, last current sample \[pu\].
     pub held: [f64; 4],
+    /// The torque-reference notch's two states (last in the layout; [`NotchMirror`]).
+    pub notch: [f64; 2],
 }
 
-/// Number of f64 entries of [`State`].
+/// Number of f64 entries of [`State`] without the notch's.
 pub const STATE_LEN: usize = 3 + 2 + 2 + 4 + 4 + 4 + 4;
+/// Number of the notch's entries, after the others.
+pub const NOTCH_LEN: usize = 2;
 
 impl State {
-    /// Flattened.
+    /// Flattened, the notch's states last (a controller without a notch uses the first
+    /// [`STATE_LEN`] entries: [`Coefficients::state_len`]).
     #[must_use]
     pub fn to_vec(&self) -> Vec<f64> {
-        let mut v = Vec::with_capacity(STATE_LEN);
+        let mut v = Vec::with_capacity(STATE_LEN + NOTCH_LEN);
         v.extend_from_slice(&self.obs);
         v.extend_from_slice(&self.obs_acc);
         v.extend_from_slice(&self.integral);
@@ -238,6 +263,7 @@ impl State {
         v.extend_from_slice(&self.diff_velocity);
         v.extend_from_slice(&self.diff_current);
         v.extend_from_slice(&self.held);
+        v.extend_from_slice(&self.notch);
         v
     }
 
@@ -271,6 +297,7 @@ impl State {
         take(&mut s.diff_velocity);
         take(&mut s.diff_current);
         take(&mut s.held);
+        take(&mut s.notch);
         s
     }
 }
@@ -426,7 +453,13 @@ impl Coefficients {
             let afb = self.afb(s, s.held[0], inp.setpoint[2], a_meas);
             s.held[1] = self.at_afb_break(afb, inp, brk, &mut reported);
         }
-        let i_ref = s.held[0] + s.held[1];
+        // The notch shapes the sum (velocity PI + AFB) on its way to the current loop; the
+        // AFB's closed form above solved for the sum, the observer sees the notched torque.
+        let i_sum = s.held[0] + s.held[1];
+        let i_ref = match &self.notch {
+            Some(n) => n.step(&mut s.notch, i_sum),
+            None => i_sum,
+        };
         s.held[2] = i_ref;
         let e = i_ref - current;
         s.integral[1] += e * self.cur_ki_ts;

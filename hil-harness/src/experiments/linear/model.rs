@@ -8,7 +8,8 @@
 //! 4. the plant over the tick, with the previous voltage for the delay's remainder and the
 //!    new one after it (a delay of whole ticks shifts the commands first).
 //!
-//! Stacking the plant (5), the delayed commands and the controller (`mirror::STATE_LEN`),
+//! Stacking the plant (5), the delayed commands and the controller
+//! ([`Coefficients::state_len`]: the notch's two states only with a notch),
 //! one velocity period is z⁺ = M·z + inputs. M is read off the mirror by probing it with
 //! unit vectors: the mirror is exactly linear, so this is exact. The poles are the
 //! eigenvalues of M, and the damping of each is that of s = ln(λ)/T_v.
@@ -21,7 +22,7 @@
 
 use super::hessenberg::HessenbergResponse;
 use super::margins::{margins_of, Margins};
-use super::mirror::{Break, Coefficients, Inputs, State, STATE_LEN};
+use super::mirror::{Break, Coefficients, Inputs, State};
 use super::reduce::{deflate, drop_unused};
 use nalgebra::{Complex, DMatrix, DVector};
 use plant_host::analysis::{state, Gears, SampledPlant};
@@ -111,7 +112,7 @@ impl LoopModel {
     /// Length of the stacked state.
     #[must_use]
     pub fn state_len(&self) -> usize {
-        state::COUNT + self.whole_delay + 1 + STATE_LEN
+        state::COUNT + self.whole_delay + 1 + self.coef.state_len()
     }
 
     /// One velocity period from `z` with the load torque `ex.load[i]` and the encoder
@@ -158,7 +159,7 @@ impl LoopModel {
         }
         let mut next: Vec<f64> = x.iter().copied().collect();
         next.extend(queue);
-        next.extend(c.to_vec());
+        next.extend(c.to_vec().into_iter().take(self.coef.state_len()));
         Period {
             next,
             reported: reported.unwrap_or(0.0),
@@ -217,7 +218,12 @@ impl LoopModel {
                 *x = 1.0;
             }
         }
-        v.extend(State::position_shift(self.counts_per_rad).to_vec());
+        v.extend(
+            State::position_shift(self.counts_per_rad)
+                .to_vec()
+                .into_iter()
+                .take(self.coef.state_len()),
+        );
         DVector::from_vec(v)
     }
 
@@ -272,6 +278,41 @@ impl LoopModel {
             .into_iter()
             .map(|p| self.damping(p))
             .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The natural frequency |s|/2π \[Hz\] of a pole λ, s = ln(λ)/T_v (0 at the origin).
+    #[must_use]
+    pub fn natural_hz(&self, lambda: Complex<f64>) -> f64 {
+        if lambda.norm() < 1e-12 {
+            return 0.0;
+        }
+        (lambda.ln() / self.period_s).norm() / (2.0 * PI)
+    }
+
+    /// The least-damped pole's damping and natural frequency \[Hz\].
+    #[must_use]
+    pub fn least_damped(&self) -> (f64, f64) {
+        self.poles()
+            .into_iter()
+            .map(|p| (self.damping(p), self.natural_hz(p)))
+            .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a })
+    }
+
+    /// The smallest damping of the poles whose natural frequency lies outside the band
+    /// `band_hz` (lo, hi) and of those inside it (infinite where there are none): the
+    /// loop's own modes, and those a notch on that band leaves to the machine.
+    #[must_use]
+    pub fn smallest_damping_split(&self, band_hz: (f64, f64)) -> (f64, f64) {
+        let (mut outside, mut inside) = (f64::INFINITY, f64::INFINITY);
+        for p in self.poles() {
+            let (d, f) = (self.damping(p), self.natural_hz(p));
+            if f >= band_hz.0 && f <= band_hz.1 {
+                inside = inside.min(d);
+            } else {
+                outside = outside.min(d);
+            }
+        }
+        (outside, inside)
     }
 
     /// The spectral radius of the loop (stable below 1).

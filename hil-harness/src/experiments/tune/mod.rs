@@ -5,7 +5,11 @@
 //! 1. Every candidate of a fixed grid (form, Ka, filter, acceleration source, observer
 //!    bandwidth, and the velocity bandwidth when asked for the maximum) is judged on the
 //!    linear model, with the gears engaged and, on a machine with lost motion, apart:
-//!    - smallest damping ≥ `min_damping` in both;
+//!    - smallest damping ≥ `min_damping` in both; with a notch on the torque reference
+//!      (`[drive.notch]`), the poles within [`notch_band`] are judged apart: those are
+//!      the resonance the notch leaves to the machine (and the notch's own pair), and
+//!      they must keep [`NOTCH_BAND_DAMPING_SHARE`] of the machine's own damping of its
+//!      resonance ([`machine_resonance_damping`]);
 //!    - velocity-loop phase margin ≥ 40° and gain margin ≥ 6 dB;
 //!    - torque noise from encoder quantization ≤ `max_noise_pu`.
 //! 2. The candidates that pass are ranked by the stiffness above the velocity bandwidth:
@@ -70,8 +74,13 @@ impl Default for Constraints {
 pub struct Judged {
     /// The candidate.
     pub candidate: Candidate,
-    /// Smallest damping, engaged and (with lost motion) apart.
+    /// Smallest damping, engaged and (with lost motion) apart; with a notch, of the poles
+    /// outside its band ([`notch_band`]).
     pub damping: [f64; 2],
+    /// With a notch: the smallest damping of the poles inside its band, engaged or apart
+    /// (the resonance the notch leaves to the machine, and the notch's own poles).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub notch_band_damping: Option<f64>,
     /// Velocity-loop phase margin \[deg\] and gain margin \[dB\], engaged.
     pub margins: [f64; 2],
     /// Quantization torque noise \[pu RMS\].
@@ -82,18 +91,55 @@ pub struct Judged {
     pub feasible: bool,
 }
 
+/// Share of the machine's own damping of its resonance that the poles in a notch's band
+/// must keep: the loop may take at most half of it away.
+pub const NOTCH_BAND_DAMPING_SHARE: f64 = 0.5;
+
+/// The band of natural frequencies \[Hz\] where a notch (`centre_hz`, `width_hz`) leaves
+/// the modes to the machine: the centre ± one width (twice its −3 dB band, so that a mode
+/// a few per cent off the centre, where an identified resonance may be, still counts).
+#[must_use]
+pub fn notch_band(n: &controller_core::NotchConfig) -> (f64, f64) {
+    let (c, w) = (f64::from(n.centre_hz), f64::from(n.width_hz));
+    (c - w, c + w)
+}
+
+/// The damping ratio of the machine's engaged resonance mode on its own (motor free, no
+/// loop): ζ·√(1 + Jl/Jm) for the shaft's ζ (defined at the anti-resonance).
+#[must_use]
+pub fn machine_resonance_damping(cfg: &RunConfig) -> f64 {
+    let m = &cfg.plant.mechanics;
+    m.shaft_damping_ratio * (1.0 + m.load_inertia_s / m.motor_inertia_s).sqrt()
+}
+
+/// The smallest damping of `model`: of all poles without a notch; with one, (outside its
+/// band, inside it).
+fn damping_of(cfg: &RunConfig, model: &LoopModel) -> (f64, Option<f64>) {
+    match &cfg.drive.notch {
+        None => (model.smallest_damping(), None),
+        Some(n) => {
+            let (outside, inside) = model.smallest_damping_split(notch_band(n));
+            (outside, Some(inside))
+        }
+    }
+}
+
 fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
     let mut cfg = fig6.clone();
     c.apply(&mut cfg.drive);
     // The one design of this candidate; both contact states are modelled from it.
     let gains = regulator_gains(&cfg)?;
-    let engaged = for_gains(&cfg, &gains, Gears::Engaged);
+    let engaged = for_gains(&cfg, &gains, Gears::Engaged)?;
+    let (engaged_damping, mut in_band) = damping_of(&cfg, &engaged);
     let apart = if has_lost_motion(&cfg) {
-        for_gains(&cfg, &gains, Gears::Apart).smallest_damping()
+        let (d, b) = damping_of(&cfg, &for_gains(&cfg, &gains, Gears::Apart)?);
+        in_band = in_band.zip(b).map(|(x, y)| x.min(y));
+        d
     } else {
         f64::INFINITY
     };
-    let damping = [engaged.smallest_damping(), apart];
+    let damping = [engaged_damping, apart];
+    let band_floor = NOTCH_BAND_DAMPING_SHARE * machine_resonance_damping(&cfg);
     let m = engaged.margins(Break::VelocityRegulator);
     let noise_pu = engaged.quantization_torque_rms();
     let w = c.bandwidth_rad_s / (2.0 * std::f64::consts::PI);
@@ -103,12 +149,14 @@ fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
         .into_iter()
         .fold(f64::INFINITY, f64::min);
     let feasible = damping.iter().all(|d| *d >= k.min_damping)
+        && in_band.is_none_or(|d| d >= band_floor)
         && m.phase_margin_deg >= k.min_phase_margin_deg
         && m.gain_margin_db >= k.min_gain_margin_db
         && noise_pu <= k.max_noise_pu;
     Ok(Judged {
         candidate: *c,
         damping,
+        notch_band_damping: in_band,
         margins: [m.phase_margin_deg, m.gain_margin_db],
         noise_pu,
         stiffness,
@@ -204,22 +252,31 @@ fn has_lost_motion(cfg: &RunConfig) -> bool {
     cfg.plant.mechanics.backlash_deg > 0.0
 }
 
-/// Searches `grid`, ranks and verifies (module docs).
-pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneResult> {
-    let bases = bases(config)?;
-    let fig6 = bases
-        .first()
-        .ok_or_else(|| HarnessError::config("tune", "no fig6 scenario"))?;
-    crate::experiments::linear::check_covered(fig6)?;
+/// Judges every candidate of `grid` on the linear model of `config`'s `fig6` (module
+/// docs, step 1); a candidate the model cannot be built for is left out.
+pub fn judge_grid(config: &str, grid: &[Candidate], k: &Constraints) -> Result<Vec<Judged>> {
+    let fig6 = resolve(VERIFY[0], Some(config), &[])?;
     let pb = crate::progress::bar(grid.len() as u64, "tune");
-    let mut judged: Vec<Judged> = grid
+    let judged = grid
         .par_iter()
         .filter_map(|c| {
             pb.inc(1);
-            judge(fig6, c, k).ok()
+            judge(&fig6, c, k).ok()
         })
         .collect();
     pb.finish_and_clear();
+    Ok(judged)
+}
+
+/// Searches `grid`, ranks and verifies (module docs).
+pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneResult> {
+    choose(config, judge_grid(config, grid, k)?, k)
+}
+
+/// Ranks the candidates `judged` on `config` and verifies them in the nonlinear loop
+/// (module docs, steps 2-3).
+pub fn choose(config: &str, mut judged: Vec<Judged>, k: &Constraints) -> Result<TuneResult> {
+    let bases = bases(config)?;
     let total = judged.len();
     let all = judged.clone();
     judged.retain(|j| j.feasible);
@@ -288,12 +345,19 @@ pub fn design(
 ) -> Result<Tuned> {
     let bws = bandwidths(target_bandwidth)?;
     // Resolve once first, so a bad config is reported before the search.
+    resolve("fig6", Some(config), &[])?;
+    let judged = judge_grid(config, &candidates(&bws), constraints)?;
+    design_from(config, judged, constraints)
+}
+
+/// [`design`] from candidates already judged on `config` ([`judge_grid`]).
+pub fn design_from(config: &str, judged: Vec<Judged>, constraints: &Constraints) -> Result<Tuned> {
     let base: RunConfig = resolve("fig6", Some(config), &[])?;
-    let mut result = search(config, &candidates(&bws), constraints)?;
+    let mut result = choose(config, judged, constraints)?;
     let mut tuned = base.clone();
     result.design.candidate.apply(&mut tuned.drive);
     let gains = regulator_gains(&tuned)?;
-    let engaged = for_gains(&tuned, &gains, Gears::Engaged);
+    let engaged = for_gains(&tuned, &gains, Gears::Engaged)?;
     result.step = Some(damping::measure(&tuned, &engaged)?);
     Ok(Tuned {
         result,
@@ -305,8 +369,12 @@ pub fn design(
 /// Writes the design's files into `dir` (module docs, and [`write_files`]).
 pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
     let gains = regulator_gains(&t.tuned)?;
-    let engaged = for_gains(&t.tuned, &gains, Gears::Engaged);
-    let apart = has_lost_motion(&t.tuned).then(|| for_gains(&t.tuned, &gains, Gears::Apart));
+    let engaged = for_gains(&t.tuned, &gains, Gears::Engaged)?;
+    let apart = if has_lost_motion(&t.tuned) {
+        Some(for_gains(&t.tuned, &gains, Gears::Apart)?)
+    } else {
+        None
+    };
     write_files(dir, &t.result, &t.base, &t.tuned, &engaged, apart.as_ref())
 }
 

@@ -164,6 +164,14 @@ pub fn markdown(r: &TuneResult, drive_toml: &str, images: &[String; 2]) -> Strin
         d.noise_pu,
         d.stiffness
     );
+    if let Some(b) = d.notch_band_damping {
+        let _ = writeln!(
+            s,
+            "The drive has a notch on the torque reference: the damping figures above are of \
+             the poles outside its band; inside it (the resonance it leaves to the machine, \
+             and its own poles) the smallest damping is {b:.4}.\n"
+        );
+    }
     let _ = writeln!(
         s,
         "![Bode plot of the velocity loop]({})\n\n![Closed-loop poles]({})\n",

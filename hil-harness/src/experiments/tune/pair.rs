@@ -8,7 +8,8 @@
 //! constraints.
 
 use super::{bandwidths, BANDWIDTHS_RAD_S};
-use super::{candidates, design, search, without_afb, Candidate, Constraints, Tuned};
+use super::{candidates, design, design_from, search, without_afb, Candidate, Constraints};
+use super::{Judged, Tuned};
 use crate::config::RunConfig;
 use crate::engine::runner::run_scenario;
 use crate::error::Result;
@@ -45,8 +46,22 @@ pub fn design_both(
     target_bandwidth: Option<f64>,
     constraints: &Constraints,
 ) -> Result<Pair> {
+    design_both_from(config, None, target_bandwidth, constraints)
+}
+
+/// [`design_both`], with the AFB candidates already judged on `config`
+/// ([`super::judge_grid`] at [`bandwidths`]`(target_bandwidth)`) when `judged` is given.
+pub fn design_both_from(
+    config: &str,
+    judged: Option<Vec<Judged>>,
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+) -> Result<Pair> {
     let bws = bandwidths(target_bandwidth)?;
-    let with = design(config, target_bandwidth, constraints)?;
+    let with = match judged {
+        Some(j) => design_from(config, j, constraints)?,
+        None => design(config, target_bandwidth, constraints)?,
+    };
     let grid = without_afb(&candidates(&no_afb_bandwidths(&bws)));
     let result = search(config, &grid, constraints)?;
     let mut tuned = with.base.clone();
