@@ -63,18 +63,7 @@ fn design_row(s: &mut String, machine: &str, which: &str, j: &Judged, fitted: Op
 }
 
 fn loop_row(s: &mut String, machine: &str, r: &LoopRun) {
-    let _ = writeln!(
-        s,
-        "| {machine} | {} | {} | {} | {} | {} | {:.4} | {:.1} | {} |",
-        r.design,
-        r.bandwidth_rad_s,
-        r.afb,
-        r.stable,
-        r.faulted,
-        r.shaft_torque_ripple_rms_pu,
-        r.shaft_ripple_freq_hz,
-        opt(r.load_step_droop_pu, 4)
-    );
+    let _ = writeln!(s, "| {machine} |{}", r.row());
 }
 
 /// Why a machine passed or failed, in its figures.
@@ -191,9 +180,9 @@ pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
     let _ = write!(
         m,
         "\nBoth designs on `{LOOP_SCENARIO}` with the machine's own plant:\n\n\
-         | machine | design | bandwidth (rad/s) | AFB | stable | fault | shaft-torque ripple \
-         after the load step (pu) | its frequency (Hz) | droop (pu) |\n\
-         |---|---|---|---|---|---|---|---|---|\n"
+         | machine | {} \n|---|{}\n",
+        LoopRun::HEADER,
+        LoopRun::RULE
     );
     for t in tunes {
         for r in &t.runs {

@@ -46,8 +46,7 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
          margin {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the \
          `[drive]` table to flash; `tune/config.toml` is the identified file with it.\n\n\
          ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
-         | design | bandwidth (rad/s) | AFB | stable | fault | shaft-torque ripple (pu) | droop (pu) |\n\
-         |---|---|---|---|---|---|---|\n",
+         | {} \n|{}\n",
         notch_text(c),
         d.candidate.bandwidth_rad_s,
         d.candidate.afb.label(),
@@ -60,20 +59,11 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
         d.margins[0],
         d.margins[1],
         d.noise_pu,
+        super::OnMachine::HEADER,
+        super::OnMachine::RULE,
     );
     for r in c.runs.iter().chain(&c.without_notch) {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {:.4} | {} |",
-            r.design,
-            r.bandwidth_rad_s,
-            r.afb,
-            r.stable,
-            r.faulted,
-            r.shaft_torque_ripple_rms_pu,
-            r.load_step_droop_pu
-                .map_or_else(|| "-".into(), |d| format!("{d:.4}"))
-        );
+        let _ = writeln!(md, "|{}", r.row());
     }
     let _ = writeln!(
         md,

@@ -113,6 +113,31 @@ impl LoopRun {
     }
 }
 
+impl LoopRun {
+    /// The header of [`LoopRun::row`]'s table columns (after any leading columns).
+    pub const HEADER: &'static str = "design | bandwidth (rad/s) | AFB | stable | fault | \
+        shaft-torque ripple after the load step (pu) | its frequency (Hz) | droop (pu) |";
+    /// The markdown separator of [`LoopRun::HEADER`]'s eight columns.
+    pub const RULE: &'static str = "---|---|---|---|---|---|---|---|";
+
+    /// This run as the cells of [`LoopRun::HEADER`], each followed by `|`.
+    #[must_use]
+    pub fn row(&self) -> String {
+        format!(
+            " {} | {} | {} | {} | {} | {:.4} | {:.1} | {} |",
+            self.design,
+            self.bandwidth_rad_s,
+            self.afb,
+            self.stable,
+            self.faulted,
+            self.shaft_torque_ripple_rms_pu,
+            self.shaft_ripple_freq_hz,
+            self.load_step_droop_pu
+                .map_or_else(|| "-".into(), |d| format!("{d:.4}"))
+        )
+    }
+}
+
 /// The criterion, fixed before any run: the AFB design is stable without a fault and
 /// leaves less shaft-torque ripple after the load step than the no-AFB design tuned by
 /// the same constraints.
