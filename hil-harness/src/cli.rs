@@ -30,22 +30,9 @@ pub enum Command {
         /// Configuration (path, or name under configs/).
         #[arg(long)]
         config: String,
-        /// Velocity bandwidth to design for (rad/s).
-        #[arg(
-            long,
-            conflicts_with = "max_bandwidth",
-            required_unless_present = "max_bandwidth"
-        )]
-        target_bandwidth: Option<f64>,
-        /// Search the velocity bandwidth too, for the largest that meets the constraints.
-        #[arg(long)]
-        max_bandwidth: bool,
-        /// Smallest damping ratio, gears engaged and apart.
-        #[arg(long, default_value_t = 0.3)]
-        min_damping: f64,
-        /// Largest torque noise from encoder quantization (pu RMS).
-        #[arg(long, default_value_t = 0.2)]
-        max_noise_pu: f64,
+        /// The bandwidth and the constraints to design for.
+        #[command(flatten)]
+        design: DesignArgs,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -77,22 +64,9 @@ pub enum Command {
         /// Override `section.key=value` (repeatable) on the machine file.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// Velocity bandwidth to design for (rad/s).
-        #[arg(
-            long,
-            conflicts_with = "max_bandwidth",
-            required_unless_present = "max_bandwidth"
-        )]
-        target_bandwidth: Option<f64>,
-        /// Search the velocity bandwidth too, for the largest that meets the constraints.
-        #[arg(long)]
-        max_bandwidth: bool,
-        /// Smallest damping ratio, gears engaged and apart.
-        #[arg(long, default_value_t = 0.3)]
-        min_damping: f64,
-        /// Largest torque noise from encoder quantization (pu RMS).
-        #[arg(long, default_value_t = 0.2)]
-        max_noise_pu: f64,
+        /// The bandwidth and the constraints to design for.
+        #[command(flatten)]
+        design: DesignArgs,
         /// Output directory.
         #[arg(long)]
         out: PathBuf,
@@ -162,4 +136,37 @@ pub struct ScenarioArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// What `tune` and `commission` design for: the bandwidth and the constraints.
+#[derive(Args, Debug, Clone)]
+pub struct DesignArgs {
+    /// Velocity bandwidth to design for (rad/s).
+    #[arg(
+        long,
+        conflicts_with = "max_bandwidth",
+        required_unless_present = "max_bandwidth"
+    )]
+    pub target_bandwidth: Option<f64>,
+    /// Search the velocity bandwidth too, for the largest that meets the constraints.
+    #[arg(long)]
+    pub max_bandwidth: bool,
+    /// Smallest damping ratio, gears engaged and apart.
+    #[arg(long, default_value_t = 0.3)]
+    pub min_damping: f64,
+    /// Largest torque noise from encoder quantization (pu RMS).
+    #[arg(long, default_value_t = 0.2)]
+    pub max_noise_pu: f64,
+}
+
+impl DesignArgs {
+    /// The design constraints these arguments set (the rest at their defaults).
+    #[must_use]
+    pub fn constraints(&self) -> crate::experiments::tune::Constraints {
+        crate::experiments::tune::Constraints {
+            min_damping: self.min_damping,
+            max_noise_pu: self.max_noise_pu,
+            ..crate::experiments::tune::Constraints::default()
+        }
+    }
 }

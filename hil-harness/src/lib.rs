@@ -67,36 +67,27 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
         }
         Command::Tune {
             config,
-            target_bandwidth,
-            max_bandwidth: _,
-            min_damping,
-            max_noise_pu,
+            design,
             out,
-        } => {
-            let constraints = tune::Constraints {
-                min_damping,
-                max_noise_pu,
-                ..tune::Constraints::default()
-            };
-            tune::tune(&config, target_bandwidth, &constraints, &out)
-        }
+        } => tune::tune(
+            &config,
+            design.target_bandwidth,
+            &design.constraints(),
+            &out,
+        ),
         Command::Identify { config, set, out } => identify::identify(&config, &set, &out),
         Command::Commission {
             config,
             set,
-            target_bandwidth,
-            max_bandwidth: _,
-            min_damping,
-            max_noise_pu,
+            design,
             out,
-        } => {
-            let constraints = tune::Constraints {
-                min_damping,
-                max_noise_pu,
-                ..tune::Constraints::default()
-            };
-            commission::commission(&config, &set, target_bandwidth, &constraints, &out)
-        }
+        } => commission::commission(
+            &config,
+            &set,
+            design.target_bandwidth,
+            &design.constraints(),
+            &out,
+        ),
 
         Command::Sweep { out } => sweep::sweep(&out),
         Command::Stiffness { out } => stiffness::stiffness(&out),

@@ -4,6 +4,8 @@
 //! better than the no-AFB design).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
+mod common;
+
 use hil_harness::experiments::commission::commission;
 use hil_harness::experiments::tune::Constraints;
 
@@ -18,16 +20,9 @@ const MACHINE: [(&str, f64); 5] = [
 ];
 
 fn unseen_machine(dir: &std::path::Path) -> String {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/table1.toml");
-    let mut doc: toml::Table = std::fs::read_to_string(root).unwrap().parse().unwrap();
-    let plant = doc.get_mut("plant").and_then(|v| v.as_table_mut()).unwrap();
-    for (k, v) in MACHINE {
-        plant.insert(k.into(), toml::Value::Float(v));
-    }
-    plant.insert("encoder_cpr".into(), toml::Value::Integer(8192));
-    let path = dir.join("unseen.toml");
-    std::fs::write(&path, toml::to_string(&doc).unwrap()).unwrap();
-    path.display().to_string()
+    let mut keys = common::plant(&MACHINE);
+    keys.push(("plant", "encoder_cpr", toml::Value::Integer(8192)));
+    common::machine_file(dir, "unseen.toml", &keys)
 }
 
 #[test]

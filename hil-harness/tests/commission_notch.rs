@@ -5,6 +5,8 @@
 //! must be better with it than without it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
+mod common;
+
 use hil_harness::experiments::commission::commission;
 use hil_harness::experiments::tune::Constraints;
 
@@ -27,34 +29,23 @@ const BANDWIDTH_RAD_S: f64 = 300.0;
 const CENTRE_TOLERANCE: f64 = 0.03;
 
 fn stiff_machine(dir: &std::path::Path) -> String {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/table1.toml");
-    let mut doc: toml::Table = std::fs::read_to_string(root).unwrap().parse().unwrap();
-    let table = |doc: &mut toml::Table, name: &str| -> toml::Table {
-        doc.get(name)
-            .and_then(|v| v.as_table())
-            .cloned()
-            .unwrap_or_default()
-    };
-    let mut plant = table(&mut doc, "plant");
-    for (k, v) in MACHINE {
-        plant.insert(k.into(), toml::Value::Float(v));
-    }
-    doc.insert("plant".into(), toml::Value::Table(plant));
+    let mut keys = common::plant(&MACHINE);
     // A sin/cos-interpolated encoder read into a 32-bit counter, and the velocity from the
     // encoder's differences (as the notch test's drive): the PI alone acts on the shaft.
-    let mut sensors = table(&mut doc, "sensors");
-    sensors.insert("encoder_interpolation".into(), toml::Value::Integer(256));
-    doc.insert("sensors".into(), toml::Value::Table(sensors));
-    let mut drive = table(&mut doc, "drive");
-    drive.insert("counter_bits".into(), toml::Value::Integer(32));
-    drive.insert(
-        "velocity_estimator".into(),
-        toml::Value::String("differentiation".into()),
-    );
-    doc.insert("drive".into(), toml::Value::Table(drive));
-    let path = dir.join("stiff.toml");
-    std::fs::write(&path, toml::to_string(&doc).unwrap()).unwrap();
-    path.display().to_string()
+    keys.extend([
+        (
+            "sensors",
+            "encoder_interpolation",
+            toml::Value::Integer(256),
+        ),
+        ("drive", "counter_bits", toml::Value::Integer(32)),
+        (
+            "drive",
+            "velocity_estimator",
+            toml::Value::String("differentiation".into()),
+        ),
+    ]);
+    common::machine_file(dir, "stiff.toml", &keys)
 }
 
 #[test]

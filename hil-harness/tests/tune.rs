@@ -3,27 +3,21 @@
 //! same constraints.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
+mod common;
+
 use hil_harness::experiments::tune::{candidates, search, without_afb, Candidate, Constraints};
 
 /// Table 1's file with another machine: heavier, softer, more lost motion, a finer encoder.
 fn other_machine(dir: &std::path::Path) -> String {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/table1.toml");
-    let text = std::fs::read_to_string(root).unwrap();
-    let mut doc: toml::Table = text.parse().unwrap();
-    let plant = doc.get_mut("plant").and_then(|v| v.as_table_mut()).unwrap();
-    for (k, v) in [
-        ("motor_inertia_s", toml::Value::Float(0.21)),
-        ("load_inertia_s", toml::Value::Float(1.37)),
-        ("anti_resonance_hz", toml::Value::Float(14.0)),
-        ("shaft_damping_ratio", toml::Value::Float(0.03)),
-        ("backlash_deg", toml::Value::Float(0.35)),
-        ("encoder_cpr", toml::Value::Integer(16384)),
-    ] {
-        plant.insert(k.into(), v);
-    }
-    let path = dir.join("other.toml");
-    std::fs::write(&path, toml::to_string(&doc).unwrap()).unwrap();
-    path.display().to_string()
+    let mut keys = common::plant(&[
+        ("motor_inertia_s", 0.21),
+        ("load_inertia_s", 1.37),
+        ("anti_resonance_hz", 14.0),
+        ("shaft_damping_ratio", 0.03),
+        ("backlash_deg", 0.35),
+    ]);
+    keys.push(("plant", "encoder_cpr", toml::Value::Integer(16384)));
+    common::machine_file(dir, "other.toml", &keys)
 }
 
 #[test]
