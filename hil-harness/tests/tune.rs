@@ -52,3 +52,29 @@ fn tune_on_a_machine_it_was_not_written_for() {
     assert!(a.stable && !a.faulted);
     assert!(a.shaft_torque_ripple_rms_pu < b.shaft_torque_ripple_rms_pu);
 }
+
+/// A loop whose load-step response shows no decaying oscillatory mode is a result: `tune`
+/// on the printing press at its own 30 rad/s writes the design and says that no damping
+/// could be fitted, instead of failing with nothing written.
+#[test]
+fn a_step_response_without_an_oscillatory_mode_is_reported_not_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("press");
+    let line = hil_harness::experiments::tune::tune(
+        "printing-press",
+        Some(30.0),
+        &Constraints::default(),
+        &out,
+    )
+    .unwrap();
+    eprintln!("{line}");
+    assert!(line.contains("no decaying oscillatory mode"), "{line}");
+    let md = std::fs::read_to_string(out.join("tune.md")).unwrap();
+    assert!(md.contains("has no decaying oscillatory mode"), "{md}");
+    assert!(!md.contains("matrix-pencil"), "{md}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("tune.json")).unwrap()).unwrap();
+    assert_eq!(json["no_oscillatory_mode"], true, "{json}");
+    assert!(json["step"].is_null());
+    assert!(out.join("drive.toml").is_file() && out.join("config.toml").is_file());
+}

@@ -85,10 +85,8 @@ pub const SWEEP_RATIO_MIN: f64 = 2.0;
 pub const SWEEP_NO_AFB_MAX_RAD_S: f64 = 60.0;
 
 /// Sec. III-D with `tune`: each of [`MACHINES`] is tuned at the highest bandwidth that meets
-/// the constraints (`tune --max-bandwidth`), the question of the sweep section. At its own
-/// configured bandwidth the printing press's AFB design cannot be measured in the loop (its
-/// step response has no decaying oscillatory mode), and the bandwidth the constraints allow
-/// is what Sec. III-D compares. The three run in parallel.
+/// the constraints (`tune --max-bandwidth`), the question of the sweep section: the
+/// bandwidth the constraints allow is what Sec. III-D compares. The three run in parallel.
 pub const TUNE_BANDWIDTH: Bandwidth = Bandwidth::Max;
 
 type Runs = BTreeMap<String, (RunConfig, RunOutput)>;

@@ -202,6 +202,14 @@ pub fn dominant(modes: &[Mode], record_s: f64) -> Option<Mode> {
 /// Runs the step on `fig6` (the design applied) and compares with `model` (that drive,
 /// gears engaged).
 pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
+    measure_if_oscillatory(fig6, model)?.ok_or_else(|| {
+        HarnessError::Backend("the step response has no decaying oscillatory mode".into())
+    })
+}
+
+/// [`measure`], with `None` when the loop's step response has no decaying oscillatory
+/// mode that the fit finds: a result to report, not an error.
+pub fn measure_if_oscillatory(fig6: &RunConfig, model: &LoopModel) -> Result<Option<StepFit>> {
     let cfg = step_config(fig6);
     let first = cfg.scenario.load.get(1).map_or(0.0, |s| s.t_s);
     let window_s = [first, cfg.scenario.duration_s];
@@ -236,9 +244,9 @@ pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
     let linear = model.load_step_response(STEP_PU, per_record);
     let fitted_to_model = dominant(&fit_modes(&decimate(&linear, DECIMATION), dt), RECORD_S)
         .map_or(f64::NAN, |m| m.damping());
-    let fitted = dominant(&modes, RECORD_S).ok_or_else(|| {
-        HarnessError::Backend("the step response has no decaying oscillatory mode".into())
-    })?;
+    let Some(fitted) = dominant(&modes, RECORD_S) else {
+        return Ok(None);
+    };
     let period = 1.0 / f64::from(cfg.drive.velocity_rate_hz);
     let poles: Vec<Complex<f64>> = model
         .poles()
@@ -256,7 +264,7 @@ pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
     let zeta = |s: Complex<f64>| -s.re / s.norm();
     let smallest_damping = model.smallest_damping();
     let nearest_pole_damping = zeta(nearest);
-    Ok(StepFit {
+    Ok(Some(StepFit {
         load_pu: [PRELOAD_PU, PRELOAD_PU + STEP_PU],
         steps: STEPS,
         window_s,
@@ -271,7 +279,7 @@ pub fn measure(fig6: &RunConfig, model: &LoopModel) -> Result<StepFit> {
         nearest_pole_hz: nearest.im / (2.0 * std::f64::consts::PI),
         smallest_damping,
         nearest_is_smallest: (nearest_pole_damping - smallest_damping).abs() < 1e-9,
-    })
+    }))
 }
 
 #[cfg(test)]

@@ -240,8 +240,12 @@ pub struct TuneResult {
     /// Per velocity bandwidth: the constraints met, the best damping and stiffness.
     pub per_bandwidth: Vec<summary::AtBandwidth>,
     /// Its damping measured in the nonlinear loop against the model's
-    /// ([`damping::measure`]); `None` until [`tune`] has run it.
+    /// ([`damping::measure`]); `None` until [`tune`] has run it, or when it found nothing
+    /// to fit ([`TuneResult::no_oscillatory_mode`]).
     pub step: Option<damping::StepFit>,
+    /// The loop's load-step response was measured and has no decaying oscillatory mode:
+    /// no damping can be fitted to it.
+    pub no_oscillatory_mode: bool,
 }
 
 /// How far the damping fitted to the nonlinear loop's step response may be from the
@@ -301,6 +305,7 @@ pub fn choose(config: &str, mut judged: Vec<Judged>, k: &Constraints) -> Result<
                 design: j,
                 verification: runs,
                 step: None,
+                no_oscillatory_mode: false,
             });
         }
         refused.push((j, runs));
@@ -358,7 +363,8 @@ pub fn design_from(config: &str, judged: Vec<Judged>, constraints: &Constraints)
     result.design.candidate.apply(&mut tuned.drive);
     let gains = regulator_gains(&tuned)?;
     let engaged = for_gains(&tuned, &gains, Gears::Engaged)?;
-    result.step = Some(damping::measure(&tuned, &engaged)?);
+    result.step = damping::measure_if_oscillatory(&tuned, &engaged)?;
+    result.no_oscillatory_mode = result.step.is_none();
     Ok(Tuned {
         result,
         base,
@@ -389,9 +395,11 @@ pub fn summary_line(t: &Tuned, out: &Path) -> String {
         c.bandwidth_rad_s,
         c.afb.label(),
         r.design.damping[0],
-        r.step
-            .as_ref()
-            .map_or_else(|| "-".into(), |f| format!("{:.3}", f.fitted.damping())),
+        match (&r.step, r.no_oscillatory_mode) {
+            (Some(f), _) => format!("{:.3}", f.fitted.damping()),
+            (None, true) => "-: no decaying oscillatory mode".into(),
+            (None, false) => "-".into(),
+        },
         out.display()
     )
 }

@@ -196,6 +196,15 @@ pub fn markdown(r: &TuneResult, drive_toml: &str, images: &[String; 2]) -> Strin
     );
     if let Some(f) = &r.step {
         let _ = write!(s, "\n{}", damping_text(f, super::DAMPING_TOLERANCE));
+    } else if r.no_oscillatory_mode {
+        let _ = write!(
+            s,
+            "\n## Damping in the nonlinear loop\n\nThe load speed error after the `fig6` move's \
+             load steps has no decaying oscillatory mode that the fit finds, so no damping is \
+             fitted to it: the mode the model names least damped does not show there. The \
+             model's smallest damping is {:.3}.\n",
+            r.design.damping[0]
+        );
     }
     s
 }
