@@ -97,31 +97,30 @@ fn with_notch(mut doc: Table, notch: &NotchConfig) -> Result<Table> {
     Ok(doc)
 }
 
-/// Where the designs are verified: the machine file `config` with `sets`, and the file the
-/// drive was tuned on (`identified.toml`, or `notched.toml` with a notch placed).
-struct Machine<'a> {
-    config: &'a str,
-    sets: &'a [String],
-    tuned_on: &'a str,
+/// The drive of the file it was tuned on (`identified.toml`, or `notched.toml` with a notch
+/// placed) on the plant of the machine file `config` with `sets`: where the designs are
+/// verified, resolved once for all of them.
+fn verification_base(config: &str, sets: &[String], tuned_on: &str) -> Result<RunConfig> {
+    let scenario = "fig6";
+    let mut cfg = resolve(scenario, Some(tuned_on), &[])?;
+    let machine = resolve(scenario, Some(config), sets)?;
+    cfg.plant = machine.plant;
+    cfg.config_path = machine.config_path;
+    Ok(cfg)
 }
 
-/// `design`'s drive (tuned on the identified machine; `strip_notch`: with its notch taken
-/// out) running `fig6` against the machine itself.
+/// `design`'s drive (`strip_notch`: with its notch taken out) on `base`
+/// ([`verification_base`]).
 fn on_machine(
-    m: &Machine,
+    base: &RunConfig,
     label: &'static str,
     design: &tune::Candidate,
     strip_notch: bool,
 ) -> Result<OnMachine> {
-    let scenario = "fig6";
-    let (config, sets) = (m.config, m.sets);
-    let mut cfg = resolve(scenario, Some(m.tuned_on), &[])?;
+    let mut cfg = base.clone();
     if strip_notch {
         cfg.drive.notch = None;
     }
-    let machine = resolve(scenario, Some(config), sets)?;
-    cfg.plant = machine.plant;
-    cfg.config_path = machine.config_path;
     OnMachine::run(cfg, label, design)
 }
 
@@ -183,11 +182,7 @@ pub fn commission(
     let tune_md = staging.path("tune/tune.md")?;
     tune::write_design(tune_md.parent().unwrap_or(staging.dir()), &with)?;
 
-    let m = Machine {
-        config,
-        sets,
-        tuned_on: &tuned_on,
-    };
+    let m = verification_base(config, sets, &tuned_on)?;
     let design = &with.result.design.candidate;
     let runs = [
         on_machine(&m, "tuned with AFB", design, false)?,

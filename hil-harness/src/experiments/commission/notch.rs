@@ -161,7 +161,7 @@ fn verdict(t: &Trigger, nyquist_hz: f64) -> (Option<NotchConfig>, String) {
     if (mode_hz / f_r - 1.0).abs() > AT_RESONANCE {
         let why = format!(
             "no candidate meets the constraints; the best damped one without AFB has its least-damped mode \
-             (ζ = {zeta:.3}) is at {mode_hz:.1} Hz, not at the identified resonance {f_r:.1} Hz"
+             (ζ = {zeta:.3}) at {mode_hz:.1} Hz, not at the identified resonance {f_r:.1} Hz"
         );
         return (None, why);
     }

@@ -349,8 +349,7 @@ pub fn design(
     constraints: &Constraints,
 ) -> Result<Tuned> {
     let bws = bandwidths(target_bandwidth)?;
-    // Resolve once first, so a bad config is reported before the search.
-    resolve("fig6", Some(config), &[])?;
+    // judge_grid resolves the config first, so a bad one is reported before the search.
     let judged = judge_grid(config, &candidates(&bws), constraints)?;
     design_from(config, judged, constraints)
 }

@@ -111,9 +111,7 @@ impl LoopRun {
             load_step_droop_pu: m.load_step_droop_pu,
         })
     }
-}
 
-impl LoopRun {
     /// The header of [`LoopRun::row`]'s table columns (after any leading columns).
     pub const HEADER: &'static str = "design | bandwidth (rad/s) | AFB | stable | fault | \
         shaft-torque ripple after the load step (pu) | its frequency (Hz) | droop (pu) |";
