@@ -56,7 +56,7 @@
 
 use crate::config::AfbMode;
 use crate::filter::{LowPass, LowPassState};
-use crate::per_unit::{mul_gain, round_shr, sat_i32, Gain, Pu, PuPerS};
+use crate::per_unit::{mul_gain, sat_round_shr, Gain, Pu, PuPerS};
 
 /// Acceleration feedback coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -179,7 +179,7 @@ impl AccelerationFeedback {
         let (h46, _) = filter.begin(s);
         let x_p = c.saturating_sub(predict(p));
         let inner46 = filter.add_feedthrough(h46, x_p);
-        let inner = Pu::from_bits(sat_i32(round_shr::<30>(inner46)));
+        let inner = Pu::from_bits(sat_round_shr::<30>(inner46));
         let afb = mul_gain(inner, self.ka_closed).max(-lim).min(lim);
         // Complete the filter step with the input for the torque actually applied.
         let t = p.saturating_add(afb).max(-lim).min(lim);

@@ -5,7 +5,7 @@
 
 use crate::config::FilterConfig;
 use crate::error::ConfigError;
-use crate::per_unit::{checked_q, sat_i32, Coef, Pu};
+use crate::per_unit::{checked_q, sat_shr, Coef, Pu};
 use crate::ranges::Range;
 use crate::validate::check_filter;
 
@@ -199,7 +199,7 @@ impl LowPass {
                     #[allow(clippy::manual_clamp)]
                     s.y_q32.max(-(1 << 48)).min(1 << 48)
                 };
-                let y16 = sat_i32(y >> 16);
+                let y16 = sat_shr::<16>(y);
                 let h = (y << 14) - i64::from(y16) * i64::from(alpha.to_bits());
                 (h, alpha)
             }
@@ -229,13 +229,13 @@ impl LowPass {
                 let y46 = self.add_feedthrough(h46, x);
                 s.y_q32 = y46 >> 14;
                 // |y46| < 2^63 ⇒ |y_q32| < 2^49: the rounding add cannot overflow.
-                Pu::from_bits(sat_i32(s.y_q32.wrapping_add(1 << 15) >> 16))
+                Pu::from_bits(sat_shr::<16>(s.y_q32.wrapping_add(1 << 15)))
             }
             Self::SecondOrder { .. } => {
                 // DF1 in Q.46 with error feedback of the truncated bits.
                 let x0 = x.to_bits();
                 let acc = self.add_feedthrough(h46, x);
-                let y0 = sat_i32(acc >> 30);
+                let y0 = sat_shr::<30>(acc);
                 s.residual = acc & ((1 << 30) - 1);
                 s.x = [x0, s.x[0]];
                 s.y = [y0, s.y[0]];

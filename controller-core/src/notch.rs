@@ -32,7 +32,7 @@
 //! their sum saturates (one saturating add per sample: what fits the tick's budget).
 
 use crate::error::ConfigError;
-use crate::per_unit::{checked_q, sat_i32, Coef, Pu};
+use crate::per_unit::{checked_q, sat_shr, Coef, Pu};
 
 /// The settings of a notch (configuration, not state): defined with the drive settings,
 /// `[drive.notch]`.
@@ -257,7 +257,7 @@ impl Notch {
         let p = c(self.b0, x0) + c(self.b2, x2) - c(self.a2, y2) + (s.residual & RESIDUAL_MASK);
         let q = i64::from(self.b1.to_bits()) * (i64::from(x1) - i64::from(y1));
         let acc = p.saturating_add(q);
-        let y0 = sat_i32(acc >> 30);
+        let y0 = sat_shr::<30>(acc);
         // The residual is the part the output dropped; after a saturation it is zero, so the
         // clamp does not wind up.
         s.residual = if i64::from(y0) == acc >> 30 {

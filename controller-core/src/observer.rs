@@ -33,7 +33,7 @@
 //! the coming tick under a torque T: â⁺ = T·k_u + r ([`Observer::predicted_acceleration_pu_s`]),
 //! which lets [`crate::accel_feedback`] solve the loop T → model → â → T in closed form.
 
-use crate::per_unit::{mul_bits, mul_gain, sat_bits, sat_i32, Coef, Gain, Pu, PuPerS, TickGain};
+use crate::per_unit::{mul_bits, mul_gain, sat_bits, sat_shr, Coef, Gain, Pu, PuPerS, TickGain};
 
 /// Observer coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,7 +89,7 @@ pub struct ObserverEstimate {
 /// Q.32 acceleration in counts/tick² → Q12.20 bits (i32), saturating.
 #[inline]
 fn q32_to_q20(x: i64) -> i32 {
-    sat_i32(x >> 12)
+    sat_shr::<12>(x)
 }
 
 impl Observer {
@@ -141,7 +141,7 @@ impl Observer {
         let p_pred = s.p.wrapping_add(v).wrapping_add(acc >> 1);
         let v_pred = v.wrapping_add(acc);
         // Innovation in counts, Q16.16, saturating (a huge error means a fault elsewhere).
-        let e = sat_i32(p_meas.wrapping_sub(p_pred) >> 16);
+        let e = sat_shr::<16>(p_meas.wrapping_sub(p_pred));
         // Corrections: e (Q16.16) · l (Q2.30) = Q.46 → Q.32.
         let corr = |l: Coef| (i64::from(e) * i64::from(l.to_bits())) >> 14;
         let dv = corr(self.l2);
@@ -158,7 +158,7 @@ impl Observer {
     #[inline]
     #[must_use]
     pub fn velocity_pu(&self, s: &ObserverState) -> Pu {
-        Pu::from_bits(mul_bits::<24>(sat_i32(s.v >> 16), self.k_vel.to_bits()))
+        Pu::from_bits(mul_bits::<24>(sat_shr::<16>(s.v), self.k_vel.to_bits()))
     }
 
     /// Acceleration estimate over the last tick, â = Δv̂ (Ellis) \[pu/s\].

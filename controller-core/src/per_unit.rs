@@ -124,27 +124,57 @@ pub fn count_signed(raw: u32, counter_bits: u8) -> i32 {
 }
 
 /// Saturate an `i64` to `i32`.
-#[inline]
+#[inline(always)]
 pub(crate) fn sat_i32(x: i64) -> i32 {
     // In range exactly when the high word is the sign extension of the low word: one
-    // compare on a 32-bit core instead of two 64-bit range compares.
+    // compare on a 32-bit core instead of two 64-bit range compares; the saturated value is
+    // formed out of line (`saturated`), so the usual path is the compare and a branch.
     let lo = x as i32;
-    if i64::from(lo) == x {
+    if (x >> 32) as i32 == lo >> 31 {
         lo
-    } else if x < 0 {
-        i32::MIN
     } else {
-        i32::MAX
+        saturated((x >> 32) as i32)
     }
 }
 
+/// `x >> N` (arithmetic) saturated to `i32`, for `N` = 1..=32. `x >> N` is in range exactly
+/// when `x` is in \[−2^(31+N), 2^(31+N)), i.e. when the high word `hi` = ⌊x / 2^32⌋ is in
+/// \[−2^(N−1), 2^(N−1)): when `hi >> (N−1)` is its own sign. One compare of the high word,
+/// and no 64-bit shift of the high half on the usual path (the result is the low word of
+/// `x >> N`).
+#[inline(always)]
+pub(crate) fn sat_shr<const N: u32>(x: i64) -> i32 {
+    sat_shr_by(x, N)
+}
+
+/// [`sat_shr`] with the shift as an argument (1..=32; a constant wherever it is inlined).
+#[inline(always)]
+fn sat_shr_by(x: i64, n: u32) -> i32 {
+    let hi = (x >> 32) as i32;
+    if hi >> (n - 1) == hi >> 31 {
+        (x >> n) as i32
+    } else {
+        saturated(hi)
+    }
+}
+
+/// The saturated `i32` of a value out of range whose high word is `hi`: `i32::MIN` below,
+/// `i32::MAX` above. Cold and out of line, so the range tests above compile to a compare and
+/// a branch that is not taken.
+#[cold]
+#[inline(never)]
+fn saturated(hi: i32) -> i32 {
+    (hi >> 31) ^ i32::MAX
+}
+
 /// `x / 2^N` rounded to nearest (halves up) for any `i64`, as `(x + 2^(N−1)) >> N` would
-/// give without overflow: halving first loses nothing, because `(2q + b + 2^(N−1)) >> N`
-/// and `(q + 2^(N−2)) >> (N−1)` agree for b ∈ {0, 1} (the half never carries past a
-/// multiple of 2^(N−1)), and `q + 2^(N−2)` cannot overflow. `N` is 2..=62.
-#[inline]
-pub(crate) fn round_shr<const N: u32>(x: i64) -> i64 {
-    ((x >> 1) + (1i64 << (N - 2))) >> (N - 1)
+/// give without overflow, saturated to `i32`: halving first loses nothing, because
+/// `(2q + b + 2^(N−1)) >> N` and `(q + 2^(N−2)) >> (N−1)` agree for b ∈ {0, 1} (the half
+/// never carries past a multiple of 2^(N−1)), and `q + 2^(N−2)` cannot overflow. `N` is
+/// 2..=33.
+#[inline(always)]
+pub(crate) fn sat_round_shr<const N: u32>(x: i64) -> i32 {
+    sat_shr_by((x >> 1) + (1i64 << (N - 2)), N - 1)
 }
 
 /// Saturate an `i64` to the signed `B`-bit range \[−2^(B−1), 2^(B−1) − 1\] (`B` = 33..=63):
@@ -166,7 +196,8 @@ pub(crate) fn sat_bits<const B: u32>(x: i64) -> i64 {
 #[inline]
 pub(crate) fn mul_bits<const F: u32>(x: i32, c: i32) -> i32 {
     let p = i64::from(x) * i64::from(c);
-    sat_i32((p + (1i64 << (F - 1))) >> F)
+    // |x·c| ≤ 2^62, so adding the rounding half cannot overflow.
+    sat_shr::<F>(p + (1i64 << (F - 1)))
 }
 
 /// `x·k` for a Q16.16 signal and a Q16.16 gain, rounded, saturated.
@@ -252,6 +283,31 @@ mod tests {
         }
     }
 
+    /// `sat_shr` against the shift followed by the plain range clamp.
+    #[test]
+    fn sat_shr_matches_the_range_definition() {
+        let lim = |x: i64| x.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        for x in samples() {
+            assert_eq!(super::sat_shr::<1>(x), lim(x >> 1), "{x}");
+            assert_eq!(super::sat_shr::<8>(x), lim(x >> 8), "{x}");
+            assert_eq!(super::sat_shr::<12>(x), lim(x >> 12), "{x}");
+            assert_eq!(super::sat_shr::<16>(x), lim(x >> 16), "{x}");
+            assert_eq!(super::sat_shr::<20>(x), lim(x >> 20), "{x}");
+            assert_eq!(super::sat_shr::<23>(x), lim(x >> 23), "{x}");
+            assert_eq!(super::sat_shr::<24>(x), lim(x >> 24), "{x}");
+            assert_eq!(super::sat_shr::<29>(x), lim(x >> 29), "{x}");
+            assert_eq!(super::sat_shr::<30>(x), lim(x >> 30), "{x}");
+            assert_eq!(super::sat_shr::<32>(x), lim(x >> 32), "{x}");
+            for b in [i64::from(i32::MAX), i64::from(i32::MIN)] {
+                for d in -3..=3 {
+                    let y = (b + d) << 16;
+                    assert_eq!(super::sat_shr::<16>(y), lim(y >> 16), "{y}");
+                    assert_eq!(super::sat_shr::<16>(y + 0xFFFF), lim((y + 0xFFFF) >> 16));
+                }
+            }
+        }
+    }
+
     fn samples() -> Vec<i64> {
         let mut xs = vec![0i64, 1, -1, i64::MAX, i64::MIN, i64::MAX - 1, i64::MIN + 1];
         for b in 30..63 {
@@ -267,14 +323,18 @@ mod tests {
         xs
     }
 
-    /// `round_shr` against the widened (i128) rounded shift.
+    /// `sat_round_shr` against the widened (i128) rounded shift, clamped.
     #[test]
-    fn round_shr_matches_the_rounded_shift() {
+    fn sat_round_shr_matches_the_rounded_shift() {
         for x in samples() {
-            let r = |n: u32| ((i128::from(x) + (1i128 << (n - 1))) >> n) as i64;
-            assert_eq!(super::round_shr::<14>(x), r(14), "{x}");
-            assert_eq!(super::round_shr::<16>(x), r(16), "{x}");
-            assert_eq!(super::round_shr::<30>(x), r(30), "{x}");
+            let r = |n: u32| {
+                ((i128::from(x) + (1i128 << (n - 1))) >> n)
+                    .clamp(i128::from(i32::MIN), i128::from(i32::MAX)) as i32
+            };
+            assert_eq!(super::sat_round_shr::<14>(x), r(14), "{x}");
+            assert_eq!(super::sat_round_shr::<16>(x), r(16), "{x}");
+            assert_eq!(super::sat_round_shr::<30>(x), r(30), "{x}");
+            assert_eq!(super::sat_round_shr::<33>(x), r(33), "{x}");
         }
     }
 

@@ -46,7 +46,7 @@ use crate::filter::LowPassState;
 use crate::notch::NotchState;
 use crate::observer::ObserverState;
 use crate::per_unit::{
-    count_diff_shifted, count_signed, mul_bits, mul_gain, sat_i32, CountsErr, Pu, PuPerS,
+    count_diff_shifted, count_signed, mul_bits, mul_gain, sat_i32, sat_shr, CountsErr, Pu, PuPerS,
 };
 use crate::pi::PiState;
 use coefficients::{AfbStep, Coefficients};
@@ -356,10 +356,8 @@ impl Controller {
         // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
         let torque = match self.coef.observer_torque {
             ObserverTorque::Command => self.state.current_ref,
-            ObserverTorque::MeasuredCurrent => Pu::from_bits(sat_i32(
-                (i64::from(self.state.last_current.to_bits())
-                    + i64::from(inp.current_pu.to_bits()))
-                    >> 1,
+            ObserverTorque::MeasuredCurrent => Pu::from_bits(sat_shr::<1>(
+                i64::from(self.state.last_current.to_bits()) + i64::from(inp.current_pu.to_bits()),
             )),
         };
         self.state.last_current = inp.current_pu;

@@ -19,7 +19,7 @@
 //! Q1.30 waveform, rounded, so |output| ≤ |amplitude|.
 
 use crate::error::ConfigError;
-use crate::per_unit::{sat_i32, Pu};
+use crate::per_unit::{sat_shr, Pu};
 
 mod chirp;
 mod prbs;
@@ -219,7 +219,7 @@ impl Excitation {
         };
         // amplitude (Q16.16) × waveform (Q1.30), rounded: |result| ≤ |amplitude|.
         let p = i64::from(self.amplitude.to_bits()) * i64::from(wave_q30);
-        Pu::from_bits(sat_i32((p + (1 << 29)) >> 30))
+        Pu::from_bits(sat_shr::<30>(p + (1 << 29)))
     }
 }
 

@@ -17,7 +17,7 @@ use crate::config::DriveConfig;
 use crate::controller::Setpoint;
 use crate::design::Gains;
 use crate::error::ConfigError;
-use crate::per_unit::{counts_per_pu_s, mul_bits, sat_i32, Counts, Gain, Pu, TickGain};
+use crate::per_unit::{counts_per_pu_s, mul_bits, sat_shr, Counts, Gain, Pu, TickGain};
 
 mod plan;
 use plan::{Planner, Settings};
@@ -271,9 +271,9 @@ impl Profile {
         // (wraps only beyond 2^47 counts, 2.7e5 years at 10^6 CPR and 1000 rpm).
         let sp = Setpoint {
             position_counts: Counts::from_bits(self.p_int.wrapping_shl(16) | (self.p_frac >> 16)),
-            velocity_pu: Pu::from_bits(mul_bits::<24>(sat_i32(self.v >> 16), self.k_vel.to_bits())),
+            velocity_pu: Pu::from_bits(mul_bits::<24>(sat_shr::<16>(self.v), self.k_vel.to_bits())),
             acceleration_pu_s: Pu::from_bits(mul_bits::<20>(
-                sat_i32(self.a >> 12),
+                sat_shr::<12>(self.a),
                 self.k_acc.to_bits(),
             )),
         };
