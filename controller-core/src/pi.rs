@@ -70,15 +70,92 @@ impl PiCoefficients {
     /// c.update_with_offset(&mut s, Pu::from_num(0.5), Pu::ZERO, Pu::from_num(2));
     /// assert_eq!(s.integral, 0);
     /// ```
-    #[inline]
+    #[inline(always)]
     pub fn update_with_offset(&self, state: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
         // |limit| so a negative limit in hand-made coefficients cannot invert the clamp.
         let limit = self.limit.to_bits().saturating_abs();
-        let lim64 = i64::from(limit) << 16;
         // Integral increment in Q.40 (Q16.16 · Q8.24) → Q.32.
         let inc = (i64::from(e.to_bits()) * i64::from(self.ki_ts.to_bits()) + (1 << 7)) >> 8;
         let p = mul_gain(e, self.kp).to_bits();
+        let (ff, offset) = (ff.to_bits(), offset.to_bits());
         let i_now = state.integral.to_bits();
+        // Range argument for the 32-bit form: when p, ff, offset and limit lie in
+        // [−2^29, 2^29) and so does the integral's whole part I ≫ 16 (the bits of I from
+        // 2^45 up all the sign), every sum below is under 2^31 in magnitude: the four-term
+        // trial sum, the three-term output (I ≫ 16 is then either the old one or clamped to
+        // ±limit) and the clamp bounds (|limit ± off| ≤ 2^30). So the 32-bit sums are the
+        // 64-bit ones exactly, and the output needs no saturation. `x ^ (x >> 31)` is x for
+        // x ≥ 0 and −x − 1 below, so the OR of them is below 2^29 exactly when each x is in
+        // range. Outside the range (never with the shipped drives' limits and signals), the
+        // 64-bit form.
+        let mag = |x: i32| x ^ (x >> 31);
+        if (mag(p) | mag(ff) | mag(offset) | limit) < 1 << 29 && i_now >> 45 == i_now >> 63 {
+            let i_whole = (i_now >> 16) as i32;
+            let u_trial = p + ff + offset + i_whole;
+            let pushing_out = (u_trial >= limit && inc > 0) || (u_trial <= -limit && inc < 0);
+            let i_next = self.integrate(i_now, inc, limit, pushing_out);
+            state.integral = I32F32::from_bits(i_next);
+            let u = p + ff + (i_next >> 16) as i32;
+            let off = offset.max(-limit).min(limit);
+            let u_clamped = u.max(-limit - off).min(limit - off);
+            state.saturated = u_clamped != u;
+            return Pu::from_bits(u_clamped);
+        }
+        self.update_wide(state, [p, ff, offset, limit], inc)
+    }
+
+    /// [`PiCoefficients::update_with_offset`] in 64 bits, for terms outside the 32-bit
+    /// form's range (out of line: it never runs with the shipped drives).
+    #[cold]
+    #[inline(never)]
+    fn update_wide(&self, state: &mut PiState, terms: [i32; 4], inc: i64) -> Pu {
+        let [p, ff, offset, limit] = terms;
+        let i_now = state.integral.to_bits();
+        let u_trial = i64::from(p) + i64::from(ff) + i64::from(offset) + (i_now >> 16);
+        let pushing_out =
+            (u_trial >= i64::from(limit) && inc > 0) || (u_trial <= -i64::from(limit) && inc < 0);
+        let i_next = self.integrate(i_now, inc, limit, pushing_out);
+        state.integral = I32F32::from_bits(i_next);
+        let u = i64::from(p) + i64::from(ff) + (i_next >> 16);
+        // Clamp so that u + offset, the reference downstream, spans the whole ±limit: a
+        // downstream term that opposes the output (the AFB term braking an acceleration the
+        // drive is saturated for) must not take usable torque away. The offset is bounded
+        // to ±limit first, so the output stays within ±2·limit.
+        // max/min rather than clamp: clamp carries a (never taken) panic branch.
+        // In 32 bits: 0 ≤ limit ≤ i32::MAX, so −limit is an i32 too.
+        let off = i64::from(offset.max(-limit).min(limit));
+        let u_clamped = u.max(-i64::from(limit) - off).min(i64::from(limit) - off);
+        state.saturated = u_clamped != u;
+        Pu::from_bits(sat_i32(u_clamped))
+    }
+
+    /// The integral after a step: held while `pushing_out`, else I + inc clamped to
+    /// ±limit (Q32.32).
+    #[inline(always)]
+    fn integrate(&self, i_now: i64, inc: i64, limit: i32, pushing_out: bool) -> i64 {
+        if pushing_out {
+            i_now
+        } else {
+            let lim64 = i64::from(limit) << 16;
+            // |I| ≤ 2^47 and |inc| ≤ 2^54: the plain sum cannot overflow.
+            (i_now + inc).max(-lim64).min(lim64)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{PiCoefficients, PiState};
+    use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, TickGain};
+    use fixed::types::I32F32;
+
+    /// The step in 64 bits throughout, as it was before the 32-bit form.
+    fn reference(c: &PiCoefficients, s: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
+        let limit = c.limit.to_bits().saturating_abs();
+        let lim64 = i64::from(limit) << 16;
+        let inc = (i64::from(e.to_bits()) * i64::from(c.ki_ts.to_bits()) + (1 << 7)) >> 8;
+        let p = mul_gain(e, c.kp).to_bits();
+        let i_now = s.integral.to_bits();
         let u_trial =
             i64::from(p) + i64::from(ff.to_bits()) + i64::from(offset.to_bits()) + (i_now >> 16);
         let pushing_out =
@@ -86,20 +163,76 @@ impl PiCoefficients {
         let i_next = if pushing_out {
             i_now
         } else {
-            // |I| ≤ 2^47 and |inc| ≤ 2^54: the plain sum cannot overflow.
             (i_now + inc).max(-lim64).min(lim64)
         };
-        state.integral = I32F32::from_bits(i_next);
+        s.integral = I32F32::from_bits(i_next);
         let u = i64::from(p) + i64::from(ff.to_bits()) + (i_next >> 16);
-        // Clamp so that u + offset, the reference downstream, spans the whole ±limit: a
-        // downstream term that opposes the output (the AFB term braking an acceleration the
-        // drive is saturated for) must not take usable torque away. The offset is bounded
-        // to ±limit first, so the output stays within ±2·limit.
-        // max/min rather than clamp: clamp carries a (never taken) panic branch.
-        // In 32 bits: 0 ≤ limit ≤ i32::MAX, so −limit is an i32 too.
         let off = i64::from(offset.to_bits().max(-limit).min(limit));
         let u_clamped = u.max(-i64::from(limit) - off).min(i64::from(limit) - off);
-        state.saturated = u_clamped != u;
+        s.saturated = u_clamped != u;
         Pu::from_bits(sat_i32(u_clamped))
+    }
+
+    /// The 32-bit form gives the 64-bit one's output and state, inside its range, at its
+    /// edges and beyond them.
+    #[test]
+    fn update_matches_the_64_bit_form() {
+        let mut x = 0x2545_F491_4F6C_DD1D_u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        let edges = [
+            0,
+            1,
+            -1,
+            (1 << 29) - 1,
+            1 << 29,
+            -(1 << 29),
+            -(1 << 29) - 1,
+            i32::MAX,
+            i32::MIN,
+        ];
+        for k in 0..200_000u32 {
+            let r = next();
+            let pick = |v: u64| -> i32 {
+                match (v >> 60) % 4 {
+                    0 => edges[(v % edges.len() as u64) as usize],
+                    1 => (v as i32) >> 2,
+                    2 => (v as i32) >> 12,
+                    _ => v as i32,
+                }
+            };
+            let c = PiCoefficients {
+                kp: Gain::from_bits(pick(next())),
+                ki_ts: TickGain::from_bits(pick(next())),
+                limit: Pu::from_bits(pick(next())),
+            };
+            let (e, ff, off) = (
+                Pu::from_bits(pick(next())),
+                Pu::from_bits(pick(next())),
+                Pu::from_bits(pick(next())),
+            );
+            let integral = match r % 4 {
+                0 => i64::from(pick(next())) << 16,
+                1 => (next() as i64) >> 17,
+                2 => (next() as i64) >> 18,
+                _ => i64::from(pick(next())),
+            };
+            let s0 = PiState {
+                integral: I32F32::from_bits(integral),
+                saturated: k % 2 == 0,
+            };
+            let (mut a, mut b) = (s0, s0);
+            let ua = c.update_with_offset(&mut a, e, ff, off);
+            let ub = reference(&c, &mut b, e, ff, off);
+            assert_eq!(
+                (ua, a),
+                (ub, b),
+                "{c:?} {s0:?} e {e:?} ff {ff:?} off {off:?}"
+            );
+        }
     }
 }
