@@ -118,9 +118,23 @@ impl<T> Shared<T> {
         cs: CriticalSection<'_>,
         f: impl FnOnce(&mut Option<T>) -> R,
     ) -> Option<R> {
+        self.with_slot_or(cs, None, |slot| Some(f(slot)))
+    }
+
+    /// Run `f` on the value slot and return what it returns, or `busy` if the slot is
+    /// already borrowed further up this critical section. The one place the slot is
+    /// reached; [`Shared::with`] and [`Shared::with_slot`] pick their own `busy` value, so
+    /// neither wraps an `Option` in another (which would copy the result once more).
+    #[inline]
+    fn with_slot_or<R>(
+        &self,
+        cs: CriticalSection<'_>,
+        busy_result: R,
+        f: impl FnOnce(&mut Option<T>) -> R,
+    ) -> R {
         let busy = self.busy.borrow(cs);
         if busy.replace(true) {
-            return None;
+            return busy_result;
         }
         // SAFETY: see the `Sync` impl: the critical section excludes every other context and
         // the flag, won just above, excludes re-entry until it is cleared below.
@@ -128,13 +142,13 @@ impl<T> Shared<T> {
         let slot = unsafe { &mut *self.value.get() };
         let result = f(slot);
         busy.set(false);
-        Some(result)
+        result
     }
 
     /// Run `f` on the value; `None` if the cell is empty or already borrowed.
     #[inline]
     pub fn with<R>(&self, cs: CriticalSection<'_>, f: impl FnOnce(&mut T) -> R) -> Option<R> {
-        self.with_slot(cs, |slot| slot.as_mut().map(f)).flatten()
+        self.with_slot_or(cs, None, |slot| slot.as_mut().map(f))
     }
 }
 

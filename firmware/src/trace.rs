@@ -149,8 +149,9 @@ pub struct TraceConfig {
 pub struct TraceBuffer<const N: usize> {
     ring: HistoryBuffer<TraceSample, N>,
     config: TraceConfig,
-    /// Ticks since the last stored sample.
-    phase: u16,
+    /// Ticks until the next stored sample (1..=decimation; counts down, so a tick that
+    /// does not record only decrements it and compares with zero).
+    countdown: u16,
     state: TraceState,
     trigger_tick: u32,
 }
@@ -170,7 +171,7 @@ impl<const N: usize> TraceBuffer<N> {
         Ok(Self {
             ring: HistoryBuffer::new(),
             config,
-            phase: 0,
+            countdown: config.decimation,
             state: TraceState::Armed,
             trigger_tick: 0,
         })
@@ -193,21 +194,22 @@ impl<const N: usize> TraceBuffer<N> {
     }
 
     /// As [`TraceBuffer::record`], building the snapshot only on the ticks that store one.
-    /// The test for those is inlined into the interrupt (a compare of the phase counter);
+    /// The test for those is inlined into the interrupt (a decrement of the countdown and a compare with zero);
     /// the snapshot and the store run only on every `decimation`-th tick, out of line.
     #[inline(always)]
     pub fn record_with(&mut self, tick: u32, signals: impl FnOnce() -> SignalSnapshot) {
-        // The frozen test is needed only on the ticks that would store: while frozen the
-        // phase may count on, `rearm` resets it.
-        let phase = self.phase.saturating_add(1);
-        if phase < self.config.decimation {
-            self.phase = phase;
+        // A tick that does not record: one decrement and a compare with zero. The frozen
+        // test is needed only on the ticks that would store (the countdown then stays at 1
+        // until `rearm` resets it); `decimation` ≥ 1, so the countdown never wraps.
+        let countdown = self.countdown.wrapping_sub(1);
+        if countdown != 0 {
+            self.countdown = countdown;
             return;
         }
         if matches!(self.state, TraceState::Frozen { .. }) {
             return;
         }
-        self.phase = 0;
+        self.countdown = self.config.decimation;
         self.store(tick, &signals());
     }
 
@@ -280,7 +282,7 @@ impl<const N: usize> TraceBuffer<N> {
     /// Empty the ring and arm again (after a dump).
     pub fn rearm(&mut self) {
         self.ring.clear();
-        self.phase = 0;
+        self.countdown = self.config.decimation;
         self.state = TraceState::Armed;
     }
 }
