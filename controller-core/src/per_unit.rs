@@ -102,8 +102,14 @@ pub fn counter_shift(counter_bits: u8) -> u32 {
 #[must_use]
 #[inline]
 pub fn count_diff_shifted(now: u32, before: u32, shift: u32) -> i32 {
+    count_diff_by(now, before, shift.min(16))
+}
+
+/// [`count_diff_shifted`] for a shift known to be 0..=16 (a [`counter_shift`], computed
+/// when the coefficients were built): no clamp of the shift on the tick path.
+#[inline(always)]
+pub(crate) fn count_diff_by(now: u32, before: u32, shift: u32) -> i32 {
     // Shift the counter's MSB to bit 31, subtract with wrap, shift back arithmetically.
-    let shift = shift.min(16);
     let d = (now << shift).wrapping_sub(before << shift) as i32;
     d >> shift
 }

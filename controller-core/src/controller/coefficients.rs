@@ -22,6 +22,9 @@ pub(super) struct Coefficients {
     pub(super) position_loop: bool,
     pub(super) k_pos: PosGain,
     pub(super) velocity_ff: Gain,
+    /// `velocity_ff` is exactly 1 (the default): ω_sp·1 rounded is ω_sp itself, so the tick
+    /// skips the product.
+    pub(super) velocity_ff_unity: bool,
     pub(super) k_accel_ff: Gain,
     pub(super) velocity_regulator: PiCoefficients,
     pub(super) current_regulator: PiCoefficients,
@@ -40,9 +43,12 @@ pub(super) struct Coefficients {
     /// The velocity-rate differentiator is used (velocity or acceleration source).
     pub(super) diff_in_velocity_tick: bool,
     pub(super) torque_limit: Pu,
-    pub(super) overspeed: Pu,
-    pub(super) following_error: CountsErr,
-    pub(super) max_count_step: i32,
+    /// |overspeed| as raw Q16.16 bits (the tick compares magnitudes).
+    pub(super) overspeed_abs: u32,
+    /// |following error limit| as raw Q24.8 bits.
+    pub(super) following_error_abs: u32,
+    /// |largest encoder step per tick| \[counts\].
+    pub(super) max_count_step_abs: u32,
     /// The torque-reference notch (Q2.30), `None` without one: the current tick then does
     /// exactly what it did before the notch existed.
     pub(super) notch: Option<Notch>,
@@ -203,6 +209,7 @@ impl Coefficients {
             position_loop: g.kpp > 0.0,
             k_pos,
             velocity_ff,
+            velocity_ff_unity: velocity_ff == Gain::ONE,
             k_accel_ff,
             velocity_regulator,
             current_regulator,
@@ -229,16 +236,21 @@ impl Coefficients {
             diff_in_velocity_tick: cfg.velocity_estimator == Estimator::Differentiation
                 || cfg.accel_feedback.source == Estimator::Differentiation,
             torque_limit: lim,
-            overspeed: quantize(cfg.faults.overspeed_pu, "faults.overspeed_pu")?,
-            following_error: quantize(
+            overspeed_abs: quantize::<Pu>(cfg.faults.overspeed_pu, "faults.overspeed_pu")?
+                .to_bits()
+                .unsigned_abs(),
+            following_error_abs: quantize::<CountsErr>(
                 cfg.faults.following_error_counts,
                 "faults.following_error_counts",
-            )?,
-            max_count_step: quantize::<CountsErr>(
+            )?
+            .to_bits()
+            .unsigned_abs(),
+            max_count_step_abs: quantize::<CountsErr>(
                 g.max_count_step,
                 "max count step (faults.encoder_jump_margin × overspeed)",
             )?
-            .to_num::<i32>(),
+            .to_num::<i32>()
+            .unsigned_abs(),
             notch,
         })
     }

@@ -46,7 +46,7 @@ use crate::filter::LowPassState;
 use crate::notch::NotchState;
 use crate::observer::ObserverState;
 use crate::per_unit::{
-    count_diff_shifted, count_signed, mul_bits, mul_gain, sat_i32, sat_shr, CountsErr, Pu, PuPerS,
+    count_diff_by, count_signed, mul_bits, mul_gain, sat_i32, sat_shr, CountsErr, Pu, PuPerS,
 };
 use crate::pi::PiState;
 use coefficients::{AfbStep, Coefficients};
@@ -253,9 +253,10 @@ impl Controller {
     fn read_encoder(&mut self, raw: u32) {
         let bits = self.coef.counter_bits;
         if self.state.primed {
-            let d = count_diff_shifted(raw, self.state.last_raw, self.coef.counter_shift);
+            // counter_shift ≤ 16 (per_unit::counter_shift), so no clamp here.
+            let d = count_diff_by(raw, self.state.last_raw, self.coef.counter_shift);
             self.state.position = self.state.position.wrapping_add(i64::from(d));
-            if d.unsigned_abs() > self.coef.max_count_step.unsigned_abs() {
+            if d.unsigned_abs() > self.coef.max_count_step_abs {
                 self.trip(Fault::EncoderJump);
             }
         } else {
@@ -280,7 +281,7 @@ impl Controller {
     /// Acceleration-feedback step with the observer's acceleration, the loop through its
     /// model solved in closed form for the torque reference `i_vel` + afb; `c` is the
     /// command part of the filter input (0 in the plain form, a_cmd in the error form).
-    #[inline]
+    #[inline(always)]
     fn afb_closed_step(&mut self, c: PuPerS) {
         if self.state.fault.is_none() {
             let obs = &self.coef.observer;
@@ -349,6 +350,7 @@ impl Controller {
     /// let out = c.current_tick(CurrentInputs { encoder_count: 0, current_pu: Pu::ZERO });
     /// assert_eq!(out.current_ref_pu, Pu::ZERO);
     /// ```
+    #[inline(always)]
     pub fn current_tick(&mut self, inp: CurrentInputs) -> CurrentOutputs {
         self.read_encoder(inp.encoder_count);
         let position = self.state.position;
@@ -405,17 +407,25 @@ impl Controller {
                 sp_q8.saturating_sub(position.saturating_mul(256))
             };
             let err = CountsErr::from_bits(sat_i32(err_bits));
-            if err.unsigned_abs() > self.coef.following_error.unsigned_abs() {
+            if err.to_bits().unsigned_abs() > self.coef.following_error_abs {
                 self.trip(Fault::FollowingError);
             }
             // Q24.8 · Q1.31 = Q.39 → Q16.16.
             let p_term = Pu::from_bits(mul_bits::<23>(err.to_bits(), self.coef.k_pos.to_bits()));
-            (
-                err,
-                mul_gain(sp.velocity_pu, self.coef.velocity_ff).saturating_add(p_term),
-            )
+            (err, self.velocity_ff(sp.velocity_pu).saturating_add(p_term))
         } else {
             (CountsErr::ZERO, sp.velocity_pu)
+        }
+    }
+
+    /// vff·ω_sp, rounded and saturated; ω_sp itself when vff is exactly 1 (the product
+    /// rounds to it: (ω·2^16 + 2^15) ≫ 16 = ω), decided once at configuration.
+    #[inline(always)]
+    fn velocity_ff(&self, velocity_pu: Pu) -> Pu {
+        if self.coef.velocity_ff_unity {
+            velocity_pu
+        } else {
+            mul_gain(velocity_pu, self.coef.velocity_ff)
         }
     }
 
@@ -460,7 +470,7 @@ impl Controller {
             Estimator::Observer => obs.acceleration_pu_s(&self.state.observer),
         };
         let disturbance = obs.load_torque_pu(&self.state.observer);
-        if v_fb.unsigned_abs() > self.coef.overspeed.unsigned_abs() {
+        if v_fb.to_bits().unsigned_abs() > self.coef.overspeed_abs {
             self.trip(Fault::Overspeed);
         }
 

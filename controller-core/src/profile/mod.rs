@@ -119,6 +119,13 @@ pub struct Profile {
     /// The tick's adds cannot overflow for this profile ([`Profile::adds_are_bounded`]):
     /// decided once at construction, so [`Profile::next`] takes the plain adds.
     bounded: bool,
+    /// The running segment's jerk, j/6 and length, copied when it starts.
+    jerk: i64,
+    jerk_over_6: i64,
+    segment_ticks: u32,
+    /// The acceleration output of the running segment when its jerk is zero (then `a`
+    /// stays a0 throughout, and so does the output): computed once when it starts.
+    accel_out: Pu,
 }
 
 const Q32: f64 = 4_294_967_296.0;
@@ -182,19 +189,45 @@ impl Profile {
         let (k_vel, k_acc) = output_gains(g)?;
         let first = segments.first().copied().unwrap_or_default();
         let bounded = segments.iter().take(count).all(Segment::adds_are_bounded);
-        Ok(Self {
+        let mut p = Self {
             segments,
             count,
             k_vel,
             k_acc,
             index: 0,
             tick_in_segment: 0,
-            p_int: first.p0_int,
-            p_frac: first.p0_frac,
-            v: first.v0,
-            a: first.a0,
+            p_int: 0,
+            p_frac: 0,
+            v: 0,
+            a: 0,
             bounded,
-        })
+            jerk: 0,
+            jerk_over_6: 0,
+            segment_ticks: 0,
+            accel_out: Pu::ZERO,
+        };
+        p.enter(&first);
+        Ok(p)
+    }
+
+    /// Start segment `s`: its exact start state, and its jerk, length and (for zero jerk)
+    /// acceleration output for the ticks in it.
+    fn enter(&mut self, s: &Segment) {
+        self.p_int = s.p0_int;
+        self.p_frac = s.p0_frac;
+        self.v = s.v0;
+        self.a = s.a0;
+        self.jerk = s.jerk;
+        self.jerk_over_6 = s.jerk_over_6;
+        self.segment_ticks = s.ticks;
+        self.accel_out = self.accel_pu_s();
+    }
+
+    /// The acceleration output of the present state \[pu/s\]: Q32.32 counts/tick² ≫ 12 =
+    /// Q12.20, times k_acc (Q16.16) = Q.36 → Q16.16.
+    #[inline(always)]
+    fn accel_pu_s(&self) -> Pu {
+        Pu::from_bits(mul_bits::<20>(sat_shr::<12>(self.a), self.k_acc.to_bits()))
     }
 
     /// Shift the whole profile by a start position \[counts\].
@@ -246,8 +279,10 @@ impl Profile {
     /// One tick of p += v + a/2 + j/6 ; v += a + j/2 ; a += j (Q32.32, the fraction carried
     /// into p_int), with plain adds when `BOUNDED` (the segment's range argument holds,
     /// [`Segment::adds_are_bounded`]) and saturating ones otherwise.
+    /// Without `JERK` (a segment of zero jerk) the adds of j/6, j/2 and j are left out:
+    /// adding zero, plain or saturating, changes nothing.
     #[inline(always)]
-    fn integrate<const BOUNDED: bool>(&mut self, j: i64, j6: i64) {
+    fn integrate<const BOUNDED: bool, const JERK: bool>(&mut self) {
         let add = |x: i64, y: i64| {
             if BOUNDED {
                 x.wrapping_add(y)
@@ -255,12 +290,17 @@ impl Profile {
                 x.saturating_add(y)
             }
         };
-        let dp = add(add(self.v, self.a >> 1), j6);
+        let (j, j6) = (self.jerk, self.jerk_over_6);
+        let dp = add(self.v, self.a >> 1);
+        let dp = if JERK { add(dp, j6) } else { dp };
         let f = add(self.p_frac, dp);
         self.p_int = self.p_int.wrapping_add(f >> 32);
         self.p_frac = f & 0xFFFF_FFFF;
-        self.v = add(add(self.v, self.a), j >> 1);
-        self.a = add(self.a, j);
+        let v = add(self.v, self.a);
+        self.v = if JERK { add(v, j >> 1) } else { v };
+        if JERK {
+            self.a = add(self.a, j);
+        }
     }
 
     /// The setpoint for this velocity tick; advances the profile by one tick.
@@ -272,29 +312,24 @@ impl Profile {
         let sp = Setpoint {
             position_counts: Counts::from_bits(self.p_int.wrapping_shl(16) | (self.p_frac >> 16)),
             velocity_pu: Pu::from_bits(mul_bits::<24>(sat_shr::<16>(self.v), self.k_vel.to_bits())),
-            acceleration_pu_s: Pu::from_bits(mul_bits::<20>(
-                sat_shr::<12>(self.a),
-                self.k_acc.to_bits(),
-            )),
+            acceleration_pu_s: if self.jerk == 0 {
+                self.accel_out
+            } else {
+                self.accel_pu_s()
+            },
         };
-        let (j, j6, ticks) = match self.segments.get(self.index) {
-            Some(seg) => (seg.jerk, seg.jerk_over_6, seg.ticks),
-            None => (0, 0, u32::MAX),
-        };
-        if self.bounded {
-            self.integrate::<true>(j, j6);
-        } else {
-            self.integrate::<false>(j, j6);
+        match (self.bounded, self.jerk != 0) {
+            (true, false) => self.integrate::<true, false>(),
+            (true, true) => self.integrate::<true, true>(),
+            (false, false) => self.integrate::<false, false>(),
+            (false, true) => self.integrate::<false, true>(),
         }
         self.tick_in_segment = self.tick_in_segment.saturating_add(1);
-        if self.tick_in_segment >= ticks && self.index + 1 < self.count {
+        if self.tick_in_segment >= self.segment_ticks && self.index + 1 < self.count {
             self.index += 1;
             self.tick_in_segment = 0;
-            if let Some(s) = self.segments.get(self.index) {
-                self.p_int = s.p0_int;
-                self.p_frac = s.p0_frac;
-                self.v = s.v0;
-                self.a = s.a0;
+            if let Some(s) = self.segments.get(self.index).copied() {
+                self.enter(&s);
             }
         }
         sp
