@@ -95,7 +95,9 @@ impl AccelerationFeedback {
             AfbMode::Error => a_cmd.saturating_sub(a_meas),
         };
         let filtered = self.filter.process(s, x);
-        let lim = self.limit.saturating_abs();
+        // |limit| of the raw bits: the same value as `Pu::saturating_abs`, in fewer
+        // instructions (a conditional saturating subtract).
+        let lim = Pu::from_bits(self.limit.to_bits().saturating_abs());
         mul_gain(filtered, self.ka).max(-lim).min(lim)
     }
 
@@ -173,7 +175,7 @@ impl AccelerationFeedback {
         c: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
     ) -> Pu {
-        let lim = self.limit.saturating_abs();
+        let lim = Pu::from_bits(self.limit.to_bits().saturating_abs());
         // afb = g·Ka·(h + b0·x(P)): h and b0·x in Q.46 (Q16.16 · Q2.30), rounded to Q16.16,
         // times g·Ka (Q16.16).
         let (h46, _) = filter.begin(s);

@@ -99,6 +99,15 @@ pub fn design_low_pass(
     }
 }
 
+/// `y` limited to ±2^48 (the first-order state beyond its usual range; out of line).
+#[cold]
+#[inline(never)]
+fn limit_q48(y: i64) -> i64 {
+    // max/min rather than clamp: clamp carries a (never taken) panic branch.
+    #[allow(clippy::manual_clamp)]
+    y.max(-(1 << 48)).min(1 << 48)
+}
+
 impl LowPass {
     /// Quantize a design to Q2.30; `param` names the coefficient set in an overflow error.
     pub fn quantize(d: &LowPassDesign, param: &'static str) -> Result<Self, ConfigError> {
@@ -195,9 +204,7 @@ impl LowPass {
                 let y = if s.y_q32 >> 48 == s.y_q32 >> 63 {
                     s.y_q32
                 } else {
-                    // max/min rather than clamp: clamp carries a (never taken) panic branch.
-                    #[allow(clippy::manual_clamp)]
-                    s.y_q32.max(-(1 << 48)).min(1 << 48)
+                    limit_q48(s.y_q32)
                 };
                 let y16 = sat_shr::<16>(y);
                 let h = (y << 14) - i64::from(y16) * i64::from(alpha.to_bits());

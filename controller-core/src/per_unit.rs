@@ -186,11 +186,20 @@ pub(crate) fn sat_round_shr<const N: u32>(x: i64) -> i32 {
 /// Saturate an `i64` to the signed `B`-bit range \[−2^(B−1), 2^(B−1) − 1\] (`B` = 33..=63):
 /// a state limited this way leaves 2^(63−B+1) of headroom for plain adds. In range exactly
 /// when the bits from B−1 up are all the sign: one compare of the high word.
-#[inline]
+#[inline(always)]
 pub(crate) fn sat_bits<const B: u32>(x: i64) -> i64 {
     if x >> (B - 1) == x >> 63 {
         x
-    } else if x < 0 {
+    } else {
+        saturated_bits::<B>(x)
+    }
+}
+
+/// The `B`-bit limit on the side of `x` (out of line, as [`saturated`]).
+#[cold]
+#[inline(never)]
+fn saturated_bits<const B: u32>(x: i64) -> i64 {
+    if x < 0 {
         -(1i64 << (B - 1))
     } else {
         (1i64 << (B - 1)) - 1
