@@ -298,17 +298,29 @@ impl Controller {
 
     /// The AFB step `step` of a tick; `a_meas` is that tick's differentiated acceleration
     /// (used by [`AfbStep::Measured`] only).
-    #[inline]
+    /// The closed form (the default) is inlined into the tick once, for both forms; the
+    /// measured step runs out of line.
+    #[inline(always)]
     fn run_afb(&mut self, step: AfbStep, a_meas: impl FnOnce(&mut Self) -> PuPerS) {
         match step {
             AfbStep::None => {}
-            AfbStep::Measured => {
-                let a = a_meas(self);
-                self.afb_step(a);
+            AfbStep::Measured => self.afb_measured_step(a_meas),
+            AfbStep::ClosedPlain | AfbStep::ClosedError => {
+                let c = if step == AfbStep::ClosedError {
+                    self.state.accel_cmd
+                } else {
+                    PuPerS::ZERO
+                };
+                self.afb_closed_step(c);
             }
-            AfbStep::ClosedPlain => self.afb_closed_step(PuPerS::ZERO),
-            AfbStep::ClosedError => self.afb_closed_step(self.state.accel_cmd),
         }
+    }
+
+    /// [`AfbStep::Measured`]: differentiate (`a_meas`), then the plain AFB update.
+    #[inline(never)]
+    fn afb_measured_step(&mut self, a_meas: impl FnOnce(&mut Self) -> PuPerS) {
+        let a = a_meas(self);
+        self.afb_step(a);
     }
 
     fn total_ref(&self) -> Pu {
