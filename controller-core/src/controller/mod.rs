@@ -86,6 +86,11 @@ pub struct Controller {
     /// The identification excitation, if any ([`Controller::with_excitation`]); none by
     /// default, and then every output is what it is without this feature.
     excitation: Option<Excitation>,
+    /// Whether `excitation` is set and enters at the torque reference (at the velocity
+    /// reference): decided when it is set, so a tick tests one flag instead of matching the
+    /// option and the injection point.
+    torque_excited: bool,
+    velocity_excited: bool,
     state: State,
 }
 
@@ -121,6 +126,8 @@ impl Controller {
             gains: *gains,
             coef: Coefficients::from_gains(gains)?,
             excitation: None,
+            torque_excited: false,
+            velocity_excited: false,
             state: State::default(),
         })
     }
@@ -163,6 +170,8 @@ impl Controller {
             Injection::VelocityReference => c.velocity_rate_hz,
         };
         self.excitation = Some(Excitation::new(cfg, rate_hz as f32, names)?);
+        self.torque_excited = cfg.injection == Injection::TorqueReference;
+        self.velocity_excited = cfg.injection == Injection::VelocityReference;
         self.state.excitation = ExcitationState::default();
         self.state.excitation_pu = Pu::ZERO;
         Ok(self)
@@ -179,8 +188,12 @@ impl Controller {
     /// latched), recorded as the latest; zero otherwise.
     #[inline(always)]
     fn excite(&mut self, at: Injection) -> Pu {
+        let here = match at {
+            Injection::TorqueReference => self.torque_excited,
+            Injection::VelocityReference => self.velocity_excited,
+        };
         match self.excitation {
-            Some(e) if e.injection() == at => {
+            Some(e) if here => {
                 let v = if self.state.fault.is_none() {
                     e.next(&mut self.state.excitation)
                 } else {
@@ -196,9 +209,10 @@ impl Controller {
     /// The torque-reference excitation of this current tick (zero unless it enters there).
     #[inline(always)]
     fn torque_excitation(&self) -> Pu {
-        match self.excitation {
-            Some(e) if e.injection() == Injection::TorqueReference => self.state.excitation_pu,
-            _ => Pu::ZERO,
+        if self.torque_excited {
+            self.state.excitation_pu
+        } else {
+            Pu::ZERO
         }
     }
 
