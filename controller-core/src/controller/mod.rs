@@ -192,8 +192,11 @@ impl Controller {
             Injection::TorqueReference => self.torque_excited,
             Injection::VelocityReference => self.velocity_excited,
         };
+        if !here {
+            return Pu::ZERO;
+        }
         match self.excitation {
-            Some(e) if here => {
+            Some(e) => {
                 let v = if self.state.fault.is_none() {
                     e.next(&mut self.state.excitation)
                 } else {
@@ -202,7 +205,7 @@ impl Controller {
                 self.state.excitation_pu = v;
                 v
             }
-            _ => Pu::ZERO,
+            None => Pu::ZERO,
         }
     }
 
