@@ -2,9 +2,11 @@
 //! keeps one. It records continuously into a ring (pre-trigger history); a trigger (a dump
 //! request or a fault) lets it run on for a set number of post-trigger samples and then
 //! freezes it, so the dump shows what led up to the event and what followed. No heap: the
-//! ring is a `heapless::HistoryBuffer` of `N` samples.
+//! ring is a `heapless::Deque` of `N` samples used as a history buffer (the oldest dropped
+//! when full): unlike `heapless::HistoryBuffer::write`, its pop and push carry no bounds
+//! check, so the interrupt that records has no panic path.
 
-use heapless::HistoryBuffer;
+use heapless::Deque;
 
 /// Number of signals captured per sample.
 pub const TRACE_CHANNELS: usize = 4;
@@ -147,7 +149,7 @@ pub struct TraceConfig {
 
 /// The trend buffer of `N` samples.
 pub struct TraceBuffer<const N: usize> {
-    ring: HistoryBuffer<TraceSample, N>,
+    ring: Deque<TraceSample, N>,
     config: TraceConfig,
     /// Ticks until the next stored sample (1..=decimation; counts down, so a tick that
     /// does not record only decrements it and compares with zero).
@@ -162,6 +164,8 @@ impl<const N: usize> TraceBuffer<N> {
     /// # Errors
     /// [`TraceConfigError`] naming the out-of-range setting.
     pub fn new(config: TraceConfig) -> Result<Self, TraceConfigError> {
+        // A ring of no samples is refused when it is compiled (heapless' deque needs N > 0).
+        const { assert!(N > 0, "a trend buffer holds at least one sample") };
         if config.decimation == 0 || config.decimation > 1000 {
             return Err(TraceConfigError::Decimation);
         }
@@ -169,7 +173,7 @@ impl<const N: usize> TraceBuffer<N> {
             return Err(TraceConfigError::PostTrigger);
         }
         Ok(Self {
-            ring: HistoryBuffer::new(),
+            ring: Deque::new(),
             config,
             countdown: config.decimation,
             state: TraceState::Armed,
@@ -220,7 +224,11 @@ impl<const N: usize> TraceBuffer<N> {
         for (value, signal) in values.iter_mut().zip(self.config.channels.iter()) {
             *value = signals.get(*signal);
         }
-        self.ring.write(TraceSample { tick, values });
+        if self.ring.is_full() {
+            let _ = self.ring.pop_front();
+        }
+        // Not full now, so the push succeeds.
+        let _ = self.ring.push_back(TraceSample { tick, values });
         if let TraceState::PostTrigger { remaining, cause } = self.state {
             let remaining = remaining.saturating_sub(1);
             self.state = if remaining == 0 {
@@ -276,7 +284,7 @@ impl<const N: usize> TraceBuffer<N> {
 
     /// The stored samples, oldest first.
     pub fn samples(&self) -> impl Iterator<Item = &TraceSample> + '_ {
-        self.ring.oldest_ordered()
+        self.ring.iter()
     }
 
     /// Empty the ring and arm again (after a dump).
@@ -338,6 +346,25 @@ mod tests {
         assert_eq!(ticks, vec![14, 16, 18, 20]);
         let first = trace.sample(0).unwrap();
         assert_eq!(first.values, [42, -14, 0, 7]);
+    }
+
+    /// The ring before and after it wraps: `sample(i)` is the i-th oldest, past the end
+    /// `None`, and `len` counts up to N.
+    #[test]
+    fn ring_keeps_age_order_across_the_wrap() {
+        let mut trace = TraceBuffer::<3>::new(config(1, 0)).unwrap();
+        assert!(trace.is_empty());
+        for k in 0..7u32 {
+            trace.record(k, &snapshot(k));
+            let ticks: Vec<u32> = trace.samples().map(|s| s.tick).collect();
+            let first = k.saturating_sub(2);
+            assert_eq!(ticks, (first..=k).collect::<Vec<_>>());
+            assert_eq!(trace.len(), ticks.len());
+            for (i, t) in ticks.iter().enumerate() {
+                assert_eq!(trace.sample(i).unwrap().tick, *t);
+            }
+            assert_eq!(trace.sample(ticks.len()), None);
+        }
     }
 
     #[test]

@@ -315,12 +315,21 @@ impl embedded_hal::pwm::SetDutyCycle for VirtualPwm {
             0.0
         };
         self.motor.step(voltage_pu);
-        MOTOR_CURRENT_BITS.store(
-            Pu::saturating_from_num(self.motor.current_pu()).to_bits(),
-            Ordering::Relaxed,
-        );
+        MOTOR_CURRENT_BITS.store(pu_bits(self.motor.current_pu()), Ordering::Relaxed);
         MOTOR_COUNTS.store(self.motor.counts(), Ordering::Relaxed);
         Ok(())
+    }
+}
+
+/// `x` as raw Q16.16 bits, saturated at the range ends, 0 for NaN (a diverged model): what
+/// `Pu::saturating_from_num` gives for every other value, without its panic on NaN (this
+/// runs in the current-loop interrupt).
+fn pu_bits(x: f32) -> i32 {
+    match Pu::checked_from_num(x) {
+        Some(v) => v.to_bits(),
+        None if x > 0.0 => i32::MAX,
+        None if x < 0.0 => i32::MIN,
+        None => 0,
     }
 }
 
