@@ -9,7 +9,7 @@
 //!   it only around the core's `velocity_tick` (one call: the core keeps both loops' state
 //!   in one `Controller`), so the current loop is held off for at most that call
 //!   (`cargo fw-bench` prints it as "controller-core alone: Controller::velocity_tick":
-//!   ≈ 350 instructions, ≈ 2 µs at 168 MHz, against a 250 µs period; with the two timers
+//!   ≈ 300 instructions, ≈ 2 µs at 168 MHz, against a 250 µs period; with the two timers
 //!   aligned the current tick has always run first, so in practice it never waits);
 //! * the velocity loop's own I/O and profile live in a [`TaskLocal`], touched by the
 //!   velocity interrupt only, so reading them and computing the next setpoint run with the
