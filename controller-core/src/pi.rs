@@ -145,6 +145,7 @@ impl PiCoefficients {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::indexing_slicing)]
     use super::{PiCoefficients, PiState};
     use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, TickGain};
     use fixed::types::I32F32;
