@@ -156,6 +156,19 @@ impl AccelerationFeedback {
         c: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
     ) -> Pu {
+        self.update_closed_torque(s, p, c, predict).0
+    }
+
+    /// [`AccelerationFeedback::update_closed_from`], returning with the AFB term the torque
+    /// T = clamp(p + afb, ±|limit|) the filter step was completed with.
+    #[inline(always)]
+    pub fn update_closed_torque(
+        &self,
+        s: &mut LowPassState,
+        p: Pu,
+        c: PuPerS,
+        predict: impl Fn(Pu) -> PuPerS,
+    ) -> (Pu, Pu) {
         // One branch on the filter kind: inside each arm the kind is a constant, so the
         // filter's own dispatch in begin, add_feedthrough and finish folds away.
         match self.filter {
@@ -174,7 +187,7 @@ impl AccelerationFeedback {
         p: Pu,
         c: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
-    ) -> Pu {
+    ) -> (Pu, Pu) {
         let lim = Pu::from_bits(self.limit.to_bits().saturating_abs());
         // afb = g·Ka·(h + b0·x(P)): h and b0·x in Q.46 (Q16.16 · Q2.30), rounded to Q16.16,
         // times g·Ka (Q16.16).
@@ -186,6 +199,6 @@ impl AccelerationFeedback {
         // Complete the filter step with the input for the torque actually applied.
         let t = p.saturating_add(afb).max(-lim).min(lim);
         filter.finish(s, h46, c.saturating_sub(predict(t)));
-        afb
+        (afb, t)
     }
 }

@@ -91,6 +91,10 @@ pub struct Controller {
     /// option and the injection point.
     torque_excited: bool,
     velocity_excited: bool,
+    /// Whether the closed-form AFB step's clamped torque is the total torque reference
+    /// itself (see [`Controller::closed_total_exact`]): decided at configuration and when an
+    /// excitation is set, so the current tick does not add and clamp the same sum twice.
+    closed_total: bool,
     state: State,
 }
 
@@ -122,14 +126,29 @@ impl Controller {
     /// assert_eq!(c.gains(), &g);
     /// ```
     pub fn from_gains(gains: &Gains) -> Result<Self, ConfigError> {
+        let coef = Coefficients::from_gains(gains)?;
         Ok(Self {
             gains: *gains,
-            coef: Coefficients::from_gains(gains)?,
+            closed_total: Self::closed_total_exact(&coef, false),
+            coef,
             excitation: None,
             torque_excited: false,
             velocity_excited: false,
             state: State::default(),
         })
+    }
+
+    /// Whether the torque `t` the closed-form AFB step forms, t = clamp(p + afb, ±|lim|)
+    /// with p = i_vel + r, is bit for bit [`Controller::total_ref`] =
+    /// clamp((i_vel + afb) + r, ±torque_limit) (saturating adds) on a tick without a fault:
+    /// * the AFB's limit is the torque limit (`accel_feedback(g, lim)`), so the clamps are
+    ///   the same when torque_limit ≥ 0 (|lim| = lim; a hand-made negative limit is refused
+    ///   here, and 0 clamps both to 0);
+    /// * without a torque-reference excitation r = 0, and (i_vel + 0) + afb = (i_vel + afb)
+    ///   + 0 with saturating adds too. With one, the two orders of the saturating adds could
+    ///   differ at the i32 bounds, so the tick then forms the sum again.
+    fn closed_total_exact(coef: &Coefficients, torque_excited: bool) -> bool {
+        coef.afb.limit == coef.torque_limit && coef.torque_limit >= Pu::ZERO && !torque_excited
     }
 
     /// The same controller with an excitation for measuring the machine (a chirp or a
@@ -172,6 +191,7 @@ impl Controller {
         self.excitation = Some(Excitation::new(cfg, rate_hz as f32, names)?);
         self.torque_excited = cfg.injection == Injection::TorqueReference;
         self.velocity_excited = cfg.injection == Injection::VelocityReference;
+        self.closed_total = Self::closed_total_exact(&self.coef, self.torque_excited);
         self.state.excitation = ExcitationState::default();
         self.state.excitation_pu = Pu::ZERO;
         Ok(self)
@@ -298,37 +318,47 @@ impl Controller {
     /// Acceleration-feedback step with the observer's acceleration, the loop through its
     /// model solved in closed form for the torque reference `i_vel` + afb; `c` is the
     /// command part of the filter input (0 in the plain form, a_cmd in the error form).
+    /// Returns the clamped torque the step completed its filter with (`None` when faulted:
+    /// the step did not run).
     #[inline(always)]
-    fn afb_closed_step(&mut self, c: PuPerS) {
+    fn afb_closed_step(&mut self, c: PuPerS) -> Option<Pu> {
         if self.state.fault.is_none() {
             let obs = &self.coef.observer;
             let os = &self.state.observer;
             let base = self.state.i_vel.saturating_add(self.torque_excitation());
-            self.state.afb =
+            let (afb, t) =
                 self.coef
                     .afb
-                    .update_closed_from(&mut self.state.afb_filter, base, c, |t| {
+                    .update_closed_torque(&mut self.state.afb_filter, base, c, |t| {
                         obs.predicted_acceleration_pu_s(os, t)
                     });
+            self.state.afb = afb;
+            Some(t)
+        } else {
+            None
         }
     }
 
     /// The AFB step `step` of a tick; `a_meas` is that tick's differentiated acceleration
     /// (used by [`AfbStep::Measured`] only).
     /// The closed form (the default) is inlined into the tick once, for both forms; the
-    /// measured step runs out of line.
+    /// measured step runs out of line. Returns the closed-form step's clamped torque (`None`
+    /// for the other steps, or when faulted).
     #[inline(always)]
-    fn run_afb(&mut self, step: AfbStep, a_meas: impl FnOnce(&mut Self) -> PuPerS) {
+    fn run_afb(&mut self, step: AfbStep, a_meas: impl FnOnce(&mut Self) -> PuPerS) -> Option<Pu> {
         match step {
-            AfbStep::None => {}
-            AfbStep::Measured => self.afb_measured_step(a_meas),
+            AfbStep::None => None,
+            AfbStep::Measured => {
+                self.afb_measured_step(a_meas);
+                None
+            }
             AfbStep::ClosedPlain | AfbStep::ClosedError => {
                 let c = if step == AfbStep::ClosedError {
                     self.state.accel_cmd
                 } else {
                     PuPerS::ZERO
                 };
-                self.afb_closed_step(c);
+                self.afb_closed_step(c)
             }
         }
     }
@@ -356,10 +386,14 @@ impl Controller {
 
     /// The torque reference of a current tick: [`Self::total_ref`] through the notch and
     /// clamped again, advancing the notch's state; without a notch (or when faulted),
-    /// `total_ref` itself.
+    /// `total_ref` itself. `closed` is the closed-form AFB step's torque of this tick, if
+    /// it ran: `total_ref` itself when [`Self::closed_total_exact`] held.
     #[inline(always)]
-    fn notched_ref(&mut self) -> Pu {
-        let t = self.total_ref();
+    fn notched_ref(&mut self, closed: Option<Pu>) -> Pu {
+        let t = match closed {
+            Some(t) if self.closed_total => t,
+            _ => self.total_ref(),
+        };
         match self.coef.notch {
             Some(n) if self.state.fault.is_none() => {
                 let lim = self.coef.torque_limit;
@@ -397,13 +431,13 @@ impl Controller {
             .observer
             .update(&mut self.state.observer, position, torque);
         // The current-rate differentiator runs only when it feeds the AFB here.
-        self.run_afb(self.coef.afb_current, |c| {
+        let closed = self.run_afb(self.coef.afb_current, |c| {
             c.coef
                 .diff_current_rate
                 .update(&mut c.state.diff_current_rate, position)
                 .1
         });
-        let i_ref = self.notched_ref();
+        let i_ref = self.notched_ref(closed);
         self.state.current_ref = i_ref;
         let e = i_ref.saturating_sub(inp.current_pu);
         let v = self
@@ -516,7 +550,7 @@ impl Controller {
                 ff,
                 self.state.afb,
             );
-            self.run_afb(self.coef.afb_velocity, |_| a_est);
+            let _ = self.run_afb(self.coef.afb_velocity, |_| a_est);
         }
         VelocityOutputs {
             current_ref_pu: self.total_ref(),
@@ -528,5 +562,107 @@ impl Controller {
             disturbance_est_pu: disturbance,
             fault: self.state.fault,
         }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::indexing_slicing, clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::config::AfbMode;
+
+    fn drive() -> DriveConfig {
+        toml::from_str(include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/doc/example-drive.toml"
+        )))
+        .unwrap()
+    }
+
+    /// The current tick with the closed-form AFB step's torque taken as the total torque
+    /// reference equals the tick that forms the sum again (`total_ref`), bit for bit, on
+    /// inputs that drive the references into the torque limit both ways.
+    #[test]
+    fn closed_form_torque_is_the_total_reference() {
+        for mode in [AfbMode::Plain, AfbMode::Error] {
+            let mut cfg = drive();
+            cfg.accel_feedback.mode = mode;
+            let fast = Controller::new(&cfg).unwrap();
+            assert!(fast.closed_total, "{mode:?}");
+            let mut general = fast;
+            general.closed_total = false;
+            let mut fast = fast;
+            let (mut raw, mut seed, mut at_limit) = (0u32, 12345u32, 0u32);
+            for k in 0..20_000u32 {
+                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                // Position swinging by up to ±40 counts a tick around a ramp, current noise.
+                let step = ((seed >> 8) % 81) as i32 - 40 + if k % 4000 < 2000 { 9 } else { -9 };
+                raw = raw.wrapping_add_signed(step);
+                let current = Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18));
+                let ci = CurrentInputs {
+                    encoder_count: raw,
+                    current_pu: current,
+                };
+                let out = fast.current_tick(ci);
+                assert_eq!(out, general.current_tick(ci), "{mode:?} {k}");
+                if out.current_ref_pu.abs() == fast.coef.torque_limit {
+                    at_limit += 1;
+                }
+                if k % 2 == 0 {
+                    let vi = VelocityInputs {
+                        encoder_count: raw,
+                        setpoint: Setpoint {
+                            acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),
+                            ..Setpoint::default()
+                        },
+                        fault_input: false,
+                    };
+                    assert_eq!(fast.velocity_tick(vi), general.velocity_tick(vi));
+                }
+                if fast.fault().is_some() {
+                    fast.reset();
+                    general.reset();
+                }
+            }
+            assert!(
+                at_limit > 100,
+                "{mode:?}: {at_limit} ticks at the torque limit"
+            );
+        }
+    }
+
+    /// A torque-reference excitation (two orders of the saturating adds) or a negative
+    /// hand-made limit turns the shortcut off.
+    #[test]
+    fn closed_form_torque_shortcut_is_off_where_it_may_differ() {
+        use crate::excitation::{ExcitationConfig, ExcitationParams, Waveform};
+        let c = Controller::new(&drive()).unwrap();
+        let names = ExcitationParams {
+            amplitude_pu: "a",
+            start_or_bits: "b",
+            end_or_hold: "h",
+            duration_or_periods: "p",
+        };
+        let e = |injection| ExcitationConfig {
+            waveform: Waveform::Prbs {
+                bits: 7,
+                hold_ticks: 1,
+                periods: 1,
+            },
+            amplitude_pu: 0.1,
+            injection,
+        };
+        let t = c
+            .with_excitation(&e(Injection::TorqueReference), names)
+            .unwrap();
+        assert!(!t.closed_total);
+        let v = c
+            .with_excitation(&e(Injection::VelocityReference), names)
+            .unwrap();
+        assert!(v.closed_total);
+        let mut coef = c.coef;
+        coef.torque_limit = -coef.torque_limit;
+        coef.afb.limit = coef.torque_limit;
+        assert!(!Controller::closed_total_exact(&coef, false));
     }
 }
