@@ -109,7 +109,7 @@ impl Observer {
     /// o.update(&mut s, 0, Pu::ZERO);
     /// assert_eq!(o.estimate(&s).velocity_pu, Pu::ZERO);
     /// ```
-    #[inline]
+    #[inline(always)]
     pub fn update(&self, s: &mut ObserverState, position_counts: i64, torque_pu: Pu) {
         let p_meas = position_counts.wrapping_shl(32);
         if !s.primed {
