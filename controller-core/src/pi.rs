@@ -52,7 +52,7 @@ impl PiCoefficients {
     /// ```
     #[inline]
     pub fn update(&self, state: &mut PiState, e: Pu, ff: Pu) -> Pu {
-        self.update_with_offset(state, e, ff, Pu::ZERO)
+        self.step::<true>(state, e, ff, Pu::ZERO)
     }
 
     /// As [`PiCoefficients::update`], with the anti-windup decision taken on
@@ -72,6 +72,14 @@ impl PiCoefficients {
     /// ```
     #[inline(always)]
     pub fn update_with_offset(&self, state: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
+        self.step::<false>(state, e, ff, offset)
+    }
+
+    /// [`PiCoefficients::update_with_offset`]; `ZERO_OFFSET` when the caller passes an offset
+    /// of 0 ([`PiCoefficients::update`]), whose clamp to ±limit (limit ≥ 0) is 0 itself, so
+    /// the 32-bit form leaves it out.
+    #[inline(always)]
+    fn step<const ZERO_OFFSET: bool>(&self, state: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
         // |limit| so a negative limit in hand-made coefficients cannot invert the clamp.
         let limit = self.limit.to_bits().saturating_abs();
         // Integral increment in Q.40 (Q16.16 · Q8.24) → Q.32.
@@ -96,7 +104,11 @@ impl PiCoefficients {
             let i_next = self.integrate(i_now, inc, limit, pushing_out);
             state.integral = I32F32::from_bits(i_next);
             let u = p + ff + (i_next >> 16) as i32;
-            let off = offset.max(-limit).min(limit);
+            let off = if ZERO_OFFSET {
+                0
+            } else {
+                offset.max(-limit).min(limit)
+            };
             let u_clamped = u.max(-limit - off).min(limit - off);
             state.saturated = u_clamped != u;
             return Pu::from_bits(u_clamped);
@@ -233,6 +245,49 @@ mod tests {
                 (ua, a),
                 (ub, b),
                 "{c:?} {s0:?} e {e:?} ff {ff:?} off {off:?}"
+            );
+        }
+    }
+
+    /// `update` (the zero-offset form, its offset clamp left out) equals
+    /// `update_with_offset` with a zero offset.
+    #[test]
+    fn update_equals_a_zero_offset() {
+        let mut x = 0x9E37_79B9_7F4A_7C15_u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for k in 0..200_000u32 {
+            let pick = |v: u64| -> i32 {
+                match (v >> 60) % 4 {
+                    0 => [0, 1, -1, 1 << 29, -(1 << 29), i32::MAX, i32::MIN][(v % 7) as usize],
+                    1 => (v as i32) >> 2,
+                    2 => (v as i32) >> 12,
+                    _ => v as i32,
+                }
+            };
+            let c = PiCoefficients {
+                kp: Gain::from_bits(pick(next())),
+                ki_ts: TickGain::from_bits(pick(next())),
+                limit: Pu::from_bits(pick(next())),
+            };
+            let (e, ff) = (Pu::from_bits(pick(next())), Pu::from_bits(pick(next())));
+            let s0 = PiState {
+                integral: I32F32::from_bits(if k % 2 == 0 {
+                    i64::from(pick(next())) << 16
+                } else {
+                    (next() as i64) >> 17
+                }),
+                saturated: k % 3 == 0,
+            };
+            let (mut a, mut b) = (s0, s0);
+            assert_eq!(
+                (c.update(&mut a, e, ff), a),
+                (c.update_with_offset(&mut b, e, ff, Pu::ZERO), b),
+                "{c:?} {s0:?} e {e:?} ff {ff:?}"
             );
         }
     }
