@@ -502,6 +502,7 @@ impl Controller {
     /// let out = c.velocity_tick(VelocityInputs::default());
     /// assert!(out.fault.is_none());
     /// ```
+    #[inline(always)]
     pub fn velocity_tick(&mut self, inp: VelocityInputs) -> VelocityOutputs {
         self.read_encoder(inp.encoder_count);
         if inp.fault_input {
