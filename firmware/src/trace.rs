@@ -52,6 +52,9 @@ impl TraceSignal {
 
 /// One value of every traceable signal at one tick, raw (see [`TraceSignal`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+// In the order of `TraceSignal`, laid out as written: `words` is then the struct's own memory,
+// and a channel a load at its index.
+#[repr(C)]
 pub struct SignalSnapshot {
     /// Encoder count [counts].
     pub encoder_counts: u32,
@@ -72,6 +75,23 @@ pub struct SignalSnapshot {
 }
 
 impl SignalSnapshot {
+    /// Every signal as a word, indexed by `TraceSignal as usize`: `words()[s as usize]` is
+    /// `get(s)` (tested), so the store picks a channel with one indexed load instead of a
+    /// jump table.
+    #[inline(always)]
+    pub const fn words(&self) -> [i32; 8] {
+        [
+            self.encoder_counts as i32,
+            self.current_pu,
+            self.current_ref_pu,
+            self.voltage_cmd_pu,
+            self.accel_fb_pu,
+            self.velocity_setpoint_pu,
+            self.position_setpoint_counts,
+            self.fault_code,
+        ]
+    }
+
     /// The raw value of one signal.
     pub const fn get(&self, signal: TraceSignal) -> i32 {
         match signal {
@@ -221,8 +241,10 @@ impl<const N: usize> TraceBuffer<N> {
     #[inline(never)]
     fn store(&mut self, tick: u32, signals: &SignalSnapshot) {
         let mut values = [0_i32; TRACE_CHANNELS];
+        let words = signals.words();
         for (value, signal) in values.iter_mut().zip(self.config.channels.iter()) {
-            *value = signals.get(*signal);
+            // A `TraceSignal` is below 8, so `get` always finds the word (no branch left).
+            *value = words.get(*signal as usize).copied().unwrap_or(0);
         }
         if self.ring.is_full() {
             let _ = self.ring.pop_front();
@@ -311,6 +333,36 @@ mod tests {
             decimation,
             post_trigger,
         }
+    }
+
+    /// `words()[s as usize]` is `get(s)` for every signal: the store's indexed pick is the
+    /// named field.
+    #[test]
+    fn words_are_indexed_by_signal() {
+        let all = [
+            TraceSignal::EncoderCounts,
+            TraceSignal::CurrentPu,
+            TraceSignal::CurrentRefPu,
+            TraceSignal::VoltageCmdPu,
+            TraceSignal::AccelFbPu,
+            TraceSignal::VelocitySetpointPu,
+            TraceSignal::PositionSetpointCounts,
+            TraceSignal::FaultCode,
+        ];
+        let s = SignalSnapshot {
+            encoder_counts: 0xFFFF_FFF0,
+            current_pu: 2,
+            current_ref_pu: -3,
+            voltage_cmd_pu: 4,
+            accel_fb_pu: -5,
+            velocity_setpoint_pu: 6,
+            position_setpoint_counts: -7,
+            fault_code: 8,
+        };
+        for signal in all {
+            assert_eq!(s.words()[signal as usize], s.get(signal), "{signal:?}");
+        }
+        assert_eq!(s.words().len(), all.len());
     }
 
     fn snapshot(k: u32) -> SignalSnapshot {
