@@ -219,7 +219,7 @@ impl<const N: usize> TraceBuffer<N> {
 
     /// As [`TraceBuffer::record`], building the snapshot only on the ticks that store one.
     /// The test for those is inlined into the interrupt (a decrement of the countdown and a compare with zero);
-    /// the snapshot and the store run only on every `decimation`-th tick, out of line.
+    /// the snapshot and the store run only on every `decimation`-th tick.
     #[inline(always)]
     pub fn record_with(&mut self, tick: u32, signals: impl FnOnce() -> SignalSnapshot) {
         // A tick that does not record: one decrement and a compare with zero. The frozen
@@ -238,7 +238,7 @@ impl<const N: usize> TraceBuffer<N> {
     }
 
     /// Store one sample of the chosen channels and count down the post-trigger samples.
-    #[inline(never)]
+    #[inline(always)]
     fn store(&mut self, tick: u32, signals: &SignalSnapshot) {
         let mut values = [0_i32; TRACE_CHANNELS];
         let words = signals.words();
