@@ -156,25 +156,36 @@ impl AccelerationFeedback {
         c: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
     ) -> Pu {
-        self.update_closed_torque(s, p, c, predict).0
+        self.update_closed_torque(s, p, c, predict, self.abs_limit())
+            .0
+    }
+
+    /// |limit| from the raw bits: the same value as `Pu::saturating_abs`, in fewer
+    /// instructions (a conditional saturating subtract).
+    #[inline(always)]
+    pub(crate) fn abs_limit(&self) -> Pu {
+        Pu::from_bits(self.limit.to_bits().saturating_abs())
     }
 
     /// [`AccelerationFeedback::update_closed_from`], returning with the AFB term the torque
-    /// T = clamp(p + afb, ±|limit|) the filter step was completed with.
+    /// T = clamp(p + afb, ±|limit|) the filter step was completed with; `lim` is
+    /// [`AccelerationFeedback::abs_limit`], resolved by the caller (the controller, at
+    /// configuration).
     #[inline(always)]
-    pub fn update_closed_torque(
+    pub(crate) fn update_closed_torque(
         &self,
         s: &mut LowPassState,
         p: Pu,
         c: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
+        lim: Pu,
     ) -> (Pu, Pu) {
         // One branch on the filter kind: inside each arm the kind is a constant, so the
         // filter's own dispatch in begin, add_feedthrough and finish folds away.
         match self.filter {
-            f @ LowPass::None => self.closed_step(f, s, p, c, predict),
-            f @ LowPass::FirstOrder { .. } => self.closed_step(f, s, p, c, predict),
-            f @ LowPass::SecondOrder { .. } => self.closed_step(f, s, p, c, predict),
+            f @ LowPass::None => self.closed_step(f, s, p, c, predict, lim),
+            f @ LowPass::FirstOrder { .. } => self.closed_step(f, s, p, c, predict, lim),
+            f @ LowPass::SecondOrder { .. } => self.closed_step(f, s, p, c, predict, lim),
         }
     }
 
@@ -187,8 +198,8 @@ impl AccelerationFeedback {
         p: Pu,
         c: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
+        lim: Pu,
     ) -> (Pu, Pu) {
-        let lim = Pu::from_bits(self.limit.to_bits().saturating_abs());
         // afb = g·Ka·(h + b0·x(P)): h and b0·x in Q.46 (Q16.16 · Q2.30), rounded to Q16.16,
         // times g·Ka (Q16.16).
         let (h46, _) = filter.begin(s);

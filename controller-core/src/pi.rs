@@ -52,7 +52,35 @@ impl PiCoefficients {
     /// ```
     #[inline]
     pub fn update(&self, state: &mut PiState, e: Pu, ff: Pu) -> Pu {
-        self.step::<true>(state, e, ff, Pu::ZERO)
+        self.step::<true>(state, e, ff, Pu::ZERO, self.abs_limit())
+    }
+
+    /// |limit| as raw bits (saturating): a negative limit in hand-made coefficients cannot
+    /// invert the clamp.
+    #[inline(always)]
+    pub(crate) fn abs_limit(&self) -> i32 {
+        self.limit.to_bits().saturating_abs()
+    }
+
+    /// [`PiCoefficients::update`] with `abs_limit` = [`PiCoefficients::abs_limit`] resolved
+    /// by the caller once, at configuration (the controller's ticks).
+    #[inline(always)]
+    pub(crate) fn update_within(&self, state: &mut PiState, e: Pu, ff: Pu, abs_limit: i32) -> Pu {
+        self.step::<true>(state, e, ff, Pu::ZERO, abs_limit)
+    }
+
+    /// [`PiCoefficients::update_with_offset`] with `abs_limit` =
+    /// [`PiCoefficients::abs_limit`] resolved by the caller once, at configuration.
+    #[inline(always)]
+    pub(crate) fn update_with_offset_within(
+        &self,
+        state: &mut PiState,
+        e: Pu,
+        ff: Pu,
+        offset: Pu,
+        abs_limit: i32,
+    ) -> Pu {
+        self.step::<false>(state, e, ff, offset, abs_limit)
     }
 
     /// As [`PiCoefficients::update`], with the anti-windup decision taken on
@@ -72,16 +100,24 @@ impl PiCoefficients {
     /// ```
     #[inline(always)]
     pub fn update_with_offset(&self, state: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
-        self.step::<false>(state, e, ff, offset)
+        self.step::<false>(state, e, ff, offset, self.abs_limit())
     }
 
     /// [`PiCoefficients::update_with_offset`]; `ZERO_OFFSET` when the caller passes an offset
     /// of 0 ([`PiCoefficients::update`]), whose clamp to ±limit (limit ≥ 0) is 0 itself, so
     /// the 32-bit form leaves it out.
     #[inline(always)]
-    fn step<const ZERO_OFFSET: bool>(&self, state: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
-        // |limit| so a negative limit in hand-made coefficients cannot invert the clamp.
-        let limit = self.limit.to_bits().saturating_abs();
+    fn step<const ZERO_OFFSET: bool>(
+        &self,
+        state: &mut PiState,
+        e: Pu,
+        ff: Pu,
+        offset: Pu,
+        abs_limit: i32,
+    ) -> Pu {
+        // |limit| (`abs_limit`), so a negative limit in hand-made coefficients cannot invert
+        // the clamp.
+        let limit = abs_limit;
         // Integral increment in Q.40 (Q16.16 · Q8.24) → Q.32.
         let inc = (i64::from(e.to_bits()) * i64::from(self.ki_ts.to_bits()) + (1 << 7)) >> 8;
         let p = mul_gain(e, self.kp).to_bits();

@@ -43,6 +43,11 @@ pub(super) struct Coefficients {
     /// The velocity-rate differentiator is used (velocity or acceleration source).
     pub(super) diff_in_velocity_tick: bool,
     pub(super) torque_limit: Pu,
+    /// |limit| of the AFB, the current and the velocity regulator (raw, saturating),
+    /// resolved here so the ticks do not take it again.
+    pub(super) afb_limit_abs: Pu,
+    pub(super) current_limit_abs: i32,
+    pub(super) velocity_limit_abs: i32,
     /// |overspeed| as raw Q16.16 bits (the tick compares magnitudes).
     pub(super) overspeed_abs: u32,
     /// |following error limit| as raw Q24.8 bits.
@@ -236,6 +241,9 @@ impl Coefficients {
             diff_in_velocity_tick: cfg.velocity_estimator == Estimator::Differentiation
                 || cfg.accel_feedback.source == Estimator::Differentiation,
             torque_limit: lim,
+            afb_limit_abs: afb.abs_limit(),
+            current_limit_abs: current_regulator.abs_limit(),
+            velocity_limit_abs: velocity_regulator.abs_limit(),
             overspeed_abs: quantize::<Pu>(cfg.faults.overspeed_pu, "faults.overspeed_pu")?
                 .to_bits()
                 .unsigned_abs(),

@@ -326,12 +326,13 @@ impl Controller {
             let obs = &self.coef.observer;
             let os = &self.state.observer;
             let base = self.state.i_vel.saturating_add(self.torque_excitation());
-            let (afb, t) =
-                self.coef
-                    .afb
-                    .update_closed_torque(&mut self.state.afb_filter, base, c, |t| {
-                        obs.predicted_acceleration_pu_s(os, t)
-                    });
+            let (afb, t) = self.coef.afb.update_closed_torque(
+                &mut self.state.afb_filter,
+                base,
+                c,
+                |t| obs.predicted_acceleration_pu_s(os, t),
+                self.coef.afb_limit_abs,
+            );
             self.state.afb = afb;
             Some(t)
         } else {
@@ -440,10 +441,12 @@ impl Controller {
         let i_ref = self.notched_ref(closed);
         self.state.current_ref = i_ref;
         let e = i_ref.saturating_sub(inp.current_pu);
-        let v = self
-            .coef
-            .current_regulator
-            .update(&mut self.state.current_regulator, e, Pu::ZERO);
+        let v = self.coef.current_regulator.update_within(
+            &mut self.state.current_regulator,
+            e,
+            Pu::ZERO,
+            self.coef.current_limit_abs,
+        );
         CurrentOutputs {
             voltage_cmd_pu: v,
             current_ref_pu: i_ref,
@@ -545,11 +548,12 @@ impl Controller {
             let ff = mul_gain(sp.acceleration_pu_s, self.coef.k_accel_ff);
             let e = v_cmd.saturating_sub(v_fb);
             // Anti-windup judged on the final torque reference (PI + AFB term held now).
-            self.state.i_vel = self.coef.velocity_regulator.update_with_offset(
+            self.state.i_vel = self.coef.velocity_regulator.update_with_offset_within(
                 &mut self.state.velocity_regulator,
                 e,
                 ff,
                 self.state.afb,
+                self.coef.velocity_limit_abs,
             );
             let _ = self.run_afb(self.coef.afb_velocity, |_| a_est);
         }
