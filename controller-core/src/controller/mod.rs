@@ -144,9 +144,10 @@ impl Controller {
     /// * the AFB's limit is the torque limit (`accel_feedback(g, lim)`), so the clamps are
     ///   the same when torque_limit ≥ 0 (|lim| = lim; a hand-made negative limit is refused
     ///   here, and 0 clamps both to 0);
-    /// * without a torque-reference excitation r = 0, and (i_vel + 0) + afb = (i_vel + afb)
-    ///   + 0 with saturating adds too. With one, the two orders of the saturating adds could
-    ///   differ at the i32 bounds, so the tick then forms the sum again.
+    /// * without a torque-reference excitation r = 0, and with saturating adds too
+    ///   (i_vel + 0) + afb equals (i_vel + afb) + 0. With one, the two orders of the
+    ///   saturating adds could differ at the i32 bounds, so the tick then forms the sum
+    ///   again.
     fn closed_total_exact(coef: &Coefficients, torque_excited: bool) -> bool {
         coef.afb.limit == coef.torque_limit && coef.torque_limit >= Pu::ZERO && !torque_excited
     }
