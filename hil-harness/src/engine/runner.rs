@@ -11,6 +11,7 @@
 //! the middle of each segment. Nothing depends on wall-clock time or threads, so a run is
 //! bit-for-bit repeatable.
 
+use crate::config::scenario::ScenarioSpec;
 use crate::config::RunConfig;
 use crate::engine::metrics::{compute, Metrics};
 use crate::engine::trace::{Trace, TraceRow};
@@ -18,7 +19,7 @@ use crate::error::{HarnessError, Result};
 use controller_core::{
     Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
 };
-use plant_host::TwoInertiaPlant;
+use plant_host::{FixedStep, TwoInertiaPlant};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -293,12 +294,91 @@ impl Timing {
     }
 }
 
+/// [`ScenarioSpec::load_torque_pu`] for the queries of a run, whose times move forward a
+/// fraction of a tick at a time: the steps' part from a cursor over their distinct times,
+/// sorted, instead of a scan of the list. Between two such times the steps at or before `t`
+/// are the same set, so the value is the scan's at the earlier time, bit for bit.
+struct LoadCursor<'a> {
+    spec: &'a ScenarioSpec,
+    /// The steps' distinct times, ascending, and the scan's value at each.
+    times: Vec<f64>,
+    values: Vec<f64>,
+    /// How many of `times` are at or before the last query.
+    at: usize,
+}
+
+impl<'a> LoadCursor<'a> {
+    fn new(spec: &'a ScenarioSpec) -> Self {
+        // A NaN time is never at or before a query: the scan skips it, and so does this.
+        let mut times: Vec<f64> = spec
+            .load
+            .iter()
+            .map(|s| s.t_s)
+            .filter(|t| !t.is_nan())
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        let values = times.iter().map(|&t| spec.load_step_pu(t)).collect();
+        Self {
+            spec,
+            times,
+            values,
+            at: 0,
+        }
+    }
+
+    /// The load torque at `t_s` (pu), as [`ScenarioSpec::load_torque_pu`] gives it.
+    #[inline]
+    fn torque_pu(&mut self, t_s: f64) -> f64 {
+        while self.times.get(self.at).is_some_and(|&b| b <= t_s) {
+            self.at += 1;
+        }
+        while let Some(before) = self.at.checked_sub(1) {
+            if self.times.get(before).is_some_and(|&b| b > t_s) {
+                self.at = before;
+            } else {
+                break;
+            }
+        }
+        let step = match self.at.checked_sub(1) {
+            Some(i) => self.values.get(i).copied().unwrap_or(0.0),
+            None => 0.0,
+        };
+        step + self.spec.load_sine_pu(t_s)
+    }
+}
+
+/// The plant's two sub-steps of a tick (the computational delay's remainder, then the rest
+/// of the tick), each checked and given its exact maps once.
+struct TickSteps {
+    delay: Option<FixedStep>,
+    rest: Option<FixedStep>,
+}
+
+impl TickSteps {
+    fn new(plant: &mut TwoInertiaPlant, tm: &Timing) -> Result<Self> {
+        let mut step = |dt_s: f64| -> Result<Option<FixedStep>> {
+            if dt_s > 0.0 {
+                let s = plant
+                    .fixed_step(dt_s)
+                    .map_err(crate::engine::plant::plant_error)?;
+                Ok(Some(s))
+            } else {
+                Ok(None)
+            }
+        };
+        let delay = step(tm.delay_s)?;
+        let rest = step(tm.tc_s - tm.delay_s)?;
+        Ok(Self { delay, rest })
+    }
+}
+
 /// The velocity tick at `t_s`, and the trace row of this instant.
 fn velocity_step<B: ControlBackend + ?Sized>(
     backend: &mut B,
     plant: &TwoInertiaPlant,
     cfg: &RunConfig,
-    tm: &Timing,
+    (tm, load): (&Timing, &mut LoadCursor),
     (t_s, encoder_count, voltage_pu): (f64, u32, f64),
 ) -> TraceRow {
     use crate::engine::plant::{counts, f, pu, pu_s};
@@ -328,7 +408,7 @@ fn velocity_step<B: ControlBackend + ?Sized>(
         current_pu: plant.current_pu(),
         accel_fb_pu: f(last_vel.accel_fb_pu),
         shaft_torque_pu: plant.shaft_torque_pu(),
-        load_torque_pu: scenario.load_torque_pu(t_s),
+        load_torque_pu: load.torque_pu(t_s),
         voltage_pu,
         accel_est_pu_s: f(last_vel.acceleration_est_pu_s),
         fault: if last_vel.fault.is_some() { 1.0 } else { 0.0 },
@@ -337,25 +417,28 @@ fn velocity_step<B: ControlBackend + ?Sized>(
 
 /// The plant over one current tick from `t_s`: the held voltage until the delayed command
 /// arrives, then the new one. Returns the voltage applied at the end of the tick.
+#[inline]
 fn plant_step(
     plant: &mut TwoInertiaPlant,
     delay_line: &mut DelayLine,
-    cfg: &RunConfig,
-    tm: &Timing,
+    (tm, steps, load): (&Timing, &TickSteps, &mut LoadCursor),
     (t_s, voltage_pu, command_pu): (f64, f64, f64),
 ) -> Result<f64> {
-    let load = |t: f64| cfg.scenario.load_torque_pu(t);
     let delay_s = tm.delay_s;
-    if delay_s > 0.0 {
+    if let Some(step) = &steps.delay {
         plant
-            .try_advance(delay_s, voltage_pu, load(t_s + 0.5 * delay_s))
+            .advance_fixed(step, voltage_pu, load.torque_pu(t_s + 0.5 * delay_s))
             .map_err(crate::engine::plant::plant_error)?;
     }
     let voltage_pu = delay_line.push(command_pu, voltage_pu);
-    let rest_s = tm.tc_s - delay_s;
-    if rest_s > 0.0 {
+    if let Some(step) = &steps.rest {
+        let rest_s = step.dt_s();
         plant
-            .try_advance(rest_s, voltage_pu, load(t_s + delay_s + 0.5 * rest_s))
+            .advance_fixed(
+                step,
+                voltage_pu,
+                load.torque_pu(t_s + delay_s + 0.5 * rest_s),
+            )
             .map_err(crate::engine::plant::plant_error)?;
     }
     Ok(voltage_pu)
@@ -385,9 +468,13 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     let tm = Timing::new(cfg, &plant, delay_line.remainder_s());
     let ticks = (cfg.scenario.duration_s * current_rate_hz).round() as u64;
     let mut rows = Vec::with_capacity((ticks / tm.ratio + 1) as usize);
+    let steps = TickSteps::new(&mut plant, &tm)?;
+    let mut load = LoadCursor::new(&cfg.scenario);
     let mut voltage_pu = 0.0;
     let start = Instant::now();
     let mut ticks_run = 0;
+    // Current ticks until the next velocity tick (k % ratio == 0).
+    let mut to_velocity_tick = 0;
     for k in 0..ticks {
         if backend.halted() {
             break;
@@ -396,10 +483,21 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
         let t_s = k as f64 * tm.tc_s;
         let encoder_count = ((plant.encoder_count() as u64) & tm.mask) as u32;
         let current_pu = plant.current_sample();
-        let velocity_tick = k % tm.ratio == 0;
+        let velocity_tick = to_velocity_tick == 0;
+        to_velocity_tick = if velocity_tick {
+            tm.ratio - 1
+        } else {
+            to_velocity_tick - 1
+        };
         if velocity_tick {
             let inputs = (t_s, encoder_count, voltage_pu);
-            rows.push(velocity_step(backend, &plant, cfg, &tm, inputs));
+            rows.push(velocity_step(
+                backend,
+                &plant,
+                cfg,
+                (&tm, &mut load),
+                inputs,
+            ));
         }
         let out = backend.current_tick(CurrentInputs {
             encoder_count,
@@ -414,7 +512,8 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
             excitation_pu: backend.excitation_pu(),
         });
         let step = (t_s, voltage_pu, f(out.voltage_cmd_pu));
-        voltage_pu = plant_step(&mut plant, &mut delay_line, cfg, &tm, step)?;
+        let fixed = (&tm, &steps, &mut load);
+        voltage_pu = plant_step(&mut plant, &mut delay_line, fixed, step)?;
         if let Some(row) = rows.last_mut().filter(|_| velocity_tick) {
             // Torque reference and AFB term as the current tick of this instant formed
             // them (the velocity tick's output plus the AFB path at the current rate).
