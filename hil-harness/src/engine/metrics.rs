@@ -125,36 +125,58 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
         (Some(a), Some(b)) => b.t_s - a.t_s,
         _ => 0.0,
     };
-    // Without a positive sample period there is no moving average: every ripple is 0.
-    let half = (dt > 0.0).then(|| ((w.ripple_average_s / dt) / 2.0).round().max(1.0) as usize);
     let mut pass = Pass::new(w);
+    // Without a positive sample period there is no moving average: every ripple is 0.
+    let Some(half) =
+        (dt > 0.0).then(|| ((w.ripple_average_s / dt) / 2.0).round().max(1.0) as usize)
+    else {
+        rows.iter().for_each(|r| pass.row(r));
+        pass.find_first_bad(rows);
+        return finish(&pass, rows);
+    };
     let mut prefix: Vec<[f64; HP_SIGNALS]> = Vec::with_capacity(len + 1);
     let mut acc = [0.0; HP_SIGNALS];
     prefix.push(acc);
-    for i in 0..len + half.unwrap_or(0) {
-        if let Some(r) = rows.get(i) {
-            pass.row(r);
-            for (a, v) in acc.iter_mut().zip(hp_inputs(r)) {
-                *a += v;
-            }
-            prefix.push(acc);
+    for (i, r) in rows.iter().enumerate() {
+        pass.row(r);
+        for (a, v) in acc.iter_mut().zip(hp_inputs(r)) {
+            *a += v;
         }
-        let Some(j) = half.and_then(|h| i.checked_sub(h)) else {
+        prefix.push(acc);
+        // Row j = i − half has its window now: rows (j − half)⁺ ..= i, the last just summed.
+        let Some(j) = i.checked_sub(half) else {
             continue;
         };
-        if let (Some(r), Some(h)) = (rows.get(j), half) {
-            // `centred` for the three signals, the window's two prefix rows fetched once.
-            let (lo, hi, n) = window(j, h, len);
-            let [below, upto] = [lo, hi].map(|k| prefix.get(k).copied().unwrap_or_default());
-            let x = hp_inputs(r);
-            let hp = core::array::from_fn(|s| {
-                let at = |p: &[f64; HP_SIGNALS]| p.get(s).copied().unwrap_or(0.0);
-                at(&x) - (at(&upto) - at(&below)) / n
-            });
-            pass.high_passed(r, hp);
+        if let Some(rj) = rows.get(j) {
+            let lo = j.saturating_sub(half);
+            let below = prefix.get(lo).copied().unwrap_or_default();
+            pass.high_passed(rj, centred_row(rj, below, acc, (i + 1 - lo) as f64));
         }
     }
+    // The last `half` rows: their windows end at the end of the trace.
+    for (j, rj) in rows.iter().enumerate().skip(len.saturating_sub(half)) {
+        let (lo, _, n) = window(j, half, len);
+        let below = prefix.get(lo).copied().unwrap_or_default();
+        pass.high_passed(rj, centred_row(rj, below, acc, n));
+    }
+    pass.find_first_bad(rows);
     finish(&pass, rows)
+}
+
+/// [`centred`] for the high-passed signals of row `r`, from the prefix sums below and at
+/// the top of its window, `n` samples long.
+#[inline]
+fn centred_row(
+    r: &TraceRow,
+    below: [f64; HP_SIGNALS],
+    upto: [f64; HP_SIGNALS],
+    n: f64,
+) -> [f64; HP_SIGNALS] {
+    let x = hp_inputs(r);
+    core::array::from_fn(|s| {
+        let at = |p: &[f64; HP_SIGNALS]| p.get(s).copied().unwrap_or(0.0);
+        at(&x) - (at(&upto) - at(&below)) / n
+    })
 }
 
 /// The metrics of a trace that holds non-finite values from `bad_t_s`. Max/min folds skip
