@@ -40,8 +40,10 @@ impl CurrentAdc {
     #[inline]
     pub fn code(&self, current_pu: f64) -> i32 {
         let c = round_i64(current_pu / self.lsb_pu);
-        // Inside the code range, so the narrowing cannot wrap.
-        c.clamp(i64::from(self.min_code), i64::from(self.max_code)) as i32
+        // Inside the code range, so the narrowing cannot wrap. `max` then `min` is `clamp`
+        // (min_code < max_code by construction) without its bounds check.
+        c.max(i64::from(self.min_code))
+            .min(i64::from(self.max_code)) as i32
     }
     /// The quantized current, pu.
     #[inline]
