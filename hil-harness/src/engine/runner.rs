@@ -408,13 +408,8 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
         to_velocity_tick = to_velocity_tick.checked_sub(1).unwrap_or(tm.ratio - 1);
         if velocity_tick {
             let inputs = (t_s, encoder_count, voltage_pu);
-            rows.push(velocity_step(
-                backend,
-                &plant,
-                cfg,
-                (&tm, &mut load),
-                inputs,
-            ));
+            let row = velocity_step(backend, &plant, cfg, (&tm, &mut load), inputs);
+            rows.push(row);
         }
         let out = backend.current_tick(CurrentInputs {
             encoder_count,
@@ -429,8 +424,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
             excitation_pu: backend.excitation_pu(),
         });
         let step = (t_s, voltage_pu, f(out.voltage_cmd_pu));
-        let fixed = (&tm, &steps, &mut load);
-        voltage_pu = plant_step(&mut plant, &mut delay_line, fixed, step)?;
+        voltage_pu = plant_step(&mut plant, &mut delay_line, (&tm, &steps, &mut load), step)?;
         if let Some(row) = rows.last_mut().filter(|_| velocity_tick) {
             // Torque reference and AFB term as the current tick of this instant formed
             // them (the velocity tick's output plus the AFB path at the current rate).
