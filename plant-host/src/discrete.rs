@@ -36,7 +36,7 @@ impl Discrete {
     /// Φ·x + Γ·u. Each state's sum runs over the eight terms left to right from −0.0, as
     /// `Iterator::sum` over a row does, so the result is bit for bit that of the row form;
     /// taking it column by column lets the five sums go two at a time.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn apply(&self, x: &Vec5, u: &Vec3) -> Vec5 {
         let z = [x.x, x.y, x.z, x.w, x.a, u.x, u.y, u.z];
         let mut acc = [-0.0; PADDED];
@@ -100,9 +100,14 @@ impl MapCache {
         self.step_slow(contact, key, h, x, u)
     }
 
-    #[cold]
-    fn step_slow(&mut self, contact: Contact, key: u64, h: f64, x: &Vec5, u: &Vec3) -> Vec5 {
-        let i = match self.keys.iter().position(|k| *k == key) {
+    /// The slot of step length `h` (> 0), claimed round robin if it has none. A caller that
+    /// repeats `h` keeps the slot and passes it to [`Self::step_in`], which skips the scan.
+    pub(crate) fn slot(&mut self, h: f64) -> usize {
+        self.slot_of(h.to_bits())
+    }
+
+    fn slot_of(&mut self, key: u64) -> usize {
+        match self.keys.iter().position(|k| *k == key) {
             Some(i) => i,
             None => {
                 let i = self.next_free;
@@ -113,7 +118,32 @@ impl MapCache {
                 }
                 i
             }
-        };
+        }
+    }
+
+    /// [`Self::step`] for a length whose slot the caller holds ([`Self::slot`]): the map
+    /// directly while the slot still holds `h` (the scan when it was reused since).
+    #[inline(always)]
+    pub(crate) fn step_in(
+        &mut self,
+        slot: usize,
+        contact: Contact,
+        h: f64,
+        x: &Vec5,
+        u: &Vec3,
+    ) -> Vec5 {
+        let key = h.to_bits();
+        if self.keys.get(slot) == Some(&key) {
+            if let Some(Some(d)) = self.maps.get(slot).and_then(|m| m.get(contact.index())) {
+                return d.apply(x, u);
+            }
+        }
+        self.step_slow(contact, key, h, x, u)
+    }
+
+    #[cold]
+    fn step_slow(&mut self, contact: Contact, key: u64, h: f64, x: &Vec5, u: &Vec3) -> Vec5 {
+        let i = self.slot_of(key);
         let (a, b) = self.system(contact);
         let map = Discrete::new(a, b, h);
         if let Some(entry) = self

@@ -152,7 +152,7 @@ impl Guards {
     /// x1 must be the dense image of x0 (the exact map, or the Taylor series), so that a
     /// non-finite x0 leaves no component of x1 finite: then x1 finite means both are, and
     /// the guards in [`TwistForm`] take their short form.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn suspect(&self, x0: &Vec5, x1: &Vec5, u: &Vec3, h: f64) -> bool {
         match &self.short {
             Some(short) if finite(x1) => short.suspect(x0, x1, h),

@@ -42,5 +42,5 @@ pub use replay::{
     parse_torque_csv, replay, simulate, write_atomically, ReplaySummary, StateRow, TorqueRow,
     COLUMN_RANGES, MAX_SPAN_S, REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER,
 };
-pub use two_inertia::TwoInertiaPlant;
+pub use two_inertia::{FixedStep, TwoInertiaPlant};
 pub use validate::MAX_RATE_PER_S;

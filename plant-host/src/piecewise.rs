@@ -20,6 +20,15 @@ use crate::model::{row_sum_norm, Contact, Model, Shaft, Vec3, Vec5};
 /// (protects against chattering at a grazing contact).
 const MAX_EVENTS_PER_STEP: u32 = 32;
 
+/// A step length as [`Piecewise::advance`] splits it: `pieces` sub-steps of `h`, whose maps
+/// sit in the cache's `slot`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Split {
+    h: f64,
+    pieces: u64,
+    slot: usize,
+}
+
 /// The piecewise-linear two-inertia plant (optionally with its winding).
 #[derive(Debug, Clone)]
 pub(crate) struct Piecewise {
@@ -174,6 +183,35 @@ impl Piecewise {
         }
     }
 
+    /// How [`Self::advance`] splits a step of `dt_s`, with the slot of its sub-step's
+    /// maps, worked out once for a caller that repeats the step.
+    pub fn split(&mut self, dt_s: f64) -> Split {
+        let (pieces, h) = if dt_s <= 0.0 {
+            (0, 0.0)
+        } else if dt_s <= self.h_max_s {
+            (1, dt_s)
+        } else {
+            let pieces = (dt_s / self.h_max_s).ceil().max(1.0);
+            (pieces as u64, dt_s / pieces)
+        };
+        let slot = if pieces > 0 { self.maps.slot(h) } else { 0 };
+        Split { h, pieces, slot }
+    }
+
+    /// [`Self::advance`] by a step split by [`Self::split`]: the same sub-steps, each map
+    /// taken from its slot without a scan.
+    #[inline(always)]
+    pub fn advance_split(&mut self, split: &Split, u: &Vec3) {
+        let Split { h, pieces, slot } = *split;
+        if pieces == 1 {
+            self.piece_in(slot, h, u);
+            return;
+        }
+        for _ in 0..pieces {
+            self.piece_in(slot, h, u);
+        }
+    }
+
     fn guards(&self) -> &Guards {
         let [free, driving, braking] = &self.guards;
         match self.contact {
@@ -188,6 +226,17 @@ impl Piecewise {
     #[inline]
     fn piece(&mut self, h: f64, u: &Vec3) {
         let x_end = self.maps.step(self.contact, h, &self.x, u);
+        if self.guards().suspect(&self.x, &x_end, u, h) {
+            self.search(self.x, x_end, h, u);
+        } else {
+            self.x = x_end;
+        }
+    }
+
+    /// [`Self::piece`] with the map's slot known.
+    #[inline(always)]
+    fn piece_in(&mut self, slot: usize, h: f64, u: &Vec3) {
+        let x_end = self.maps.step_in(slot, self.contact, h, &self.x, u);
         if self.guards().suspect(&self.x, &x_end, u, h) {
             self.search(self.x, x_end, h, u);
         } else {

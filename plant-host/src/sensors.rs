@@ -7,6 +7,7 @@ use crate::rounding::{floor_i64, round_i64};
 use std::f64::consts::PI;
 
 /// Encoder count of an angle: floor(θ·cpr/2π), saturating at the i64 range.
+#[inline]
 pub fn encoder_count(angle_rad: f64, cpr: u32) -> i64 {
     // Saturates for out-of-range floats and maps NaN to 0: no panic path.
     floor_i64(angle_rad * f64::from(cpr) / (2.0 * PI))
@@ -36,12 +37,16 @@ impl CurrentAdc {
         self.lsb_pu
     }
     /// The code for a current.
+    #[inline]
     pub fn code(&self, current_pu: f64) -> i32 {
         let c = round_i64(current_pu / self.lsb_pu);
-        // Inside the code range, so the narrowing cannot wrap.
-        c.clamp(i64::from(self.min_code), i64::from(self.max_code)) as i32
+        // Inside the code range, so the narrowing cannot wrap. `max` then `min` is `clamp`
+        // (min_code < max_code by construction) without its bounds check.
+        c.max(i64::from(self.min_code))
+            .min(i64::from(self.max_code)) as i32
     }
     /// The quantized current, pu.
+    #[inline]
     pub fn sample(&self, current_pu: f64) -> f64 {
         f64::from(self.code(current_pu)) * self.lsb_pu
     }
@@ -55,6 +60,7 @@ pub(crate) enum Channel {
 }
 
 /// Deterministic Gaussian noise N(0, 1) for (seed, channel, time).
+#[inline(never)]
 pub(crate) fn gaussian(seed: u64, channel: Channel, time_s: f64) -> f64 {
     // Sample index: time in ns (sampling instants are distinct to far better than 1 ns).
     let index = round_i64(time_s * 1e9) as u64;
@@ -110,6 +116,7 @@ impl Sensors {
     /// revolution and floored like a plain count (an ideal interpolator: no amplitude or
     /// phase error of the sin/cos tracks). Noise, if any, is in those counts and is added
     /// before the floor.
+    #[inline]
     pub fn motor_count(&self, motor_pos_rad: f64, time_s: f64) -> i64 {
         let c = &self.config;
         let cpr = self.counts_per_rev;
@@ -133,6 +140,7 @@ impl Sensors {
     }
 
     /// ADC-quantized current (with noise, if any) at `time_s`, pu.
+    #[inline]
     pub fn current(&self, current_pu: f64, time_s: f64) -> f64 {
         let c = &self.config;
         let noisy = if c.current_noise_pu > 0.0 {

@@ -12,7 +12,7 @@ use crate::config::{MechanicsDerived, PlantConfig};
 use crate::error::PlantError;
 use crate::load::{for_each_load_piece, LoadTorque};
 use crate::model::{Contact, Model, Vec3, Vec5, Winding};
-use crate::piecewise::Piecewise;
+use crate::piecewise::{Piecewise, Split};
 use crate::sensors::Sensors;
 
 /// Two inertias, lost motion, sensors, and the winding when the electrics are modelled, in
@@ -93,6 +93,49 @@ impl TwoInertiaPlant {
         self.core
             .advance(dt_s, &Vec3::new(input_pu, load_torque_pu, 1.0));
         self.time_s += dt_s;
+        Ok(())
+    }
+
+    /// A step length checked and prepared once, for a caller that repeats it every period
+    /// (a harness's computational delay and the rest of its tick): [`Self::advance_fixed`]
+    /// then steps it as [`Self::try_advance`] would, to the bit, without looking up its
+    /// exact maps. An invalid length (negative, not finite) is the error `try_advance`
+    /// reports.
+    ///
+    /// ```
+    /// use plant_host::{PlantConfig, TwoInertiaPlant};
+    /// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    /// let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
+    /// let (mut a, mut b) = (TwoInertiaPlant::voltage_driven(&cfg), TwoInertiaPlant::voltage_driven(&cfg));
+    /// let step = a.fixed_step(180e-6).unwrap();
+    /// for k in 0..100 {
+    ///     let v = 0.01 * f64::from(k);
+    ///     a.advance_fixed(&step, v, 0.1).unwrap();
+    ///     b.try_advance(180e-6, v, 0.1).unwrap();
+    /// }
+    /// assert_eq!(a.motor_pos_rad().to_bits(), b.motor_pos_rad().to_bits());
+    /// assert!(a.fixed_step(-1.0).is_err() && a.advance_fixed(&step, f64::NAN, 0.0).is_err());
+    /// ```
+    pub fn fixed_step(&mut self, dt_s: f64) -> Result<FixedStep, PlantError> {
+        check_step(dt_s, &[])?;
+        Ok(FixedStep {
+            dt_s,
+            split: self.core.split(dt_s),
+        })
+    }
+
+    /// [`Self::try_advance`] by a step from [`Self::fixed_step`] of this plant.
+    #[inline(always)]
+    pub fn advance_fixed(
+        &mut self,
+        step: &FixedStep,
+        input_pu: f64,
+        load_torque_pu: f64,
+    ) -> Result<(), PlantError> {
+        check_step(step.dt_s, &[input_pu, load_torque_pu])?;
+        self.core
+            .advance_split(&step.split, &Vec3::new(input_pu, load_torque_pu, 1.0));
+        self.time_s += step.dt_s;
         Ok(())
     }
 
@@ -179,6 +222,7 @@ impl TwoInertiaPlant {
 
     /// Motor encoder: floor(θm·cpr/2π) (+ noise if configured). The harness wraps it to the
     /// controller's counter width.
+    #[inline]
     pub fn encoder_count(&self) -> i64 {
         self.sensors.motor_count(self.motor_pos_rad(), self.time_s)
     }
@@ -191,6 +235,7 @@ impl TwoInertiaPlant {
         self.core.state().a
     }
     /// Winding current as the ADC reports it (noise, quantization, clamping), pu.
+    #[inline]
     pub fn current_sample(&self) -> f64 {
         self.sensors.current(self.current_pu(), self.time_s)
     }
@@ -257,6 +302,20 @@ impl TwoInertiaPlant {
             load_vel_pu,
             current_pu,
         ));
+    }
+}
+
+/// A step length checked and split once ([`TwoInertiaPlant::fixed_step`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedStep {
+    dt_s: f64,
+    split: Split,
+}
+
+impl FixedStep {
+    /// The step's length, s.
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
     }
 }
 

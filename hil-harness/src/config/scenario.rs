@@ -200,21 +200,30 @@ pub struct MetricSpec {
 impl ScenarioSpec {
     /// Load torque at `t_s` (pu): the last step at or before `t_s` plus the sine.
     pub fn load_torque_pu(&self, t_s: f64) -> f64 {
-        let step = self
-            .load
+        self.load_step_pu(t_s) + self.load_sine_pu(t_s)
+    }
+
+    /// The steps' part of [`Self::load_torque_pu`]: the torque of the last step in the list
+    /// at or before `t_s` (0 before the first).
+    pub fn load_step_pu(&self, t_s: f64) -> f64 {
+        self.load
             .iter()
             .rev()
             .find(|s| s.t_s <= t_s)
             .map(|s| s.torque_pu)
-            .unwrap_or(0.0);
-        let sine = self.sine_load.map_or(0.0, |s| {
+            .unwrap_or(0.0)
+    }
+
+    /// The sine's part of [`Self::load_torque_pu`] (0 without one, or before it starts).
+    #[inline]
+    pub fn load_sine_pu(&self, t_s: f64) -> f64 {
+        self.sine_load.map_or(0.0, |s| {
             if t_s >= s.start_s {
                 s.bias_pu + s.amplitude_pu * (s.freq_rad_s * (t_s - s.start_s)).sin()
             } else {
                 0.0
             }
-        });
-        step + sine
+        })
     }
 
     /// Checks every key against its range (times within the run); errors name the key and

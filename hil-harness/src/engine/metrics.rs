@@ -125,36 +125,58 @@ pub fn compute(trace: &Trace, w: &MetricWindows) -> Metrics {
         (Some(a), Some(b)) => b.t_s - a.t_s,
         _ => 0.0,
     };
-    // Without a positive sample period there is no moving average: every ripple is 0.
-    let half = (dt > 0.0).then(|| ((w.ripple_average_s / dt) / 2.0).round().max(1.0) as usize);
     let mut pass = Pass::new(w);
+    // Without a positive sample period there is no moving average: every ripple is 0.
+    let Some(half) =
+        (dt > 0.0).then(|| ((w.ripple_average_s / dt) / 2.0).round().max(1.0) as usize)
+    else {
+        rows.iter().for_each(|r| pass.row(r));
+        pass.find_first_bad(rows);
+        return finish(&pass, rows);
+    };
     let mut prefix: Vec<[f64; HP_SIGNALS]> = Vec::with_capacity(len + 1);
     let mut acc = [0.0; HP_SIGNALS];
     prefix.push(acc);
-    for i in 0..len + half.unwrap_or(0) {
-        if let Some(r) = rows.get(i) {
-            pass.row(r);
-            for (a, v) in acc.iter_mut().zip(hp_inputs(r)) {
-                *a += v;
-            }
-            prefix.push(acc);
+    for (i, r) in rows.iter().enumerate() {
+        pass.row(r);
+        for (a, v) in acc.iter_mut().zip(hp_inputs(r)) {
+            *a += v;
         }
-        let Some(j) = half.and_then(|h| i.checked_sub(h)) else {
+        prefix.push(acc);
+        // Row j = i − half has its window now: rows (j − half)⁺ ..= i, the last just summed.
+        let Some(j) = i.checked_sub(half) else {
             continue;
         };
-        if let (Some(r), Some(h)) = (rows.get(j), half) {
-            // `centred` for the three signals, the window's two prefix rows fetched once.
-            let (lo, hi, n) = window(j, h, len);
-            let [below, upto] = [lo, hi].map(|k| prefix.get(k).copied().unwrap_or_default());
-            let x = hp_inputs(r);
-            let hp = core::array::from_fn(|s| {
-                let at = |p: &[f64; HP_SIGNALS]| p.get(s).copied().unwrap_or(0.0);
-                at(&x) - (at(&upto) - at(&below)) / n
-            });
-            pass.high_passed(r, hp);
+        if let Some(rj) = rows.get(j) {
+            let lo = j.saturating_sub(half);
+            let below = prefix.get(lo).copied().unwrap_or_default();
+            pass.high_passed(rj, centred_row(rj, below, acc, (i + 1 - lo) as f64));
         }
     }
+    // The last `half` rows: their windows end at the end of the trace.
+    for (j, rj) in rows.iter().enumerate().skip(len.saturating_sub(half)) {
+        let (lo, _, n) = window(j, half, len);
+        let below = prefix.get(lo).copied().unwrap_or_default();
+        pass.high_passed(rj, centred_row(rj, below, acc, n));
+    }
+    pass.find_first_bad(rows);
     finish(&pass, rows)
+}
+
+/// [`centred`] for the high-passed signals of row `r`, from the prefix sums below and at
+/// the top of its window, `n` samples long.
+#[inline]
+fn centred_row(
+    r: &TraceRow,
+    below: [f64; HP_SIGNALS],
+    upto: [f64; HP_SIGNALS],
+    n: f64,
+) -> [f64; HP_SIGNALS] {
+    let x = hp_inputs(r);
+    core::array::from_fn(|s| {
+        let at = |p: &[f64; HP_SIGNALS]| p.get(s).copied().unwrap_or(0.0);
+        at(&x) - (at(&upto) - at(&below)) / n
+    })
 }
 
 /// The metrics of a trace that holds non-finite values from `bad_t_s`. Max/min folds skip
@@ -342,6 +364,80 @@ mod tests {
         assert!(!m.stable);
         assert!(m.load_step_droop_pu.unwrap() > 0.02);
         assert!(m.settling_s.is_none());
+    }
+
+    /// The one-pass ripple figures are those of the definition (the whole-signal
+    /// [`high_pass`], then the RMS over the window, summed in order) bit for bit, for a
+    /// window near each end of the trace and one in the middle.
+    #[test]
+    fn the_one_pass_ripple_is_the_whole_signal_definition_bit_for_bit() {
+        let t = trace(|t| TraceRow {
+            t_s: t,
+            vel_cmd_pu: 1.0,
+            motor_vel_pu: 1.0 + 0.01 * (377.0 * t).sin() + 0.003 * (t * 1e4).cos(),
+            current_pu: 0.5 + 0.1 * (2.0 * std::f64::consts::PI * 25.0 * t).sin() + t * t,
+            shaft_torque_pu: 0.1 * (150.0 * t).sin() - 0.02 * t,
+            ..Default::default()
+        });
+        for (ripple, stable) in [((0.0, 0.3), (1.8, 2.0)), ((0.7, 1.3), (0.0, 0.05))] {
+            let w = MetricWindows {
+                ripple_window_s: ripple,
+                stable_window_s: stable,
+                ..windows()
+            };
+            let m = compute(&t, &w);
+            let half = ((w.ripple_average_s / 0.0005) / 2.0).round().max(1.0) as usize;
+            let hp = |f: fn(&TraceRow) -> f64| {
+                high_pass(&t.rows.iter().map(f).collect::<Vec<_>>(), half)
+            };
+            let rms = |x: &[f64], win: (f64, f64)| {
+                let v: Vec<f64> = t
+                    .rows
+                    .iter()
+                    .zip(x)
+                    .filter(|(r, _)| in_window(r, win))
+                    .map(|(_, v)| *v)
+                    .collect();
+                (v.iter().map(|v| v * v).sum::<f64>() / v.len() as f64).sqrt()
+            };
+            let err = hp(|r| r.vel_cmd_pu - r.motor_vel_pu);
+            let (torque, shaft) = (hp(|r| r.current_pu), hp(|r| r.shaft_torque_pu));
+            let got = [
+                m.oscillation_pu,
+                m.limit_cycle_torque_pu,
+                m.torque_ripple_rms_pu,
+                m.shaft_torque_ripple_rms_pu,
+            ];
+            let want = [
+                rms(&err, stable),
+                rms(&torque, stable),
+                rms(&torque, ripple),
+                rms(&shaft, ripple),
+            ];
+            assert_eq!(
+                got.map(f64::to_bits),
+                want.map(f64::to_bits),
+                "{got:?} {want:?}"
+            );
+        }
+    }
+
+    /// Finite values whose sum overflows are still a valid run; an infinity is not.
+    #[test]
+    fn huge_finite_values_are_valid_and_an_infinity_is_not() {
+        let huge = trace(|t| TraceRow {
+            t_s: t,
+            load_torque_pu: 1e308,
+            ..Default::default()
+        });
+        assert_eq!(compute(&huge, &windows()).invalid_reason, None);
+        let inf = trace(|t| TraceRow {
+            t_s: t,
+            accel_est_pu_s: if t >= 0.75 { f64::INFINITY } else { 1e308 },
+            ..Default::default()
+        });
+        let reason = compute(&inf, &windows()).invalid_reason.unwrap();
+        assert!(reason.contains("t = 0.75 s"), "{reason}");
     }
 
     #[test]

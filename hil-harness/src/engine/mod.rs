@@ -4,4 +4,5 @@
 pub mod metrics;
 pub mod plant;
 pub mod runner;
+mod schedule;
 pub mod trace;

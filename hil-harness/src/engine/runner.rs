@@ -13,6 +13,7 @@
 
 use crate::config::RunConfig;
 use crate::engine::metrics::{compute, Metrics};
+use crate::engine::schedule::{LoadCursor, TickSteps};
 use crate::engine::trace::{Trace, TraceRow};
 use crate::error::{HarnessError, Result};
 use controller_core::{
@@ -298,7 +299,7 @@ fn velocity_step<B: ControlBackend + ?Sized>(
     backend: &mut B,
     plant: &TwoInertiaPlant,
     cfg: &RunConfig,
-    tm: &Timing,
+    (tm, load): (&Timing, &mut LoadCursor),
     (t_s, encoder_count, voltage_pu): (f64, u32, f64),
 ) -> TraceRow {
     use crate::engine::plant::{counts, f, pu, pu_s};
@@ -328,7 +329,7 @@ fn velocity_step<B: ControlBackend + ?Sized>(
         current_pu: plant.current_pu(),
         accel_fb_pu: f(last_vel.accel_fb_pu),
         shaft_torque_pu: plant.shaft_torque_pu(),
-        load_torque_pu: scenario.load_torque_pu(t_s),
+        load_torque_pu: load.torque_pu(t_s),
         voltage_pu,
         accel_est_pu_s: f(last_vel.acceleration_est_pu_s),
         fault: if last_vel.fault.is_some() { 1.0 } else { 0.0 },
@@ -337,25 +338,28 @@ fn velocity_step<B: ControlBackend + ?Sized>(
 
 /// The plant over one current tick from `t_s`: the held voltage until the delayed command
 /// arrives, then the new one. Returns the voltage applied at the end of the tick.
+#[inline]
 fn plant_step(
     plant: &mut TwoInertiaPlant,
     delay_line: &mut DelayLine,
-    cfg: &RunConfig,
-    tm: &Timing,
+    (tm, steps, load): (&Timing, &TickSteps, &mut LoadCursor),
     (t_s, voltage_pu, command_pu): (f64, f64, f64),
 ) -> Result<f64> {
-    let load = |t: f64| cfg.scenario.load_torque_pu(t);
     let delay_s = tm.delay_s;
-    if delay_s > 0.0 {
+    if let Some(step) = &steps.delay {
         plant
-            .try_advance(delay_s, voltage_pu, load(t_s + 0.5 * delay_s))
+            .advance_fixed(step, voltage_pu, load.torque_pu(t_s + 0.5 * delay_s))
             .map_err(crate::engine::plant::plant_error)?;
     }
     let voltage_pu = delay_line.push(command_pu, voltage_pu);
-    let rest_s = tm.tc_s - delay_s;
-    if rest_s > 0.0 {
+    if let Some(step) = &steps.rest {
+        let rest_s = step.dt_s();
         plant
-            .try_advance(rest_s, voltage_pu, load(t_s + delay_s + 0.5 * rest_s))
+            .advance_fixed(
+                step,
+                voltage_pu,
+                load.torque_pu(t_s + delay_s + 0.5 * rest_s),
+            )
             .map_err(crate::engine::plant::plant_error)?;
     }
     Ok(voltage_pu)
@@ -385,9 +389,13 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     let tm = Timing::new(cfg, &plant, delay_line.remainder_s());
     let ticks = (cfg.scenario.duration_s * current_rate_hz).round() as u64;
     let mut rows = Vec::with_capacity((ticks / tm.ratio + 1) as usize);
+    let steps = TickSteps::new(&mut plant, tm.delay_s, tm.tc_s - tm.delay_s)?;
+    let mut load = LoadCursor::new(&cfg.scenario);
     let mut voltage_pu = 0.0;
     let start = Instant::now();
     let mut ticks_run = 0;
+    // Current ticks until the next velocity tick (k % ratio == 0).
+    let mut to_velocity_tick: u64 = 0;
     for k in 0..ticks {
         if backend.halted() {
             break;
@@ -396,10 +404,12 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
         let t_s = k as f64 * tm.tc_s;
         let encoder_count = ((plant.encoder_count() as u64) & tm.mask) as u32;
         let current_pu = plant.current_sample();
-        let velocity_tick = k % tm.ratio == 0;
+        let velocity_tick = to_velocity_tick == 0;
+        to_velocity_tick = to_velocity_tick.checked_sub(1).unwrap_or(tm.ratio - 1);
         if velocity_tick {
             let inputs = (t_s, encoder_count, voltage_pu);
-            rows.push(velocity_step(backend, &plant, cfg, &tm, inputs));
+            let row = velocity_step(backend, &plant, cfg, (&tm, &mut load), inputs);
+            rows.push(row);
         }
         let out = backend.current_tick(CurrentInputs {
             encoder_count,
@@ -414,7 +424,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
             excitation_pu: backend.excitation_pu(),
         });
         let step = (t_s, voltage_pu, f(out.voltage_cmd_pu));
-        voltage_pu = plant_step(&mut plant, &mut delay_line, cfg, &tm, step)?;
+        voltage_pu = plant_step(&mut plant, &mut delay_line, (&tm, &steps, &mut load), step)?;
         if let Some(row) = rows.last_mut().filter(|_| velocity_tick) {
             // Torque reference and AFB term as the current tick of this instant formed
             // them (the velocity tick's output plus the AFB path at the current rate).

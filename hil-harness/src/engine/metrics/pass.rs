@@ -30,6 +30,18 @@ fn all_finite(values: &[f64; 18]) -> bool {
     a + b == 0.0
 }
 
+/// Adds a row's values to the running probe: a sum is finite only if every value in it is
+/// (an infinity or NaN stays one; finite values may overflow it too, which only sends the
+/// pass to the exact row-by-row test).
+#[inline]
+fn add_to_probe(probe: &mut [f64; 2], values: &[f64; 18]) {
+    for pair in values.chunks_exact(2) {
+        for (lane, v) in probe.iter_mut().zip(pair) {
+            *lane += v;
+        }
+    }
+}
+
 /// RMS and zero crossings of a high-passed signal inside a window, accumulated in order.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Ripple {
@@ -103,7 +115,10 @@ impl Mean {
 pub(super) struct Pass<'a> {
     pub(super) w: &'a MetricWindows,
     pub(super) sat_threshold: f64,
+    /// Set by [`Self::find_first_bad`].
     pub(super) first_bad_t_s: Option<f64>,
+    /// Running sums of every value of every row, two lanes ([`add_to_probe`]).
+    finite_probe: [f64; 2],
     pub(super) faulted: bool,
     pub(super) stable_rows: usize,
     pub(super) bounded: bool,
@@ -129,6 +144,7 @@ impl<'a> Pass<'a> {
             w,
             sat_threshold: w.torque_limit_pu * 0.999,
             first_bad_t_s: None,
+            finite_probe: [0.0; 2],
             faulted: false,
             stable_rows: 0,
             bounded: true,
@@ -151,9 +167,7 @@ impl<'a> Pass<'a> {
     pub(super) fn row(&mut self, r: &TraceRow) {
         let w = self.w;
         let err = speed_err(r);
-        if self.first_bad_t_s.is_none() && !all_finite(&r.values()) {
-            self.first_bad_t_s = Some(r.t_s);
-        }
+        add_to_probe(&mut self.finite_probe, &r.values());
         self.faulted |= r.fault != 0.0;
         let saturated = r.torque_cmd_pu.abs() >= self.sat_threshold;
         self.saturated_rows += usize::from(saturated);
@@ -185,6 +199,20 @@ impl<'a> Pass<'a> {
         }
         self.max_following = self.max_following.max(r.cmd_minus_motor_counts().abs());
         self.max_twist = self.max_twist.max(r.motor_minus_load_counts().abs());
+    }
+
+    /// Sets `first_bad_t_s`, the time of the first row that holds a value that is not
+    /// finite, once every row has been through [`Self::row`]: none when the probe's sums
+    /// are finite, else the rows tested one by one.
+    pub(super) fn find_first_bad(&mut self, rows: &[TraceRow]) {
+        let [a, b] = self.finite_probe;
+        if (a + b).is_finite() {
+            return;
+        }
+        self.first_bad_t_s = rows
+            .iter()
+            .find(|r| !all_finite(&r.values()))
+            .map(|r| r.t_s);
     }
 
     /// The high-passed signals of one row ([`HP_SIGNALS`] order), into the windows' ripple.
