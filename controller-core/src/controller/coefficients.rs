@@ -13,6 +13,29 @@ use crate::observer::Observer;
 use crate::per_unit::{counter_shift, quantize, Coef, CountsErr, Gain, PosGain, Pu, TickGain};
 use crate::pi::PiCoefficients;
 
+/// A limit L on the magnitude of a raw 32-bit value, |x| > L tested with one add and one
+/// unsigned compare: for L < 2^31, x + L (mod 2^32) is within [0, 2L] exactly when
+/// −L ≤ x ≤ L (x > L gives 2L < x + L < 2^32 − 1, no wrap; x < −L wraps to
+/// x + L + 2^32 ≥ 2^31 + L > 2L). The limits held here are the magnitudes of validated,
+/// non-negative settings quantized to i32 bits (`ranges`: at most 2.048·10^9 < 2^31), so L
+/// is below 2^31; a larger one is held as 2^31 − 1, which gives the same answer for every
+/// x but i32::MIN.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct MagnitudeLimit(u32);
+
+impl MagnitudeLimit {
+    /// The limit |x| ≤ `abs` (`abs` < 2^31, see the type).
+    pub(super) const fn new(abs: u32) -> Self {
+        Self(if abs < 1 << 31 { abs } else { (1 << 31) - 1 })
+    }
+
+    /// `x.unsigned_abs() > abs`, bit for bit (for `abs` < 2^31).
+    #[inline(always)]
+    pub(super) const fn exceeded_by(self, x: i32) -> bool {
+        x.cast_unsigned().wrapping_add(self.0) > self.0 << 1
+    }
+}
+
 /// Quantized coefficients (fixed point), built once from [`Gains`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Coefficients {
@@ -49,11 +72,11 @@ pub(super) struct Coefficients {
     pub(super) current_limit_abs: i32,
     pub(super) velocity_limit_abs: i32,
     /// |overspeed| as raw Q16.16 bits (the tick compares magnitudes).
-    pub(super) overspeed_abs: u32,
+    pub(super) overspeed_abs: MagnitudeLimit,
     /// |following error limit| as raw Q24.8 bits.
-    pub(super) following_error_abs: u32,
+    pub(super) following_error_abs: MagnitudeLimit,
     /// |largest encoder step per tick| \[counts\].
-    pub(super) max_count_step_abs: u32,
+    pub(super) max_count_step_abs: MagnitudeLimit,
     /// The torque-reference notch (Q2.30), `None` without one: the current tick then does
     /// exactly what it did before the notch existed.
     pub(super) notch: Option<Notch>,
@@ -244,22 +267,85 @@ impl Coefficients {
             afb_limit_abs: afb.abs_limit(),
             current_limit_abs: current_regulator.abs_limit(),
             velocity_limit_abs: velocity_regulator.abs_limit(),
-            overspeed_abs: quantize::<Pu>(cfg.faults.overspeed_pu, "faults.overspeed_pu")?
+            overspeed_abs: MagnitudeLimit::new(
+                quantize::<Pu>(cfg.faults.overspeed_pu, "faults.overspeed_pu")?
+                    .to_bits()
+                    .unsigned_abs(),
+            ),
+            following_error_abs: MagnitudeLimit::new(
+                quantize::<CountsErr>(
+                    cfg.faults.following_error_counts,
+                    "faults.following_error_counts",
+                )?
                 .to_bits()
                 .unsigned_abs(),
-            following_error_abs: quantize::<CountsErr>(
-                cfg.faults.following_error_counts,
-                "faults.following_error_counts",
-            )?
-            .to_bits()
-            .unsigned_abs(),
-            max_count_step_abs: quantize::<CountsErr>(
-                g.max_count_step,
-                "max count step (faults.encoder_jump_margin × overspeed)",
-            )?
-            .to_num::<i32>()
-            .unsigned_abs(),
+            ),
+            max_count_step_abs: MagnitudeLimit::new(
+                quantize::<CountsErr>(
+                    g.max_count_step,
+                    "max count step (faults.encoder_jump_margin × overspeed)",
+                )?
+                .to_num::<i32>()
+                .unsigned_abs(),
+            ),
             notch,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::MagnitudeLimit;
+
+    /// The one-compare magnitude test is `unsigned_abs() > abs` at and around every edge.
+    #[test]
+    fn magnitude_limit_is_the_abs_compare() {
+        let edges = [
+            0u32,
+            1,
+            2,
+            3,
+            1000,
+            (1 << 30) - 1,
+            1 << 30,
+            (1 << 31) - 2,
+            (1 << 31) - 1,
+        ];
+        for &abs in &edges {
+            let lim = MagnitudeLimit::new(abs);
+            let mut xs = vec![i32::MIN, i32::MIN + 1, i32::MAX, i32::MAX - 1, 0];
+            for &e in &edges {
+                for d in [-1i64, 0, 1] {
+                    for sign in [-1i64, 1] {
+                        let x = sign * (i64::from(e) + d);
+                        if let Ok(x) = i32::try_from(x) {
+                            xs.push(x);
+                        }
+                    }
+                }
+            }
+            for d in -2i64..=2 {
+                for sign in [-1i64, 1] {
+                    if let Ok(x) = i32::try_from(sign * (i64::from(abs) + d)) {
+                        xs.push(x);
+                    }
+                }
+            }
+            for x in xs {
+                assert_eq!(lim.exceeded_by(x), x.unsigned_abs() > abs, "{abs} {x}");
+            }
+        }
+        let mut seed = 1u32;
+        for _ in 0..200_000 {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let abs = seed >> (1 + seed % 31);
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let x = seed.cast_signed() >> (seed % 32);
+            assert_eq!(
+                MagnitudeLimit::new(abs).exceeded_by(x),
+                x.unsigned_abs() > abs,
+                "{abs} {x}"
+            );
+        }
     }
 }

@@ -294,7 +294,7 @@ impl Controller {
             // counter_shift ≤ 16 (per_unit::counter_shift), so no clamp here.
             let d = count_diff_by(raw, self.state.last_raw, self.coef.counter_shift);
             self.state.position = self.state.position.wrapping_add(i64::from(d));
-            if d.unsigned_abs() > self.coef.max_count_step_abs {
+            if self.coef.max_count_step_abs.exceeded_by(d) {
                 self.trip(Fault::EncoderJump);
             }
         } else {
@@ -474,7 +474,7 @@ impl Controller {
                 sp_q8.saturating_sub(position.saturating_mul(256))
             };
             let err = CountsErr::from_bits(sat_i32(err_bits));
-            if err.to_bits().unsigned_abs() > self.coef.following_error_abs {
+            if self.coef.following_error_abs.exceeded_by(err.to_bits()) {
                 self.trip(Fault::FollowingError);
             }
             // Q24.8 · Q1.31 = Q.39 → Q16.16.
@@ -538,7 +538,7 @@ impl Controller {
             Estimator::Observer => obs.acceleration_pu_s(&self.state.observer),
         };
         let disturbance = obs.load_torque_pu(&self.state.observer);
-        if v_fb.to_bits().unsigned_abs() > self.coef.overspeed_abs {
+        if self.coef.overspeed_abs.exceeded_by(v_fb.to_bits()) {
             self.trip(Fault::Overspeed);
         }
 

@@ -17,7 +17,7 @@
 //! torque-reference notch configured (a third controller, the bare one plus `BENCH_NOTCH`,
 //! fed the same inputs: its current tick's difference added to the period), the image's
 //! flash and RAM use, and exits 1 if one 4 kHz period (current tick plus half a velocity
-//! tick) of the baked drive exceeds `PERIOD_BUDGET` (669) instructions (the period with the
+//! tick) of the baked drive exceeds `PERIOD_BUDGET` (660) instructions (the period with the
 //! notch is reported, with a warning when it is over), if a fault latched in the firmware
 //! or the notched controller (the fault path is shorter and would flatter the figures) or
 //! if any measurement was disturbed.
@@ -56,9 +56,9 @@ mod target {
     use crate::window::{calibrate, dither, elapsed, per_call};
 
     /// Budget of one 4 kHz period: current tick + half a velocity tick [instructions]: the
-    /// 608 measured at the end of issue 15's second round of firmware work plus 10 %, so a
+    /// 600 measured at the end of issue 15's third round of firmware work plus 10 %, so a
     /// regression of that size fails the bench.
-    pub(crate) const PERIOD_BUDGET: u32 = 669;
+    pub(crate) const PERIOD_BUDGET: u32 = 660;
     /// Current ticks before measuring (start-up: estimator priming).
     const WARMUP_TICKS: u32 = 100;
     /// Measured current ticks (and half as many velocity ticks).
