@@ -203,6 +203,52 @@ fn regulators(
     Ok((velocity, current))
 }
 
+/// The differentiators at the velocity and at the current rate.
+fn differentiators(g: &Gains) -> Result<[Differentiator; 2], ConfigError> {
+    Ok([
+        differentiator(
+            g.vel_tick_pu_per_count,
+            g.vel_tick_pu_s_per_count,
+            "pu per count per velocity tick (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
+            "pu/s per count per velocity tick² (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
+        )?,
+        differentiator(
+            g.cur_tick_pu_per_count,
+            g.cur_tick_pu_s_per_count,
+            "pu per count per current tick (encoder_cpr, base_speed_rpm, current_rate_hz)",
+            "pu/s per count per current tick² (encoder_cpr, base_speed_rpm, current_rate_hz)",
+        )?,
+    ])
+}
+
+/// The fault limits as raw magnitudes: overspeed, following error, encoder jump.
+fn fault_limits(g: &Gains) -> Result<[MagnitudeLimit; 3], ConfigError> {
+    let cfg = &g.cfg;
+    Ok([
+        MagnitudeLimit::new(
+            quantize::<Pu>(cfg.faults.overspeed_pu, "faults.overspeed_pu")?
+                .to_bits()
+                .unsigned_abs(),
+        ),
+        MagnitudeLimit::new(
+            quantize::<CountsErr>(
+                cfg.faults.following_error_counts,
+                "faults.following_error_counts",
+            )?
+            .to_bits()
+            .unsigned_abs(),
+        ),
+        MagnitudeLimit::new(
+            quantize::<CountsErr>(
+                g.max_count_step,
+                "max count step (faults.encoder_jump_margin × overspeed)",
+            )?
+            .to_num::<i32>()
+            .unsigned_abs(),
+        ),
+    ])
+}
+
 impl Coefficients {
     /// Quantize `g` (designed from, and carrying, validated settings).
     pub(super) fn from_gains(g: &Gains) -> Result<Self, ConfigError> {
@@ -231,6 +277,11 @@ impl Coefficients {
             )?),
             None => None,
         };
+        // Then the velocity filter, the differentiators and the fault limits.
+        let velocity_filter =
+            LowPass::quantize(&g.velocity_filter, "velocity_filter coefficients")?;
+        let [diff_velocity_rate, diff_current_rate] = differentiators(g)?;
+        let [overspeed_abs, following_error_abs, max_count_step_abs] = fault_limits(g)?;
         Ok(Self {
             counter_bits: cfg.counter_bits,
             counter_shift: counter_shift(cfg.counter_bits),
@@ -241,19 +292,9 @@ impl Coefficients {
             k_accel_ff,
             velocity_regulator,
             current_regulator,
-            velocity_filter: LowPass::quantize(&g.velocity_filter, "velocity_filter coefficients")?,
-            diff_velocity_rate: differentiator(
-                g.vel_tick_pu_per_count,
-                g.vel_tick_pu_s_per_count,
-                "pu per count per velocity tick (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
-                "pu/s per count per velocity tick² (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
-            )?,
-            diff_current_rate: differentiator(
-                g.cur_tick_pu_per_count,
-                g.cur_tick_pu_s_per_count,
-                "pu per count per current tick (encoder_cpr, base_speed_rpm, current_rate_hz)",
-                "pu/s per count per current tick² (encoder_cpr, base_speed_rpm, current_rate_hz)",
-            )?,
+            velocity_filter,
+            diff_velocity_rate,
+            diff_current_rate,
             observer,
             afb,
             afb_source: cfg.accel_feedback.source,
@@ -267,27 +308,9 @@ impl Coefficients {
             afb_limit_abs: afb.abs_limit(),
             current_limit_abs: current_regulator.abs_limit(),
             velocity_limit_abs: velocity_regulator.abs_limit(),
-            overspeed_abs: MagnitudeLimit::new(
-                quantize::<Pu>(cfg.faults.overspeed_pu, "faults.overspeed_pu")?
-                    .to_bits()
-                    .unsigned_abs(),
-            ),
-            following_error_abs: MagnitudeLimit::new(
-                quantize::<CountsErr>(
-                    cfg.faults.following_error_counts,
-                    "faults.following_error_counts",
-                )?
-                .to_bits()
-                .unsigned_abs(),
-            ),
-            max_count_step_abs: MagnitudeLimit::new(
-                quantize::<CountsErr>(
-                    g.max_count_step,
-                    "max count step (faults.encoder_jump_margin × overspeed)",
-                )?
-                .to_num::<i32>()
-                .unsigned_abs(),
-            ),
+            overspeed_abs,
+            following_error_abs,
+            max_count_step_abs,
             notch,
         })
     }

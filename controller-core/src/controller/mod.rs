@@ -29,8 +29,12 @@
 //! period of delay to the velocity loop and is otherwise equally valid. The velocity tick
 //! reads the observer state left by the latest current tick.
 
+mod afb;
 mod coefficients;
+mod excite;
 mod io;
+#[cfg(test)]
+mod tests;
 
 pub use io::{Blocks, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs};
 
@@ -38,9 +42,7 @@ use crate::config::{DriveConfig, Estimator, ObserverTorque};
 use crate::design::{design, Gains};
 use crate::differentiator::DifferentiatorState;
 use crate::error::ConfigError;
-use crate::excitation::{
-    Excitation, ExcitationConfig, ExcitationParams, ExcitationState, Injection,
-};
+use crate::excitation::{Excitation, ExcitationState, Injection};
 use crate::fault::Fault;
 use crate::filter::LowPassState;
 use crate::notch::NotchState;
@@ -49,7 +51,7 @@ use crate::per_unit::{
     count_diff_by, count_signed, mul_bits, mul_gain, sat_i32, sat_shr, CountsErr, Pu, PuPerS,
 };
 use crate::pi::PiState;
-use coefficients::{AfbStep, Coefficients};
+use coefficients::Coefficients;
 
 /// All regulator and estimator state (plain data; reset = default).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -152,94 +154,6 @@ impl Controller {
         coef.afb.limit == coef.torque_limit && coef.torque_limit >= Pu::ZERO && !torque_excited
     }
 
-    /// The same controller with an excitation for measuring the machine (a chirp or a
-    /// PRBS, [`crate::excitation`]): on the torque reference it is designed at the current
-    /// rate and added to the torque reference every current tick before the clamp; on the
-    /// velocity reference it is designed at the velocity rate and added to ω_cmd every
-    /// velocity tick. It starts with the next tick, ends after its length (zero from then
-    /// on), restarts with [`Controller::reset`] and is zero while a fault is latched.
-    /// `names` are the settings' paths for the errors.
-    ///
-    /// ```
-    /// use controller_core::excitation::*;
-    /// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
-    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
-    /// let e = ExcitationConfig {
-    ///     waveform: Waveform::Prbs { bits: 7, hold_ticks: 1, periods: 1 },
-    ///     amplitude_pu: 0.1,
-    ///     injection: Injection::TorqueReference,
-    /// };
-    /// let names = ExcitationParams {
-    ///     amplitude_pu: "a", start_or_bits: "b", end_or_hold: "h", duration_or_periods: "p",
-    /// };
-    /// let mut c = controller_core::Controller::new(&cfg).unwrap().with_excitation(&e, names)?;
-    /// let out = c.current_tick(controller_core::CurrentInputs::default());
-    /// // The first PRBS bit is +amplitude; it reaches the torque reference at once.
-    /// assert_eq!(c.excitation_pu(), controller_core::Pu::from_num(0.1));
-    /// assert!(out.current_ref_pu > controller_core::Pu::ZERO);
-    /// # Ok::<(), controller_core::ConfigError>(())
-    /// ```
-    pub fn with_excitation(
-        mut self,
-        cfg: &ExcitationConfig,
-        names: ExcitationParams,
-    ) -> Result<Self, ConfigError> {
-        let c = &self.gains.cfg;
-        let rate_hz = match cfg.injection {
-            Injection::TorqueReference => c.current_rate_hz,
-            Injection::VelocityReference => c.velocity_rate_hz,
-        };
-        self.excitation = Some(Excitation::new(cfg, rate_hz as f32, names)?);
-        self.torque_excited = cfg.injection == Injection::TorqueReference;
-        self.velocity_excited = cfg.injection == Injection::VelocityReference;
-        self.closed_total = Self::closed_total_exact(&self.coef, self.torque_excited);
-        self.state.excitation = ExcitationState::default();
-        self.state.excitation_pu = Pu::ZERO;
-        Ok(self)
-    }
-
-    /// The excitation's latest sample \[pu of torque or speed\]: what the last tick at its
-    /// injection point added (zero without an excitation, after it ended, or when faulted).
-    #[must_use]
-    pub fn excitation_pu(&self) -> Pu {
-        self.state.excitation_pu
-    }
-
-    /// The next excitation sample if the excitation enters at `at` (and no fault is
-    /// latched), recorded as the latest; zero otherwise.
-    #[inline(always)]
-    fn excite(&mut self, at: Injection) -> Pu {
-        let here = match at {
-            Injection::TorqueReference => self.torque_excited,
-            Injection::VelocityReference => self.velocity_excited,
-        };
-        if !here {
-            return Pu::ZERO;
-        }
-        match self.excitation {
-            Some(e) => {
-                let v = if self.state.fault.is_none() {
-                    e.next(&mut self.state.excitation)
-                } else {
-                    Pu::ZERO
-                };
-                self.state.excitation_pu = v;
-                v
-            }
-            None => Pu::ZERO,
-        }
-    }
-
-    /// The torque-reference excitation of this current tick (zero unless it enters there).
-    #[inline(always)]
-    fn torque_excitation(&self) -> Pu {
-        if self.torque_excited {
-            self.state.excitation_pu
-        } else {
-            Pu::ZERO
-        }
-    }
-
     /// The designed gains (f32).
     #[must_use]
     pub fn gains(&self) -> &Gains {
@@ -302,74 +216,6 @@ impl Controller {
             self.state.primed = true;
         }
         self.state.last_raw = raw;
-    }
-
-    /// Acceleration-feedback step with a measured acceleration (differentiation).
-    #[inline]
-    fn afb_step(&mut self, a_meas: PuPerS) {
-        if self.state.fault.is_none() {
-            let a_cmd = self.state.accel_cmd;
-            self.state.afb = self
-                .coef
-                .afb
-                .update(&mut self.state.afb_filter, a_meas, a_cmd);
-        }
-    }
-
-    /// Acceleration-feedback step with the observer's acceleration, the loop through its
-    /// model solved in closed form for the torque reference `i_vel` + afb; `c` is the
-    /// command part of the filter input (0 in the plain form, a_cmd in the error form).
-    /// Returns the clamped torque the step completed its filter with (`None` when faulted:
-    /// the step did not run).
-    #[inline(always)]
-    fn afb_closed_step(&mut self, c: PuPerS) -> Option<Pu> {
-        if self.state.fault.is_none() {
-            let obs = &self.coef.observer;
-            let os = &self.state.observer;
-            let base = self.state.i_vel.saturating_add(self.torque_excitation());
-            let (afb, t) = self.coef.afb.update_closed_torque(
-                &mut self.state.afb_filter,
-                base,
-                c,
-                |t| obs.predicted_acceleration_pu_s(os, t),
-                self.coef.afb_limit_abs,
-            );
-            self.state.afb = afb;
-            Some(t)
-        } else {
-            None
-        }
-    }
-
-    /// The AFB step `step` of a tick; `a_meas` is that tick's differentiated acceleration
-    /// (used by [`AfbStep::Measured`] only).
-    /// The closed form (the default) is inlined into the tick once, for both forms; the
-    /// measured step runs out of line. Returns the closed-form step's clamped torque (`None`
-    /// for the other steps, or when faulted).
-    #[inline(always)]
-    fn run_afb(&mut self, step: AfbStep, a_meas: impl FnOnce(&mut Self) -> PuPerS) -> Option<Pu> {
-        match step {
-            AfbStep::None => None,
-            AfbStep::Measured => {
-                self.afb_measured_step(a_meas);
-                None
-            }
-            AfbStep::ClosedPlain | AfbStep::ClosedError => {
-                let c = if step == AfbStep::ClosedError {
-                    self.state.accel_cmd
-                } else {
-                    PuPerS::ZERO
-                };
-                self.afb_closed_step(c)
-            }
-        }
-    }
-
-    /// [`AfbStep::Measured`]: differentiate (`a_meas`), then the plain AFB update.
-    #[inline(never)]
-    fn afb_measured_step(&mut self, a_meas: impl FnOnce(&mut Self) -> PuPerS) {
-        let a = a_meas(self);
-        self.afb_step(a);
     }
 
     fn total_ref(&self) -> Pu {
@@ -568,107 +414,5 @@ impl Controller {
             disturbance_est_pu: disturbance,
             fault: self.state.fault,
         }
-    }
-}
-
-#[cfg(test)]
-#[allow(clippy::indexing_slicing, clippy::unwrap_used)]
-mod tests {
-    use super::*;
-    use crate::config::AfbMode;
-
-    fn drive() -> DriveConfig {
-        toml::from_str(include_str!(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/doc/example-drive.toml"
-        )))
-        .unwrap()
-    }
-
-    /// The current tick with the closed-form AFB step's torque taken as the total torque
-    /// reference equals the tick that forms the sum again (`total_ref`), bit for bit, on
-    /// inputs that drive the references into the torque limit both ways.
-    #[test]
-    fn closed_form_torque_is_the_total_reference() {
-        for mode in [AfbMode::Plain, AfbMode::Error] {
-            let mut cfg = drive();
-            cfg.accel_feedback.mode = mode;
-            let fast = Controller::new(&cfg).unwrap();
-            assert!(fast.closed_total, "{mode:?}");
-            let mut general = fast;
-            general.closed_total = false;
-            let mut fast = fast;
-            let (mut raw, mut seed, mut at_limit) = (0u32, 12345u32, 0u32);
-            for k in 0..20_000u32 {
-                seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                // Position swinging by up to ±40 counts a tick around a ramp, current noise.
-                let step = ((seed >> 8) % 81) as i32 - 40 + if k % 4000 < 2000 { 9 } else { -9 };
-                raw = raw.wrapping_add_signed(step);
-                let current = Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18));
-                let ci = CurrentInputs {
-                    encoder_count: raw,
-                    current_pu: current,
-                };
-                let out = fast.current_tick(ci);
-                assert_eq!(out, general.current_tick(ci), "{mode:?} {k}");
-                if out.current_ref_pu.abs() == fast.coef.torque_limit {
-                    at_limit += 1;
-                }
-                if k % 2 == 0 {
-                    let vi = VelocityInputs {
-                        encoder_count: raw,
-                        setpoint: Setpoint {
-                            acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),
-                            ..Setpoint::default()
-                        },
-                        fault_input: false,
-                    };
-                    assert_eq!(fast.velocity_tick(vi), general.velocity_tick(vi));
-                }
-                if fast.fault().is_some() {
-                    fast.reset();
-                    general.reset();
-                }
-            }
-            assert!(
-                at_limit > 100,
-                "{mode:?}: {at_limit} ticks at the torque limit"
-            );
-        }
-    }
-
-    /// A torque-reference excitation (two orders of the saturating adds) or a negative
-    /// hand-made limit turns the shortcut off.
-    #[test]
-    fn closed_form_torque_shortcut_is_off_where_it_may_differ() {
-        use crate::excitation::{ExcitationConfig, ExcitationParams, Waveform};
-        let c = Controller::new(&drive()).unwrap();
-        let names = ExcitationParams {
-            amplitude_pu: "a",
-            start_or_bits: "b",
-            end_or_hold: "h",
-            duration_or_periods: "p",
-        };
-        let e = |injection| ExcitationConfig {
-            waveform: Waveform::Prbs {
-                bits: 7,
-                hold_ticks: 1,
-                periods: 1,
-            },
-            amplitude_pu: 0.1,
-            injection,
-        };
-        let t = c
-            .with_excitation(&e(Injection::TorqueReference), names)
-            .unwrap();
-        assert!(!t.closed_total);
-        let v = c
-            .with_excitation(&e(Injection::VelocityReference), names)
-            .unwrap();
-        assert!(v.closed_total);
-        let mut coef = c.coef;
-        coef.torque_limit = -coef.torque_limit;
-        coef.afb.limit = coef.torque_limit;
-        assert!(!Controller::closed_total_exact(&coef, false));
     }
 }

@@ -1,0 +1,100 @@
+//! The controller's ticks against their general paths.
+#![allow(clippy::indexing_slicing, clippy::unwrap_used)]
+
+use super::*;
+use crate::config::AfbMode;
+
+fn drive() -> DriveConfig {
+    toml::from_str(include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/doc/example-drive.toml"
+    )))
+    .unwrap()
+}
+
+/// The current tick with the closed-form AFB step's torque taken as the total torque
+/// reference equals the tick that forms the sum again (`total_ref`), bit for bit, on
+/// inputs that drive the references into the torque limit both ways.
+#[test]
+fn closed_form_torque_is_the_total_reference() {
+    for mode in [AfbMode::Plain, AfbMode::Error] {
+        let mut cfg = drive();
+        cfg.accel_feedback.mode = mode;
+        let fast = Controller::new(&cfg).unwrap();
+        assert!(fast.closed_total, "{mode:?}");
+        let mut general = fast;
+        general.closed_total = false;
+        let mut fast = fast;
+        let (mut raw, mut seed, mut at_limit) = (0u32, 12345u32, 0u32);
+        for k in 0..20_000u32 {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            // Position swinging by up to ±40 counts a tick around a ramp, current noise.
+            let step = ((seed >> 8) % 81) as i32 - 40 + if k % 4000 < 2000 { 9 } else { -9 };
+            raw = raw.wrapping_add_signed(step);
+            let current = Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18));
+            let ci = CurrentInputs {
+                encoder_count: raw,
+                current_pu: current,
+            };
+            let out = fast.current_tick(ci);
+            assert_eq!(out, general.current_tick(ci), "{mode:?} {k}");
+            if out.current_ref_pu.abs() == fast.coef.torque_limit {
+                at_limit += 1;
+            }
+            if k % 2 == 0 {
+                let vi = VelocityInputs {
+                    encoder_count: raw,
+                    setpoint: Setpoint {
+                        acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),
+                        ..Setpoint::default()
+                    },
+                    fault_input: false,
+                };
+                assert_eq!(fast.velocity_tick(vi), general.velocity_tick(vi));
+            }
+            if fast.fault().is_some() {
+                fast.reset();
+                general.reset();
+            }
+        }
+        assert!(
+            at_limit > 100,
+            "{mode:?}: {at_limit} ticks at the torque limit"
+        );
+    }
+}
+
+/// A torque-reference excitation (two orders of the saturating adds) or a negative
+/// hand-made limit turns the shortcut off.
+#[test]
+fn closed_form_torque_shortcut_is_off_where_it_may_differ() {
+    use crate::excitation::{ExcitationConfig, ExcitationParams, Waveform};
+    let c = Controller::new(&drive()).unwrap();
+    let names = ExcitationParams {
+        amplitude_pu: "a",
+        start_or_bits: "b",
+        end_or_hold: "h",
+        duration_or_periods: "p",
+    };
+    let e = |injection| ExcitationConfig {
+        waveform: Waveform::Prbs {
+            bits: 7,
+            hold_ticks: 1,
+            periods: 1,
+        },
+        amplitude_pu: 0.1,
+        injection,
+    };
+    let t = c
+        .with_excitation(&e(Injection::TorqueReference), names)
+        .unwrap();
+    assert!(!t.closed_total);
+    let v = c
+        .with_excitation(&e(Injection::VelocityReference), names)
+        .unwrap();
+    assert!(v.closed_total);
+    let mut coef = c.coef;
+    coef.torque_limit = -coef.torque_limit;
+    coef.afb.limit = coef.torque_limit;
+    assert!(!Controller::closed_total_exact(&coef, false));
+}
