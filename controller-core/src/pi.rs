@@ -222,17 +222,40 @@ mod tests {
         Pu::from_bits(sat_i32(u_clamped))
     }
 
-    /// The 32-bit form gives the 64-bit one's output and state, inside its range, at its
-    /// edges and beyond them.
-    #[test]
-    fn update_matches_the_64_bit_form() {
-        let mut x = 0x2545_F491_4F6C_DD1D_u64;
-        let mut next = || {
+    /// A xorshift64 sequence from `seed`.
+    fn xorshift(mut x: u64) -> impl FnMut() -> u64 {
+        move || {
             x ^= x << 13;
             x ^= x >> 7;
             x ^= x << 17;
             x
-        };
+        }
+    }
+
+    /// A word from `v`: one of `edges`, or a random word of 30, 20 or 32 significant bits.
+    fn pick(v: u64, edges: &[i32]) -> i32 {
+        match (v >> 60) % 4 {
+            0 => edges[(v % edges.len() as u64) as usize],
+            1 => (v as i32) >> 2,
+            2 => (v as i32) >> 12,
+            _ => v as i32,
+        }
+    }
+
+    /// Random coefficients, edges included.
+    fn coefficients(next: &mut impl FnMut() -> u64, edges: &[i32]) -> PiCoefficients {
+        PiCoefficients {
+            kp: Gain::from_bits(pick(next(), edges)),
+            ki_ts: TickGain::from_bits(pick(next(), edges)),
+            limit: Pu::from_bits(pick(next(), edges)),
+        }
+    }
+
+    /// The 32-bit form gives the 64-bit one's output and state, inside its range, at its
+    /// edges and beyond them.
+    #[test]
+    fn update_matches_the_64_bit_form() {
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
         let edges = [
             0,
             1,
@@ -246,19 +269,8 @@ mod tests {
         ];
         for k in 0..200_000u32 {
             let r = next();
-            let pick = |v: u64| -> i32 {
-                match (v >> 60) % 4 {
-                    0 => edges[(v % edges.len() as u64) as usize],
-                    1 => (v as i32) >> 2,
-                    2 => (v as i32) >> 12,
-                    _ => v as i32,
-                }
-            };
-            let c = PiCoefficients {
-                kp: Gain::from_bits(pick(next())),
-                ki_ts: TickGain::from_bits(pick(next())),
-                limit: Pu::from_bits(pick(next())),
-            };
+            let pick = |v: u64| pick(v, &edges);
+            let c = coefficients(&mut next, &edges);
             let (e, ff, off) = (
                 Pu::from_bits(pick(next())),
                 Pu::from_bits(pick(next())),
@@ -289,27 +301,11 @@ mod tests {
     /// `update_with_offset` with a zero offset.
     #[test]
     fn update_equals_a_zero_offset() {
-        let mut x = 0x9E37_79B9_7F4A_7C15_u64;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
+        let edges = [0, 1, -1, 1 << 29, -(1 << 29), i32::MAX, i32::MIN];
         for k in 0..200_000u32 {
-            let pick = |v: u64| -> i32 {
-                match (v >> 60) % 4 {
-                    0 => [0, 1, -1, 1 << 29, -(1 << 29), i32::MAX, i32::MIN][(v % 7) as usize],
-                    1 => (v as i32) >> 2,
-                    2 => (v as i32) >> 12,
-                    _ => v as i32,
-                }
-            };
-            let c = PiCoefficients {
-                kp: Gain::from_bits(pick(next())),
-                ki_ts: TickGain::from_bits(pick(next())),
-                limit: Pu::from_bits(pick(next())),
-            };
+            let pick = |v: u64| pick(v, &edges);
+            let c = coefficients(&mut next, &edges);
             let (e, ff) = (Pu::from_bits(pick(next())), Pu::from_bits(pick(next())));
             let s0 = PiState {
                 integral: I32F32::from_bits(if k % 2 == 0 {
