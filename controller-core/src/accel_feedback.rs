@@ -95,9 +95,7 @@ impl AccelerationFeedback {
             AfbMode::Error => a_cmd.saturating_sub(a_meas),
         };
         let filtered = self.filter.process(s, x);
-        // |limit| of the raw bits: the same value as `Pu::saturating_abs`, in fewer
-        // instructions (a conditional saturating subtract).
-        let lim = Pu::from_bits(self.limit.to_bits().saturating_abs());
+        let lim = self.abs_limit();
         mul_gain(filtered, self.ka).max(-lim).min(lim)
     }
 

@@ -168,32 +168,35 @@ impl Piecewise {
 
     /// Advances by `dt_s` with the inputs held. `dt_s` must be finite and ≥ 0 (checked by callers).
     pub fn advance(&mut self, dt_s: f64, u: &Vec3) {
-        if dt_s <= 0.0 {
-            return;
-        }
-        if dt_s <= self.h_max_s {
+        let (pieces, h) = self.pieces(dt_s);
+        if pieces == 1 {
             // The usual case (a harness step is shorter than the longest sub-step).
-            self.piece(dt_s, u);
+            self.piece(h, u);
             return;
         }
-        let pieces = (dt_s / self.h_max_s).ceil().max(1.0);
-        let h = dt_s / pieces;
-        for _ in 0..pieces as u64 {
+        for _ in 0..pieces {
             self.piece(h, u);
         }
     }
 
-    /// How [`Self::advance`] splits a step of `dt_s`, with the slot of its sub-step's
-    /// maps, worked out once for a caller that repeats the step.
-    pub fn split(&mut self, dt_s: f64) -> Split {
-        let (pieces, h) = if dt_s <= 0.0 {
+    /// How a step of `dt_s` is split: `pieces` sub-steps of `h`, none of them longer than
+    /// the longest sub-step (no pieces for a step that is not positive).
+    #[inline(always)]
+    fn pieces(&self, dt_s: f64) -> (u64, f64) {
+        if dt_s <= 0.0 {
             (0, 0.0)
         } else if dt_s <= self.h_max_s {
             (1, dt_s)
         } else {
             let pieces = (dt_s / self.h_max_s).ceil().max(1.0);
             (pieces as u64, dt_s / pieces)
-        };
+        }
+    }
+
+    /// How [`Self::advance`] splits a step of `dt_s`, with the slot of its sub-step's
+    /// maps, worked out once for a caller that repeats the step.
+    pub fn split(&mut self, dt_s: f64) -> Split {
+        let (pieces, h) = self.pieces(dt_s);
         let slot = if pieces > 0 { self.maps.slot(h) } else { 0 };
         Split { h, pieces, slot }
     }
@@ -226,17 +229,20 @@ impl Piecewise {
     #[inline]
     fn piece(&mut self, h: f64, u: &Vec3) {
         let x_end = self.maps.step(self.contact, h, &self.x, u);
-        if self.guards().suspect(&self.x, &x_end, u, h) {
-            self.search(self.x, x_end, h, u);
-        } else {
-            self.x = x_end;
-        }
+        self.settle(x_end, h, u);
     }
 
     /// [`Self::piece`] with the map's slot known.
     #[inline(always)]
     fn piece_in(&mut self, slot: usize, h: f64, u: &Vec3) {
         let x_end = self.maps.step_in(slot, self.contact, h, &self.x, u);
+        self.settle(x_end, h, u);
+    }
+
+    /// The end of a sub-step whose exact map gave `x_end`: taken as it is unless a guard
+    /// may have fired, then the event search.
+    #[inline(always)]
+    fn settle(&mut self, x_end: Vec5, h: f64, u: &Vec3) {
         if self.guards().suspect(&self.x, &x_end, u, h) {
             self.search(self.x, x_end, h, u);
         } else {
