@@ -32,7 +32,10 @@ fn refuse(out: &Path, reason: String) -> HarnessError {
 /// can be created) or a regular file `mark` recognises. Reads only.
 pub fn check_file_target(out: &Path, mark: &FileMark) -> Result<()> {
     if out.file_name().is_none() {
-        return Err(refuse(out, format!("`{}` is not a file name", out.display())));
+        return Err(refuse(
+            out,
+            format!("`{}` is not a file name", out.display()),
+        ));
     }
     let meta = match std::fs::symlink_metadata(out) {
         Ok(m) => m,

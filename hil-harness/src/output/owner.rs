@@ -8,7 +8,8 @@
 //! - a path that does not exist (its first existing ancestor must be a directory), or
 //! - a real directory (not a symbolic link) in which every entry that is not a directory
 //!   (files, symbolic links, anything else) is listed in the manifest of the directory or
-//!   of a subdirectory above it (`out/pil-fig6/` has its own, beside the report's), and no
+//!   of a directory above it (`out/pil-fig6/` has its own, beside the report's; `out/`'s
+//!   lists `out/sweep/`'s files, so `sweep --out out/sweep` may follow `reproduce`), and no
 //!   listed path is now a directory. Empty directories hold nothing and are accepted, so
 //!   an empty or absent target needs no manifest. Directories named like stiffdrive's own
 //!   staging leftovers (`.<name>.staging-<pid>`, `.<name>.old-<pid>`) are stiffdrive's.
@@ -44,9 +45,10 @@ pub(super) fn is_leftover_name(name: &str) -> bool {
         return false;
     };
     ["staging", "old"].iter().any(|kind| {
-        rest.rsplit_once(&format!(".{kind}-")).is_some_and(|(stem, pid)| {
-            !stem.is_empty() && !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit())
-        })
+        rest.rsplit_once(&format!(".{kind}-"))
+            .is_some_and(|(stem, pid)| {
+                !stem.is_empty() && !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit())
+            })
     })
 }
 
@@ -76,8 +78,33 @@ pub fn check_dir_target(target: &Path) -> Result<()> {
             format!("`{shown}` is a file, not an output directory"),
         ));
     }
-    let mut listed = Vec::new();
+    let mut listed = ancestor_listings(target);
     check_tree(target, target, &mut listed)
+}
+
+/// What the manifests of the directories above `target` list below it, re-rooted at
+/// `target`: `reproduce` lists `out/sweep/sweep.csv` in `out/`'s manifest, so a later
+/// `sweep --out out/sweep` may replace it. An ancestor that cannot be read lists nothing.
+fn ancestor_listings(target: &Path) -> Vec<(PathBuf, BTreeSet<String>)> {
+    let Ok(abs) = std::fs::canonicalize(target) else {
+        return Vec::new();
+    };
+    let mut listed = Vec::new();
+    for anc in abs.ancestors().skip(1) {
+        let Some(set) = read_manifest(anc).ok().flatten() else {
+            continue;
+        };
+        let Some(rel) = abs.strip_prefix(anc).ok().and_then(Path::to_str) else {
+            continue;
+        };
+        let prefix = format!("{rel}/");
+        let below: BTreeSet<String> = set
+            .iter()
+            .filter_map(|p| p.strip_prefix(&prefix).map(str::to_string))
+            .collect();
+        listed.push((target.to_path_buf(), below));
+    }
+    listed
 }
 
 /// The first existing ancestor of an absent `target` must be a directory.
@@ -166,7 +193,11 @@ fn check_tree(
             if !name.to_str().is_some_and(is_leftover_name) {
                 check_tree(target, &path, listed)?;
             }
-        } else if !(pushed && name == MANIFEST) && !is_listed(&path, listed) {
+        } else {
+            let own_manifest = pushed && name == MANIFEST;
+            if own_manifest || is_listed(&path, listed) {
+                continue;
+            }
             return Err(refuse(
                 target,
                 format!("`{}` was not written by stiffdrive", path.display()),

@@ -163,7 +163,10 @@ fn absent_empty_own_and_nested_own_directories_are_accepted() {
     check_dir_target(&out).unwrap();
     std::fs::remove_dir_all(&out).unwrap();
     write_set(&out, &[("REPORT.md", "r"), ("fig6/trace.csv", "t")]);
-    assert_eq!(manifest(&out), ["REPORT.md", "fig6/trace.csv"].map(String::from));
+    assert_eq!(
+        manifest(&out),
+        ["REPORT.md", "fig6/trace.csv"].map(String::from)
+    );
     check_dir_target(&out).unwrap();
     // A stiffdrive directory inside one, written after it (`pil` into out/pil-fig6), and a
     // listed file the user removed.
@@ -183,9 +186,15 @@ fn foreign_files_anywhere_below_are_refused_and_nothing_is_touched() {
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
     let e = refusal(&out);
-    assert!(e.contains("results/notes.txt` was not written by stiffdrive"), "{e}");
+    assert!(
+        e.contains("results/notes.txt` was not written by stiffdrive"),
+        "{e}"
+    );
     assert!(Staging::new(&out).is_err());
-    assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "mine"
+    );
     assert!(siblings(tmp.path()).is_empty());
     // In a subdirectory of a stiffdrive directory, and in a nested stiffdrive directory.
     std::fs::remove_dir_all(&out).unwrap();
@@ -212,7 +221,10 @@ fn a_listed_file_replaced_by_a_directory_is_refused() {
     std::fs::remove_file(out.join("summary.json")).unwrap();
     std::fs::create_dir(out.join("summary.json")).unwrap();
     let e = refusal(&out);
-    assert!(e.contains("o/summary.json` is a directory where stiffdrive wrote a file"), "{e}");
+    assert!(
+        e.contains("o/summary.json` is a directory where stiffdrive wrote a file"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -244,7 +256,10 @@ fn a_foreign_file_that_appears_during_the_command_stops_the_commit() {
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
     assert!(s.commit().is_err());
     assert_eq!(std::fs::read_to_string(out.join("a.txt")).unwrap(), "old");
-    assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+    assert_eq!(
+        std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+        "mine"
+    );
     assert!(siblings(tmp.path()).is_empty());
 }
 
@@ -277,4 +292,18 @@ fn pil_then_reproduce_then_both_again_into_the_same_out() {
         assert_eq!(snap, want, "round {round}");
         assert!(siblings(tmp.path()).is_empty() && siblings(&out).is_empty());
     }
+}
+
+#[test]
+fn a_subdirectory_of_a_stiffdrive_directory_is_its_own() {
+    // `reproduce` writes out/sweep/ without a manifest of its own; `sweep --out out/sweep`
+    // may then replace it, while a foreign file in it is still refused.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    write_set(&out, &[("REPORT.md", "r"), ("sweep/sweep.csv", "s")]);
+    check_dir_target(&out.join("sweep")).unwrap();
+    write_set(&out.join("sweep"), &[("sweep.csv", "s2")]);
+    check_dir_target(&out).unwrap();
+    std::fs::write(out.join("sweep/notes.txt"), "mine").unwrap();
+    assert!(refusal(&out.join("sweep")).contains("sweep/notes.txt` was not written"));
 }
