@@ -71,10 +71,11 @@ pub fn write_run(dir: &Path, cfg: &RunConfig, out: &RunOutput) -> Result<()> {
 
 /// `hil-harness run`.
 pub fn run(scenario: &str, config: Option<&str>, sets: &[String], out: &Path) -> Result<String> {
-    // Resolve and run before touching the output directory.
+    // Resolve, then check the output directory before the run (a refusal costs no
+    // simulation); the staging directory is removed if the run fails.
     let cfg = resolve(scenario, config, sets)?;
-    let result = run_scenario(&cfg)?;
     let staging = Staging::new(out)?;
+    let result = run_scenario(&cfg)?;
     write_run(staging.dir(), &cfg, &result)?;
     staging.commit()?;
     let m = &result.metrics;

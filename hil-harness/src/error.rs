@@ -28,6 +28,15 @@ pub enum HarnessError {
         /// The operating system's message.
         reason: String,
     },
+    /// An `--out` path that holds something stiffdrive did not write, or cannot hold its
+    /// output (a file where a directory goes, a symbolic link, a path through a file).
+    /// Nothing was changed.
+    OutputInTheWay {
+        /// The output path asked for.
+        out: PathBuf,
+        /// What is in the way, naming its path.
+        reason: String,
+    },
     /// A TOML file that does not parse.
     Parse {
         /// The file.
@@ -51,6 +60,11 @@ impl fmt::Display for HarnessError {
             ),
             Self::Config { key, reason } => write!(f, "bad configuration `{key}`: {reason}"),
             Self::Io { path, reason } => write!(f, "{}: {reason}", path.display()),
+            Self::OutputInTheWay { out, reason } => write!(
+                f,
+                "refusing to write to `{}`: {reason}; nothing was changed",
+                out.display()
+            ),
             Self::Parse { path, reason } => write!(f, "cannot parse {}: {reason}", path.display()),
             Self::Plot(reason) => write!(f, "plot failed: {reason}"),
             Self::Backend(reason) => write!(f, "{reason}"),

@@ -137,14 +137,29 @@ pub fn machine_schema() -> Result<Value> {
     Ok(root)
 }
 
-/// `hil-harness schema --out FILE`: writes the machine-file schema as pretty JSON.
+/// What marks a file as this command's output: JSON whose root is titled `PlantConfig`
+/// with a `$schema` and a `drive` property titled `DriveConfig` (what `machine_schema`
+/// writes, in this version and the earlier ones).
+pub const SCHEMA_MARK: crate::output::FileMark = crate::output::FileMark {
+    what: "a machine-file JSON Schema stiffdrive wrote",
+    is_ours: is_machine_schema,
+};
+
+fn is_machine_schema(bytes: &[u8]) -> bool {
+    serde_json::from_slice::<Value>(bytes).is_ok_and(|v| {
+        v.get("$schema").is_some()
+            && v.get("title").and_then(Value::as_str) == Some("PlantConfig")
+            && v.pointer("/properties/drive/title").and_then(Value::as_str) == Some("DriveConfig")
+    })
+}
+
+/// `hil-harness schema --out FILE`: writes the machine-file schema as pretty JSON (an
+/// existing file only if it is a schema stiffdrive wrote; see [`SCHEMA_MARK`]).
 pub fn write_schema(out: &std::path::Path) -> Result<String> {
+    crate::output::check_file_target(out, &SCHEMA_MARK)?;
     let text = serde_json::to_string_pretty(&machine_schema()?)
         .map_err(|e| HarnessError::Backend(format!("schema: {e}")))?;
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| HarnessError::io(dir, e))?;
-    }
-    std::fs::write(out, text + "\n").map_err(|e| HarnessError::io(out, e))?;
+    crate::output::write_file(out, (text + "\n").as_bytes(), &SCHEMA_MARK)?;
     Ok(format!("machine-file JSON Schema -> {}", out.display()))
 }
 

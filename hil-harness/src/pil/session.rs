@@ -273,8 +273,9 @@ fn prepare(args: &PilArgs) -> Result<(Option<FaultPlan>, PathBuf)> {
 pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
     args.check()?;
     let cfg = resolve_for_firmware(args)?;
-    let (plan, elf) = prepare(args)?;
+    // The output directory is checked before the image is built and QEMU provisioned.
     let staging = Staging::new(&args.run.out)?;
+    let (plan, elf) = prepare(args)?;
     let log_path = staging.path("firmware.defmt")?;
     let Session {
         mut qemu,

@@ -26,7 +26,7 @@ pub mod write;
 
 use crate::config::{config_path, machine, overrides, read_table, RunConfig};
 use crate::error::{HarnessError, Result};
-use crate::output::staged;
+use crate::output::Staging;
 use controller_core::AfbMode;
 use lost_motion::{fit_lost_motion, LostMotionFit};
 use plant_host::analysis::{closed_loop_response, fit_two_inertia, FitResult, MeasuredResponse};
@@ -118,8 +118,11 @@ pub fn fit_response(
 /// `hil-harness identify`.
 pub fn identify(config: &str, sets: &[String], out: &Path) -> Result<String> {
     let (base, spec) = load(config, sets)?;
+    // The output directory is checked before the measurement.
+    let staging = Staging::new(out)?;
     let ident = identify_machine(&base, &spec)?;
-    staged(out, |dir| write::write_all(dir, &base, &spec, &ident))?;
+    write::write_all(staging.dir(), &base, &spec, &ident)?;
+    staging.commit()?;
     let f = &ident.fit.fit;
     Ok(format!(
         "identify {}: Jm = {:.4} s, Jl = {:.4} s, anti-resonance {:.2} Hz, resonance {:.2} Hz, \

@@ -181,8 +181,8 @@ pub fn markdown(a: &Analysis) -> String {
 /// `hil-harness linear`.
 pub fn linear(scenario: &str, config: Option<&str>, sets: &[String], out: &Path) -> Result<String> {
     let cfg = resolve(scenario, config, sets)?;
-    let a = analyze(&cfg)?;
     let staging = Staging::new(out)?;
+    let a = analyze(&cfg)?;
     let dir = staging.dir();
     let json = serde_json::to_string_pretty(&a)
         .map_err(|e| HarnessError::io(dir.join("linear.json"), e))?;

@@ -410,8 +410,9 @@ pub fn tune(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
-    let t = design(config, target_bandwidth, constraints)?;
+    // The output directory is checked before the design's runs.
     let staging = Staging::new(out)?;
+    let t = design(config, target_bandwidth, constraints)?;
     write_design(staging.dir(), &t)?;
     staging.commit()?;
     Ok(summary_line(&t, out))

@@ -1,18 +1,33 @@
-//! Output directories that are never half-written and never mix two runs.
+//! Output directories that are never half-written, never mix two runs, and never replace
+//! what stiffdrive did not write.
 //!
 //! A command writes into a staging directory beside its target
-//! (`<parent>/.<name>.staging-<pid>`). [`Staging::commit`] then swaps it in with two
-//! renames: the old directory to `<parent>/.<name>.old-<pid>`, the staging directory to
-//! the target; then the old set is removed. A crash between the two renames leaves the
-//! target absent and the old set beside it; the next [`Staging::new`] for that target puts
-//! the old set back, so a reader sees the old set or the new one, never a mix. Staging
-//! directories of processes that no longer run are removed at the same time.
+//! (`<parent>/.<name>.staging-<pid>`). [`Staging::commit`] writes the set's manifest
+//! ([`MANIFEST`], see [`owner`]) into it, then swaps it in with two renames: the old
+//! directory to `<parent>/.<name>.old-<pid>`, the staging directory to the target; then
+//! the old set is removed. A crash between the two renames leaves the target absent and the
+//! old set beside it; the next [`Staging::new`] for that target puts the old set back, so a
+//! reader sees the old set or the new one, never a mix. Staging directories of processes
+//! that no longer run are removed at the same time.
 //!
-//! [`Staging::new`] replaces the whole directory: after the commit it holds exactly what
-//! the command wrote. [`Staging::keeping_others`] is for a directory that collects the
-//! products of several commands (`out/` holds `pil-fig6/` from `pil` beside the report):
-//! entries of the old set that the new one lacks are carried over (hard links, so the old
-//! set stays intact until the swap).
+//! [`Staging::new`] first checks the target ([`check_dir_target`]): it must be absent, or
+//! a directory every file of which a stiffdrive manifest lists. Anything else (a file, a
+//! symbolic link, a directory holding other files, a path through a file) is refused
+//! before anything is touched, and the commit checks again before it moves the old set.
+//!
+//! After the commit, a target made with [`Staging::new`] holds exactly what the command
+//! wrote. [`Staging::keeping_others`] is for a directory that collects the products of
+//! several commands (`out/` holds `pil-fig6/` from `pil` beside the report): entries of
+//! the old set that the new one lacks are carried over (hard links, so the old set stays
+//! intact until the swap), and the new manifest lists them too.
+//!
+//! Output files (`schema`, `replay`) go through [`write_file`] and [`check_file_target`].
+
+mod file;
+pub mod owner;
+
+pub use file::{check_file_target, write_file, FileMark};
+pub use owner::{check_dir_target, MANIFEST};
 
 use crate::error::{HarnessError, Result};
 use std::ffi::OsString;
@@ -30,7 +45,8 @@ pub struct Staging {
 /// The steps of a commit, in order (a crash test stops after one of them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum CommitStep {
-    /// Old entries carried over into the staging directory (keeping mode).
+    /// Old entries carried over into the staging directory (keeping mode) and the
+    /// manifest written.
     CarriedOver,
     /// The old set moved aside.
     OldMovedAside,
@@ -132,11 +148,13 @@ pub fn staged<T>(target: &Path, write: impl FnOnce(&Path) -> Result<T>) -> Resul
 }
 
 impl Staging {
-    /// A staging directory whose commit replaces `target` as a whole. Creates the parent,
-    /// recovers from a crashed earlier commit, and fails with the path named if the
-    /// location cannot be written.
+    /// A staging directory whose commit replaces `target` as a whole. Checks the target
+    /// ([`check_dir_target`]) before anything else, then creates the parent, recovers from
+    /// a crashed earlier commit, and fails with the path named if the location cannot be
+    /// written.
     pub fn new(target: &Path) -> Result<Self> {
         let (parent, name) = split(target)?;
+        check_dir_target(target)?;
         std::fs::create_dir_all(&parent).map_err(io(target))?;
         recover(target, &parent, &name)?;
         let dir = sibling(&parent, &name, "staging", std::process::id());
@@ -187,7 +205,9 @@ impl Staging {
     pub fn commit_until(mut self, crash_after: Option<CommitStep>) -> Result<()> {
         let stop = |step: CommitStep| crash_after == Some(step);
         let (parent, name) = split(&self.target)?;
-        let had_old = self.target.is_dir();
+        // The command ran for a while: what is at the target now must still be ours.
+        check_dir_target(&self.target)?;
+        let had_old = std::fs::symlink_metadata(&self.target).is_ok_and(|m| m.is_dir());
         if self.keep_others && had_old {
             for entry in std::fs::read_dir(&self.target).map_err(io(&self.target))? {
                 let entry = entry.map_err(io(&self.target))?;
@@ -197,15 +217,13 @@ impl Staging {
                 }
             }
         }
+        owner::write_manifest(&self.dir)?;
         if stop(CommitStep::CarriedOver) {
             return self.die();
         }
         let old = sibling(&parent, &name, "old", std::process::id());
         if had_old {
             std::fs::rename(&self.target, &old).map_err(io(&self.target))?;
-        } else if self.target.exists() {
-            // A file where the directory should go.
-            std::fs::remove_file(&self.target).map_err(io(&self.target))?;
         }
         if stop(CommitStep::OldMovedAside) {
             return self.die();
@@ -238,139 +256,4 @@ impl Drop for Staging {
 }
 
 #[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)]
-    use super::*;
-    use std::collections::BTreeMap;
-
-    /// Every file below `dir` with its content, and the hidden siblings beside it.
-    fn snapshot(dir: &Path) -> BTreeMap<String, String> {
-        fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<String, String>) {
-            for e in std::fs::read_dir(dir).unwrap().flatten() {
-                let p = e.path();
-                if p.is_dir() {
-                    walk(root, &p, out);
-                } else {
-                    let rel = p.strip_prefix(root).unwrap().display().to_string();
-                    out.insert(rel, std::fs::read_to_string(&p).unwrap());
-                }
-            }
-        }
-        let mut out = BTreeMap::new();
-        if dir.is_dir() {
-            walk(dir, dir, &mut out);
-        }
-        out
-    }
-
-    fn write_set(out: &Path, files: &[(&str, &str)]) {
-        let s = Staging::new(out).unwrap();
-        for (name, text) in files {
-            s.write(name, text).unwrap();
-        }
-        s.commit().unwrap();
-    }
-
-    fn siblings(parent: &Path) -> Vec<String> {
-        let mut v: Vec<String> = std::fs::read_dir(parent)
-            .unwrap()
-            .flatten()
-            .map(|e| e.file_name().to_string_lossy().into_owned())
-            .filter(|n| n.starts_with('.'))
-            .collect();
-        v.sort();
-        v
-    }
-
-    #[test]
-    fn dropped_staging_leaves_nothing_and_commit_replaces_the_set() {
-        let tmp = tempfile::tempdir().unwrap();
-        let out = tmp.path().join("o");
-        {
-            let s = Staging::new(&out).unwrap();
-            s.write("a.txt", "x").unwrap();
-        }
-        assert!(!out.exists() && siblings(tmp.path()).is_empty());
-        write_set(&out, &[("sub/b.txt", "y"), ("trace.svg", "fig6")]);
-        write_set(&out, &[("sub/b.txt", "z")]);
-        // Exactly the second run's files: no trace.svg of the first run beside them.
-        let expect: BTreeMap<String, String> = [("sub/b.txt".into(), "z".into())].into();
-        assert_eq!(snapshot(&out), expect);
-        assert!(siblings(tmp.path()).is_empty());
-    }
-
-    #[test]
-    fn keeping_others_carries_over_what_the_new_set_lacks() {
-        let tmp = tempfile::tempdir().unwrap();
-        let out = tmp.path().join("out");
-        write_set(&out, &[("pil-fig6/pil.json", "pil"), ("REPORT.md", "old")]);
-        let s = Staging::keeping_others(&out).unwrap();
-        s.write("REPORT.md", "new").unwrap();
-        s.commit().unwrap();
-        let snap = snapshot(&out);
-        assert_eq!(snap.get("REPORT.md").map(String::as_str), Some("new"));
-        assert_eq!(
-            snap.get("pil-fig6/pil.json").map(String::as_str),
-            Some("pil")
-        );
-    }
-
-    #[test]
-    fn a_crash_at_any_commit_step_leaves_the_old_set_or_the_new_one() {
-        let old: &[(&str, &str)] = &[
-            ("summary.json", "fig4"),
-            ("trace.csv", "fig4"),
-            ("trace.png", "fig4"),
-        ];
-        let new: &[(&str, &str)] = &[("summary.json", "fig6"), ("trace.svg", "fig6")];
-        let set = |files: &[(&str, &str)]| -> BTreeMap<String, String> {
-            files
-                .iter()
-                .map(|(a, b)| ((*a).to_string(), (*b).to_string()))
-                .collect()
-        };
-        for (step, expect_new) in [
-            (CommitStep::CarriedOver, false),
-            (CommitStep::OldMovedAside, false),
-            (CommitStep::NewInPlace, true),
-        ] {
-            let tmp = tempfile::tempdir().unwrap();
-            let out = tmp.path().join("run");
-            write_set(&out, old);
-            let s = Staging::new(&out).unwrap();
-            for (name, text) in new {
-                s.write(name, text).unwrap();
-            }
-            s.commit_until(Some(step)).unwrap();
-            // The next command (here: the next staging of the same target) recovers.
-            drop(Staging::new(&out).unwrap());
-            let want = if expect_new { set(new) } else { set(old) };
-            assert_eq!(snapshot(&out), want, "crash after {step:?}");
-            assert!(
-                siblings(tmp.path()).is_empty(),
-                "crash after {step:?}: left {:?}",
-                siblings(tmp.path())
-            );
-        }
-    }
-
-    #[test]
-    fn a_stale_staging_directory_of_a_dead_process_is_removed() {
-        let tmp = tempfile::tempdir().unwrap();
-        let out = tmp.path().join("o");
-        // No process has pid u32::MAX - 1 (Linux pids stay below 2^22).
-        let stale = sibling(tmp.path(), &OsString::from("o"), "staging", u32::MAX - 1);
-        std::fs::create_dir_all(stale.join("big")).unwrap();
-        drop(Staging::new(&out).unwrap());
-        assert!(!stale.exists());
-    }
-
-    #[test]
-    fn unwritable_target_is_an_error_naming_it() {
-        let tmp = tempfile::tempdir().unwrap();
-        let file = tmp.path().join("f");
-        std::fs::write(&file, "").unwrap();
-        let e = Staging::new(&file.join("x")).unwrap_err();
-        assert!(e.to_string().contains("f/x"), "{e}");
-    }
-}
+mod tests;
