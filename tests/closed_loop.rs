@@ -206,3 +206,71 @@ fn printing_press_beyond_the_no_afb_limit_afb_cuts_the_ripple_by_three() {
         off.metrics.torque_ripple_rms_pu
     );
 }
+
+/// Locked rotor: with the load held still and speed commanded, the winding carries the
+/// torque limit until the I²t model trips, as `overload`, within 5 % of the time the
+/// thermal model (integrated in f64 on the drive's current samples) predicts; the load
+/// never moves.
+#[test]
+fn a_locked_rotor_trips_on_overload_at_the_thermal_models_time() {
+    let out = run("locked-rotor", &[]);
+    assert!(out.metrics.faulted);
+    let fault = out.fault.as_ref().expect("a fault");
+    assert_eq!(fault.kind, "overload");
+    let predicted = out.protection.predicted_trip_s.expect("a prediction");
+    let err = (fault.t_s - predicted).abs() / predicted;
+    assert!(err < 0.05, "trip {} s, predicted {predicted} s", fault.t_s);
+    // At least 25 s: the overload class (150 % for 60 s) at the 2 pu limit or less.
+    assert!(fault.t_s >= 25.0, "{}", fault.t_s);
+    assert!(out.trace.rows.iter().all(|r| r.load_vel_pu == 0.0));
+    // The warning came first, at 80 % of the heat.
+    let warn = out.protection.thermal_warning_s.expect("a warning");
+    assert!(warn < fault.t_s && warn > 0.7 * fault.t_s, "{warn}");
+}
+
+/// Overcurrent: a current loop tuned past what the delay allows rings the current past the
+/// overcurrent level, and the drive trips within `faults.overcurrent_ticks` current ticks
+/// of the first sample over it, with zero torque from then on.
+#[test]
+fn an_unstable_current_loop_trips_on_overcurrent_within_its_ticks() {
+    let out = run("overcurrent", &[]);
+    let fault = out.fault.as_ref().expect("a fault");
+    assert_eq!(fault.kind, "overcurrent");
+    let p = &out.protection;
+    let first = p.first_over_current_tick.expect("a sample over the level");
+    let n = u64::from(p.overcurrent_ticks);
+    assert!(
+        fault.tick >= first && fault.tick < first + n,
+        "first over at tick {first}, trip at {}",
+        fault.tick
+    );
+    assert!(out
+        .trace
+        .rows
+        .iter()
+        .filter(|r| r.t_s > fault.t_s)
+        .all(|r| r.torque_cmd_pu == 0.0 && r.fault == 5.0));
+}
+
+/// Stall: the locked rotor with the stall trip at its default trips on stall 3 s (the
+/// default stall time) after the speed regulator reaches the torque limit.
+#[test]
+fn a_locked_rotor_with_the_stall_trip_on_trips_on_stall_after_its_time() {
+    let out = run("stall", &[]);
+    let fault = out.fault.as_ref().expect("a fault");
+    assert_eq!(fault.kind, "stall");
+    assert!(fault.t_s >= 3.0 && fault.t_s < 3.1, "{}", fault.t_s);
+}
+
+/// The paper's runs stay far from every protection: no fault, no sample over the
+/// overcurrent level, and the winding under a fifth of its I²t trip level.
+#[test]
+fn the_papers_scenarios_do_not_trip() {
+    for scenario in ["fig6", "shock", "dyno-accel"] {
+        let out = run(scenario, &[]);
+        assert!(out.fault.is_none(), "{scenario}: {:?}", out.fault);
+        let p = &out.protection;
+        assert_eq!(p.first_over_current_tick, None, "{scenario}");
+        assert!(p.thermal_peak_fraction < 0.2, "{scenario}: {p:?}");
+    }
+}

@@ -173,6 +173,32 @@ pub struct FaultLimits {
     /// Encoder jump trip: a change of counts between two current ticks larger than
     /// `margin × overspeed_pu × counts per current tick at 1 pu + 2` counts. ≥ 1.
     pub encoder_jump_margin: f32,
+    /// Overcurrent trip level as a multiple of `torque_limit_pu` (so always above the
+    /// torque limit), 1 < ratio ≤ 100: |measured current| above
+    /// `overcurrent_ratio × torque_limit_pu` for `overcurrent_ticks` current ticks in a row.
+    pub overcurrent_ratio: f32,
+    /// Consecutive current ticks over the overcurrent level that trip, 1..=1000.
+    #[cfg_attr(feature = "serde", serde(deserialize_with = "whole::u32"))]
+    #[cfg_attr(feature = "schema", schemars(with = "u32"))]
+    pub overcurrent_ticks: u32,
+    /// Winding current the motor carries without limit (I²t model's i_cont) \[pu\], > 0.
+    pub continuous_current_pu: f32,
+    /// The overload class's current \[pu\], above `continuous_current_pu`: the I²t model
+    /// trips after `overload_time_s` at this current from cold (150 % for 60 s by default).
+    pub overload_current_pu: f32,
+    /// The overload class's time \[s\], 0 < t ≤ 3600.
+    pub overload_time_s: f32,
+    /// The I²t model warns ([`crate::Controller::thermal_warning`]) from this fraction of
+    /// its trip level on, 0 < f ≤ 1.
+    pub thermal_warning_fraction: f32,
+    /// Stall: |velocity estimate| below this \[pu\] (0..=1) with |torque reference| at or
+    /// above `stall_torque_fraction × torque_limit_pu` for `stall_time_s` trips.
+    pub stall_speed_pu: f32,
+    /// The torque of a stall as a fraction of `torque_limit_pu`, 0 < f ≤ 1 (1: the
+    /// velocity tick's torque reference at its limit, i.e. the speed regulator saturated).
+    pub stall_torque_fraction: f32,
+    /// Stall time \[s\], 0..=600; 0 turns the stall trip off.
+    pub stall_time_s: f32,
 }
 
 /// The drive's settings. Every field is plain data; the units are in the names.
@@ -318,11 +344,23 @@ pub mod defaults {
         model_inertia: ObserverInertia::Motor,
         torque_input: ObserverTorque::Command,
     };
-    /// Fault limits: overspeed 1.5 pu, following error 4096 counts, encoder-jump margin 2.
+    /// Fault limits: overspeed 1.5 pu, following error 4096 counts, encoder-jump margin 2;
+    /// overcurrent at 1.5 × the torque limit for 3 current ticks; I²t with 1 pu continuous
+    /// and the 150 % for 60 s overload class, warning at 80 %; stall below 0.02 pu at the
+    /// torque limit for 3 s.
     pub const FAULTS: FaultLimits = FaultLimits {
         overspeed_pu: 1.5,
         following_error_counts: 4096.0,
         encoder_jump_margin: 2.0,
+        overcurrent_ratio: 1.5,
+        overcurrent_ticks: 3,
+        continuous_current_pu: 1.0,
+        overload_current_pu: 1.5,
+        overload_time_s: 60.0,
+        thermal_warning_fraction: 0.8,
+        stall_speed_pu: 0.02,
+        stall_torque_fraction: 1.0,
+        stall_time_s: 3.0,
     };
 
     /// Butterworth Q = 1/√2 of a second-order filter that names no `q`.

@@ -14,6 +14,30 @@ pub enum Fault {
     EncoderJump,
     /// The external fault input was set.
     External,
+    /// |measured current| above `faults.overcurrent_ratio × torque_limit_pu` for
+    /// `faults.overcurrent_ticks` current ticks in a row ([`crate::protection`]).
+    Overcurrent,
+    /// The I²t thermal model of the winding reached its trip level ([`crate::protection`]).
+    Overload,
+    /// The torque reference at its limit with the speed under `faults.stall_speed_pu` for
+    /// `faults.stall_time_s` ([`crate::protection`]).
+    Stall,
+}
+
+impl Fault {
+    /// A short, stable identifier (`snake_case`), for summaries and logs.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Overspeed => "overspeed",
+            Self::FollowingError => "following_error",
+            Self::EncoderJump => "encoder_jump",
+            Self::External => "external",
+            Self::Overcurrent => "overcurrent",
+            Self::Overload => "overload",
+            Self::Stall => "stall",
+        }
+    }
 }
 
 impl fmt::Display for Fault {
@@ -23,6 +47,9 @@ impl fmt::Display for Fault {
             Self::FollowingError => "following error",
             Self::EncoderJump => "encoder count jump",
             Self::External => "external fault input",
+            Self::Overcurrent => "overcurrent",
+            Self::Overload => "overload (I²t)",
+            Self::Stall => "stall",
         })
     }
 }

@@ -29,6 +29,7 @@ pub mod observer;
 pub mod per_unit;
 pub mod pi;
 pub mod profile;
+pub mod protection;
 pub mod ranges;
 mod validate;
 pub mod words;

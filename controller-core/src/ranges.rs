@@ -140,6 +140,27 @@ pub const FOLLOWING_ERROR_COUNTS: Range =
 /// Encoder-jump margin.
 pub const ENCODER_JUMP_MARGIN: Range =
     Range::real("faults.encoder_jump_margin", 1.0, 1000.0, false);
+/// Overcurrent level as a multiple of the torque limit.
+pub const OVERCURRENT_RATIO: Range = Range::real("faults.overcurrent_ratio", 1.0, 100.0, true);
+/// Consecutive current ticks over the overcurrent level.
+pub const OVERCURRENT_TICKS: Range = Range::whole("faults.overcurrent_ticks", 1.0, 1000.0);
+/// Continuous current of the I²t model \[pu\].
+pub const CONTINUOUS_CURRENT_PU: Range =
+    Range::real("faults.continuous_current_pu", 0.0, 100.0, true);
+/// Overload-class current of the I²t model \[pu\] (and above the continuous current).
+pub const OVERLOAD_CURRENT_PU: Range = Range::real("faults.overload_current_pu", 0.0, 100.0, true);
+/// Overload-class time of the I²t model \[s\].
+pub const OVERLOAD_TIME_S: Range = Range::real("faults.overload_time_s", 0.0, 3600.0, true);
+/// I²t warning level as a fraction of the trip level.
+pub const THERMAL_WARNING_FRACTION: Range =
+    Range::real("faults.thermal_warning_fraction", 0.0, 1.0, true);
+/// Stall speed \[pu\].
+pub const STALL_SPEED_PU: Range = Range::real("faults.stall_speed_pu", 0.0, 1.0, false);
+/// Stall torque as a fraction of the torque limit.
+pub const STALL_TORQUE_FRACTION: Range =
+    Range::real("faults.stall_torque_fraction", 0.0, 1.0, true);
+/// Stall time \[s\] (0 = off).
+pub const STALL_TIME_S: Range = Range::real("faults.stall_time_s", 0.0, 600.0, false);
 /// Notch centre \[Hz\] (and below current_rate_hz/2).
 pub const NOTCH_CENTRE_HZ: Range = Range::real("notch.centre_hz", 0.0, INF, true);
 /// Notch −3 dB width \[Hz\] (and at most `notch.centre_hz`).
@@ -176,6 +197,15 @@ pub const RANGES: &[Range] = &[
     OVERSPEED_PU,
     FOLLOWING_ERROR_COUNTS,
     ENCODER_JUMP_MARGIN,
+    OVERCURRENT_RATIO,
+    OVERCURRENT_TICKS,
+    CONTINUOUS_CURRENT_PU,
+    OVERLOAD_CURRENT_PU,
+    OVERLOAD_TIME_S,
+    THERMAL_WARNING_FRACTION,
+    STALL_SPEED_PU,
+    STALL_TORQUE_FRACTION,
+    STALL_TIME_S,
     NOTCH_CENTRE_HZ,
     NOTCH_WIDTH_HZ,
     NOTCH_DEPTH_DB,

@@ -145,11 +145,31 @@ impl DriveConfig {
             (&r::OVERSPEED_PU, f.overspeed_pu),
             (&r::FOLLOWING_ERROR_COUNTS, f.following_error_counts),
             (&r::ENCODER_JUMP_MARGIN, f.encoder_jump_margin),
+            (&r::OVERCURRENT_RATIO, f.overcurrent_ratio),
+            (&r::CONTINUOUS_CURRENT_PU, f.continuous_current_pu),
+            (&r::OVERLOAD_CURRENT_PU, f.overload_current_pu),
+            (&r::OVERLOAD_TIME_S, f.overload_time_s),
+            (&r::THERMAL_WARNING_FRACTION, f.thermal_warning_fraction),
+            (&r::STALL_SPEED_PU, f.stall_speed_pu),
+            (&r::STALL_TORQUE_FRACTION, f.stall_torque_fraction),
+            (&r::STALL_TIME_S, f.stall_time_s),
         ] {
             range.check(v)?;
         }
         r::ENCODER_CPR.check_whole(self.encoder_cpr)?;
         r::COUNTER_BITS.check_whole(u32::from(self.counter_bits))?;
+        r::OVERCURRENT_TICKS.check_whole(f.overcurrent_ticks)?;
+        // The overload class lies above the continuous current (else nothing could trip).
+        let ol = &r::OVERLOAD_CURRENT_PU;
+        if f.overload_current_pu <= f.continuous_current_pu {
+            return Err(ConfigError::OutOfRange {
+                param: ol.key,
+                value: f.overload_current_pu,
+                min: f.continuous_current_pu,
+                max: ol.max,
+                min_exclusive: true,
+            });
+        }
         Ok(())
     }
 

@@ -32,14 +32,17 @@ pub const VELOCITY_FIELDS: [&str; VELOCITY_WORDS] = [
 
 impl Fault {
     /// Every fault, in code order (codes 1, 2, ...).
-    pub const ALL: [Self; 4] = [
+    pub const ALL: [Self; 7] = [
         Self::Overspeed,
         Self::FollowingError,
         Self::EncoderJump,
         Self::External,
+        Self::Overcurrent,
+        Self::Overload,
+        Self::Stall,
     ];
 
-    /// The fault's code, 1..=4 (0 is "no fault"). Stable across versions.
+    /// The fault's code, 1..=7 (0 is "no fault"). Stable across versions.
     #[must_use]
     pub const fn code(self) -> u8 {
         match self {
@@ -47,10 +50,13 @@ impl Fault {
             Self::FollowingError => 2,
             Self::EncoderJump => 3,
             Self::External => 4,
+            Self::Overcurrent => 5,
+            Self::Overload => 6,
+            Self::Stall => 7,
         }
     }
 
-    /// The fault of a code 1..=4; `None` for any other code.
+    /// The fault of a code 1..=7; `None` for any other code.
     ///
     /// ```
     /// use controller_core::Fault;
@@ -66,6 +72,9 @@ impl Fault {
             2 => Some(Self::FollowingError),
             3 => Some(Self::EncoderJump),
             4 => Some(Self::External),
+            5 => Some(Self::Overcurrent),
+            6 => Some(Self::Overload),
+            7 => Some(Self::Stall),
             _ => None,
         }
     }

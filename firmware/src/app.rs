@@ -110,6 +110,8 @@ pub struct App {
     held: bool,
     /// Last velocity-tick setpoint, for the trace.
     last_setpoint: Setpoint,
+    /// The current tick at which the latched fault was first reported, for the log.
+    fault_tick: Option<u32>,
 }
 
 impl App {
@@ -133,6 +135,7 @@ impl App {
             fault_input_active: false,
             held: true,
             last_setpoint: Setpoint::default(),
+            fault_tick: None,
         })
     }
 
@@ -155,6 +158,7 @@ impl App {
     /// Clear a latched fault and the regulators' state (the operator's fault reset).
     pub fn reset(&mut self) {
         self.controller.reset();
+        self.fault_tick = None;
         self.sensor_fault = false;
         self.held = !self.enable_request;
     }
@@ -163,6 +167,18 @@ impl App {
     #[must_use]
     pub fn fault(&self) -> Option<Fault> {
         self.controller.fault()
+    }
+
+    /// The latched fault and the current tick it latched at (when and why it tripped).
+    #[must_use]
+    pub fn fault_record(&self) -> Option<(Fault, u32)> {
+        self.controller.fault().zip(self.fault_tick)
+    }
+
+    /// Whether the I²t model of the winding is at its warning level.
+    #[must_use]
+    pub fn thermal_warning(&self) -> bool {
+        self.controller.thermal_warning()
     }
 
     /// The app with an identification excitation in its controller
@@ -281,6 +297,9 @@ impl App {
         let out = self.controller.current_tick(inputs);
         if out.fault.is_some() {
             self.trace.trigger(self.tick, TriggerCause::Fault);
+            if self.fault_tick.is_none() {
+                self.fault_tick = Some(self.tick);
+            }
         }
         self.record_trace(&inputs, &out);
         out

@@ -189,9 +189,32 @@ mod target {
         let mut dumps = 0_u32;
         #[cfg(not(feature = "board-stm32f4"))]
         let mut self_dump_asked = false;
+        let (mut fault_logged, mut warning_logged) = (false, false);
         loop {
             cortex_m::asm::wfi();
             let ticks = LOOPS.with_app(|app| app.ticks()).unwrap_or(0);
+            // When and why the drive tripped, once per latch; the I²t warning once per rise.
+            match LOOPS.with_app(|app| app.fault_record()).flatten() {
+                Some((fault, tick)) if !fault_logged => {
+                    fault_logged = true;
+                    defmt::error!(
+                        "fault latched: {=str} (code {=u8}) at current tick {=u32}",
+                        fault.name(),
+                        fault.code(),
+                        tick
+                    );
+                }
+                Some(_) => {}
+                None => fault_logged = false,
+            }
+            let warm = LOOPS.with_app(|app| app.thermal_warning()).unwrap_or(false);
+            if warm && !warning_logged {
+                defmt::warn!(
+                    "I2t warning: winding at its thermal warning level, tick {=u32}",
+                    ticks
+                );
+            }
+            warning_logged = warm;
             #[cfg(not(feature = "board-stm32f4"))]
             if ticks >= SELF_DUMP_TICK && !self_dump_asked {
                 self_dump_asked = true;

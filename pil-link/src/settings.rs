@@ -3,7 +3,7 @@
 //! comparison also checks that `design` (the one place floats are used) gives the same
 //! fixed-point coefficients on the Cortex-M4F as on the host.
 //!
-//! Layout (123 bytes): the scalar fields in declaration order, each filter as
+//! Layout (159 bytes): the scalar fields in declaration order, each filter as
 //! `tag u8 (0 none, 1 first order, 2 second order) | corner_hz f32 | q f32`, each enum as u8,
 //! and last the notch as `present u8 (0 none, 1 notch) | centre_hz f32 | width_hz f32 |
 //! depth_db f32` (zeros without one).
@@ -91,7 +91,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 123;
+pub const LEN: usize = 159;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -345,10 +345,28 @@ fn put_faults(w: &mut Writer, faults: FaultLimits) -> Result<(), LinkError> {
         overspeed_pu,
         following_error_counts,
         encoder_jump_margin,
+        overcurrent_ratio,
+        overcurrent_ticks,
+        continuous_current_pu,
+        overload_current_pu,
+        overload_time_s,
+        thermal_warning_fraction,
+        stall_speed_pu,
+        stall_torque_fraction,
+        stall_time_s,
     } = faults;
     w.u32(overspeed_pu.to_bits())?
         .u32(following_error_counts.to_bits())?
-        .u32(encoder_jump_margin.to_bits())?;
+        .u32(encoder_jump_margin.to_bits())?
+        .u32(overcurrent_ratio.to_bits())?
+        .u32(overcurrent_ticks)?
+        .u32(continuous_current_pu.to_bits())?
+        .u32(overload_current_pu.to_bits())?
+        .u32(overload_time_s.to_bits())?
+        .u32(thermal_warning_fraction.to_bits())?
+        .u32(stall_speed_pu.to_bits())?
+        .u32(stall_torque_fraction.to_bits())?
+        .u32(stall_time_s.to_bits())?;
     Ok(())
 }
 
@@ -357,6 +375,15 @@ fn get_faults(r: &mut Reader<'_>) -> Result<FaultLimits, LinkError> {
         overspeed_pu: f(r)?,
         following_error_counts: f(r)?,
         encoder_jump_margin: f(r)?,
+        overcurrent_ratio: f(r)?,
+        overcurrent_ticks: r.u32()?,
+        continuous_current_pu: f(r)?,
+        overload_current_pu: f(r)?,
+        overload_time_s: f(r)?,
+        thermal_warning_fraction: f(r)?,
+        stall_speed_pu: f(r)?,
+        stall_torque_fraction: f(r)?,
+        stall_time_s: f(r)?,
     })
 }
 

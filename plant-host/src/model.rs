@@ -74,6 +74,9 @@ pub(crate) struct Model {
     pub law: BacklashModel,
     /// The winding, when the electrics are modelled (voltage in), else torque in.
     pub winding: Option<Winding>,
+    /// The load held still (a locked-rotor test's brake): its speed stays at zero whatever
+    /// the shaft and the load torque do.
+    pub load_locked: bool,
 }
 
 impl From<&ElectricsConfig> for Winding {
@@ -107,6 +110,7 @@ impl Model {
             },
             law,
             winding,
+            load_locked: false,
         }
     }
 
@@ -147,7 +151,7 @@ impl Model {
         let [i0, i1, i2, i3, i4] = i_row;
         let (bm, bl) = (self.motor_viscous_pu, self.load_viscous_pu);
         #[rustfmt::skip]
-        let a = Mat5::new(
+        let mut a = Mat5::new(
             0.0,      0.0, wb,              -wb,             0.0,
             0.0,      0.0, 0.0,             wb,              0.0,
             -k / jm,  0.0, (-d - bm) / jm,  d / jm,          i_to_wm,
@@ -155,13 +159,18 @@ impl Model {
             i0,       i1,  i2,              i3,              i4,
         );
         #[rustfmt::skip]
-        let b = Mat53::new(
+        let mut b = Mat53::new(
             0.0,     0.0,       0.0,
             0.0,     0.0,       0.0,
             u_to_wm, 0.0,       offset / jm,
             0.0,     -1.0 / jl, -offset / jl,
             u_to_i,  0.0,       0.0,
         );
+        if self.load_locked {
+            // ω̇l = 0: the load speed keeps its value, zero from rest.
+            a.set_row(3, &nalgebra::RowSVector::<f64, 5>::zeros());
+            b.set_row(3, &nalgebra::RowSVector::<f64, 3>::zeros());
+        }
         (a, b)
     }
 }

@@ -74,6 +74,22 @@ impl TwoInertiaPlant {
         }
     }
 
+    /// The same plant with its load locked (a locked-rotor test): the load speed stays at
+    /// zero, the motor turns only as far as the lost motion and the shaft's twist let it.
+    /// Starts at rest, like [`Self::new`].
+    #[must_use]
+    pub fn with_locked_load(self) -> Self {
+        let mut model = Model::new(&self.config.mechanics, self.config.backlash(), self.winding);
+        model.load_locked = true;
+        Self {
+            core: Piecewise::new(&model),
+            sensors: Sensors::new(&self.config),
+            time_s: 0.0,
+            applied_input_pu: 0.0,
+            ..self
+        }
+    }
+
     /// Advances `dt_s` seconds with the input (torque or voltage, pu) and the load torque
     /// held. Invalid input (negative or non-finite `dt_s`, non-finite values) leaves the
     /// plant unchanged; use [`Self::try_advance`] to see the error.

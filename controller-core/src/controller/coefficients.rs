@@ -12,6 +12,7 @@ use crate::notch::Notch;
 use crate::observer::Observer;
 use crate::per_unit::{counter_shift, quantize, Coef, CountsErr, Gain, PosGain, Pu, TickGain};
 use crate::pi::PiCoefficients;
+use crate::protection::Protection;
 
 /// A limit L on the magnitude of a raw 32-bit value, |x| > L tested with one add and one
 /// unsigned compare: for L < 2^31, x + L (mod 2^32) is within [0, 2L] exactly when
@@ -77,6 +78,8 @@ pub(super) struct Coefficients {
     pub(super) following_error_abs: MagnitudeLimit,
     /// |largest encoder step per tick| \[counts\].
     pub(super) max_count_step_abs: MagnitudeLimit,
+    /// Overcurrent, I²t and stall ([`crate::protection`]).
+    pub(super) protection: Protection,
     /// The torque-reference notch (Q2.30), `None` without one: the current tick then does
     /// exactly what it did before the notch existed.
     pub(super) notch: Option<Notch>,
@@ -282,6 +285,7 @@ impl Coefficients {
             LowPass::quantize(&g.velocity_filter, "velocity_filter coefficients")?;
         let [diff_velocity_rate, diff_current_rate] = differentiators(g)?;
         let [overspeed_abs, following_error_abs, max_count_step_abs] = fault_limits(g)?;
+        let protection = Protection::new(cfg)?;
         Ok(Self {
             counter_bits: cfg.counter_bits,
             counter_shift: counter_shift(cfg.counter_bits),
@@ -311,6 +315,7 @@ impl Coefficients {
             overspeed_abs,
             following_error_abs,
             max_count_step_abs,
+            protection,
             notch,
         })
     }

@@ -3,6 +3,7 @@
 //! Current tick (every 1/current_rate_hz):
 //! ```text
 //! position ← unwrap(encoder_count)                       (encoder-jump check)
+//! protection ← i_meas                                    (overcurrent and I²t checks)
 //! observer ← (position, torque of the last tick: command or measured current)
 //! afb      ← AccelerationFeedback(â, a_cmd)               (if AFB runs at this rate;
 //!            with the observer's â solved in closed form for this tick's torque)
@@ -23,6 +24,7 @@
 //!                                                          r a velocity-reference excitation)
 //! i_vel = VelocityRegulator(ω_cmd − ω_fb) + k_aff·a_sp     (PI, ±torque_limit)
 //! afb   ← AccelerationFeedback(...)                         (if AFB runs at this rate)
+//! stall ← (clamp(i_vel + afb + r, ±torque_limit), ω_fb)      (the tick's torque reference)
 //! ```
 //! In a period where both ticks run, call `velocity_tick` before `current_tick` so the
 //! current tick applies the new torque reference at once; the other order adds one current
@@ -51,6 +53,7 @@ use crate::per_unit::{
     count_diff_by, count_signed, mul_bits, mul_gain, sat_i32, sat_shr, CountsErr, Pu, PuPerS,
 };
 use crate::pi::PiState;
+use crate::protection::ProtectionState;
 use coefficients::Coefficients;
 
 /// All regulator and estimator state (plain data; reset = default).
@@ -77,6 +80,8 @@ struct State {
     excitation_pu: Pu,
     /// The torque-reference notch's state (untouched without a notch).
     notch: NotchState,
+    /// Overcurrent and stall counts, the I²t heat (kept across [`Controller::reset`]).
+    protection: ProtectionState,
     fault: Option<Fault>,
 }
 
@@ -181,10 +186,32 @@ impl Controller {
         self.state.fault
     }
 
+    /// Whether the I²t model of the winding is at or above its warning level
+    /// (`faults.thermal_warning_fraction` of the trip level; [`crate::protection`]).
+    #[must_use]
+    pub fn thermal_warning(&self) -> bool {
+        self.coef.protection.warning(&self.state.protection)
+    }
+
+    /// The I²t model's heat as a fraction of its trip level (0 cold, 1 tripped).
+    #[must_use]
+    pub fn thermal_load(&self) -> f32 {
+        self.coef.protection.load_fraction(&self.state.protection)
+    }
+
+    /// The quantized protection settings (overcurrent level, I²t trip time at a current).
+    #[must_use]
+    pub fn protection(&self) -> &crate::protection::Protection {
+        &self.coef.protection
+    }
+
     /// Clear a latched fault and all regulator and estimator state. The next encoder
     /// reading becomes the position reference again (the raw counter read as signed).
+    /// The I²t model's heat is kept: clearing a fault does not cool the winding.
     pub fn reset(&mut self) {
+        let protection = self.state.protection.after_reset();
         self.state = State::default();
+        self.state.protection = protection;
     }
 
     /// Latch a fault (the first one wins) and drop every torque-producing state.
@@ -264,6 +291,13 @@ impl Controller {
     #[inline(always)]
     pub fn current_tick(&mut self, inp: CurrentInputs) -> CurrentOutputs {
         self.read_encoder(inp.encoder_count);
+        if let Some(f) = self
+            .coef
+            .protection
+            .current_tick(&mut self.state.protection, inp.current_pu)
+        {
+            self.trip(f);
+        }
         let position = self.state.position;
         // The observer sees the torque that acted over the last tick: the command, or the
         // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
@@ -404,8 +438,19 @@ impl Controller {
             );
             let _ = self.run_afb(self.coef.afb_velocity, |_| a_est);
         }
+        // Stall: this tick's torque reference, formed by the speed regulator just now (at
+        // the limit exactly when the regulator is), and the speed.
+        let mut current_ref = self.total_ref();
+        if let Some(f) =
+            self.coef
+                .protection
+                .stall_tick(&mut self.state.protection, current_ref, v_fb)
+        {
+            self.trip(f);
+            current_ref = Pu::ZERO;
+        }
         VelocityOutputs {
-            current_ref_pu: self.total_ref(),
+            current_ref_pu: current_ref,
             accel_fb_pu: self.state.afb,
             velocity_cmd_pu: v_cmd,
             velocity_est_pu: v_fb,

@@ -98,3 +98,52 @@ fn closed_form_torque_shortcut_is_off_where_it_may_differ() {
     coef.afb.limit = coef.torque_limit;
     assert!(!Controller::closed_total_exact(&coef, false));
 }
+
+/// An overcurrent on the measured current latches the safe state in the tick that trips
+/// (zero torque and voltage from that tick on); a reset clears the fault but keeps the
+/// I²t model's heat, and the thermal warning follows the heat.
+#[test]
+fn protection_trips_latch_zero_torque_and_a_reset_keeps_the_heat() {
+    let mut cfg = drive();
+    cfg.faults.overcurrent_ticks = 2;
+    // Two ticks at 3 pu heat 16 pu²·ticks of the 600,000 that trip: 2.7e-5 of the level.
+    cfg.faults.thermal_warning_fraction = 1e-5;
+    let mut c = Controller::new(&cfg).unwrap();
+    let over = Pu::from_num(c.protection().overcurrent_pu() + 0.01);
+    let sp = VelocityInputs {
+        setpoint: Setpoint {
+            velocity_pu: Pu::from_num(0.5),
+            ..Setpoint::default()
+        },
+        ..VelocityInputs::default()
+    };
+    let _ = c.velocity_tick(sp);
+    let first = c.current_tick(CurrentInputs {
+        encoder_count: 0,
+        current_pu: over,
+    });
+    assert_eq!(first.fault, None);
+    assert_ne!(first.current_ref_pu, Pu::ZERO);
+    let second = c.current_tick(CurrentInputs {
+        encoder_count: 0,
+        current_pu: over,
+    });
+    assert_eq!(second.fault, Some(Fault::Overcurrent));
+    assert_eq!(
+        (second.current_ref_pu, second.accel_fb_pu),
+        (Pu::ZERO, Pu::ZERO)
+    );
+    assert!(c.velocity_tick(sp).current_ref_pu == Pu::ZERO);
+    let heat = c.thermal_load();
+    assert!(heat > 0.0 && c.thermal_warning());
+    c.reset();
+    assert_eq!(c.fault(), None);
+    assert_eq!(c.thermal_load(), heat);
+    assert!(c.thermal_warning());
+    // One sample over the level after the reset does not trip: the count restarted.
+    let out = c.current_tick(CurrentInputs {
+        encoder_count: 0,
+        current_pu: over,
+    });
+    assert_eq!(out.fault, None);
+}

@@ -36,6 +36,10 @@ pub struct ScenarioSpec {
     /// Optional sinusoidal load torque (stiffness measurement).
     #[serde(default)]
     pub sine_load: Option<SineLoad>,
+    /// The load held still from the start (a locked-rotor test): its speed stays zero and
+    /// the motor turns only through the lost motion and the shaft's twist.
+    #[serde(default)]
+    pub load_locked: bool,
     /// Metric windows.
     #[serde(default)]
     pub metrics: MetricSpec,

@@ -13,9 +13,11 @@
 
 use crate::config::RunConfig;
 use crate::engine::metrics::{compute, Metrics};
+use crate::engine::protection::{FaultRecord, ProtectionSummary, ProtectionWatch};
 use crate::engine::schedule::{LoadCursor, TickSteps};
 use crate::engine::trace::{Trace, TraceRow};
 use crate::error::{HarnessError, Result};
+use controller_core::words::fault_code;
 use controller_core::{
     Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
 };
@@ -87,6 +89,10 @@ pub struct RunOutput {
     pub wall_time_s: f64,
     /// Current ticks executed.
     pub ticks: u64,
+    /// The fault the drive latched first, if it did.
+    pub fault: Option<FaultRecord>,
+    /// The protections' figures of the run.
+    pub protection: ProtectionSummary,
 }
 
 /// `summary.json`.
@@ -123,6 +129,11 @@ pub struct Summary {
     pub ki_vel: f64,
     /// Ka used (s); 0 without acceleration feedback.
     pub ka_s: f64,
+    /// The fault the drive latched first: its kind, code and time; `null` without one.
+    pub fault: Option<FaultRecord>,
+    /// The protections' figures: overcurrent level and first sample over it, the I²t
+    /// model's prediction of its trip.
+    pub protection: ProtectionSummary,
 }
 
 impl RunOutput {
@@ -150,6 +161,8 @@ impl RunOutput {
             kp_vel: g(|x| x.kp_vel),
             ki_vel: g(|x| x.ki_vel),
             ka_s: g(|x| x.ka),
+            fault: self.fault.clone(),
+            protection: self.protection.clone(),
         }
     }
 }
@@ -332,7 +345,7 @@ fn velocity_step<B: ControlBackend + ?Sized>(
         load_torque_pu: load.torque_pu(t_s),
         voltage_pu,
         accel_est_pu_s: f(last_vel.acceleration_est_pu_s),
-        fault: if last_vel.fault.is_some() { 1.0 } else { 0.0 },
+        fault: f64::from(fault_code(last_vel.fault)),
     }
 }
 
@@ -381,6 +394,9 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
 ) -> Result<RunOutput> {
     use crate::engine::plant::{f, pu};
     let mut plant = TwoInertiaPlant::voltage_driven(&cfg.plant);
+    if cfg.scenario.load_locked {
+        plant = plant.with_locked_load();
+    }
     let current_rate_hz = f64::from(cfg.drive.current_rate_hz);
     let mut delay_line = DelayLine::new(
         cfg.plant.electrics.computational_delay_s,
@@ -391,6 +407,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     let mut rows = Vec::with_capacity((ticks / tm.ratio + 1) as usize);
     let steps = TickSteps::new(&mut plant, tm.delay_s, tm.tc_s - tm.delay_s)?;
     let mut load = LoadCursor::new(&cfg.scenario);
+    let mut watch = ProtectionWatch::new(&cfg.drive);
     let mut voltage_pu = 0.0;
     let start = Instant::now();
     let mut ticks_run = 0;
@@ -415,6 +432,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
             encoder_count,
             current_pu: pu(current_pu),
         });
+        watch.tick(k, t_s, f(pu(current_pu)), out.fault);
         record(&TickRecord {
             t_s,
             encoder_count: plant.encoder_count(),
@@ -431,7 +449,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
             row.torque_cmd_pu = f(out.current_ref_pu);
             row.accel_fb_pu = f(out.accel_fb_pu);
             if out.fault.is_some() {
-                row.fault = 1.0;
+                row.fault = f64::from(fault_code(out.fault));
             }
         }
     }
@@ -441,7 +459,10 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
         .scenario
         .metric_windows(f64::from(cfg.drive.torque_limit_pu));
     let metrics = compute(&trace, &windows);
+    let (fault, protection) = watch.finish();
     Ok(RunOutput {
+        fault,
+        protection,
         trace,
         metrics,
         sim_time_s: ticks_run as f64 * tm.tc_s,

@@ -60,7 +60,7 @@ pub struct TraceRow {
     pub voltage_pu: f64,
     /// The controller's acceleration estimate (pu/s).
     pub accel_est_pu_s: f64,
-    /// 1 when the controller reports a fault.
+    /// The fault code the controller reports (`controller_core::Fault::code`; 0 = none).
     pub fault: f64,
 }
 

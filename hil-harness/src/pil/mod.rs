@@ -151,6 +151,8 @@ mod tests {
             sim_time_s: 0.0,
             wall_time_s: 0.0,
             ticks: 0,
+            fault: None,
+            protection: Default::default(),
         }
     }
 

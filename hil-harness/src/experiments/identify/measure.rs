@@ -80,6 +80,7 @@ pub fn rig_run_spec(config: &std::path::Path) -> ScenarioSpec {
         },
         load: Vec::new(),
         sine_load: None,
+        load_locked: false,
         metrics: MetricSpec::default(),
         comparison: None,
         set: BTreeMap::new(),

@@ -1,0 +1,388 @@
+//! Protections of the motor and the power stage: the overcurrent trip, the I²t thermal model
+//! of the winding, and the stall trip. [`Protection`] holds the `faults.*` settings quantized
+//! once; [`ProtectionState`] is what runs. The [`crate::Controller`] calls the current-rate
+//! check ([`Protection::current_tick`]) first in every current tick, and the stall check
+//! ([`Protection::stall_tick`]) in every velocity tick; a trip latches the drive's safe state
+//! like every other [`Fault`].
+//!
+//! * **Overcurrent**: |measured current| > `overcurrent_ratio × torque_limit_pu` for
+//!   `overcurrent_ticks` current ticks in a row. A sample at or under the level restarts
+//!   the count.
+//! * **I²t overload**: the heat H = ∫ (i² − i_cont²) dt, held at 0 from below (the winding
+//!   cools down to ambient, not under it), trips when it reaches
+//!   H_trip = (i_ol² − i_cont²)·t_ol, the overload class "i_ol for t_ol from cold". At a
+//!   constant current i > i_cont the trip comes after t = t_ol·(i_ol² − i_cont²)/(i² − i_cont²)
+//!   ([`Protection::trip_time_s`]). It warns from `thermal_warning_fraction · H_trip` on.
+//!   The integral is exact integer arithmetic: each tick adds (i² − i_cont²) in Q.16 pu²
+//!   (the Q16.16 current squared, rounded to 2^-16 pu²), so hours of running accumulate no
+//!   drift beyond that one rounding per tick. [`crate::Controller::reset`] keeps H: clearing
+//!   a fault does not cool the winding.
+//! * **Stall**: |torque reference| at or above `stall_torque_fraction × torque_limit_pu`
+//!   with |velocity estimate| under `stall_speed_pu` for `stall_time_s` (velocity ticks in
+//!   a row); `stall_time_s = 0` turns it off.
+
+use crate::config::DriveConfig;
+use crate::error::ConfigError;
+use crate::fault::Fault;
+use crate::per_unit::{quantize, Pu};
+
+/// The protections' settings, quantized (built once by [`Protection::new`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Protection {
+    /// Overcurrent level: raw Q16.16 magnitude.
+    overcurrent_abs: u32,
+    /// Consecutive current ticks over the level that trip (≥ 1).
+    overcurrent_ticks: u32,
+    /// i_cont² in Q32.32 (the square of its Q16.16 bits).
+    continuous_sq: i64,
+    /// H_trip in Q.16 pu²·current ticks.
+    heat_trip: i64,
+    /// The warning level of H, same units.
+    heat_warn: i64,
+    /// Stall speed: raw Q16.16 magnitude.
+    stall_speed_abs: u32,
+    /// Velocity ticks in a row that trip a stall (`u32::MAX`: off).
+    stall_ticks: u32,
+    /// The stall torque `stall_torque_fraction × torque_limit_pu`: raw magnitude.
+    stall_torque_abs: u32,
+    /// Current ticks per second (for the times reported).
+    current_rate_hz: u32,
+}
+
+/// The protections' running state.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ProtectionState {
+    /// Current ticks in a row over the overcurrent level.
+    over_count: u32,
+    /// The I²t heat H in Q.16 pu²·current ticks, within [0, H_trip].
+    heat: i64,
+    /// Velocity ticks in a row stalled.
+    stall_count: u32,
+}
+
+impl ProtectionState {
+    /// The state after a fault reset: the counters cleared, the heat kept.
+    #[must_use]
+    pub const fn after_reset(&self) -> Self {
+        Self {
+            over_count: 0,
+            heat: self.heat,
+            stall_count: 0,
+        }
+    }
+
+    /// The heat H in Q.16 pu²·current ticks.
+    #[must_use]
+    pub const fn heat(&self) -> i64 {
+        self.heat
+    }
+}
+
+/// Rounded `(x + 2^15) >> 16` of a Q32.32 value to Q.16 (no overflow for |x| ≤ 2^62).
+#[inline(always)]
+const fn q32_to_q16(x: i64) -> i64 {
+    (x + (1 << 15)) >> 16
+}
+
+impl Protection {
+    /// Quantize the `faults.*` protection settings of validated settings `cfg`; an error
+    /// names the setting whose value has no representation.
+    pub fn new(cfg: &DriveConfig) -> Result<Self, ConfigError> {
+        let f = &cfg.faults;
+        let oc: Pu = quantize(
+            f.overcurrent_ratio * cfg.torque_limit_pu,
+            "faults.overcurrent_ratio × torque_limit_pu",
+        )?;
+        let ic: Pu = quantize(f.continuous_current_pu, "faults.continuous_current_pu")?;
+        let iol: Pu = quantize(f.overload_current_pu, "faults.overload_current_pu")?;
+        let stall_torque: Pu = quantize(
+            f.stall_torque_fraction * cfg.torque_limit_pu,
+            "faults.stall_torque_fraction × torque_limit_pu",
+        )?;
+        let stall: Pu = quantize(f.stall_speed_pu, "faults.stall_speed_pu")?;
+        let sq = |p: Pu| i64::from(p.to_bits()) * i64::from(p.to_bits());
+        let continuous_sq = sq(ic);
+        // (i_ol² − i_cont²) in Q32.32 × t_ol × ticks per second, to Q.16. Validated ranges
+        // (100 pu, 3600 s, 100 kHz) keep it below 2^58; `as` saturates beyond.
+        let class = (sq(iol) - continuous_sq) as f64;
+        let ticks = f64::from(f.overload_time_s) * f64::from(cfg.current_rate_hz);
+        let heat_trip = (class * ticks / 65536.0) as i64;
+        if heat_trip < 1 {
+            return Err(ConfigError::OutOfRange {
+                param: "faults.overload_current_pu",
+                value: f.overload_current_pu,
+                min: f.continuous_current_pu,
+                max: crate::ranges::OVERLOAD_CURRENT_PU.max,
+                min_exclusive: true,
+            });
+        }
+        let heat_warn = (heat_trip as f64 * f64::from(f.thermal_warning_fraction)) as i64;
+        // Rounded to the nearest tick (no_std: no `round`; the time is ≥ 0).
+        let stall_ticks = f.stall_time_s * cfg.velocity_rate_hz as f32 + 0.5;
+        Ok(Self {
+            overcurrent_abs: oc.to_bits().unsigned_abs(),
+            overcurrent_ticks: f.overcurrent_ticks.max(1),
+            continuous_sq,
+            heat_trip,
+            heat_warn,
+            stall_speed_abs: stall.to_bits().unsigned_abs(),
+            stall_ticks: if f.stall_time_s > 0.0 {
+                (stall_ticks as u32).max(1)
+            } else {
+                u32::MAX
+            },
+            stall_torque_abs: stall_torque.to_bits().unsigned_abs(),
+            current_rate_hz: cfg.current_rate_hz,
+        })
+    }
+
+    /// One current tick on the measured current: the overcurrent count and the heat. Returns
+    /// the fault that trips now, overcurrent first.
+    #[inline(always)]
+    pub fn current_tick(&self, s: &mut ProtectionState, current: Pu) -> Option<Fault> {
+        let bits = current.to_bits();
+        s.over_count = if bits.unsigned_abs() > self.overcurrent_abs {
+            s.over_count.saturating_add(1)
+        } else {
+            0
+        };
+        let sq = i64::from(bits) * i64::from(bits);
+        let heat = s.heat + q32_to_q16(sq - self.continuous_sq);
+        s.heat = heat.clamp(0, self.heat_trip);
+        if s.over_count >= self.overcurrent_ticks {
+            Some(Fault::Overcurrent)
+        } else if s.heat >= self.heat_trip {
+            Some(Fault::Overload)
+        } else {
+            None
+        }
+    }
+
+    /// One velocity tick: `torque` the torque reference in force, `speed` the velocity
+    /// estimate. Returns [`Fault::Stall`] when it trips now.
+    #[inline(always)]
+    pub fn stall_tick(&self, s: &mut ProtectionState, torque: Pu, speed: Pu) -> Option<Fault> {
+        let stalled = torque.to_bits().unsigned_abs() >= self.stall_torque_abs
+            && speed.to_bits().unsigned_abs() < self.stall_speed_abs;
+        s.stall_count = if stalled {
+            s.stall_count.saturating_add(1)
+        } else {
+            0
+        };
+        (s.stall_count >= self.stall_ticks).then_some(Fault::Stall)
+    }
+
+    /// Whether the heat has reached the warning level.
+    #[must_use]
+    pub const fn warning(&self, s: &ProtectionState) -> bool {
+        s.heat >= self.heat_warn
+    }
+
+    /// The heat as a fraction of its trip level (1 = tripped).
+    #[must_use]
+    pub fn load_fraction(&self, s: &ProtectionState) -> f32 {
+        (s.heat as f64 / self.heat_trip as f64) as f32
+    }
+
+    /// The I²t model's trip time \[s\] from cold at a constant current `current_pu` (the
+    /// same quantization as the tick: the Q16.16 current, rounded per tick); `None` at or
+    /// under the continuous current.
+    #[must_use]
+    pub fn trip_time_s(&self, current_pu: f32) -> Option<f64> {
+        let bits = i64::from(Pu::saturating_from_num(current_pu).to_bits());
+        let per_tick = q32_to_q16(bits * bits - self.continuous_sq);
+        if per_tick <= 0 {
+            return None;
+        }
+        let ticks = (self.heat_trip + per_tick - 1) / per_tick;
+        Some(ticks as f64 / f64::from(self.current_rate_hz))
+    }
+
+    /// The overcurrent level \[pu\].
+    #[must_use]
+    pub fn overcurrent_pu(&self) -> f32 {
+        (f64::from(self.overcurrent_abs) / 65536.0) as f32
+    }
+
+    /// Consecutive current ticks over the level that trip.
+    #[must_use]
+    pub const fn overcurrent_ticks(&self) -> u32 {
+        self.overcurrent_ticks
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used)]
+    use super::*;
+    use crate::config::DriveConfig;
+
+    fn cfg() -> DriveConfig {
+        toml::from_str(include_str!("../doc/example-drive.toml")).unwrap()
+    }
+
+    fn pu(x: f32) -> Pu {
+        Pu::from_num(x)
+    }
+
+    /// Current ticks from cold until `current` trips the I²t model (None within `max`).
+    fn ticks_to_trip(p: &Protection, current: f32, max: u64) -> Option<u64> {
+        let mut s = ProtectionState::default();
+        (1..=max).find(|_| p.current_tick(&mut s, pu(current)) == Some(Fault::Overload))
+    }
+
+    #[test]
+    fn overcurrent_trips_on_the_nth_sample_in_a_row_over_the_level_and_not_at_it() {
+        let mut c = cfg();
+        c.torque_limit_pu = 2.0;
+        c.faults.overcurrent_ratio = 1.5;
+        c.faults.overcurrent_ticks = 3;
+        let p = Protection::new(&c).unwrap();
+        assert_eq!(p.overcurrent_pu(), 3.0);
+        let over = Pu::from_bits(pu(3.0).to_bits() + 1);
+        let mut s = ProtectionState::default();
+        // At the level: never counts.
+        for _ in 0..10 {
+            assert_eq!(p.current_tick(&mut s, pu(3.0)), None);
+            assert_eq!(p.current_tick(&mut s, pu(-3.0)), None);
+        }
+        // Two over, one under: the count restarts.
+        assert_eq!(p.current_tick(&mut s, over), None);
+        assert_eq!(p.current_tick(&mut s, -over), None);
+        assert_eq!(p.current_tick(&mut s, pu(2.9)), None);
+        assert_eq!(p.current_tick(&mut s, over), None);
+        assert_eq!(p.current_tick(&mut s, over), None);
+        assert_eq!(p.current_tick(&mut s, -over), Some(Fault::Overcurrent));
+    }
+
+    #[test]
+    fn overcurrent_with_one_tick_trips_at_once() {
+        let mut c = cfg();
+        c.faults.overcurrent_ticks = 1;
+        let p = Protection::new(&c).unwrap();
+        let mut s = ProtectionState::default();
+        let over = Pu::from_bits(Pu::from_num(p.overcurrent_pu()).to_bits() + 1);
+        assert_eq!(p.current_tick(&mut s, over), Some(Fault::Overcurrent));
+    }
+
+    #[test]
+    fn i2t_trips_at_the_closed_form_time_of_the_overload_class() {
+        let c = cfg();
+        let p = Protection::new(&c).unwrap();
+        let rate = f64::from(c.current_rate_hz);
+        let (ic, iol, tol) = (1.0f64, 1.5f64, 60.0f64);
+        for i in [1.5f32, 2.0, 3.0, 1.1] {
+            let i64_ = f64::from(i);
+            let closed = tol * (iol * iol - ic * ic) / (i64_ * i64_ - ic * ic);
+            let max = (closed * rate * 1.01) as u64;
+            let ticks = ticks_to_trip(&p, i, max).expect("trips");
+            let t = ticks as f64 / rate;
+            assert!(
+                (t - closed).abs() <= 1e-4 * closed + 1.0 / rate,
+                "{i} pu: {t} s against {closed} s"
+            );
+            assert_eq!(p.trip_time_s(i), Some(t), "{i} pu");
+        }
+    }
+
+    #[test]
+    fn i2t_at_or_below_the_continuous_current_never_trips_and_cools_to_zero() {
+        let c = cfg();
+        let rate = c.current_rate_hz;
+        let p = Protection::new(&c).unwrap();
+        assert_eq!(p.trip_time_s(1.0), None);
+        assert_eq!(p.trip_time_s(0.5), None);
+        let mut s = ProtectionState::default();
+        // Heat up to half the trip level at 2 pu, then run at 1 pu for an hour.
+        let half = (p.trip_time_s(2.0).unwrap() * f64::from(rate) / 2.0) as u32;
+        for _ in 0..half {
+            assert_eq!(p.current_tick(&mut s, pu(2.0)), None);
+        }
+        let hot = s.heat();
+        assert!(hot > 0 && p.load_fraction(&s) > 0.49 && p.load_fraction(&s) < 0.51);
+        for _ in 0..rate * 3600 {
+            assert_eq!(p.current_tick(&mut s, pu(1.0)), None);
+        }
+        assert_eq!(s.heat(), hot, "i = i_cont exactly neither heats nor cools");
+        for _ in 0..rate * 600 {
+            assert_eq!(p.current_tick(&mut s, pu(0.0)), None);
+        }
+        assert_eq!(s.heat(), 0, "cools to ambient and is held there");
+    }
+
+    #[test]
+    fn i2t_warns_at_its_fraction_before_it_trips() {
+        let mut c = cfg();
+        c.faults.thermal_warning_fraction = 0.5;
+        let p = Protection::new(&c).unwrap();
+        let trip = (p.trip_time_s(3.0).unwrap() * f64::from(c.current_rate_hz)).round() as u64;
+        let mut s = ProtectionState::default();
+        let mut warned_at = None;
+        for k in 1..trip {
+            assert_eq!(p.current_tick(&mut s, pu(3.0)), None);
+            if warned_at.is_none() && p.warning(&s) {
+                warned_at = Some(k);
+            }
+        }
+        let w = warned_at.expect("warns") as f64 / trip as f64;
+        assert!((w - 0.5).abs() < 1e-3, "warned at {w} of the trip time");
+        assert_eq!(p.current_tick(&mut s, pu(3.0)), Some(Fault::Overload));
+    }
+
+    #[test]
+    fn the_heat_survives_a_fault_reset_and_the_counters_do_not() {
+        let p = Protection::new(&cfg()).unwrap();
+        let mut s = ProtectionState::default();
+        let over = Pu::from_bits(Pu::from_num(p.overcurrent_pu()).to_bits() + 1);
+        p.current_tick(&mut s, over);
+        assert!(s.heat() > 0 && s.over_count == 1);
+        let r = s.after_reset();
+        assert_eq!((r.heat(), r.over_count, r.stall_count), (s.heat(), 0, 0));
+    }
+
+    #[test]
+    fn stall_trips_after_its_time_at_the_stall_torque_under_the_speed() {
+        let mut c = cfg();
+        c.torque_limit_pu = 2.0;
+        c.faults.stall_torque_fraction = 1.0;
+        c.faults.stall_speed_pu = 0.02;
+        c.faults.stall_time_s = 0.01;
+        let p = Protection::new(&c).unwrap();
+        let n = (0.01 * c.velocity_rate_hz as f32).round() as u32;
+        let mut s = ProtectionState::default();
+        let slow = Pu::from_bits(pu(0.02).to_bits() - 1);
+        // At the speed threshold, or under the torque limit: no count.
+        for _ in 0..3 * n {
+            assert_eq!(p.stall_tick(&mut s, pu(2.0), pu(0.02)), None);
+            assert_eq!(p.stall_tick(&mut s, pu(1.99), slow), None);
+        }
+        for _ in 1..n {
+            assert_eq!(p.stall_tick(&mut s, pu(-2.0), -slow), None);
+        }
+        assert_eq!(p.stall_tick(&mut s, pu(2.0), slow), Some(Fault::Stall));
+    }
+
+    #[test]
+    fn the_stall_torque_is_its_fraction_of_the_limit() {
+        let mut c = cfg();
+        c.torque_limit_pu = 2.0;
+        c.faults.stall_torque_fraction = 0.7;
+        c.faults.stall_time_s = 1.0 / c.velocity_rate_hz as f32;
+        let p = Protection::new(&c).unwrap();
+        let mut s = ProtectionState::default();
+        let under = Pu::from_bits(pu(1.4).to_bits() - 1);
+        assert_eq!(p.stall_tick(&mut s, under, pu(0.0)), None);
+        assert_eq!(p.stall_tick(&mut s, -pu(1.4), pu(0.0)), Some(Fault::Stall));
+    }
+
+    #[test]
+    fn stall_time_zero_turns_the_stall_trip_off() {
+        let mut c = cfg();
+        c.faults.stall_time_s = 0.0;
+        let p = Protection::new(&c).unwrap();
+        let mut s = ProtectionState::default();
+        for _ in 0..100_000 {
+            assert_eq!(p.stall_tick(&mut s, pu(c.torque_limit_pu), pu(0.0)), None);
+        }
+    }
+}
