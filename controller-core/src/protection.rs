@@ -1,9 +1,9 @@
 //! Protections of the motor and the power stage: the overcurrent trip, the I²t thermal model
 //! of the winding, and the stall trip. [`Protection`] holds the `faults.*` settings quantized
-//! once; [`ProtectionState`] is what runs. The [`crate::Controller`] calls the current-rate
-//! check ([`Protection::current_tick`]) first in every current tick, and the stall check
-//! ([`Protection::stall_tick`]) in every velocity tick; a trip latches the drive's safe state
-//! like every other [`Fault`].
+//! once; [`ProtectionState`] is what runs. The [`crate::Controller`] calls the overcurrent
+//! check ([`Protection::current_tick`]) at the end of every current tick, and the I²t model
+//! and the stall check ([`Protection::velocity_tick`]) in every velocity tick; a trip latches
+//! the drive's safe state like every other [`Fault`].
 //!
 //! * **Overcurrent**: |measured current| > `overcurrent_ratio × torque_limit_pu` for
 //!   `overcurrent_ticks` current ticks in a row. A sample at or under the level restarts
@@ -13,9 +13,10 @@
 //!   H_trip = (i_ol² − i_cont²)·t_ol, the overload class "i_ol for t_ol from cold". At a
 //!   constant current i > i_cont the trip comes after t = t_ol·(i_ol² − i_cont²)/(i² − i_cont²)
 //!   ([`Protection::trip_time_s`]). It warns from `thermal_warning_fraction · H_trip` on.
-//!   The integral is exact integer arithmetic: each tick adds (i² − i_cont²) in Q.16 pu²
-//!   (the Q16.16 current squared, rounded to 2^-16 pu²), so hours of running accumulate no
-//!   drift beyond that one rounding per tick. [`crate::Controller::reset`] keeps H: clearing
+//!   The model runs at the velocity rate, on the latest current sample (a winding's thermal
+//!   time constant is seconds; the overcurrent trip is the fast one).
+//!   The integral is exact integer arithmetic: each tick adds (i² − i_cont²) in Q32.32 pu²
+//!   (the Q16.16 current squared, exactly), so hours of running accumulate no drift at all. [`crate::Controller::reset`] keeps H: clearing
 //!   a fault does not cool the winding.
 //! * **Stall**: |torque reference| at or above `stall_torque_fraction × torque_limit_pu`
 //!   with |velocity estimate| under `stall_speed_pu` for `stall_time_s` (velocity ticks in
@@ -35,7 +36,7 @@ pub struct Protection {
     overcurrent_ticks: u32,
     /// i_cont² in Q32.32 (the square of its Q16.16 bits).
     continuous_sq: i64,
-    /// H_trip in Q.16 pu²·current ticks.
+    /// H_trip in Q32.32 pu²·velocity ticks (at most 2^61).
     heat_trip: i64,
     /// The warning level of H, same units.
     heat_warn: i64,
@@ -45,8 +46,8 @@ pub struct Protection {
     stall_ticks: u32,
     /// The stall torque `stall_torque_fraction × torque_limit_pu`: raw magnitude.
     stall_torque_abs: u32,
-    /// Current ticks per second (for the times reported).
-    current_rate_hz: u32,
+    /// Ticks of the I²t model (velocity ticks) per second, for the times reported.
+    thermal_rate_hz: u32,
 }
 
 /// The protections' running state.
@@ -54,7 +55,7 @@ pub struct Protection {
 pub struct ProtectionState {
     /// Current ticks in a row over the overcurrent level.
     over_count: u32,
-    /// The I²t heat H in Q.16 pu²·current ticks, within [0, H_trip].
+    /// The I²t heat H in Q32.32 pu²·velocity ticks, within [0, H_trip].
     heat: i64,
     /// Velocity ticks in a row stalled.
     stall_count: u32,
@@ -71,17 +72,11 @@ impl ProtectionState {
         }
     }
 
-    /// The heat H in Q.16 pu²·current ticks.
+    /// The heat H in Q32.32 pu²·velocity ticks.
     #[must_use]
     pub const fn heat(&self) -> i64 {
         self.heat
     }
-}
-
-/// Rounded `(x + 2^15) >> 16` of a Q32.32 value to Q.16 (no overflow for |x| ≤ 2^62).
-#[inline(always)]
-const fn q32_to_q16(x: i64) -> i64 {
-    (x + (1 << 15)) >> 16
 }
 
 impl Protection {
@@ -102,20 +97,25 @@ impl Protection {
         let stall: Pu = quantize(f.stall_speed_pu, "faults.stall_speed_pu")?;
         let sq = |p: Pu| i64::from(p.to_bits()) * i64::from(p.to_bits());
         let continuous_sq = sq(ic);
-        // (i_ol² − i_cont²) in Q32.32 × t_ol × ticks per second, to Q.16. Validated ranges
-        // (100 pu, 3600 s, 100 kHz) keep it below 2^58; `as` saturates beyond.
+        // (i_ol² − i_cont²) in Q32.32 × t_ol × ticks per second. At most 2^61, so that a
+        // tick's i² (≤ 2^62) added to it cannot wrap; a longer class is refused with the
+        // longest overload time that fits.
         let class = (sq(iol) - continuous_sq) as f64;
-        let ticks = f64::from(f.overload_time_s) * f64::from(cfg.current_rate_hz);
-        let heat_trip = (class * ticks / 65536.0) as i64;
-        if heat_trip < 1 {
+        let rate = f64::from(cfg.velocity_rate_hz);
+        let ticks = f64::from(f.overload_time_s) * rate;
+        let heat_trip = class * ticks;
+        let max_trip = (1u64 << 61) as f64;
+        if heat_trip > max_trip || class < 1.0 {
+            let r = &crate::ranges::OVERLOAD_TIME_S;
             return Err(ConfigError::OutOfRange {
-                param: "faults.overload_current_pu",
-                value: f.overload_current_pu,
-                min: f.continuous_current_pu,
-                max: crate::ranges::OVERLOAD_CURRENT_PU.max,
-                min_exclusive: true,
+                param: r.key,
+                value: f.overload_time_s,
+                min: r.min,
+                max: (max_trip / (class.max(1.0) * rate)) as f32,
+                min_exclusive: r.min_exclusive,
             });
         }
+        let heat_trip = heat_trip as i64;
         let heat_warn = (heat_trip as f64 * f64::from(f.thermal_warning_fraction)) as i64;
         // Rounded to the nearest tick (no_std: no `round`; the time is ≥ 0).
         let stall_ticks = f.stall_time_s * cfg.velocity_rate_hz as f32 + 0.5;
@@ -132,36 +132,38 @@ impl Protection {
                 u32::MAX
             },
             stall_torque_abs: stall_torque.to_bits().unsigned_abs(),
-            current_rate_hz: cfg.current_rate_hz,
+            thermal_rate_hz: cfg.velocity_rate_hz,
         })
     }
 
-    /// One current tick on the measured current: the overcurrent count and the heat. Returns
-    /// the fault that trips now, overcurrent first.
+    /// One current tick on the measured current: the overcurrent count. Returns whether the
+    /// overcurrent trips now.
     #[inline(always)]
-    pub fn current_tick(&self, s: &mut ProtectionState, current: Pu) -> Option<Fault> {
-        let bits = current.to_bits();
-        s.over_count = if bits.unsigned_abs() > self.overcurrent_abs {
+    pub fn current_tick(&self, s: &mut ProtectionState, current: Pu) -> bool {
+        s.over_count = if current.to_bits().unsigned_abs() > self.overcurrent_abs {
             s.over_count.saturating_add(1)
         } else {
             0
         };
-        let sq = i64::from(bits) * i64::from(bits);
-        let heat = s.heat + q32_to_q16(sq - self.continuous_sq);
-        s.heat = heat.clamp(0, self.heat_trip);
-        if s.over_count >= self.overcurrent_ticks {
-            Some(Fault::Overcurrent)
-        } else if s.heat >= self.heat_trip {
-            Some(Fault::Overload)
-        } else {
-            None
-        }
+        s.over_count >= self.overcurrent_ticks
     }
 
-    /// One velocity tick: `torque` the torque reference in force, `speed` the velocity
-    /// estimate. Returns [`Fault::Stall`] when it trips now.
+    /// One velocity tick: the I²t model on `current` (the latest current sample), then the
+    /// stall check on `torque` (this tick's torque reference) and `speed` (the velocity
+    /// estimate). Returns the fault that trips now, overload first.
     #[inline(always)]
-    pub fn stall_tick(&self, s: &mut ProtectionState, torque: Pu, speed: Pu) -> Option<Fault> {
+    pub fn velocity_tick(
+        &self,
+        s: &mut ProtectionState,
+        current: Pu,
+        torque: Pu,
+        speed: Pu,
+    ) -> Option<Fault> {
+        // |bits| ≤ 2^31, so i² ≤ 2^62; H ≤ H_trip ≤ 2^61 (`new`): the sum does not wrap.
+        let bits = i64::from(current.to_bits());
+        let heat = (s.heat + (bits * bits - self.continuous_sq)).max(0);
+        let overload = heat >= self.heat_trip;
+        s.heat = if overload { self.heat_trip } else { heat };
         let stalled = torque.to_bits().unsigned_abs() >= self.stall_torque_abs
             && speed.to_bits().unsigned_abs() < self.stall_speed_abs;
         s.stall_count = if stalled {
@@ -169,7 +171,13 @@ impl Protection {
         } else {
             0
         };
-        (s.stall_count >= self.stall_ticks).then_some(Fault::Stall)
+        if overload {
+            Some(Fault::Overload)
+        } else if s.stall_count >= self.stall_ticks {
+            Some(Fault::Stall)
+        } else {
+            None
+        }
     }
 
     /// Whether the heat has reached the warning level.
@@ -185,17 +193,17 @@ impl Protection {
     }
 
     /// The I²t model's trip time \[s\] from cold at a constant current `current_pu` (the
-    /// same quantization as the tick: the Q16.16 current, rounded per tick); `None` at or
-    /// under the continuous current.
+    /// same quantization as the tick: the Q16.16 current); `None` at or under the
+    /// continuous current.
     #[must_use]
     pub fn trip_time_s(&self, current_pu: f32) -> Option<f64> {
         let bits = i64::from(Pu::saturating_from_num(current_pu).to_bits());
-        let per_tick = q32_to_q16(bits * bits - self.continuous_sq);
+        let per_tick = bits * bits - self.continuous_sq;
         if per_tick <= 0 {
             return None;
         }
         let ticks = (self.heat_trip + per_tick - 1) / per_tick;
-        Some(ticks as f64 / f64::from(self.current_rate_hz))
+        Some(ticks as f64 / f64::from(self.thermal_rate_hz))
     }
 
     /// The overcurrent level \[pu\].
@@ -225,10 +233,20 @@ mod tests {
         Pu::from_num(x)
     }
 
-    /// Current ticks from cold until `current` trips the I²t model (None within `max`).
+    /// One velocity tick of the I²t model alone (no torque, so no stall).
+    fn heat(p: &Protection, s: &mut ProtectionState, current: Pu) -> Option<Fault> {
+        p.velocity_tick(s, current, Pu::ZERO, Pu::ZERO)
+    }
+
+    /// Velocity ticks from cold until `current` trips the I²t model (None within `max`).
     fn ticks_to_trip(p: &Protection, current: f32, max: u64) -> Option<u64> {
         let mut s = ProtectionState::default();
-        (1..=max).find(|_| p.current_tick(&mut s, pu(current)) == Some(Fault::Overload))
+        (1..=max).find(|_| heat(p, &mut s, pu(current)) == Some(Fault::Overload))
+    }
+
+    /// A stall tick alone: the I²t model at its continuous current (neither heats nor cools).
+    fn stall(p: &Protection, s: &mut ProtectionState, torque: Pu, speed: Pu) -> Option<Fault> {
+        p.velocity_tick(s, pu(1.0), torque, speed)
     }
 
     #[test]
@@ -238,21 +256,21 @@ mod tests {
         c.faults.overcurrent_ratio = 1.5;
         c.faults.overcurrent_ticks = 3;
         let p = Protection::new(&c).unwrap();
-        assert_eq!(p.overcurrent_pu(), 3.0);
+        assert_eq!((p.overcurrent_pu(), p.overcurrent_ticks()), (3.0, 3));
         let over = Pu::from_bits(pu(3.0).to_bits() + 1);
         let mut s = ProtectionState::default();
         // At the level: never counts.
         for _ in 0..10 {
-            assert_eq!(p.current_tick(&mut s, pu(3.0)), None);
-            assert_eq!(p.current_tick(&mut s, pu(-3.0)), None);
+            assert!(!p.current_tick(&mut s, pu(3.0)));
+            assert!(!p.current_tick(&mut s, pu(-3.0)));
         }
         // Two over, one under: the count restarts.
-        assert_eq!(p.current_tick(&mut s, over), None);
-        assert_eq!(p.current_tick(&mut s, -over), None);
-        assert_eq!(p.current_tick(&mut s, pu(2.9)), None);
-        assert_eq!(p.current_tick(&mut s, over), None);
-        assert_eq!(p.current_tick(&mut s, over), None);
-        assert_eq!(p.current_tick(&mut s, -over), Some(Fault::Overcurrent));
+        assert!(!p.current_tick(&mut s, over));
+        assert!(!p.current_tick(&mut s, -over));
+        assert!(!p.current_tick(&mut s, pu(2.9)));
+        assert!(!p.current_tick(&mut s, over));
+        assert!(!p.current_tick(&mut s, over));
+        assert!(p.current_tick(&mut s, -over));
     }
 
     #[test]
@@ -262,14 +280,14 @@ mod tests {
         let p = Protection::new(&c).unwrap();
         let mut s = ProtectionState::default();
         let over = Pu::from_bits(Pu::from_num(p.overcurrent_pu()).to_bits() + 1);
-        assert_eq!(p.current_tick(&mut s, over), Some(Fault::Overcurrent));
+        assert!(p.current_tick(&mut s, over));
     }
 
     #[test]
     fn i2t_trips_at_the_closed_form_time_of_the_overload_class() {
         let c = cfg();
         let p = Protection::new(&c).unwrap();
-        let rate = f64::from(c.current_rate_hz);
+        let rate = f64::from(c.velocity_rate_hz);
         let (ic, iol, tol) = (1.0f64, 1.5f64, 60.0f64);
         for i in [1.5f32, 2.0, 3.0, 1.1] {
             let i64_ = f64::from(i);
@@ -286,9 +304,19 @@ mod tests {
     }
 
     #[test]
+    fn a_class_too_long_for_the_integer_range_is_refused_with_its_limit() {
+        let mut c = cfg();
+        c.faults.continuous_current_pu = 0.01;
+        c.faults.overload_current_pu = 100.0;
+        c.faults.overload_time_s = 3600.0;
+        let e = Protection::new(&c).unwrap_err();
+        assert_eq!(e.param(), "faults.overload_time_s");
+    }
+
+    #[test]
     fn i2t_at_or_below_the_continuous_current_never_trips_and_cools_to_zero() {
         let c = cfg();
-        let rate = c.current_rate_hz;
+        let rate = c.velocity_rate_hz;
         let p = Protection::new(&c).unwrap();
         assert_eq!(p.trip_time_s(1.0), None);
         assert_eq!(p.trip_time_s(0.5), None);
@@ -296,16 +324,16 @@ mod tests {
         // Heat up to half the trip level at 2 pu, then run at 1 pu for an hour.
         let half = (p.trip_time_s(2.0).unwrap() * f64::from(rate) / 2.0) as u32;
         for _ in 0..half {
-            assert_eq!(p.current_tick(&mut s, pu(2.0)), None);
+            assert_eq!(heat(&p, &mut s, pu(2.0)), None);
         }
         let hot = s.heat();
         assert!(hot > 0 && p.load_fraction(&s) > 0.49 && p.load_fraction(&s) < 0.51);
         for _ in 0..rate * 3600 {
-            assert_eq!(p.current_tick(&mut s, pu(1.0)), None);
+            assert_eq!(heat(&p, &mut s, pu(1.0)), None);
         }
         assert_eq!(s.heat(), hot, "i = i_cont exactly neither heats nor cools");
         for _ in 0..rate * 600 {
-            assert_eq!(p.current_tick(&mut s, pu(0.0)), None);
+            assert_eq!(heat(&p, &mut s, pu(0.0)), None);
         }
         assert_eq!(s.heat(), 0, "cools to ambient and is held there");
     }
@@ -315,18 +343,18 @@ mod tests {
         let mut c = cfg();
         c.faults.thermal_warning_fraction = 0.5;
         let p = Protection::new(&c).unwrap();
-        let trip = (p.trip_time_s(3.0).unwrap() * f64::from(c.current_rate_hz)).round() as u64;
+        let trip = (p.trip_time_s(3.0).unwrap() * f64::from(c.velocity_rate_hz)).round() as u64;
         let mut s = ProtectionState::default();
         let mut warned_at = None;
         for k in 1..trip {
-            assert_eq!(p.current_tick(&mut s, pu(3.0)), None);
+            assert_eq!(heat(&p, &mut s, pu(3.0)), None);
             if warned_at.is_none() && p.warning(&s) {
                 warned_at = Some(k);
             }
         }
         let w = warned_at.expect("warns") as f64 / trip as f64;
         assert!((w - 0.5).abs() < 1e-3, "warned at {w} of the trip time");
-        assert_eq!(p.current_tick(&mut s, pu(3.0)), Some(Fault::Overload));
+        assert_eq!(heat(&p, &mut s, pu(3.0)), Some(Fault::Overload));
     }
 
     #[test]
@@ -335,6 +363,7 @@ mod tests {
         let mut s = ProtectionState::default();
         let over = Pu::from_bits(Pu::from_num(p.overcurrent_pu()).to_bits() + 1);
         p.current_tick(&mut s, over);
+        heat(&p, &mut s, over);
         assert!(s.heat() > 0 && s.over_count == 1);
         let r = s.after_reset();
         assert_eq!((r.heat(), r.over_count, r.stall_count), (s.heat(), 0, 0));
@@ -353,13 +382,13 @@ mod tests {
         let slow = Pu::from_bits(pu(0.02).to_bits() - 1);
         // At the speed threshold, or under the torque limit: no count.
         for _ in 0..3 * n {
-            assert_eq!(p.stall_tick(&mut s, pu(2.0), pu(0.02)), None);
-            assert_eq!(p.stall_tick(&mut s, pu(1.99), slow), None);
+            assert_eq!(stall(&p, &mut s, pu(2.0), pu(0.02)), None);
+            assert_eq!(stall(&p, &mut s, pu(1.99), slow), None);
         }
         for _ in 1..n {
-            assert_eq!(p.stall_tick(&mut s, pu(-2.0), -slow), None);
+            assert_eq!(stall(&p, &mut s, pu(-2.0), -slow), None);
         }
-        assert_eq!(p.stall_tick(&mut s, pu(2.0), slow), Some(Fault::Stall));
+        assert_eq!(stall(&p, &mut s, pu(2.0), slow), Some(Fault::Stall));
     }
 
     #[test]
@@ -371,8 +400,8 @@ mod tests {
         let p = Protection::new(&c).unwrap();
         let mut s = ProtectionState::default();
         let under = Pu::from_bits(pu(1.4).to_bits() - 1);
-        assert_eq!(p.stall_tick(&mut s, under, pu(0.0)), None);
-        assert_eq!(p.stall_tick(&mut s, -pu(1.4), pu(0.0)), Some(Fault::Stall));
+        assert_eq!(stall(&p, &mut s, under, pu(0.0)), None);
+        assert_eq!(stall(&p, &mut s, -pu(1.4), pu(0.0)), Some(Fault::Stall));
     }
 
     #[test]
@@ -382,7 +411,21 @@ mod tests {
         let p = Protection::new(&c).unwrap();
         let mut s = ProtectionState::default();
         for _ in 0..100_000 {
-            assert_eq!(p.stall_tick(&mut s, pu(c.torque_limit_pu), pu(0.0)), None);
+            assert_eq!(stall(&p, &mut s, pu(c.torque_limit_pu), pu(0.0)), None);
         }
+    }
+
+    #[test]
+    fn an_overload_is_reported_before_a_stall_of_the_same_tick() {
+        let mut c = cfg();
+        c.faults.stall_time_s = 1.0 / c.velocity_rate_hz as f32;
+        c.faults.overload_time_s = 1.0 / c.velocity_rate_hz as f32;
+        let p = Protection::new(&c).unwrap();
+        let mut s = ProtectionState::default();
+        let lim = pu(c.torque_limit_pu);
+        assert_eq!(
+            p.velocity_tick(&mut s, pu(3.0), lim, pu(0.0)),
+            Some(Fault::Overload)
+        );
     }
 }

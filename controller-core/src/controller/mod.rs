@@ -3,7 +3,6 @@
 //! Current tick (every 1/current_rate_hz):
 //! ```text
 //! position ← unwrap(encoder_count)                       (encoder-jump check)
-//! protection ← i_meas                                    (overcurrent and I²t checks)
 //! observer ← (position, torque of the last tick: command or measured current)
 //! afb      ← AccelerationFeedback(â, a_cmd)               (if AFB runs at this rate;
 //!            with the observer's â solved in closed form for this tick's torque)
@@ -12,6 +11,8 @@
 //! i_ref    = clamp(N(i_sum), ±torque_limit)               (N the notch if one is set,
 //!            else i_ref = i_sum; 0 when faulted)
 //! v_cmd    = CurrentRegulator(i_ref − i_meas)             (PI, ±voltage_limit)
+//! protection ← i_meas                                    (overcurrent check; a trip
+//!            zeroes this tick's i_ref output and latches the fault)
 //! ```
 //! The notch N ([`crate::notch`]) shapes everything that reaches the current loop (the
 //! velocity PI, the AFB term and the excitation) and runs only in the current tick; its
@@ -24,7 +25,7 @@
 //!                                                          r a velocity-reference excitation)
 //! i_vel = VelocityRegulator(ω_cmd − ω_fb) + k_aff·a_sp     (PI, ±torque_limit)
 //! afb   ← AccelerationFeedback(...)                         (if AFB runs at this rate)
-//! stall ← (clamp(i_vel + afb + r, ±torque_limit), ω_fb)      (the tick's torque reference)
+//! I²t, stall ← (i_meas of the last current tick; clamp(i_vel + afb + r, ±torque_limit), ω_fb)
 //! ```
 //! In a period where both ticks run, call `velocity_tick` before `current_tick` so the
 //! current tick applies the new torque reference at once; the other order adds one current
@@ -291,13 +292,6 @@ impl Controller {
     #[inline(always)]
     pub fn current_tick(&mut self, inp: CurrentInputs) -> CurrentOutputs {
         self.read_encoder(inp.encoder_count);
-        if let Some(f) = self
-            .coef
-            .protection
-            .current_tick(&mut self.state.protection, inp.current_pu)
-        {
-            self.trip(f);
-        }
         let position = self.state.position;
         // The observer sees the torque that acted over the last tick: the command, or the
         // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
@@ -328,6 +322,18 @@ impl Controller {
             Pu::ZERO,
             self.coef.current_limit_abs,
         );
+        // The protections last, on this tick's sample: a trip latches now, and this tick's
+        // outputs already carry it (the board drops the enable in this tick).
+        let mut i_ref = i_ref;
+        if self
+            .coef
+            .protection
+            .current_tick(&mut self.state.protection, inp.current_pu)
+        {
+            self.trip(Fault::Overcurrent);
+            i_ref = Pu::ZERO;
+            self.state.current_ref = Pu::ZERO;
+        }
         CurrentOutputs {
             voltage_cmd_pu: v,
             current_ref_pu: i_ref,
@@ -438,14 +444,16 @@ impl Controller {
             );
             let _ = self.run_afb(self.coef.afb_velocity, |_| a_est);
         }
-        // Stall: this tick's torque reference, formed by the speed regulator just now (at
-        // the limit exactly when the regulator is), and the speed.
+        // The I²t model on the latest current sample; the stall check on this tick's torque
+        // reference, formed by the speed regulator just now (at the limit exactly when the
+        // regulator is), and the speed.
         let mut current_ref = self.total_ref();
-        if let Some(f) =
-            self.coef
-                .protection
-                .stall_tick(&mut self.state.protection, current_ref, v_fb)
-        {
+        if let Some(f) = self.coef.protection.velocity_tick(
+            &mut self.state.protection,
+            self.state.last_current,
+            current_ref,
+            v_fb,
+        ) {
             self.trip(f);
             current_ref = Pu::ZERO;
         }
