@@ -198,4 +198,22 @@ mod tests {
             }
         }
     }
+
+    /// A row whose eight products are all −0.0 (each input a zero of the sign opposite to
+    /// its coefficient's) sums to −0.0, as the row form's `Iterator::sum` does: the sums
+    /// start from −0.0, not +0.0.
+    #[test]
+    fn a_row_of_negative_zero_products_sums_to_negative_zero() {
+        let a = Mat5::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.37 - 1.5);
+        let b = Mat53::from_fn(|i, j| ((i * 5 + j) % 7) as f64 * 0.11 - 0.3);
+        let d = Discrete::new(&a, &b, 1.7e-4);
+        for i in 0..5 {
+            let z: [f64; 8] = core::array::from_fn(|j| if d.cols[j][i] < 0.0 { 0.0 } else { -0.0 });
+            let x = Vec5::new(z[0], z[1], z[2], z[3], z[4]);
+            let u = Vec3::new(z[5], z[6], z[7]);
+            let want: f64 = d.cols.iter().zip(z).map(|(c, z)| c[i] * z).sum();
+            assert_eq!(want.to_bits(), (-0.0f64).to_bits(), "row {i}");
+            assert_eq!(d.apply(&x, &u)[i].to_bits(), want.to_bits(), "row {i}");
+        }
+    }
 }
