@@ -1,7 +1,9 @@
-//! One sampling period with the computational delay (`TwoInertiaPlant::advance_period`):
-//! the input applied so far holds for the delay, the new one for the rest of the period,
-//! bit for bit two `try_advance` steps; a bad period or input is refused and changes
-//! nothing.
+//! How the input drives the plant: a voltage-driven plant has its winding and a
+//! torque-driven one none, and each reports the configured computational delay and an
+//! internal sub-step of at most 250 µs; one sampling period with the computational delay
+//! (`TwoInertiaPlant::advance_period`) is the input applied so far for the delay, then the
+//! new one for the rest of the period, bit for bit two `try_advance` steps; a bad period or
+//! input is refused and changes nothing.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -57,5 +59,24 @@ fn a_bad_period_or_input_is_refused_and_changes_nothing() {
         );
         assert_eq!(state(&p), before);
         assert_eq!(p.applied_input_pu(), 0.3);
+    }
+}
+
+#[test]
+fn the_plant_reports_its_winding_delay_and_sub_step() {
+    let cfg = common::table1();
+    assert!(TwoInertiaPlant::voltage_driven(&cfg).winding().is_some());
+    assert!(TwoInertiaPlant::torque_driven(&cfg).winding().is_none());
+    for p in [
+        TwoInertiaPlant::voltage_driven(&cfg),
+        TwoInertiaPlant::torque_driven(&cfg),
+    ] {
+        let delay = p.computational_delay_s();
+        assert_eq!(
+            delay.to_bits(),
+            cfg.electrics.computational_delay_s.to_bits()
+        );
+        let h = p.max_substep_s();
+        assert!(h > 0.0 && h <= 250e-6, "sub-step {h}");
     }
 }
