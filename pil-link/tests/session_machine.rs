@@ -235,3 +235,58 @@ fn a_session_nobody_drives_is_abandoned() {
     feed(&mut s, &mut t, &bytes(FrameKind::Stop, 12, &[]), 2 * limit);
     assert!(!s.abandoned(u32::MAX));
 }
+
+#[test]
+fn before_hello_a_hello_payload_in_another_kind_of_frame_is_ignored() {
+    // Intact frames whose payload would be a valid Hello (a watchdog in range): only the
+    // frame kind Hello opens the session.
+    let mut w = Writer::new();
+    Hello { watchdog_ms: 100 }.encode(&mut w).unwrap();
+    for kind in [
+        FrameKind::HelloAck,
+        FrameKind::Config,
+        FrameKind::ConfigAck,
+        FrameKind::Sensors,
+        FrameKind::Commands,
+        FrameKind::Fault,
+        FrameKind::Stop,
+    ] {
+        let mut s = FirmwareSession::new(1);
+        let mut t = Probe::default();
+        assert!(feed(&mut s, &mut t, &bytes(kind, 10, w.as_slice()), 0).is_empty());
+        assert_eq!(s.state(), SessionState::AwaitHello, "{kind:?}");
+        assert!(!t.safe, "{kind:?}");
+    }
+}
+
+#[test]
+fn ticks_done_counts_the_sensor_frames_answered() {
+    let (mut s, mut t) = open(1000);
+    assert_eq!(s.ticks_done(), 0);
+    let r = feed(&mut s, &mut t, &bytes(FrameKind::Config, 11, &[1]), 1);
+    assert_eq!(r[0].kind, FrameKind::ConfigAck);
+    assert_eq!(s.ticks_done(), 0);
+    for k in 0..5_u16 {
+        let r = feed(&mut s, &mut t, &bytes(FrameKind::Sensors, 12 + k, &[1]), 2);
+        assert_eq!(r[0].kind, FrameKind::Commands);
+        assert_eq!(s.ticks_done(), u32::from(k) + 1);
+    }
+    assert_eq!(t.ticks, 5);
+}
+
+#[test]
+fn out_of_sequence_a_stop_ends_the_run_latched_and_any_other_frame_latches() {
+    for (kind, stopped) in [(FrameKind::Stop, true), (FrameKind::Sensors, false)] {
+        let (mut s, mut t) = open(1000);
+        feed(&mut s, &mut t, &bytes(FrameKind::Config, 11, &[1]), 1);
+        // 13 where 12 is expected.
+        let r = feed(&mut s, &mut t, &bytes(kind, 13, &[1]), 2);
+        assert_eq!(report(&r[0]).code, FaultCode::OutOfSequence, "{kind:?}");
+        assert!(t.safe, "{kind:?}");
+        if stopped {
+            assert_eq!(s.state(), SessionState::Stopped { faulted: true });
+        } else {
+            assert!(matches!(s.state(), SessionState::Faulted(_)), "{kind:?}");
+        }
+    }
+}

@@ -198,4 +198,59 @@ mod tests {
             }
         }
     }
+
+    /// The cache keeps the last [`SLOTS`] step lengths, round robin: a stepped length has
+    /// its slot ([`MapCache::slot`]) holding its key and the map of the mode it was stepped
+    /// in, a seventh length takes the slot of the first, and stepping a cached length again
+    /// claims nothing.
+    #[test]
+    fn the_cache_keeps_the_last_six_lengths_round_robin() {
+        let a = Mat5::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.37 - 1.5);
+        let b = Mat53::from_fn(|i, j| ((i * 5 + j) % 7) as f64 * 0.11 - 0.3);
+        let mut cache = MapCache::new([(a, b); 3]);
+        let (x, u) = (Vec5::new(1.0, 0.0, 0.5, 0.0, 0.0), Vec3::new(0.2, 0.0, 1.0));
+        let lengths: Vec<f64> = (1..=SLOTS + 1).map(|k| 1e-5 * k as f64).collect();
+        for (k, &h) in lengths.iter().enumerate() {
+            let want = Discrete::new(&a, &b, h).apply(&x, &u);
+            assert_eq!(cache.step(Contact::Driving, h, &x, &u), want, "length {k}");
+            assert_eq!(
+                cache.step(Contact::Driving, h, &x, &u),
+                want,
+                "length {k} again"
+            );
+            let slot = cache.slot(h);
+            assert_eq!(slot, k % SLOTS, "length {k}");
+            assert_eq!(cache.keys[slot], h.to_bits(), "length {k}");
+            assert!(
+                cache.maps[slot][Contact::Driving.index()].is_some(),
+                "length {k}"
+            );
+            assert!(
+                cache.maps[slot][Contact::Free.index()].is_none(),
+                "length {k}"
+            );
+        }
+        let kept: Vec<u64> = lengths[1..].iter().map(|h| h.to_bits()).collect();
+        let mut keys = cache.keys.to_vec();
+        keys.sort_unstable();
+        assert_eq!(keys, kept, "the first length evicted, the other six kept");
+    }
+
+    /// A row whose eight products are all −0.0 (each input a zero of the sign opposite to
+    /// its coefficient's) sums to −0.0, as the row form's `Iterator::sum` does: the sums
+    /// start from −0.0, not +0.0.
+    #[test]
+    fn a_row_of_negative_zero_products_sums_to_negative_zero() {
+        let a = Mat5::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 * 0.37 - 1.5);
+        let b = Mat53::from_fn(|i, j| ((i * 5 + j) % 7) as f64 * 0.11 - 0.3);
+        let d = Discrete::new(&a, &b, 1.7e-4);
+        for i in 0..5 {
+            let z: [f64; 8] = core::array::from_fn(|j| if d.cols[j][i] < 0.0 { 0.0 } else { -0.0 });
+            let x = Vec5::new(z[0], z[1], z[2], z[3], z[4]);
+            let u = Vec3::new(z[5], z[6], z[7]);
+            let want: f64 = d.cols.iter().zip(z).map(|(c, z)| c[i] * z).sum();
+            assert_eq!(want.to_bits(), (-0.0f64).to_bits(), "row {i}");
+            assert_eq!(d.apply(&x, &u)[i].to_bits(), want.to_bits(), "row {i}");
+        }
+    }
 }

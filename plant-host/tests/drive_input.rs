@@ -1,0 +1,82 @@
+//! How the input drives the plant: a voltage-driven plant has its winding and a
+//! torque-driven one none, and each reports the configured computational delay and an
+//! internal sub-step of at most 250 µs; one sampling period with the computational delay
+//! (`TwoInertiaPlant::advance_period`) is the input applied so far for the delay, then the
+//! new one for the rest of the period, bit for bit two `try_advance` steps; a bad period or
+//! input is refused and changes nothing.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+use plant_host::{PlantError, TwoInertiaPlant};
+
+fn state(p: &TwoInertiaPlant) -> [u64; 5] {
+    [
+        p.motor_pos_rad().to_bits(),
+        p.load_pos_rad().to_bits(),
+        p.motor_vel_pu().to_bits(),
+        p.current_pu().to_bits(),
+        p.time_s().to_bits(),
+    ]
+}
+
+#[test]
+fn a_period_is_the_old_input_for_the_delay_then_the_new_one() {
+    let cfg = common::table1();
+    let delay = cfg.electrics.computational_delay_s;
+    assert!(delay > 0.0 && delay < 250e-6, "table1's delay {delay}");
+    let mut a = TwoInertiaPlant::voltage_driven(&cfg);
+    let mut b = TwoInertiaPlant::voltage_driven(&cfg);
+    let mut applied = 0.0;
+    for k in 0..400 {
+        let v = 0.4 * (f64::from(k) / 25.0).sin();
+        let load = if k > 200 { 0.2 } else { 0.0 };
+        a.advance_period(250e-6, v, load).unwrap();
+        b.try_advance(delay, applied, load).unwrap();
+        b.try_advance(250e-6 - delay, v, load).unwrap();
+        applied = v;
+        assert_eq!(a.applied_input_pu().to_bits(), v.to_bits(), "period {k}");
+        assert_eq!(state(&a), state(&b), "period {k}");
+    }
+    assert!(a.motor_vel_pu().abs() > 1e-3, "the plant moved");
+}
+
+#[test]
+fn a_bad_period_or_input_is_refused_and_changes_nothing() {
+    let cfg = common::table1();
+    let mut p = TwoInertiaPlant::voltage_driven(&cfg);
+    p.advance_period(250e-6, 0.3, 0.0).unwrap();
+    let before = state(&p);
+    for (period, input, load) in [
+        (-1e-4, 0.3, 0.0),
+        (f64::NAN, 0.3, 0.0),
+        (250e-6, f64::INFINITY, 0.0),
+        (250e-6, 0.3, f64::NAN),
+    ] {
+        let e = p.advance_period(period, input, load).unwrap_err();
+        assert!(
+            matches!(e, PlantError::BadStep { .. } | PlantError::BadInput { .. }),
+            "{e:?}"
+        );
+        assert_eq!(state(&p), before);
+        assert_eq!(p.applied_input_pu(), 0.3);
+    }
+}
+
+#[test]
+fn the_plant_reports_its_winding_delay_and_sub_step() {
+    let cfg = common::table1();
+    assert!(TwoInertiaPlant::voltage_driven(&cfg).winding().is_some());
+    assert!(TwoInertiaPlant::torque_driven(&cfg).winding().is_none());
+    for p in [
+        TwoInertiaPlant::voltage_driven(&cfg),
+        TwoInertiaPlant::torque_driven(&cfg),
+    ] {
+        let delay = p.computational_delay_s();
+        assert_eq!(
+            delay.to_bits(),
+            cfg.electrics.computational_delay_s.to_bits()
+        );
+        let h = p.max_substep_s();
+        assert!(h > 0.0 && h <= 250e-6, "sub-step {h}");
+    }
+}
