@@ -80,3 +80,41 @@ fn the_plant_reports_its_winding_delay_and_sub_step() {
         assert!(h > 0.0 && h <= 250e-6, "sub-step {h}");
     }
 }
+
+/// A locked load (`with_locked_load`, the locked-rotor test) stays where it is whatever the
+/// motor does: under a torque the motor takes up the lost motion and twists the shaft, and
+/// stops there, with the shaft torque carrying the motor torque (K·twist, less the gap);
+/// the plant it returns starts at rest even from a plant that had moved.
+#[test]
+fn a_locked_load_holds_still_and_the_shaft_takes_the_motor_torque() {
+    let cfg = common::table1();
+    let mut moved = TwoInertiaPlant::torque_driven(&cfg);
+    for _ in 0..400 {
+        moved.advance_period(250e-6, 0.5, 0.0).unwrap();
+    }
+    assert!(moved.time_s() > 0.0 && moved.motor_vel_pu() > 0.0);
+    assert!(moved.encoder_count() > 0 && moved.applied_input_pu() == 0.5);
+    let mut p = moved.with_locked_load();
+    assert_eq!(
+        (p.time_s(), p.motor_pos_rad(), p.motor_vel_pu()),
+        (0.0, 0.0, 0.0)
+    );
+    assert_eq!(p.applied_input_pu(), 0.0);
+    assert_eq!(p.encoder_count(), 0);
+    for _ in 0..4000 {
+        p.try_advance(250e-6, 1.0, 0.3).unwrap();
+        assert_eq!((p.load_vel_pu(), p.load_pos_rad()), (0.0, 0.0));
+    }
+    // Damped by the shaft, the motor has come to rest against the locked load.
+    assert!(p.motor_vel_pu().abs() < 1e-6, "{}", p.motor_vel_pu());
+    assert!(
+        (p.shaft_torque_pu() - 1.0).abs() < 1e-6,
+        "{}",
+        p.shaft_torque_pu()
+    );
+    assert!(p.motor_pos_rad() > 0.0 && p.encoder_count() > 0);
+    // A free plant under the same input accelerates the load.
+    let mut free = TwoInertiaPlant::torque_driven(&cfg);
+    free.try_advance(1.0, 1.0, 0.3).unwrap();
+    assert!(free.load_vel_pu() > 0.1);
+}
