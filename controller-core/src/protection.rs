@@ -383,6 +383,8 @@ mod tests {
         // At the speed threshold, or under the torque limit: no count.
         for _ in 0..3 * n {
             assert_eq!(stall(&p, &mut s, pu(2.0), pu(0.02)), None);
+        }
+        for _ in 0..3 * n {
             assert_eq!(stall(&p, &mut s, pu(1.99), slow), None);
         }
         for _ in 1..n {
