@@ -82,8 +82,8 @@ impl TwoInertiaPlant {
         let mut model = Model::new(&self.config.mechanics, self.config.backlash(), self.winding);
         model.load_locked = true;
         Self {
+            // The sensors are a function of the state and the time: nothing to restart.
             core: Piecewise::new(&model),
-            sensors: Sensors::new(&self.config),
             time_s: 0.0,
             applied_input_pu: 0.0,
             ..self
