@@ -7,6 +7,7 @@ use super::files::{config_path, read_table, scenario_of, scenario_table};
 use super::machine::machine;
 use super::overrides;
 use super::scenario::ScenarioSpec;
+use crate::engine::metrics::{MachineBands, MetricWindows};
 use crate::error::{HarnessError, Result};
 use controller_core::{AfbMode, DriveConfig};
 use plant_host::PlantConfig;
@@ -28,6 +29,28 @@ pub struct RunConfig {
     /// Where this run's regulator gains come from when it is a comparison "without AFB":
     /// the AFB run whose design it borrows ([`GainsOf`]); `None` = its own design.
     pub gains_of: Option<GainsOf>,
+}
+
+impl RunConfig {
+    /// The scenario's metric windows with this machine's bands and count-rate tone
+    /// ([`MachineBands`]).
+    pub fn metric_windows(&self) -> MetricWindows {
+        let m = &self.plant.mechanics;
+        let d = m.derived();
+        let hz = |rad_s: f64| rad_s / (2.0 * std::f64::consts::PI);
+        let mut w = self
+            .scenario
+            .metric_windows(f64::from(self.drive.torque_limit_pu));
+        w.machine = Some(MachineBands {
+            counts_per_s_per_pu: m.base_speed_rpm / 60.0 * f64::from(self.plant.counts_per_rev()),
+            velocity_bandwidth_hz: hz(f64::from(self.drive.velocity_bandwidth_rad_s)),
+            resonance_band_hz: (
+                0.7 * hz(d.anti_resonance_rad_s),
+                1.4 * hz(d.resonance_rad_s),
+            ),
+        });
+        w
+    }
 }
 
 /// The AFB run a comparison run takes its regulator gains from. "The same gains without

@@ -455,9 +455,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     }
     let wall_time_s = start.elapsed().as_secs_f64();
     let trace = Trace { rows };
-    let windows = cfg
-        .scenario
-        .metric_windows(f64::from(cfg.drive.torque_limit_pu));
+    let windows = cfg.metric_windows();
     let metrics = compute(&trace, &windows);
     let (fault, protection) = watch.finish();
     Ok(RunOutput {
