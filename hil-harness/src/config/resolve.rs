@@ -105,7 +105,14 @@ pub fn borrow_gains(cfg: &mut RunConfig, source: &str, afb_drive: &DriveConfig) 
 /// Loads scenario `name` and its config (or `config_override`), applying the scenario's
 /// `set` table and then `sets` (`section.key=value`).
 pub fn resolve(name: &str, config_override: Option<&str>, sets: &[String]) -> Result<RunConfig> {
-    resolve_with(name, config_override, sets, true)
+    resolve_with(name, config_override, sets, true, true)
+}
+
+/// Scenario `name` on the machine `config` as the file describes it, then `sets`: the
+/// scenario's `set` table (which tunes the shipped machine for its experiment) is not
+/// applied, so the run has the file's plant and drive.
+pub fn resolve_on_machine(name: &str, config: &str, sets: &[String]) -> Result<RunConfig> {
+    resolve_with(name, Some(config), sets, true, false)
 }
 
 /// [`resolve`]; `borrow` = false for the AFB run a comparison names (it must design its
@@ -115,6 +122,7 @@ fn resolve_with(
     config_override: Option<&str>,
     sets: &[String],
     borrow: bool,
+    scenario_set: bool,
 ) -> Result<RunConfig> {
     let (scenario_sets, config_sets): (Vec<String>, Vec<String>) = sets
         .iter()
@@ -126,7 +134,7 @@ fn resolve_with(
 
     let config_path = config_path(config_override.unwrap_or(&scenario.config))?;
     let mut doc = read_table(&config_path)?;
-    for (key, value) in &scenario.set {
+    for (key, value) in scenario.set.iter().filter(|_| scenario_set) {
         overrides::set(&mut doc, key, value.clone())?;
     }
     overrides::apply_all(&mut doc, &config_sets)?;
@@ -148,15 +156,19 @@ fn resolve_with(
         }
         // The AFB run under the same config file and command-line settings (scenario.*
         // settings belong to this scenario only).
-        let afb =
-            resolve_with(&c.gains_of, config_override, &config_sets, false).map_err(
-                |e| match e {
-                    HarnessError::UnknownScenario { .. } => {
-                        HarnessError::config("scenario.comparison.gains_of", e.to_string())
-                    }
-                    other => other,
-                },
-            )?;
+        let afb = resolve_with(
+            &c.gains_of,
+            config_override,
+            &config_sets,
+            false,
+            scenario_set,
+        )
+        .map_err(|e| match e {
+            HarnessError::UnknownScenario { .. } => {
+                HarnessError::config("scenario.comparison.gains_of", e.to_string())
+            }
+            other => other,
+        })?;
         borrow_gains(&mut cfg, &c.gains_of, &afb.drive)?;
     }
     Ok(cfg)

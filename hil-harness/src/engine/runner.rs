@@ -22,7 +22,6 @@ use controller_core::{
     Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
 };
 use plant_host::TwoInertiaPlant;
-use serde::Serialize;
 use std::time::Instant;
 
 /// A controller the harness can run: the fixed-point core on the host, or the firmware
@@ -95,77 +94,7 @@ pub struct RunOutput {
     pub protection: ProtectionSummary,
 }
 
-/// `summary.json`.
-#[derive(Clone, Debug, Serialize)]
-pub struct Summary {
-    /// Scenario name.
-    pub scenario: String,
-    /// What it shows.
-    pub description: String,
-    /// Paper reference.
-    pub paper: String,
-    /// Config file used.
-    pub config: String,
-    /// The metrics.
-    #[serde(flatten)]
-    pub metrics: Metrics,
-    /// Simulated time (s).
-    pub sim_time_s: f64,
-    /// Wall-clock time of the loop (s).
-    pub wall_time_s: f64,
-    /// Current ticks executed.
-    pub ticks: u64,
-    /// Simulated seconds per wall-clock second.
-    pub realtime_factor: f64,
-    /// Velocity bandwidth used (rad/s).
-    pub velocity_bandwidth_rad_s: f64,
-    /// Acceleration feedback mode used.
-    pub accel_feedback: String,
-    /// Whose designed regulator gains this run uses (`null` = its own design).
-    pub gains_of: Option<String>,
-    /// Velocity Kp used (pu torque per pu speed).
-    pub kp_vel: f64,
-    /// Velocity Ki used (pu torque per pu speed per s).
-    pub ki_vel: f64,
-    /// Ka used (s); 0 without acceleration feedback.
-    pub ka_s: f64,
-    /// The fault the drive latched first: its kind, code and time; `null` without one.
-    pub fault: Option<FaultRecord>,
-    /// The protections' figures: overcurrent level and first sample over it, the I²t
-    /// model's prediction of its trip.
-    pub protection: ProtectionSummary,
-}
-
-impl RunOutput {
-    /// The summary of this run under `cfg`.
-    pub fn summary(&self, cfg: &RunConfig) -> Summary {
-        let gains = regulator_gains(cfg).ok();
-        let g = |f: fn(&Gains) -> f32| gains.as_ref().map_or(f64::NAN, |x| f64::from(f(x)));
-        Summary {
-            scenario: cfg.name.clone(),
-            description: cfg.scenario.description.clone(),
-            paper: cfg.scenario.paper.clone(),
-            config: cfg.config_path.display().to_string(),
-            metrics: self.metrics.clone(),
-            sim_time_s: self.sim_time_s,
-            wall_time_s: self.wall_time_s,
-            ticks: self.ticks,
-            realtime_factor: if self.wall_time_s > 0.0 {
-                self.sim_time_s / self.wall_time_s
-            } else {
-                f64::INFINITY
-            },
-            velocity_bandwidth_rad_s: f64::from(cfg.drive.velocity_bandwidth_rad_s),
-            accel_feedback: format!("{:?}", cfg.drive.accel_feedback.mode),
-            gains_of: cfg.gains_of.as_ref().map(|o| o.source.clone()),
-            kp_vel: g(|x| x.kp_vel),
-            ki_vel: g(|x| x.ki_vel),
-            ka_s: g(|x| x.ka),
-            fault: self.fault.clone(),
-            protection: self.protection.clone(),
-        }
-    }
-}
+pub use super::summary::Summary;
 
 /// The computational delay D = n·Tc + r (0 <= r < Tc) between a current tick and its
 /// voltage reaching the winding: the command of tick k arrives r into the interval of tick
