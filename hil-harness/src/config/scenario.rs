@@ -193,7 +193,8 @@ pub struct MetricSpec {
     pub stable_window_s: Option<[f64; 2]>,
     /// Length of the moving average removed before the ripple RMS (s); default 0.1.
     pub ripple_average_s: Option<f64>,
-    /// Settling band on the speed error (pu); default 0.02.
+    /// Smallest settling band on the speed deviation (pu); default 0: the band is 5 % of
+    /// the peak deviation.
     pub settle_band_pu: Option<f64>,
     /// Stability threshold on the speed-error standard deviation (pu); default 0.02.
     pub stable_oscillation_pu: Option<f64>,

@@ -308,6 +308,22 @@ fn shaft_ring(rows: &[TraceRow], w: &MetricWindows, dt: f64) -> Option<(f64, f64
     response::ring(&hp, dt)
 }
 
+/// The oscillation verdict on the stability window's motor torque.
+fn verdict(p: &Pass, rows: &[TraceRow], fs: f64, oscillation_pu: f64, sat: f64) -> Oscillation {
+    let w = p.w;
+    let speed = series(rows, w.stable_window_s, |r| r.motor_vel_pu);
+    let evidence = oscillation::Evidence {
+        fs_hz: fs,
+        counts_per_s_per_pu: w.machine.map_or(0.0, |m| m.counts_per_s_per_pu),
+        mean_speed_pu: speed.iter().sum::<f64>() / speed.len().max(1) as f64,
+        saturated_fraction: sat,
+        finite_and_bounded: p.first_bad_t_s.is_none() && p.bounded,
+        speed_oscillates: oscillation_pu.is_nan() || oscillation_pu >= w.stable_oscillation_pu,
+    };
+    let torque = series(rows, w.stable_window_s, |r| r.current_pu);
+    oscillation::classify(&torque, &evidence)
+}
+
 /// The metrics from the pass's sums.
 fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
     let w = p.w;
@@ -326,17 +342,7 @@ fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
     } else {
         p.saturated_in_window as f64 / p.stable_rows as f64
     };
-    let speed = series(rows, w.stable_window_s, |r| r.motor_vel_pu);
-    let evidence = oscillation::Evidence {
-        fs_hz: fs,
-        counts_per_s_per_pu: w.machine.map_or(0.0, |m| m.counts_per_s_per_pu),
-        mean_speed_pu: speed.iter().sum::<f64>() / speed.len().max(1) as f64,
-        saturated_fraction: sat_fraction,
-        finite_and_bounded: p.first_bad_t_s.is_none() && p.bounded,
-        speed_oscillates: oscillation_pu.is_nan() || oscillation_pu >= w.stable_oscillation_pu,
-    };
-    let torque = series(rows, w.stable_window_s, |r| r.current_pu);
-    let oscillation = oscillation::classify(&torque, &evidence);
+    let oscillation = verdict(p, rows, fs, oscillation_pu, sat_fraction);
     let stable = p.first_bad_t_s.is_none()
         && !p.faulted
         && p.stable_rows > 0
