@@ -109,8 +109,9 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
     /// `summary.json`'s `peak_droop_pu` and `peak_shaft_torque_pu` are the figures a reader
-    /// takes from `trace.csv` by their definitions: the largest |speed error − the error
-    /// of the last row before the 1.5 s step| and the largest |shaft torque| from the step.
+    /// takes from `trace.csv` by their definitions: the largest |speed error − the mean
+    /// error over the velocity-bandwidth period before the 1.5 s step| and the largest
+    /// |shaft torque| from the step.
     #[test]
     fn peak_droop_and_peak_shaft_torque_are_those_of_the_trace_csv() {
         let dir = tempfile::tempdir().unwrap();
@@ -133,8 +134,15 @@ mod tests {
             .map(|r| r.unwrap().iter().map(|v| v.parse().unwrap()).collect())
             .collect();
         let step = 1.5;
-        let before = rows.iter().rfind(|r| r[t] < step).unwrap();
-        let e0 = before[cmd] - before[vel];
+        // The error just before the step: the mean over one velocity-bandwidth period.
+        let f_bw = summary["drive"]["velocity_bandwidth_rad_s"]
+            .as_f64()
+            .unwrap()
+            / (2.0 * std::f64::consts::PI);
+        let n = 2 * (0.5 / (f_bw * 5e-4)).round() as usize;
+        let pre: Vec<&Vec<f64>> = rows.iter().filter(|r| r[t] < step).collect();
+        let pre = &pre[pre.len() - n..];
+        let e0 = pre.iter().map(|r| r[cmd] - r[vel]).sum::<f64>() / n as f64;
         let after = rows.iter().filter(|r| r[t] >= step);
         let droop = after
             .clone()

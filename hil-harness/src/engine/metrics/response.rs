@@ -2,7 +2,9 @@
 //! (or the ramp's end) and the next load change (or the end of the run):
 //!
 //! - the **deviation** d(t) = e(t) − e(t₀⁻), e = command − motor speed (pu), e(t₀⁻) the
-//!   error of the last row before the step t₀;
+//!   error just before the step t₀: the mean over the last 2·n rows before it, n =
+//!   round(1/(2·f_bw·dt)) (one velocity-bandwidth period, so a chatter sample does not
+//!   offset every deviation); the last row's error when the machine is unknown;
 //! - `peak_droop_pu` = max |d| over the rows from t₀ on, `peak_droop_time_s` = the time of
 //!   that row less t₀;
 //! - `recovery_s` = the time of the last row with |d̄| ≥ [`RECOVERY_FRACTION`] of the peak,
@@ -44,13 +46,34 @@ pub(super) struct StepResponse {
 /// The rows from `t0` to the next load change after it (or the end), and the error just
 /// before `t0`.
 pub(super) fn after(rows: &[TraceRow], t0: f64, until: Option<f64>) -> (&[TraceRow], f64) {
+    after_averaged(rows, t0, until, 0)
+}
+
+/// [`after`], the error before `t0` averaged over the last `2·n` rows (at least one).
+fn after_averaged(rows: &[TraceRow], t0: f64, until: Option<f64>, n: usize) -> (&[TraceRow], f64) {
     let start = rows.partition_point(|r| r.t_s < t0);
     let end = until.map_or(rows.len(), |u| rows.partition_point(|r| r.t_s < u));
-    let before = start
-        .checked_sub(1)
-        .and_then(|i| rows.get(i))
-        .map_or(0.0, |r| r.vel_cmd_pu - r.motor_vel_pu);
+    let pre = rows
+        .get(start.saturating_sub((2 * n).max(1))..start)
+        .unwrap_or_default();
+    let before = pre
+        .iter()
+        .map(|r| r.vel_cmd_pu - r.motor_vel_pu)
+        .sum::<f64>()
+        / pre.len().max(1) as f64;
     (rows.get(start..end.max(start)).unwrap_or_default(), before)
+}
+
+/// n = round(1/(2·f_bw·dt)), half the rows of one velocity-bandwidth period (0 when the
+/// machine or the sample period is unknown).
+pub fn smoothing_rows(w: &MetricWindows, dt: f64) -> usize {
+    w.machine.map_or(0, |m| {
+        if dt > 0.0 && m.velocity_bandwidth_hz > 0.0 {
+            (0.5 / (m.velocity_bandwidth_hz * dt)).round() as usize
+        } else {
+            0
+        }
+    })
 }
 
 /// The time from `t0` of the last row whose |deviation| is at least `band`; `None` when it
@@ -65,22 +88,16 @@ fn last_outside(rows: &[TraceRow], dev: &[f64], t0: f64, band: f64) -> Option<f6
 
 /// The step response from `t0` (module docs).
 pub(super) fn step_response(rows: &[TraceRow], t0: f64, w: &MetricWindows) -> StepResponse {
-    let (post, before) = after(rows, t0, w.step_end_s);
+    let dt = match rows {
+        [a, b, ..] => b.t_s - a.t_s,
+        _ => 0.0,
+    };
+    let smooth_n = smoothing_rows(w, dt);
+    let (post, before) = after_averaged(rows, t0, w.step_end_s, smooth_n);
     let dev: Vec<f64> = post
         .iter()
         .map(|r| r.vel_cmd_pu - r.motor_vel_pu - before)
         .collect();
-    let smooth_n = w.machine.map_or(0, |m| {
-        let dt = match post {
-            [a, b, ..] => b.t_s - a.t_s,
-            _ => 0.0,
-        };
-        if dt > 0.0 && m.velocity_bandwidth_hz > 0.0 {
-            (0.5 / (m.velocity_bandwidth_hz * dt)).round() as usize
-        } else {
-            0
-        }
-    });
     let smooth: Vec<f64> = if smooth_n == 0 {
         dev.clone()
     } else {
