@@ -1,7 +1,7 @@
 //! Metrics computed from a trace. Each definition here is repeated in the README; the
 //! windows come from the scenario's `[scenario.metrics]` table.
 
-mod oscillation;
+pub mod oscillation;
 mod pass;
 mod response;
 mod spectrum;
@@ -257,6 +257,7 @@ fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
             saturated_fraction: nan,
             tone_hz: None,
             growth: nan,
+            interpolated_amplitude_pu: None,
         },
         torque_saturated_s: nan,
         mean_torque_pu: nan,
@@ -266,6 +267,30 @@ fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
         invalid_reason: Some(format!(
             "the trace holds non-finite values from t = {bad_t_s} s; no metric of this run is a number"
         )),
+    }
+}
+
+impl Metrics {
+    /// A `limit_cycle` verdict checked against the same run with the encoder interpolated
+    /// (`again`, the `oscillation` module's step 5): if that run has no limit cycle, the
+    /// oscillation came from the counts and is `quantization`; `stable` is then the
+    /// scenario's own tests (speed oscillation, saturated share) alone.
+    pub fn confirm(&mut self, again: &Metrics, w: &MetricWindows) {
+        let o = &mut self.oscillation;
+        o.interpolated_amplitude_pu = Some(again.oscillation.amplitude_pu);
+        if o.kind != OscillationKind::LimitCycle
+            || matches!(
+                again.oscillation.kind,
+                OscillationKind::LimitCycle | OscillationKind::Diverging
+            )
+        {
+            return;
+        }
+        o.kind = OscillationKind::Quantization;
+        self.stable = !self.faulted
+            && self.invalid_reason.is_none()
+            && self.oscillation_pu < w.stable_oscillation_pu
+            && o.saturated_fraction <= w.stable_saturation_fraction;
     }
 }
 

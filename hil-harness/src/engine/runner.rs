@@ -12,7 +12,8 @@
 //! bit-for-bit repeatable.
 
 use crate::config::RunConfig;
-use crate::engine::metrics::{compute, Metrics};
+use crate::engine::metrics::oscillation::CONFIRM_INTERPOLATION;
+use crate::engine::metrics::{compute, Metrics, OscillationKind};
 use crate::engine::protection::{FaultRecord, ProtectionSummary, ProtectionWatch};
 use crate::engine::schedule::{LoadCursor, TickSteps};
 use crate::engine::trace::{Trace, TraceRow};
@@ -193,7 +194,31 @@ pub fn controller(cfg: &RunConfig) -> Result<Controller> {
 /// Runs `cfg` with the host controller (`controller_core::Controller`).
 pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
     let mut controller = controller(cfg)?;
-    run_with_backend(cfg, &mut controller)
+    let mut out = run_with_backend(cfg, &mut controller)?;
+    if out.metrics.oscillation.kind == OscillationKind::LimitCycle {
+        if let Some(fine) = finer_encoder(cfg) {
+            let again = run_with_backend(&fine, &mut self::controller(&fine)?)?;
+            out.metrics.confirm(&again.metrics, &cfg.metric_windows());
+        }
+    }
+    Ok(out)
+}
+
+/// `cfg` with its encoder interpolated [`CONFIRM_INTERPOLATION`] times more (the drive
+/// counting the finer counts); `None` if the counts would not fit the drive's range.
+fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
+    let mut fine = cfg.clone();
+    let s = &mut fine.plant.sensors;
+    s.encoder_interpolation = s.encoder_interpolation.checked_mul(CONFIRM_INTERPOLATION)?;
+    let cpr = fine.plant.counts_per_rev();
+    (cpr < (1 << 30)
+        && u64::from(cpr)
+            == u64::from(fine.plant.mechanics.encoder_cpr)
+                * u64::from(fine.plant.sensors.encoder_interpolation))
+    .then(|| {
+        fine.drive.encoder_cpr = cpr;
+        fine
+    })
 }
 
 /// The fixed quantities of a run: tick lengths and the count scales.

@@ -19,8 +19,9 @@
 //!
 //! The kind, first match wins:
 //!
-//! 1. `diverging`: a value is not finite, the speed error leaves ±0.5 pu, or the torque's
-//!    envelope grows (`growth` ≥ [`GROWTH_DIVERGING`]) with `amplitude_pu` ≥ [`A_NOISE_PU`].
+//! 1. `diverging`: a value is not finite, the speed error leaves ±0.5 pu, or a narrowband
+//!    (`narrowband_fraction` ≥ [`NARROWBAND`]) torque's envelope grows (`growth` ≥
+//!    [`GROWTH_DIVERGING`]) with `amplitude_pu` ≥ [`A_NOISE_PU`].
 //! 2. `limit_cycle` (self-excited): `amplitude_pu` ≥ [`A_NOISE_PU`] and any of
 //!    - the torque sits at its limit for ≥ [`SAT_LIMIT_CYCLE`] of the window;
 //!    - the speed error's oscillation (`oscillation_pu`) reaches the scenario's
@@ -31,6 +32,11 @@
 //! 3. `quantization`: `amplitude_pu` ≥ [`A_NOISE_PU`] otherwise: chatter at the count-rate
 //!    tone, broadband chatter, or a narrowband ripple too small to be a limit cycle.
 //! 4. `none`: `amplitude_pu` < [`A_NOISE_PU`].
+//!
+//! 5. **Confirmation** (`engine::runner::run_scenario`, host runs only): a `limit_cycle` is
+//!    run again with the encoder interpolated [`CONFIRM_INTERPOLATION`] times more; if that
+//!    run has no limit cycle (nor diverges), the oscillation came from the counts: it is
+//!    `quantization`, and `interpolated_amplitude_pu` records the rerun's amplitude.
 //!
 //! `stable` is false for `diverging` and `limit_cycle`.
 //!
@@ -59,6 +65,8 @@ pub const A_LIMIT_CYCLE_PU: f64 = 0.1;
 pub const SAT_LIMIT_CYCLE: f64 = 0.05;
 /// Growth of the torque's RMS across the window (last / first quarter) that diverges.
 pub const GROWTH_DIVERGING: f64 = 2.0;
+/// Extra encoder interpolation of the confirming rerun (step 5).
+pub const CONFIRM_INTERPOLATION: u32 = 256;
 
 /// What the loop does at the end of the run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -92,6 +100,9 @@ pub struct Oscillation {
     pub tone_hz: Option<f64>,
     /// RMS of the torque in the last quarter of the window over the first quarter.
     pub growth: f64,
+    /// The amplitude of the confirming rerun with the encoder interpolated (step 5);
+    /// `null` when there was none.
+    pub interpolated_amplitude_pu: Option<f64>,
 }
 
 /// What the classification needs besides the torque.
@@ -156,7 +167,7 @@ pub(super) fn classify(torque: &[f64], e: &Evidence) -> Oscillation {
     let audible = amplitude_pu >= A_NOISE_PU;
     let kind = if !e.finite_and_bounded
         || !amplitude_pu.is_finite()
-        || (audible && growth >= GROWTH_DIVERGING)
+        || (audible && growth >= GROWTH_DIVERGING && narrowband_fraction >= NARROWBAND)
     {
         OscillationKind::Diverging
     } else if audible
@@ -178,5 +189,6 @@ pub(super) fn classify(torque: &[f64], e: &Evidence) -> Oscillation {
         saturated_fraction: e.saturated_fraction,
         tone_hz,
         growth,
+        interpolated_amplitude_pu: None,
     }
 }
