@@ -196,8 +196,12 @@ pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
     let mut controller = controller(cfg)?;
     let mut out = run_with_backend(cfg, &mut controller)?;
     if out.metrics.oscillation.kind == OscillationKind::LimitCycle {
-        if let Some(fine) = finer_encoder(cfg) {
-            let again = run_with_backend(&fine, &mut self::controller(&fine)?)?;
+        // A drive that cannot take the finer counts (its counter width, say) keeps the
+        // verdict unconfirmed.
+        let again = finer_encoder(cfg)
+            .and_then(|fine| Some((self::controller(&fine).ok()?, fine)))
+            .and_then(|(mut c, fine)| run_with_backend(&fine, &mut c).ok());
+        if let Some(again) = again {
             out.metrics.confirm(&again.metrics, &cfg.metric_windows());
         }
     }
