@@ -272,13 +272,15 @@ fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
 
 impl Metrics {
     /// A `limit_cycle` verdict checked against the same run with the encoder interpolated
-    /// (`again`, the `oscillation` module's step 5): if that run has no limit cycle, the
+    /// (`again`, the `oscillation` module's step 5): if that run has no limit cycle (and
+    /// no fault), the
     /// oscillation came from the counts and is `quantization`; `stable` is then the
     /// scenario's own tests (speed oscillation, saturated share) alone.
     pub fn confirm(&mut self, again: &Metrics, w: &MetricWindows) {
         let o = &mut self.oscillation;
         o.interpolated_amplitude_pu = Some(again.oscillation.amplitude_pu);
         if o.kind != OscillationKind::LimitCycle
+            || again.faulted
             || matches!(
                 again.oscillation.kind,
                 OscillationKind::LimitCycle | OscillationKind::Diverging

@@ -221,6 +221,8 @@ fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
                 * u64::from(fine.plant.sensors.encoder_interpolation))
     .then(|| {
         fine.drive.encoder_cpr = cpr;
+        // A limit in counts stays the same angle.
+        fine.drive.faults.following_error_counts *= CONFIRM_INTERPOLATION as f32;
         fine
     })
 }

@@ -34,8 +34,9 @@
 //! 4. `none`: `amplitude_pu` < [`A_NOISE_PU`].
 //!
 //! 5. **Confirmation** (`engine::runner::run_scenario`, host runs only): a `limit_cycle` is
-//!    run again with the encoder interpolated [`CONFIRM_INTERPOLATION`] times more; if that
-//!    run has no limit cycle (nor diverges), the oscillation came from the counts: it is
+//!    run again with the encoder interpolated [`CONFIRM_INTERPOLATION`] times more (its
+//!    following-error limit in counts scaled with it); if that run has no limit cycle, does
+//!    not diverge and does not fault, the oscillation came from the counts: it is
 //!    `quantization`, and `interpolated_amplitude_pu` records the rerun's amplitude.
 //!
 //! `stable` is false for `diverging` and `limit_cycle`.
