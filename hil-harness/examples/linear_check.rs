@@ -12,10 +12,13 @@ fn main() {
     let agree = pts.iter().filter(|p| p.predicted == p.measured).count();
     for p in &pts {
         if p.predicted != p.measured {
+            let o = &p.oscillation;
             println!(
-                "{} {} {} rad/s: predicted {} measured {} (radius {:.4} / {:.4}, ζ {:.3}, chatter {:.3} pu)",
+                "{} {} {} rad/s: predicted {} measured {} (radius {:.4} / {:.4}, ζ {:.3}, chatter {:.3} pu; \
+                 {:?} at {:.1} Hz, ±{:.3} pu, narrowband {:.2}, saturated {:.2}, tone {:.1} Hz)",
                 p.plant, p.design, p.bandwidth_rad_s, p.predicted, p.measured, p.radius_engaged,
-                p.radius_apart, p.damping_engaged, p.limit_cycle_torque_pu
+                p.radius_apart, p.damping_engaged, p.limit_cycle_torque_pu, o.kind, o.freq_hz,
+                o.amplitude_pu, o.narrowband_fraction, o.saturated_fraction, o.tone_hz.unwrap_or(0.0)
             );
         }
     }

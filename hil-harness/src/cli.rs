@@ -77,8 +77,16 @@ pub enum Command {
         #[arg(long, default_value = "out/sweep")]
         out: PathBuf,
     },
-    /// Dynamic stiffness over frequency: Eq. 1 and measured in the loop.
+    /// Dynamic stiffness over frequency: Eq. 1 and measured in the loop (the dyno), or
+    /// with --config on that machine's own plant and drive, AFB on and off.
     Stiffness {
+        /// A machine file (path, or name under configs/): measure its stiffness instead of
+        /// the dyno's.
+        #[arg(long)]
+        config: Option<String>,
+        /// Override a setting of the machine file (`--config` only).
+        #[arg(long = "set", value_name = "KEY=VALUE", requires = "config")]
+        set: Vec<String>,
         /// Output directory.
         #[arg(long, default_value = "out/stiffness")]
         out: PathBuf,

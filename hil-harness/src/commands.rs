@@ -61,11 +61,15 @@ pub fn trace_figure(trace: &Trace, title: &str) -> Figure {
 pub fn write_run(dir: &Path, cfg: &RunConfig, out: &RunOutput) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| HarnessError::io(dir, e))?;
     out.trace.write_csv(&dir.join("trace.csv"))?;
-    let json = serde_json::to_string_pretty(&out.summary(cfg))
+    let summary = out.summary(cfg);
+    let json = serde_json::to_string_pretty(&summary)
         .map_err(|e| HarnessError::io(dir.join("summary.json"), e))?;
     let path = dir.join("summary.json");
     std::fs::write(&path, json + "\n").map_err(|e| HarnessError::io(&path, e))?;
-    save(&trace_figure(&out.trace, &cfg.name), &dir.join("trace"))?;
+    save(
+        &trace_figure(&out.trace, &summary.title),
+        &dir.join("trace"),
+    )?;
     Ok(())
 }
 
@@ -98,4 +102,58 @@ pub fn run(scenario: &str, config: Option<&str>, sets: &[String], out: &Path) ->
 /// `Some(x)` as `x` with 4 decimals, `None` as `n/a`.
 pub fn fmt_opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".to_string(), |x| format!("{x:.4}"))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+    /// `summary.json`'s `peak_droop_pu` and `peak_shaft_torque_pu` are the figures a reader
+    /// takes from `trace.csv` by their definitions: the largest |speed error − the mean
+    /// error over the velocity-bandwidth period before the 1.5 s step| and the largest
+    /// |shaft torque| from the step.
+    #[test]
+    fn peak_droop_and_peak_shaft_torque_are_those_of_the_trace_csv() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("fig6");
+        super::run("fig6", None, &[], &out).unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let mut csv = csv::Reader::from_path(out.join("trace.csv")).unwrap();
+        let head = csv.headers().unwrap().clone();
+        let col = |name: &str| head.iter().position(|h| h == name).unwrap();
+        let (t, cmd, vel, shaft) = (
+            col("t_s"),
+            col("vel_cmd_pu"),
+            col("motor_vel_pu"),
+            col("shaft_torque_pu"),
+        );
+        let rows: Vec<Vec<f64>> = csv
+            .records()
+            .map(|r| r.unwrap().iter().map(|v| v.parse().unwrap()).collect())
+            .collect();
+        let step = 1.5;
+        // The error just before the step: the mean over one velocity-bandwidth period.
+        let f_bw = summary["drive"]["velocity_bandwidth_rad_s"]
+            .as_f64()
+            .unwrap()
+            / (2.0 * std::f64::consts::PI);
+        let n = 2 * (0.5 / (f_bw * 5e-4)).round() as usize;
+        let pre: Vec<&Vec<f64>> = rows.iter().filter(|r| r[t] < step).collect();
+        let pre = &pre[pre.len() - n..];
+        let e0 = pre.iter().map(|r| r[cmd] - r[vel]).sum::<f64>() / n as f64;
+        let after = rows.iter().filter(|r| r[t] >= step);
+        let droop = after
+            .clone()
+            .map(|r| (r[cmd] - r[vel] - e0).abs())
+            .fold(0.0, f64::max);
+        let peak_shaft = after.map(|r| r[shaft].abs()).fold(0.0, f64::max);
+        assert_eq!(summary["peak_droop_pu"].as_f64().unwrap(), droop);
+        assert_eq!(
+            summary["peak_shaft_torque_pu"].as_f64().unwrap(),
+            peak_shaft
+        );
+        assert!(droop > 1e-3 && peak_shaft > 0.5, "{droop} {peak_shaft}");
+    }
 }

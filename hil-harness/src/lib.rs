@@ -90,7 +90,10 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
         ),
 
         Command::Sweep { out } => sweep::sweep(&out),
-        Command::Stiffness { out } => stiffness::stiffness(&out),
+        Command::Stiffness { config, set, out } => match config {
+            Some(c) => stiffness::machine::stiffness_machine(&out, &c, &set),
+            None => stiffness::stiffness(&out),
+        },
         Command::Sec2Map { out } => sec2::sec2(&out),
         Command::Reproduce { out } => report::reproduce(&out),
         Command::Replay {

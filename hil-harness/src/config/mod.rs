@@ -21,4 +21,4 @@ pub mod typed;
 
 pub use files::{config_path, configs_dir, known_scenarios, load_scenario, read_table};
 pub use machine::machine;
-pub use resolve::{borrow_gains, resolve, GainsOf, RunConfig};
+pub use resolve::{borrow_gains, resolve, resolve_on_machine, GainsOf, RunConfig};

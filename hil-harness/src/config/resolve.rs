@@ -7,6 +7,7 @@ use super::files::{config_path, read_table, scenario_of, scenario_table};
 use super::machine::machine;
 use super::overrides;
 use super::scenario::ScenarioSpec;
+use crate::engine::metrics::{MachineBands, MetricWindows};
 use crate::error::{HarnessError, Result};
 use controller_core::{AfbMode, DriveConfig};
 use plant_host::PlantConfig;
@@ -28,6 +29,28 @@ pub struct RunConfig {
     /// Where this run's regulator gains come from when it is a comparison "without AFB":
     /// the AFB run whose design it borrows ([`GainsOf`]); `None` = its own design.
     pub gains_of: Option<GainsOf>,
+}
+
+impl RunConfig {
+    /// The scenario's metric windows with this machine's bands and count-rate tone
+    /// ([`MachineBands`]).
+    pub fn metric_windows(&self) -> MetricWindows {
+        let m = &self.plant.mechanics;
+        let d = m.derived();
+        let hz = |rad_s: f64| rad_s / (2.0 * std::f64::consts::PI);
+        let mut w = self
+            .scenario
+            .metric_windows(f64::from(self.drive.torque_limit_pu));
+        w.machine = Some(MachineBands {
+            counts_per_s_per_pu: m.base_speed_rpm / 60.0 * f64::from(self.plant.counts_per_rev()),
+            velocity_bandwidth_hz: hz(f64::from(self.drive.velocity_bandwidth_rad_s)),
+            resonance_band_hz: (
+                0.7 * hz(d.anti_resonance_rad_s),
+                1.4 * hz(d.resonance_rad_s),
+            ),
+        });
+        w
+    }
 }
 
 /// The AFB run a comparison run takes its regulator gains from. "The same gains without
@@ -82,7 +105,14 @@ pub fn borrow_gains(cfg: &mut RunConfig, source: &str, afb_drive: &DriveConfig) 
 /// Loads scenario `name` and its config (or `config_override`), applying the scenario's
 /// `set` table and then `sets` (`section.key=value`).
 pub fn resolve(name: &str, config_override: Option<&str>, sets: &[String]) -> Result<RunConfig> {
-    resolve_with(name, config_override, sets, true)
+    resolve_with(name, config_override, sets, true, true)
+}
+
+/// Scenario `name` on the machine `config` as the file describes it, then `sets`: the
+/// scenario's `set` table (which tunes the shipped machine for its experiment) is not
+/// applied, so the run has the file's plant and drive.
+pub fn resolve_on_machine(name: &str, config: &str, sets: &[String]) -> Result<RunConfig> {
+    resolve_with(name, Some(config), sets, true, false)
 }
 
 /// [`resolve`]; `borrow` = false for the AFB run a comparison names (it must design its
@@ -92,6 +122,7 @@ fn resolve_with(
     config_override: Option<&str>,
     sets: &[String],
     borrow: bool,
+    scenario_set: bool,
 ) -> Result<RunConfig> {
     let (scenario_sets, config_sets): (Vec<String>, Vec<String>) = sets
         .iter()
@@ -103,7 +134,7 @@ fn resolve_with(
 
     let config_path = config_path(config_override.unwrap_or(&scenario.config))?;
     let mut doc = read_table(&config_path)?;
-    for (key, value) in &scenario.set {
+    for (key, value) in scenario.set.iter().filter(|_| scenario_set) {
         overrides::set(&mut doc, key, value.clone())?;
     }
     overrides::apply_all(&mut doc, &config_sets)?;
@@ -125,15 +156,19 @@ fn resolve_with(
         }
         // The AFB run under the same config file and command-line settings (scenario.*
         // settings belong to this scenario only).
-        let afb =
-            resolve_with(&c.gains_of, config_override, &config_sets, false).map_err(
-                |e| match e {
-                    HarnessError::UnknownScenario { .. } => {
-                        HarnessError::config("scenario.comparison.gains_of", e.to_string())
-                    }
-                    other => other,
-                },
-            )?;
+        let afb = resolve_with(
+            &c.gains_of,
+            config_override,
+            &config_sets,
+            false,
+            scenario_set,
+        )
+        .map_err(|e| match e {
+            HarnessError::UnknownScenario { .. } => {
+                HarnessError::config("scenario.comparison.gains_of", e.to_string())
+            }
+            other => other,
+        })?;
         borrow_gains(&mut cfg, &c.gains_of, &afb.drive)?;
     }
     Ok(cfg)

@@ -193,7 +193,8 @@ pub struct MetricSpec {
     pub stable_window_s: Option<[f64; 2]>,
     /// Length of the moving average removed before the ripple RMS (s); default 0.1.
     pub ripple_average_s: Option<f64>,
-    /// Settling band on the speed error (pu); default 0.02.
+    /// Smallest settling band on the speed deviation (pu); default 0: the band is 5 % of
+    /// the peak deviation.
     pub settle_band_pu: Option<f64>,
     /// Stability threshold on the speed-error standard deviation (pu); default 0.02.
     pub stable_oscillation_pu: Option<f64>,
@@ -375,6 +376,7 @@ impl ScenarioSpec {
     pub fn metric_windows(&self, torque_limit_pu: f64) -> MetricWindows {
         let end = self.duration_s;
         let step = self.load.iter().find(|l| l.torque_pu != 0.0).map(|l| l.t_s);
+        let step_end = step.and_then(|t| self.load.iter().map(|l| l.t_s).find(|u| *u > t));
         let ramp_end = (self.profile.accel_s > 0.0 || self.profile.speed_pu != 0.0)
             .then(|| self.profile.ramp_end_s());
         let pair = |p: Option<[f64; 2]>| p.map(|[a, b]| (a, b));
@@ -385,16 +387,18 @@ impl ScenarioSpec {
         let ripple_from = step.or(ramp_end).unwrap_or(0.0) + average_s;
         MetricWindows {
             step_time_s: step,
+            step_end_s: step_end,
             ramp_end_s: ramp_end,
             ripple_window_s: pair(m.ripple_window_s).unwrap_or((ripple_from.min(end), end)),
             overshoot_window_s: pair(m.overshoot_window_s)
                 .or_else(|| ramp_end.map(|r| (r, step.unwrap_or(end)))),
             stable_window_s: pair(m.stable_window_s).unwrap_or(((end - 0.5).max(0.0), end)),
             ripple_average_s: average_s,
-            settle_band_pu: m.settle_band_pu.unwrap_or(0.02),
+            settle_band_pu: m.settle_band_pu.unwrap_or(0.0),
             stable_oscillation_pu: m.stable_oscillation_pu.unwrap_or(0.02),
             stable_saturation_fraction: m.stable_saturation_fraction.unwrap_or(0.2),
             torque_limit_pu,
+            machine: None,
         }
     }
 }

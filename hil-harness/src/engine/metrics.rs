@@ -1,9 +1,13 @@
 //! Metrics computed from a trace. Each definition here is repeated in the README; the
 //! windows come from the scenario's `[scenario.metrics]` table.
 
+pub mod oscillation;
 mod pass;
+mod response;
+mod spectrum;
 
 use crate::engine::trace::{Trace, TraceRow};
+pub use oscillation::{Oscillation, OscillationKind};
 use pass::{hp_inputs, Pass, HP_SIGNALS};
 use serde::Serialize;
 
@@ -12,6 +16,8 @@ use serde::Serialize;
 pub struct MetricWindows {
     /// Time of the load step the droop and settling refer to, if any.
     pub step_time_s: Option<f64>,
+    /// Time of the next load change after the step: the step response ends there.
+    pub step_end_s: Option<f64>,
     /// Time the velocity ramp ends (overshoot is measured from here), if any.
     pub ramp_end_s: Option<f64>,
     /// Window over which torque ripple is measured.
@@ -22,7 +28,8 @@ pub struct MetricWindows {
     pub stable_window_s: (f64, f64),
     /// Length of the centred moving average removed before taking the ripple (s).
     pub ripple_average_s: f64,
-    /// Settling band on the motor speed error (pu).
+    /// Smallest settling band on the motor speed deviation (pu); the band is otherwise
+    /// a share of the peak deviation (`response` module).
     pub settle_band_pu: f64,
     /// Stability threshold on the standard deviation of the speed error (pu).
     pub stable_oscillation_pu: f64,
@@ -30,6 +37,21 @@ pub struct MetricWindows {
     pub stable_saturation_fraction: f64,
     /// Torque limit of the drive (pu), to count saturation.
     pub torque_limit_pu: f64,
+    /// The machine the bands and the count-rate tone come from; `None` = unknown (no
+    /// tone, the noise band from 5 Hz, the shaft band 5 Hz to Nyquist).
+    pub machine: Option<MachineBands>,
+}
+
+/// What the spectral metrics need of the machine and the drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MachineBands {
+    /// Encoder counts per second at 1 pu motor speed, after interpolation.
+    pub counts_per_s_per_pu: f64,
+    /// Velocity-loop bandwidth (Hz): `torque_noise_rms_pu` counts the torque above it.
+    pub velocity_bandwidth_hz: f64,
+    /// Band of `shaft_oscillation_rms_pu` (Hz): 0.7 × the anti-resonance to 1.4 × the
+    /// locked-rotor resonance f_ar·√(1 + J_L/J_M).
+    pub resonance_band_hz: (f64, f64),
 }
 
 /// The metrics written to `summary.json`.
@@ -52,16 +74,39 @@ pub struct Metrics {
     pub torque_ripple_rms_pu: f64,
     /// The same for the shaft (transducer) torque (pu).
     pub shaft_torque_ripple_rms_pu: f64,
-    /// Dominant ripple frequency of the shaft torque, from zero crossings (Hz).
+    /// Dominant ripple frequency of the shaft torque in the ripple window: the peak of its
+    /// spectrum above 5 Hz (Hz).
     pub shaft_ripple_freq_hz: f64,
     /// Largest drop of motor speed below command after the load step, less the error
     /// just before it (pu). `None` without a step.
     pub load_step_droop_pu: Option<f64>,
     /// Largest excess of load speed over the command in the overshoot window (pu).
     pub overshoot_pu: Option<f64>,
-    /// Time from the step (or ramp end) until the motor speed error stays inside the band
-    /// for the rest of the run (s); `None` if it never settles.
+    /// Time from the step (or ramp end) until the speed deviation stays inside the band,
+    /// 5 % of its peak (the `response` module's definition) (s); `None` if it never
+    /// settles.
     pub settling_s: Option<f64>,
+    /// Largest |motor speed deviation| after the step, less the error just before it
+    /// (pu); `None` without a step.
+    pub peak_droop_pu: Option<f64>,
+    /// Time from the step to that peak (s).
+    pub peak_droop_time_s: Option<f64>,
+    /// Time from the step until the deviation stays under 10 % of its peak (s).
+    pub recovery_s: Option<f64>,
+    /// Largest |shaft torque| after the step, until the next load change (pu).
+    pub peak_shaft_torque_pu: Option<f64>,
+    /// RMS of the motor torque above the velocity bandwidth in the stability window (pu).
+    pub torque_noise_rms_pu: f64,
+    /// RMS of the shaft torque in the machine's resonance band
+    /// ([`MachineBands::resonance_band_hz`]) in the ripple window (pu): the ringing,
+    /// without the slow recovery.
+    pub shaft_oscillation_rms_pu: f64,
+    /// Frequency of the shaft's ring after the step (Hz), from its successive maxima.
+    pub shaft_ring_freq_hz: Option<f64>,
+    /// Damping ratio of that ring, from their log decrement.
+    pub shaft_ring_damping: Option<f64>,
+    /// The stability verdict and its evidence (the `oscillation` module's rule).
+    pub oscillation: Oscillation,
     /// Time the torque command spends at its limit (s).
     pub torque_saturated_s: f64,
     /// Mean motor torque (measured current) in the ripple window (pu).
@@ -182,12 +227,7 @@ fn centred_row(
 /// The metrics of a trace that holds non-finite values from `bad_t_s`. Max/min folds skip
 /// NaN, so these figures would read as plain numbers (0.0000): none of them means anything
 /// for this run.
-fn invalid(
-    faulted: bool,
-    bad_t_s: f64,
-    load_step_droop_pu: Option<f64>,
-    overshoot_pu: Option<f64>,
-) -> Metrics {
+fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
     let nan = f64::NAN;
     let some_nan = |o: Option<f64>| o.map(|_| nan);
     Metrics {
@@ -198,9 +238,27 @@ fn invalid(
         torque_ripple_rms_pu: nan,
         shaft_torque_ripple_rms_pu: nan,
         shaft_ripple_freq_hz: nan,
-        load_step_droop_pu: some_nan(load_step_droop_pu),
-        overshoot_pu: some_nan(overshoot_pu),
+        load_step_droop_pu: some_nan(fig.load_step_droop_pu),
+        overshoot_pu: some_nan(fig.overshoot_pu),
         settling_s: None,
+        peak_droop_pu: some_nan(fig.peak_droop_pu),
+        peak_droop_time_s: some_nan(fig.peak_droop_time_s),
+        recovery_s: None,
+        peak_shaft_torque_pu: some_nan(fig.peak_shaft_torque_pu),
+        torque_noise_rms_pu: nan,
+        shaft_oscillation_rms_pu: nan,
+        shaft_ring_freq_hz: None,
+        shaft_ring_damping: None,
+        oscillation: Oscillation {
+            kind: OscillationKind::Diverging,
+            freq_hz: nan,
+            amplitude_pu: nan,
+            narrowband_fraction: nan,
+            saturated_fraction: nan,
+            tone_hz: None,
+            growth: nan,
+            interpolated_amplitude_pu: None,
+        },
         torque_saturated_s: nan,
         mean_torque_pu: nan,
         mean_speed_error_pu: nan,
@@ -212,6 +270,87 @@ fn invalid(
     }
 }
 
+impl Metrics {
+    /// A `limit_cycle` verdict checked against the same run with the encoder interpolated
+    /// (`again`, the `oscillation` module's step 5): if that run has no limit cycle (and
+    /// no fault), the
+    /// oscillation came from the counts and is `quantization`; `stable` is then the
+    /// scenario's own tests (speed oscillation, saturated share) alone.
+    pub fn confirm(&mut self, again: &Metrics, w: &MetricWindows) {
+        let o = &mut self.oscillation;
+        o.interpolated_amplitude_pu = Some(again.oscillation.amplitude_pu);
+        if o.kind != OscillationKind::LimitCycle
+            || again.faulted
+            || matches!(
+                again.oscillation.kind,
+                OscillationKind::LimitCycle | OscillationKind::Diverging
+            )
+        {
+            return;
+        }
+        o.kind = OscillationKind::Quantization;
+        self.stable = !self.faulted
+            && self.invalid_reason.is_none()
+            && self.oscillation_pu < w.stable_oscillation_pu
+            && o.saturated_fraction <= w.stable_saturation_fraction;
+    }
+}
+
+/// `f` of the rows inside window `win`.
+fn series(rows: &[TraceRow], win: (f64, f64), f: impl Fn(&TraceRow) -> f64) -> Vec<f64> {
+    rows.iter().filter(|r| in_window(r, win)).map(f).collect()
+}
+
+/// The spectral figures: `(shaft_ripple_freq_hz, torque_noise_rms_pu,
+/// shaft_oscillation_rms_pu)`.
+fn spectral(rows: &[TraceRow], w: &MetricWindows, fs: f64) -> (f64, f64, f64) {
+    let nyquist = fs / 2.0;
+    let shaft = series(rows, w.ripple_window_s, |r| r.shaft_torque_pu);
+    let freq = spectrum::peak(&shaft, fs, oscillation::F_MIN_HZ, oscillation::HALF_BAND_HZ)
+        .map_or(0.0, |p| p.freq_hz);
+    let (bw_hz, band) = w.machine.map_or(
+        (oscillation::F_MIN_HZ, (oscillation::F_MIN_HZ, nyquist)),
+        |m| (m.velocity_bandwidth_hz, m.resonance_band_hz),
+    );
+    let torque = series(rows, w.stable_window_s, |r| r.current_pu);
+    (
+        freq,
+        spectrum::band_rms(&torque, fs, bw_hz, nyquist),
+        spectrum::band_rms(&shaft, fs, band.0, band.1),
+    )
+}
+
+/// The ring of the high-passed shaft torque from the step to the next load change.
+fn shaft_ring(rows: &[TraceRow], w: &MetricWindows, dt: f64) -> Option<(f64, f64)> {
+    let t0 = w.step_time_s?;
+    let (post, _) = response::after(rows, t0, w.step_end_s);
+    let shaft: Vec<f64> = post.iter().map(|r| r.shaft_torque_pu).collect();
+    let hp = match w.machine {
+        Some(m) => spectrum::band_passed(&shaft, 1.0 / dt, m.resonance_band_hz),
+        None => high_pass(
+            &shaft,
+            ((w.ripple_average_s / dt) / 2.0).round().max(1.0) as usize,
+        ),
+    };
+    response::ring(&hp, dt)
+}
+
+/// The oscillation verdict on the stability window's motor torque.
+fn verdict(p: &Pass, rows: &[TraceRow], fs: f64, oscillation_pu: f64, sat: f64) -> Oscillation {
+    let w = p.w;
+    let speed = series(rows, w.stable_window_s, |r| r.motor_vel_pu);
+    let evidence = oscillation::Evidence {
+        fs_hz: fs,
+        counts_per_s_per_pu: w.machine.map_or(0.0, |m| m.counts_per_s_per_pu),
+        mean_speed_pu: speed.iter().sum::<f64>() / speed.len().max(1) as f64,
+        saturated_fraction: sat,
+        finite_and_bounded: p.first_bad_t_s.is_none() && p.bounded,
+        speed_oscillates: oscillation_pu.is_nan() || oscillation_pu >= w.stable_oscillation_pu,
+    };
+    let torque = series(rows, w.stable_window_s, |r| r.current_pu);
+    oscillation::classify(&torque, &evidence)
+}
+
 /// The metrics from the pass's sums.
 fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
     let w = p.w;
@@ -219,6 +358,7 @@ fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
         (Some(a), Some(b)) => b.t_s - a.t_s,
         _ => 0.0,
     };
+    let fs = if dt > 0.0 { 1.0 / dt } else { 0.0 };
     // Oscillation: the speed error with its slow part (centred moving average over
     // `ripple_average_s`) removed, so a slow recovery from a step is not counted as a
     // limit cycle; growth beyond bounds is caught by `bounded`.
@@ -229,220 +369,64 @@ fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
     } else {
         p.saturated_in_window as f64 / p.stable_rows as f64
     };
+    let oscillation = verdict(p, rows, fs, oscillation_pu, sat_fraction);
     let stable = p.first_bad_t_s.is_none()
         && !p.faulted
         && p.stable_rows > 0
         && p.bounded
         && oscillation_pu.is_finite()
         && oscillation_pu < w.stable_oscillation_pu
-        && sat_fraction <= w.stable_saturation_fraction;
-    let [torque, shaft] = p.ripple_hp;
+        && sat_fraction <= w.stable_saturation_fraction
+        && !matches!(
+            oscillation.kind,
+            OscillationKind::LimitCycle | OscillationKind::Diverging
+        );
+    let [torque_hp, shaft] = p.ripple_hp;
     let load_step_droop_pu = w
         .step_time_s
         .map(|_| (p.worst_after_step - p.before_step_err.unwrap_or(0.0)).max(0.0));
-    let overshoot_pu = w.overshoot_window_s.map(|_| p.overshoot);
-    let settling_s = w.step_time_s.or(w.ramp_end_s).and_then(|t0| {
-        match p.last_out_of_band_t_s {
-            None => Some(0.0),
-            Some(t) => {
-                // Never settled if it is still outside the band at the end of the run.
-                let end = rows.last().map_or(t, |r| r.t_s);
-                (t < end).then_some(t - t0)
-            }
-        }
-    });
-    if let Some(bad_t_s) = p.first_bad_t_s {
-        return invalid(p.faulted, bad_t_s, load_step_droop_pu, overshoot_pu);
-    }
-    Metrics {
+    let step = w
+        .step_time_s
+        .or(w.ramp_end_s)
+        .map(|t0| response::step_response(rows, t0, w));
+    let on_step = |f: fn(&response::StepResponse) -> f64| w.step_time_s.and(step.as_ref()).map(f);
+    let (shaft_ripple_freq_hz, torque_noise_rms_pu, shaft_oscillation_rms_pu) =
+        spectral(rows, w, fs);
+    let ring = shaft_ring(rows, w, dt);
+    let m = Metrics {
         stable,
         faulted: p.faulted,
         oscillation_pu,
         limit_cycle_torque_pu: cycle.rms(),
-        torque_ripple_rms_pu: torque.rms(),
+        torque_ripple_rms_pu: torque_hp.rms(),
         shaft_torque_ripple_rms_pu: shaft.rms(),
-        shaft_ripple_freq_hz: shaft.freq_hz(w.ripple_window_s.1 - w.ripple_window_s.0),
+        shaft_ripple_freq_hz,
         load_step_droop_pu,
-        overshoot_pu,
-        settling_s,
+        overshoot_pu: w.overshoot_window_s.map(|_| p.overshoot),
+        settling_s: step.and_then(|s| s.settling_s),
+        peak_droop_pu: on_step(|s| s.peak_droop_pu),
+        peak_droop_time_s: on_step(|s| s.peak_droop_time_s),
+        recovery_s: w.step_time_s.and(step).and_then(|s| s.recovery_s),
+        peak_shaft_torque_pu: on_step(|s| s.peak_shaft_torque_pu),
+        torque_noise_rms_pu,
+        shaft_oscillation_rms_pu,
+        shaft_ring_freq_hz: ring.map(|r| r.0),
+        shaft_ring_damping: ring.map(|r| r.1),
+        oscillation,
         torque_saturated_s: p.saturated_rows as f64 * dt,
         mean_torque_pu: p.ripple_torque.get(),
         mean_speed_error_pu: p.ripple_speed_err.get(),
         max_following_error_counts: p.max_following,
         max_twist_counts: p.max_twist,
         invalid_reason: None,
+    };
+    match p.first_bad_t_s {
+        Some(bad_t_s) => invalid(p.faulted, bad_t_s, m),
+        None => m,
     }
 }
 
 #[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
-    use super::*;
-
-    fn windows() -> MetricWindows {
-        MetricWindows {
-            step_time_s: Some(1.0),
-            ramp_end_s: None,
-            ripple_window_s: (1.2, 2.0),
-            overshoot_window_s: None,
-            stable_window_s: (1.5, 2.0),
-            ripple_average_s: 0.1,
-            settle_band_pu: 0.02,
-            stable_oscillation_pu: 0.02,
-            stable_saturation_fraction: 0.2,
-            torque_limit_pu: 2.0,
-        }
-    }
-
-    fn trace(f: impl Fn(f64) -> TraceRow) -> Trace {
-        Trace {
-            rows: (0..4000).map(|i| f(i as f64 * 0.0005)).collect(),
-        }
-    }
-
-    #[test]
-    fn a_trace_with_non_finite_values_gives_null_metrics_with_a_reason() {
-        let t = trace(|t| TraceRow {
-            t_s: t,
-            vel_cmd_pu: 1.0,
-            motor_vel_pu: if t > 1.4 { f64::NAN } else { 1.0 },
-            ..Default::default()
-        });
-        let m = compute(&t, &windows());
-        assert!(!m.stable);
-        assert!(m.torque_ripple_rms_pu.is_nan() && m.load_step_droop_pu.unwrap().is_nan());
-        let reason = m.invalid_reason.clone().unwrap();
-        assert!(
-            reason.contains("non-finite") && reason.contains("1.4"),
-            "{reason}"
-        );
-        let json = serde_json::to_value(&m).unwrap();
-        assert!(json["torque_ripple_rms_pu"].is_null() && json["load_step_droop_pu"].is_null());
-        // A finite run has no reason.
-        let ok = compute(
-            &trace(|t| TraceRow {
-                t_s: t,
-                ..Default::default()
-            }),
-            &windows(),
-        );
-        assert_eq!(ok.invalid_reason, None);
-    }
-
-    #[test]
-    fn sine_ripple_has_rms_amplitude_over_root_two_and_its_frequency() {
-        let t = trace(|t| TraceRow {
-            t_s: t,
-            current_pu: 0.5 + 0.1 * (2.0 * std::f64::consts::PI * 25.0 * t).sin(),
-            shaft_torque_pu: 0.1 * (2.0 * std::f64::consts::PI * 25.0 * t).sin(),
-            ..Default::default()
-        });
-        let m = compute(&t, &windows());
-        assert!(
-            (m.torque_ripple_rms_pu - 0.1 / 2f64.sqrt()).abs() < 0.01,
-            "{m:?}"
-        );
-        assert!((m.shaft_ripple_freq_hz - 25.0).abs() < 1.0, "{m:?}");
-        assert!((m.mean_torque_pu - 0.5).abs() < 1e-3);
-        assert!(m.stable);
-    }
-
-    #[test]
-    fn growing_speed_oscillation_is_unstable_and_droop_is_measured() {
-        let t = trace(|t| TraceRow {
-            t_s: t,
-            vel_cmd_pu: 1.0,
-            motor_vel_pu: 1.0
-                - if t > 1.0 {
-                    0.2 * (t - 1.0) * (200.0 * t).sin()
-                } else {
-                    0.0
-                },
-            ..Default::default()
-        });
-        let m = compute(&t, &windows());
-        assert!(!m.stable);
-        assert!(m.load_step_droop_pu.unwrap() > 0.02);
-        assert!(m.settling_s.is_none());
-    }
-
-    /// The one-pass ripple figures are those of the definition (the whole-signal
-    /// [`high_pass`], then the RMS over the window, summed in order) bit for bit, for a
-    /// window near each end of the trace and one in the middle.
-    #[test]
-    fn the_one_pass_ripple_is_the_whole_signal_definition_bit_for_bit() {
-        let t = trace(|t| TraceRow {
-            t_s: t,
-            vel_cmd_pu: 1.0,
-            motor_vel_pu: 1.0 + 0.01 * (377.0 * t).sin() + 0.003 * (t * 1e4).cos(),
-            current_pu: 0.5 + 0.1 * (2.0 * std::f64::consts::PI * 25.0 * t).sin() + t * t,
-            shaft_torque_pu: 0.1 * (150.0 * t).sin() - 0.02 * t,
-            ..Default::default()
-        });
-        for (ripple, stable) in [((0.0, 0.3), (1.8, 2.0)), ((0.7, 1.3), (0.0, 0.05))] {
-            let w = MetricWindows {
-                ripple_window_s: ripple,
-                stable_window_s: stable,
-                ..windows()
-            };
-            let m = compute(&t, &w);
-            let half = ((w.ripple_average_s / 0.0005) / 2.0).round().max(1.0) as usize;
-            let hp = |f: fn(&TraceRow) -> f64| {
-                high_pass(&t.rows.iter().map(f).collect::<Vec<_>>(), half)
-            };
-            let rms = |x: &[f64], win: (f64, f64)| {
-                let v: Vec<f64> = t
-                    .rows
-                    .iter()
-                    .zip(x)
-                    .filter(|(r, _)| in_window(r, win))
-                    .map(|(_, v)| *v)
-                    .collect();
-                (v.iter().map(|v| v * v).sum::<f64>() / v.len() as f64).sqrt()
-            };
-            let err = hp(|r| r.vel_cmd_pu - r.motor_vel_pu);
-            let (torque, shaft) = (hp(|r| r.current_pu), hp(|r| r.shaft_torque_pu));
-            let got = [
-                m.oscillation_pu,
-                m.limit_cycle_torque_pu,
-                m.torque_ripple_rms_pu,
-                m.shaft_torque_ripple_rms_pu,
-            ];
-            let want = [
-                rms(&err, stable),
-                rms(&torque, stable),
-                rms(&torque, ripple),
-                rms(&shaft, ripple),
-            ];
-            assert_eq!(
-                got.map(f64::to_bits),
-                want.map(f64::to_bits),
-                "{got:?} {want:?}"
-            );
-        }
-    }
-
-    /// Finite values whose sum overflows are still a valid run; an infinity is not.
-    #[test]
-    fn huge_finite_values_are_valid_and_an_infinity_is_not() {
-        let huge = trace(|t| TraceRow {
-            t_s: t,
-            load_torque_pu: 1e308,
-            ..Default::default()
-        });
-        assert_eq!(compute(&huge, &windows()).invalid_reason, None);
-        let inf = trace(|t| TraceRow {
-            t_s: t,
-            accel_est_pu_s: if t >= 0.75 { f64::INFINITY } else { 1e308 },
-            ..Default::default()
-        });
-        let reason = compute(&inf, &windows()).invalid_reason.unwrap();
-        assert!(reason.contains("t = 0.75 s"), "{reason}");
-    }
-
-    #[test]
-    fn high_pass_removes_a_constant() {
-        let hp = high_pass(&[3.0; 50], 5);
-        assert!(hp.iter().all(|v| v.abs() < 1e-12));
-    }
-}
+mod closed_form;
+#[cfg(test)]
+mod tests;

@@ -7,4 +7,5 @@ pub mod plant;
 pub mod protection;
 pub mod runner;
 mod schedule;
+pub mod summary;
 pub mod trace;

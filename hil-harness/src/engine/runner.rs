@@ -12,7 +12,8 @@
 //! bit-for-bit repeatable.
 
 use crate::config::RunConfig;
-use crate::engine::metrics::{compute, Metrics};
+use crate::engine::metrics::oscillation::CONFIRM_INTERPOLATION;
+use crate::engine::metrics::{compute, Metrics, OscillationKind};
 use crate::engine::protection::{FaultRecord, ProtectionSummary, ProtectionWatch};
 use crate::engine::schedule::{LoadCursor, TickSteps};
 use crate::engine::trace::{Trace, TraceRow};
@@ -22,7 +23,6 @@ use controller_core::{
     Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
 };
 use plant_host::TwoInertiaPlant;
-use serde::Serialize;
 use std::time::Instant;
 
 /// A controller the harness can run: the fixed-point core on the host, or the firmware
@@ -95,77 +95,7 @@ pub struct RunOutput {
     pub protection: ProtectionSummary,
 }
 
-/// `summary.json`.
-#[derive(Clone, Debug, Serialize)]
-pub struct Summary {
-    /// Scenario name.
-    pub scenario: String,
-    /// What it shows.
-    pub description: String,
-    /// Paper reference.
-    pub paper: String,
-    /// Config file used.
-    pub config: String,
-    /// The metrics.
-    #[serde(flatten)]
-    pub metrics: Metrics,
-    /// Simulated time (s).
-    pub sim_time_s: f64,
-    /// Wall-clock time of the loop (s).
-    pub wall_time_s: f64,
-    /// Current ticks executed.
-    pub ticks: u64,
-    /// Simulated seconds per wall-clock second.
-    pub realtime_factor: f64,
-    /// Velocity bandwidth used (rad/s).
-    pub velocity_bandwidth_rad_s: f64,
-    /// Acceleration feedback mode used.
-    pub accel_feedback: String,
-    /// Whose designed regulator gains this run uses (`null` = its own design).
-    pub gains_of: Option<String>,
-    /// Velocity Kp used (pu torque per pu speed).
-    pub kp_vel: f64,
-    /// Velocity Ki used (pu torque per pu speed per s).
-    pub ki_vel: f64,
-    /// Ka used (s); 0 without acceleration feedback.
-    pub ka_s: f64,
-    /// The fault the drive latched first: its kind, code and time; `null` without one.
-    pub fault: Option<FaultRecord>,
-    /// The protections' figures: overcurrent level and first sample over it, the I²t
-    /// model's prediction of its trip.
-    pub protection: ProtectionSummary,
-}
-
-impl RunOutput {
-    /// The summary of this run under `cfg`.
-    pub fn summary(&self, cfg: &RunConfig) -> Summary {
-        let gains = regulator_gains(cfg).ok();
-        let g = |f: fn(&Gains) -> f32| gains.as_ref().map_or(f64::NAN, |x| f64::from(f(x)));
-        Summary {
-            scenario: cfg.name.clone(),
-            description: cfg.scenario.description.clone(),
-            paper: cfg.scenario.paper.clone(),
-            config: cfg.config_path.display().to_string(),
-            metrics: self.metrics.clone(),
-            sim_time_s: self.sim_time_s,
-            wall_time_s: self.wall_time_s,
-            ticks: self.ticks,
-            realtime_factor: if self.wall_time_s > 0.0 {
-                self.sim_time_s / self.wall_time_s
-            } else {
-                f64::INFINITY
-            },
-            velocity_bandwidth_rad_s: f64::from(cfg.drive.velocity_bandwidth_rad_s),
-            accel_feedback: format!("{:?}", cfg.drive.accel_feedback.mode),
-            gains_of: cfg.gains_of.as_ref().map(|o| o.source.clone()),
-            kp_vel: g(|x| x.kp_vel),
-            ki_vel: g(|x| x.ki_vel),
-            ka_s: g(|x| x.ka),
-            fault: self.fault.clone(),
-            protection: self.protection.clone(),
-        }
-    }
-}
+pub use super::summary::Summary;
 
 /// The computational delay D = n·Tc + r (0 <= r < Tc) between a current tick and its
 /// voltage reaching the winding: the command of tick k arrives r into the interval of tick
@@ -264,7 +194,37 @@ pub fn controller(cfg: &RunConfig) -> Result<Controller> {
 /// Runs `cfg` with the host controller (`controller_core::Controller`).
 pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
     let mut controller = controller(cfg)?;
-    run_with_backend(cfg, &mut controller)
+    let mut out = run_with_backend(cfg, &mut controller)?;
+    if out.metrics.oscillation.kind == OscillationKind::LimitCycle {
+        // A drive that cannot take the finer counts (its counter width, say) keeps the
+        // verdict unconfirmed.
+        let again = finer_encoder(cfg)
+            .and_then(|fine| Some((self::controller(&fine).ok()?, fine)))
+            .and_then(|(mut c, fine)| run_with_backend(&fine, &mut c).ok());
+        if let Some(again) = again {
+            out.metrics.confirm(&again.metrics, &cfg.metric_windows());
+        }
+    }
+    Ok(out)
+}
+
+/// `cfg` with its encoder interpolated [`CONFIRM_INTERPOLATION`] times more (the drive
+/// counting the finer counts); `None` if the counts would not fit the drive's range.
+fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
+    let mut fine = cfg.clone();
+    let s = &mut fine.plant.sensors;
+    s.encoder_interpolation = s.encoder_interpolation.checked_mul(CONFIRM_INTERPOLATION)?;
+    let cpr = fine.plant.counts_per_rev();
+    (cpr < (1 << 30)
+        && u64::from(cpr)
+            == u64::from(fine.plant.mechanics.encoder_cpr)
+                * u64::from(fine.plant.sensors.encoder_interpolation))
+    .then(|| {
+        fine.drive.encoder_cpr = cpr;
+        // A limit in counts stays the same angle.
+        fine.drive.faults.following_error_counts *= CONFIRM_INTERPOLATION as f32;
+        fine
+    })
 }
 
 /// The fixed quantities of a run: tick lengths and the count scales.
@@ -455,9 +415,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     }
     let wall_time_s = start.elapsed().as_secs_f64();
     let trace = Trace { rows };
-    let windows = cfg
-        .scenario
-        .metric_windows(f64::from(cfg.drive.torque_limit_pu));
+    let windows = cfg.metric_windows();
     let metrics = compute(&trace, &windows);
     let (fault, protection) = watch.finish();
     Ok(RunOutput {

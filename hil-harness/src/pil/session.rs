@@ -416,9 +416,7 @@ pub(super) fn cut_at(run: &mut RunOutput, cfg: &RunConfig, t_s: f64) {
     run.trace.rows.retain(|r| r.t_s < t_s - 1e-12);
     run.sim_time_s = t_s;
     run.ticks = (t_s * f64::from(cfg.drive.current_rate_hz)).round() as u64;
-    let windows = cfg
-        .scenario
-        .metric_windows(f64::from(cfg.drive.torque_limit_pu));
+    let windows = cfg.metric_windows();
     run.metrics = compute(&run.trace, &windows);
 }
 

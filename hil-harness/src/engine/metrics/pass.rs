@@ -1,5 +1,5 @@
 //! The accumulators of [`super::compute`]'s one pass: per-row sums and extremes, and the
-//! windowed RMS and zero crossings of the high-passed signals, each summed in trace order.
+//! windowed RMS of the high-passed signals, each summed in trace order.
 
 use super::{in_window, MetricWindows};
 use crate::engine::trace::TraceRow;
@@ -42,13 +42,11 @@ fn add_to_probe(probe: &mut [f64; 2], values: &[f64; 18]) {
     }
 }
 
-/// RMS and zero crossings of a high-passed signal inside a window, accumulated in order.
+/// RMS of a high-passed signal inside a window, accumulated in order.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Ripple {
     sum_sq: f64,
     n: usize,
-    crossings: usize,
-    prev: Option<f64>,
 }
 
 impl Ripple {
@@ -56,17 +54,11 @@ impl Ripple {
         // As `Iterator::sum` starts.
         sum_sq: -0.0,
         n: 0,
-        crossings: 0,
-        prev: None,
     };
 
     fn add(&mut self, v: f64) {
         self.sum_sq += v * v;
         self.n += 1;
-        if self.prev.is_some_and(|p| (p < 0.0) != (v < 0.0)) {
-            self.crossings += 1;
-        }
-        self.prev = Some(v);
     }
 
     pub(super) fn rms(&self) -> f64 {
@@ -74,15 +66,6 @@ impl Ripple {
             0.0
         } else {
             (self.sum_sq / self.n as f64).sqrt()
-        }
-    }
-
-    /// Dominant frequency from the zero crossings over a window `span_s` long.
-    pub(super) fn freq_hz(&self, span_s: f64) -> f64 {
-        if span_s > 0.0 {
-            self.crossings as f64 / (2.0 * span_s)
-        } else {
-            0.0
         }
     }
 }
@@ -127,7 +110,6 @@ pub(super) struct Pass<'a> {
     pub(super) before_step_err: Option<f64>,
     pub(super) worst_after_step: f64,
     pub(super) overshoot: f64,
-    pub(super) last_out_of_band_t_s: Option<f64>,
     pub(super) ripple_torque: Mean,
     pub(super) ripple_speed_err: Mean,
     pub(super) max_following: f64,
@@ -153,7 +135,6 @@ impl<'a> Pass<'a> {
             before_step_err: None,
             worst_after_step: f64::NEG_INFINITY,
             overshoot: 0.0,
-            last_out_of_band_t_s: None,
             ripple_torque: Mean::EMPTY,
             ripple_speed_err: Mean::EMPTY,
             max_following: 0.0,
@@ -186,11 +167,6 @@ impl<'a> Pass<'a> {
         if let Some(win) = w.overshoot_window_s {
             if in_window(r, win) {
                 self.overshoot = self.overshoot.max(r.load_vel_pu - r.vel_cmd_pu);
-            }
-        }
-        if let Some(t0) = w.step_time_s.or(w.ramp_end_s) {
-            if r.t_s >= t0 && err.abs() > w.settle_band_pu {
-                self.last_out_of_band_t_s = Some(r.t_s);
             }
         }
         if in_window(r, w.ripple_window_s) {

@@ -8,6 +8,7 @@
 //! the sweep judges it.
 
 use super::for_run;
+use crate::engine::metrics::Oscillation;
 use crate::engine::runner::run_scenario;
 use crate::error::Result;
 use crate::experiments::sweep::{point_config, AfbDesign};
@@ -36,6 +37,8 @@ pub struct CheckPoint {
     pub measured: bool,
     /// Motor-torque chatter in the stability window \[pu\] (the sweep's quiet test).
     pub limit_cycle_torque_pu: f64,
+    /// The run's oscillation verdict, with its evidence.
+    pub oscillation: Oscillation,
 }
 
 /// Predicts and runs one grid point.
@@ -62,6 +65,7 @@ pub fn check_point(plant: &str, design: &AfbDesign, bw: f64) -> Result<CheckPoin
         predicted,
         measured: metrics.stable,
         limit_cycle_torque_pu: metrics.limit_cycle_torque_pu,
+        oscillation: metrics.oscillation,
     })
 }
 

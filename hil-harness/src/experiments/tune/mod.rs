@@ -293,7 +293,11 @@ pub fn choose(config: &str, mut judged: Vec<Judged>, k: &Constraints) -> Result<
     });
     let mut refused = Vec::new();
     for j in judged {
-        let runs = verify(&bases, &j.candidate)?;
+        // A design the drive cannot hold (a coefficient out of its fixed-point format) is
+        // passed over, as one that fails in the loop.
+        let Ok(runs) = verify(&bases, &j.candidate) else {
+            continue;
+        };
         if runs.iter().all(|r| r.passed) {
             return Ok(TuneResult {
                 config: config.into(),

@@ -63,7 +63,9 @@ pub fn design_both_from(
         None => design(config, target_bandwidth, constraints)?,
     };
     let grid = without_afb(&candidates(&no_afb_bandwidths(&bws)));
-    let result = search(config, &grid, constraints)?;
+    let result = search(config, &grid, constraints).map_err(|e| {
+        crate::error::HarnessError::config("tune", format!("{config} without AFB: {e}"))
+    })?;
     let mut tuned = with.base.clone();
     result.design.candidate.apply(&mut tuned.drive);
     let without = Tuned {

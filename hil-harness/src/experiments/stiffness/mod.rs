@@ -18,6 +18,8 @@
 //! is the idealised curve the measurement is compared with, and it holds only below the
 //! observer bandwidth.
 
+pub mod machine;
+
 use crate::config::{borrow_gains, resolve, RunConfig};
 use crate::engine::runner::run_scenario;
 use crate::engine::trace::Trace;

@@ -1,0 +1,195 @@
+//! The stability verdict's evidence: what the motor torque does in the stability window.
+//!
+//! # The rule
+//!
+//! Over the stability window (normally the last 0.5 s), on the motor torque (the measured
+//! current, k_t = 1) detrended by its least-squares line:
+//!
+//! - `amplitude_pu` = half its peak-to-peak; `freq_hz` = the peak of its Hann-windowed,
+//!   zero-padded spectrum above [`F_MIN_HZ`]; `narrowband_fraction` = the share of that
+//!   energy within ±max([`HALF_BAND_HZ`], 2/T) of the peak (T the window's length: the
+//!   Hann main lobe); `saturated_fraction` = the share of the window's rows whose torque
+//!   command is at the torque limit; `growth` = the torque's RMS in the last quarter of
+//!   the window over that in the first quarter.
+//! - The **count-rate tone** `tone_hz`: an encoder turning at n rev/s with N counts/rev
+//!   (after interpolation), sampled at f_s, steps its count by n·N/f_s per sample; the
+//!   fractional part of that makes the quantization error a sawtooth at (n·N mod f_s),
+//!   folded into [0, f_s/2]. Its harmonics 2 and 3 (folded the same way) count as the tone
+//!   too. n is the mean motor speed over the window.
+//!
+//! The kind, first match wins:
+//!
+//! 1. `diverging`: a value is not finite, the speed error leaves ±0.5 pu, or a narrowband
+//!    (`narrowband_fraction` ≥ [`NARROWBAND`]) torque's envelope grows (`growth` ≥
+//!    [`GROWTH_DIVERGING`]) with `amplitude_pu` ≥ [`A_NOISE_PU`].
+//! 2. `limit_cycle` (self-excited): `amplitude_pu` ≥ [`A_NOISE_PU`] and any of
+//!    - the torque sits at its limit for ≥ [`SAT_LIMIT_CYCLE`] of the window;
+//!    - the speed error's oscillation (`oscillation_pu`) reaches the scenario's
+//!      `stable_oscillation_pu`;
+//!    - the torque is narrowband (`narrowband_fraction` ≥ [`NARROWBAND`]) at a frequency
+//!      that is **not** the count-rate tone (within ±max([`TONE_TOL_HZ`], 2/T)) with
+//!      `amplitude_pu` ≥ [`A_LIMIT_CYCLE_PU`].
+//! 3. `quantization`: `amplitude_pu` ≥ [`A_NOISE_PU`] otherwise: chatter at the count-rate
+//!    tone, broadband chatter, or a narrowband ripple too small to be a limit cycle.
+//! 4. `none`: `amplitude_pu` < [`A_NOISE_PU`].
+//!
+//! 5. **Confirmation** (`engine::runner::run_scenario`, host runs only): a `limit_cycle` is
+//!    run again with the encoder interpolated [`CONFIRM_INTERPOLATION`] times more (its
+//!    following-error limit in counts scaled with it); if that run has no limit cycle, does
+//!    not diverge and does not fault, the oscillation came from the counts: it is
+//!    `quantization`, and `interpolated_amplitude_pu` records the rerun's amplitude.
+//!
+//! `stable` is false for `diverging` and `limit_cycle`.
+//!
+//! Measured on table1 (`summary.json`): the velocity-mode drive at 30 rad/s with error-form
+//! AFB (gain 0.5, 100 Hz 2nd-order filter, differentiated encoder) oscillates at 178 Hz,
+//! ±2 pu, 19 % of the window at the limit and not at its 133 Hz tone: `limit_cycle`.
+//! `fig6` chatters at 266.7 Hz, the tone of 1 pu × 4096 counts at 2 kHz: `quantization`.
+
+use super::spectrum::{detrended, peak};
+use serde::Serialize;
+
+/// Lowest frequency of the oscillation's spectrum (Hz): below it is the slow part of the
+/// response, not an oscillation of the loop.
+pub const F_MIN_HZ: f64 = 5.0;
+/// Smallest half-width of the band counted as "near the peak" (Hz).
+pub const HALF_BAND_HZ: f64 = 3.0;
+/// Smallest tolerance of the match with the count-rate tone (Hz).
+pub const TONE_TOL_HZ: f64 = 3.0;
+/// Share of the energy near the peak from which an oscillation is narrowband.
+pub const NARROWBAND: f64 = 0.5;
+/// Torque amplitude below which nothing oscillates (pu).
+pub const A_NOISE_PU: f64 = 0.02;
+/// Narrowband torque amplitude, away from the tone, from which it is a limit cycle (pu).
+pub const A_LIMIT_CYCLE_PU: f64 = 0.1;
+/// Share of the window at the torque limit from which it is a limit cycle.
+pub const SAT_LIMIT_CYCLE: f64 = 0.05;
+/// Growth of the torque's RMS across the window (last / first quarter) that diverges.
+pub const GROWTH_DIVERGING: f64 = 2.0;
+/// Extra encoder interpolation of the confirming rerun (step 5).
+pub const CONFIRM_INTERPOLATION: u32 = 256;
+
+/// What the loop does at the end of the run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OscillationKind {
+    /// No torque oscillation above [`A_NOISE_PU`].
+    None,
+    /// Chatter from the encoder's quantization (stable).
+    Quantization,
+    /// A self-excited oscillation of bounded amplitude (unstable).
+    LimitCycle,
+    /// Growing or unbounded (unstable).
+    Diverging,
+}
+
+/// `summary.json`'s `oscillation` object: the verdict and its evidence (module docs).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Oscillation {
+    /// The verdict.
+    pub kind: OscillationKind,
+    /// Spectral peak of the motor torque in the stability window (Hz).
+    pub freq_hz: f64,
+    /// Half the peak-to-peak of the detrended motor torque (pu).
+    pub amplitude_pu: f64,
+    /// Share of the torque's energy above 5 Hz near the peak.
+    pub narrowband_fraction: f64,
+    /// Share of the stability window with the torque command at its limit.
+    pub saturated_fraction: f64,
+    /// The encoder's count-rate tone at the window's mean speed (Hz); `null` without the
+    /// machine's encoder.
+    pub tone_hz: Option<f64>,
+    /// RMS of the torque in the last quarter of the window over the first quarter.
+    pub growth: f64,
+    /// The amplitude of the confirming rerun with the encoder interpolated (step 5);
+    /// `null` when there was none.
+    pub interpolated_amplitude_pu: Option<f64>,
+}
+
+/// What the classification needs besides the torque.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Evidence {
+    /// Trace sample rate (Hz).
+    pub fs_hz: f64,
+    /// Counts per second at 1 pu motor speed (after interpolation); 0 = unknown.
+    pub counts_per_s_per_pu: f64,
+    /// Mean motor speed over the window (pu).
+    pub mean_speed_pu: f64,
+    /// Share of the window at the torque limit.
+    pub saturated_fraction: f64,
+    /// Finite, speed error within ±0.5 pu.
+    pub finite_and_bounded: bool,
+    /// The speed oscillation reached the scenario's threshold.
+    pub speed_oscillates: bool,
+}
+
+/// `f` folded into [0, fs/2] as sampling at `fs` aliases it.
+fn folded(f: f64, fs: f64) -> f64 {
+    let r = f.rem_euclid(fs);
+    r.min(fs - r)
+}
+
+/// The count-rate tone (Hz) and whether `freq_hz` is it or one of its first harmonics.
+fn tone(e: &Evidence, freq_hz: f64, tol_hz: f64) -> (Option<f64>, bool) {
+    if e.counts_per_s_per_pu <= 0.0 {
+        return (None, false);
+    }
+    let rate = (e.mean_speed_pu * e.counts_per_s_per_pu).abs();
+    let f1 = folded(rate, e.fs_hz);
+    let hit = (1..=3).any(|h| (folded(f64::from(h) * rate, e.fs_hz) - freq_hz).abs() <= tol_hz);
+    (Some(f1), hit)
+}
+
+fn rms(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
+}
+
+/// The verdict on the motor torque `torque` of the stability window (module docs).
+pub(super) fn classify(torque: &[f64], e: &Evidence) -> Oscillation {
+    let d = detrended(torque);
+    let (lo, hi) = d
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let amplitude_pu = if d.is_empty() { 0.0 } else { (hi - lo) / 2.0 };
+    let span_s = torque.len() as f64 / e.fs_hz.max(f64::MIN_POSITIVE);
+    let lobe_hz = 2.0 / span_s.max(f64::MIN_POSITIVE);
+    let p = peak(torque, e.fs_hz, F_MIN_HZ, HALF_BAND_HZ.max(lobe_hz));
+    let (freq_hz, narrowband_fraction) =
+        p.map_or((0.0, 0.0), |p| (p.freq_hz, p.narrowband_fraction));
+    let (tone_hz, at_tone) = tone(e, freq_hz, TONE_TOL_HZ.max(lobe_hz));
+    let q = d.len() / 4;
+    let growth = rms(d.get(d.len() - q..).unwrap_or_default())
+        / rms(d.get(..q).unwrap_or_default()).max(1e-12);
+    let audible = amplitude_pu >= A_NOISE_PU;
+    let kind = if !e.finite_and_bounded
+        || !amplitude_pu.is_finite()
+        || (audible && growth >= GROWTH_DIVERGING && narrowband_fraction >= NARROWBAND)
+    {
+        OscillationKind::Diverging
+    } else if audible
+        && (e.saturated_fraction >= SAT_LIMIT_CYCLE
+            || e.speed_oscillates
+            || (narrowband_fraction >= NARROWBAND && !at_tone && amplitude_pu >= A_LIMIT_CYCLE_PU))
+    {
+        OscillationKind::LimitCycle
+    } else if audible {
+        OscillationKind::Quantization
+    } else {
+        OscillationKind::None
+    };
+    Oscillation {
+        kind,
+        freq_hz,
+        amplitude_pu,
+        narrowband_fraction,
+        saturated_fraction: e.saturated_fraction,
+        tone_hz,
+        growth,
+        interpolated_amplitude_pu: None,
+    }
+}
