@@ -338,6 +338,16 @@ fn plant_step(
     Ok(voltage_pu)
 }
 
+/// The scenario's plant: voltage driven, its load locked if the scenario says so.
+fn plant_of(cfg: &RunConfig) -> TwoInertiaPlant {
+    let plant = TwoInertiaPlant::voltage_driven(&cfg.plant);
+    if cfg.scenario.load_locked {
+        plant.with_locked_load()
+    } else {
+        plant
+    }
+}
+
 /// Runs `cfg` with any [`ControlBackend`].
 pub fn run_with_backend<B: ControlBackend + ?Sized>(
     cfg: &RunConfig,
@@ -353,10 +363,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     mut record: impl FnMut(&TickRecord),
 ) -> Result<RunOutput> {
     use crate::engine::plant::{f, pu};
-    let mut plant = TwoInertiaPlant::voltage_driven(&cfg.plant);
-    if cfg.scenario.load_locked {
-        plant = plant.with_locked_load();
-    }
+    let mut plant = plant_of(cfg);
     let current_rate_hz = f64::from(cfg.drive.current_rate_hz);
     let mut delay_line = DelayLine::new(
         cfg.plant.electrics.computational_delay_s,
@@ -408,9 +415,8 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
             // them (the velocity tick's output plus the AFB path at the current rate).
             row.torque_cmd_pu = f(out.current_ref_pu);
             row.accel_fb_pu = f(out.accel_fb_pu);
-            if out.fault.is_some() {
-                row.fault = f64::from(fault_code(out.fault));
-            }
+            // A fault latched in the velocity tick is reported by this one too.
+            row.fault = f64::from(fault_code(out.fault));
         }
     }
     let wall_time_s = start.elapsed().as_secs_f64();
