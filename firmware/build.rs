@@ -8,12 +8,15 @@
 //!    through the HOST build of controller-core (this script is compiled for the host), and
 //!    the inputs plus the expected output words are written to `$OUT_DIR/lil_data.rs` for the
 //!    `fw-lil` image, which runs the same sequence on the target and compares bit for bit.
-//! 3. The drive: `../configs/table1.toml` composed as the tests compose it (its `[drive]`
-//!    table, the machine keys it omits from `[plant]` and `[electrics]`), deserialized into a
-//!    `DriveConfig` (controller-core's `serde` feature), validated by `design()` (a bad file
-//!    fails the build naming the key) and encoded with pil-link's settings codec into
+//! 3. The drive: the machine file named by `STIFFDRIVE_DRIVE` (a path; a relative one is
+//!    taken from the workspace root), else `configs/table1.toml`, composed by the one
+//!    composer the harness uses (`machine_file::compose`: its `[drive]` table, with the
+//!    machine keys it omits taken from the plant), validated by `design()` (a bad file fails
+//!    the build naming the key) and encoded with pil-link's settings codec into
 //!    `$OUT_DIR/drive_settings.bin`, which the image decodes at start-up
-//!    (`firmware::drive::baked`). No field of the drive is spelled out here.
+//!    (`firmware::drive::baked`). The file's path and a checksum of the settings go into
+//!    `$OUT_DIR/drive_name.txt`, which the image logs at boot. No field of the drive is
+//!    spelled out here.
 use std::{env, fs, path::PathBuf};
 
 use controller_core::DriveConfig;
@@ -21,9 +24,6 @@ use controller_core::DriveConfig;
 #[path = "src/lil/words.rs"]
 #[allow(dead_code)]
 mod words;
-
-#[path = "../controller-core/tests/common/mod.rs"]
-mod common;
 
 fn main() {
     let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
@@ -33,13 +33,18 @@ fn main() {
     println!("cargo:rerun-if-changed=link");
     println!("cargo:rerun-if-changed=lil/inputs.csv");
     println!("cargo:rerun-if-changed=src/lil/words.rs");
-    println!("cargo:rerun-if-changed=../configs/table1.toml");
-    println!("cargo:rerun-if-changed=../controller-core/tests/common/mod.rs");
+    println!("cargo:rerun-if-env-changed=STIFFDRIVE_DRIVE");
 
-    let cfg = match bake_drive(&manifest.join("../configs/table1.toml"), &out) {
+    let root = manifest.join("..");
+    let drive_file = match env::var_os("STIFFDRIVE_DRIVE") {
+        Some(p) if !p.is_empty() => root.join(p),
+        _ => root.join("configs/table1.toml"),
+    };
+    println!("cargo:rerun-if-changed={}", drive_file.display());
+    let cfg = match bake_drive(&drive_file, &root, &out) {
         Ok(cfg) => cfg,
         Err(e) => {
-            eprintln!("drive settings (configs/table1.toml): {e}");
+            eprintln!("drive settings ({}): {e}", drive_file.display());
             std::process::exit(1);
         }
     };
@@ -79,11 +84,17 @@ fn main() {
     println!("cargo:rustc-link-arg=-Tboard-check.x");
 }
 
-/// Compose, validate and encode the drive of `toml_path` into `drive_settings.bin`; the
-/// drive as the image will decode it.
-fn bake_drive(toml_path: &std::path::Path, out: &std::path::Path) -> Result<DriveConfig, String> {
-    let text = fs::read_to_string(toml_path).map_err(|e| e.to_string())?;
-    let cfg = common::try_drive_of(&text)?;
+/// Compose, validate and encode the drive of `toml_path` into `drive_settings.bin`, and its
+/// name (path below `root`, settings checksum) into `drive_name.txt`; the drive as the image
+/// will decode it.
+fn bake_drive(
+    toml_path: &std::path::Path,
+    root: &std::path::Path,
+    out: &std::path::Path,
+) -> Result<DriveConfig, String> {
+    let cfg = machine_file::load(toml_path)
+        .map_err(|e| e.to_string())?
+        .drive;
     controller_core::design(&cfg).map_err(|e| format!("drive.{}: {e}", e.param()))?;
     let mut w = pil_link::wire::Writer::new();
     pil_link::settings::encode(&cfg, &mut w).map_err(|e| format!("encode: {e:?}"))?;
@@ -94,6 +105,16 @@ fn bake_drive(toml_path: &std::path::Path, out: &std::path::Path) -> Result<Driv
         return Err("settings codec does not round-trip the drive".into());
     }
     fs::write(out.join("drive_settings.bin"), bytes).map_err(|e| e.to_string())?;
+    let shown = toml_path
+        .canonicalize()
+        .ok()
+        .and_then(|p| {
+            let root = root.canonicalize().ok()?;
+            p.strip_prefix(&root).ok().map(|p| p.to_path_buf())
+        })
+        .unwrap_or_else(|| toml_path.to_path_buf());
+    let name = format!("{} (settings crc {:08x})", shown.display(), crc32(bytes));
+    fs::write(out.join("drive_name.txt"), name).map_err(|e| e.to_string())?;
     Ok(back)
 }
 
@@ -156,4 +177,21 @@ fn write_lil_data(
     fs::write(out.join("lil_inputs.bin"), input_bytes).map_err(|e| e.to_string())?;
     fs::write(out.join("lil_expected.bin"), expected).map_err(|e| e.to_string())?;
     Ok(())
+}
+
+/// CRC-32 (IEEE 802.3, reflected, polynomial 0xEDB88320) of the baked settings: names the
+/// drive in the boot log, so two images with the same file name but other settings differ.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
 }

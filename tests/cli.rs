@@ -216,3 +216,32 @@ fn replay_runs_the_plant_on_a_generated_torque_csv() {
     );
     assert!(!out2.exists());
 }
+
+/// `flash` composes and designs the machine file's drive before it builds anything: a bad
+/// key is refused, named with its range, with a non-zero exit and no image built.
+#[test]
+fn flash_refuses_a_bad_drive_before_building() {
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("bad.toml");
+    let table1 =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/table1.toml"))
+            .unwrap();
+    let bad = table1.replace(
+        "velocity_bandwidth_rad_s = 94.25",
+        "velocity_bandwidth_rad_s = -5.0",
+    );
+    assert_ne!(bad, table1, "the edit applies");
+    std::fs::write(&file, bad).unwrap();
+    let o = stiffdrive(&["flash", "--config", file.to_str().unwrap(), "--build-only"]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(e.contains("drive.velocity_bandwidth_rad_s"), "{e}");
+    assert!(!e.contains("firmware build"), "nothing was built: {e}");
+    let o = stiffdrive(&["flash", "--config", "no/such/machine.toml"]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("no/such/machine.toml"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -18,9 +18,6 @@
     clippy::panic
 )]
 
-#[path = "../controller-core/tests/common/mod.rs"]
-mod common;
-
 use hil_harness::pil::{build_pil_image, build_pil_image_with, pil_command, run_pil, PilArgs};
 use pil_link::host::{HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
@@ -356,7 +353,7 @@ fn a_second_config_while_running_is_a_protocol_fault() {
     let (mut qemu, mut link) = raw_session(&elf(), &dir.path().join("fw.defmt"));
     link.hello(500).unwrap();
     let mut w = pil_link::wire::Writer::new();
-    pil_link::run_config::encode(&common::table1(), None, &mut w).unwrap();
+    pil_link::run_config::encode(&table1_drive(), None, &mut w).unwrap();
     link.configure(w.as_slice()).unwrap();
     match link.configure(w.as_slice()) {
         Err(HostError::FirmwareFault(r)) => assert_eq!(r.code, FaultCode::Protocol),
@@ -382,4 +379,11 @@ fn qemu_ends_by_itself_when_the_harness_goes_silent() {
         start.elapsed()
     );
     drop(link);
+}
+
+/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+fn table1_drive() -> controller_core::DriveConfig {
+    machine_file::table1()
+        .expect("configs/table1.toml composes")
+        .drive
 }

@@ -7,9 +7,6 @@
 
 use std::hint::black_box;
 
-#[path = "../tests/common/mod.rs"]
-mod common;
-
 use controller_core::{
     Controller, Counts, CurrentInputs, Profile, ProfileConfig, Pu, Setpoint, VelocityInputs,
 };
@@ -52,7 +49,7 @@ impl Rig {
 }
 
 fn periods(c: &mut Criterion) {
-    let cfg = common::table1();
+    let cfg = table1_drive();
     let counts_per_s = 2.0 * f64::from(cfg.current_rate_hz);
     let base_counts_per_s = f64::from(cfg.encoder_cpr) * f64::from(cfg.base_speed_rpm) / 60.0;
     let mut rig = Rig {
@@ -93,3 +90,10 @@ fn periods(c: &mut Criterion) {
 
 criterion_group!(benches, periods);
 criterion_main!(benches);
+
+/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+fn table1_drive() -> controller_core::DriveConfig {
+    machine_file::table1()
+        .expect("configs/table1.toml composes")
+        .drive
+}

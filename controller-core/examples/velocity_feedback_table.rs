@@ -10,8 +10,6 @@
     missing_docs
 )]
 
-#[path = "../tests/common/mod.rs"]
-mod common;
 #[path = "../tests/sim/mod.rs"]
 mod sim;
 
@@ -33,7 +31,7 @@ fn main() {
             (AfbMode::Error, Estimator::Differentiation, 25.0),
             (AfbMode::Error, Estimator::Observer, 100.0),
         ] {
-            let mut cfg = common::table1();
+            let mut cfg = table1_drive();
             cfg.velocity_estimator = vel;
             cfg.velocity_filter = if vf == 0.0 {
                 FilterConfig::None
@@ -65,4 +63,11 @@ fn main() {
             );
         }
     }
+}
+
+/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+fn table1_drive() -> controller_core::DriveConfig {
+    machine_file::table1()
+        .expect("configs/table1.toml composes")
+        .drive
 }

@@ -1,6 +1,7 @@
-//! The drive the firmware runs: `configs/table1.toml`, baked at build time (`build.rs`:
-//! composed, validated by `design()`, encoded with pil-link's settings codec) and decoded
-//! here at start-up. There is no second spelling of the settings in the firmware.
+//! The drive the firmware runs: the machine file named by `STIFFDRIVE_DRIVE` at build time
+//! (else `configs/table1.toml`), baked by `build.rs` (composed by `machine_file::compose`,
+//! validated by `design()`, encoded with pil-link's settings codec) and decoded here at
+//! start-up. There is no second spelling of the settings in the firmware.
 
 use controller_core::DriveConfig;
 use pil_link::LinkError;
@@ -8,6 +9,10 @@ use pil_link::LinkError;
 /// The baked drive settings ([`pil_link::settings`] payload, [`pil_link::settings::LEN`]
 /// bytes).
 pub static BAKED: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/drive_settings.bin"));
+
+/// Which drive is baked: the machine file's path (from the workspace root) and the CRC-32
+/// of its settings, logged at boot.
+pub static NAME: &str = include_str!(concat!(env!("OUT_DIR"), "/drive_name.txt"));
 
 /// The baked drive. An `Err` (a corrupt image) must put the drive in its safe state, outputs
 /// off; it never panics.

@@ -109,9 +109,11 @@ mod target {
     /// QEMU run length [current ticks]: 1.2 s at 4 kHz.
     #[cfg(not(feature = "board-stm32f4"))]
     const RUN_TICKS: u32 = 4800;
-    /// How close to the move's end position the virtual motor must stop [counts].
+    /// How close to the move's end position the virtual motor must stop, as a fraction of a
+    /// revolution (1/512 rev = 0.70°: 8 counts of Table 1's 4096), so that a drive with a finer
+    /// encoder is held to the same angle.
     #[cfg(not(feature = "board-stm32f4"))]
-    const END_TOLERANCE_COUNTS: i32 = 8;
+    const END_TOLERANCE_PER_REV: u32 = 512;
     /// Tick at which the QEMU run asks for a dump itself (0.5 s, at speed).
     #[cfg(not(feature = "board-stm32f4"))]
     const SELF_DUMP_TICK: u32 = 2000;
@@ -130,6 +132,7 @@ mod target {
             cfg.current_rate_hz,
             cfg.velocity_rate_hz
         );
+        defmt::info!("drive: {=str}", firmware::drive::NAME);
         let (app, motion) = app_and_motion(&cfg);
         let mem = firmware::rt::memory_use();
         defmt::info!(
@@ -145,7 +148,7 @@ mod target {
         run(b.console)
     }
 
-    /// The drive baked from configs/table1.toml; an image whose settings do not decode
+    /// The drive baked at build time (`firmware::drive`); an image whose settings do not decode
     /// stays in its safe state (outputs never enabled) and reports it.
     fn baked_settings() -> DriveConfig {
         match firmware::drive::baked() {
@@ -305,7 +308,7 @@ mod target {
                 && overruns == 0
                 && dumps >= 1
                 && ticks >= RUN_TICKS
-                && final_error.abs() <= END_TOLERANCE_COUNTS,
+                && final_error.unsigned_abs() <= (cfg.encoder_cpr / END_TOLERANCE_PER_REV).max(1),
         )
     }
 }

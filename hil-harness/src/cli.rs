@@ -1,5 +1,5 @@
 //! The command line: `run`, `linear`, `identify`, `sweep`, `stiffness`, `sec2-map`, `reproduce`, `pil`,
-//! `replay`.
+//! `replay`, `flash`.
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -114,6 +114,16 @@ pub enum Command {
         /// Output file.
         #[arg(long, default_value = "configs/machine.schema.json")]
         out: PathBuf,
+    },
+    /// Build the STM32F4-Discovery image carrying a machine file's drive (e.g. a
+    /// `drive.toml` from `tune` or `commission`) and run it on the board through probe-rs.
+    Flash {
+        /// Machine file (path, or name under configs/) whose `[drive]` the image carries.
+        #[arg(long)]
+        config: String,
+        /// Build the image and print the probe-rs command, without running it.
+        #[arg(long)]
+        build_only: bool,
     },
     /// Drive the plant open-loop with a torque CSV (plant-host's replay).
     Replay {

@@ -92,5 +92,18 @@ impl HarnessError {
     }
 }
 
+impl From<machine_file::Error> for HarnessError {
+    fn from(e: machine_file::Error) -> Self {
+        match e {
+            machine_file::Error::Io { path, reason } => Self::Io { path, reason },
+            machine_file::Error::Parse { path, reason } => Self::Parse {
+                path: path.unwrap_or_default(),
+                reason,
+            },
+            machine_file::Error::Key { key, reason } => Self::Config { key, reason },
+        }
+    }
+}
+
 /// Result alias for the harness.
 pub type Result<T> = std::result::Result<T, HarnessError>;

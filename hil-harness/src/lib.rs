@@ -12,6 +12,7 @@ pub mod config;
 pub mod engine;
 pub mod error;
 pub mod experiments;
+pub mod flash;
 pub mod output;
 pub mod pil;
 pub mod plot;
@@ -103,5 +104,6 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
         } => replay::replay(&config, &torque, &out),
         Command::Pil(args) => pil::pil_command(&args),
         Command::Schema { out } => config::schema::write_schema(&out),
+        Command::Flash { config, build_only } => flash::flash(&config, build_only),
     }
 }

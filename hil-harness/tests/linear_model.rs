@@ -1,9 +1,6 @@
 //! The linear model of the loop against the fixed-point controller and closed forms.
 #![allow(clippy::indexing_slicing, clippy::unwrap_used, clippy::expect_used)]
 
-#[path = "../../controller-core/tests/common/mod.rs"]
-mod common;
-
 use controller_core::{
     design, AfbMode, AfbRate, Controller, CurrentInputs, DriveConfig, Estimator, FilterConfig,
     ObserverTorque, Pu, Setpoint, VelocityInputs,
@@ -89,7 +86,7 @@ fn variants() -> Vec<(&'static str, DriveConfig)> {
     // (94.25 rad/s, 1998 rad/s, 0.5 ms) the second-order variant's worst torque deviation
     // is 4.06e-3 pu instead of 3.21e-3 pu: the peak of the rounding noise moves with the
     // trajectory (a measurement kept in the issue-14 note, not a bound moved to pass).
-    let mut base = common::table1();
+    let mut base = table1_drive();
     let tau = 2.0 * std::f32::consts::PI;
     base.winding_inductance_pu_s = 0.0006;
     base.position_bandwidth_rad_s = tau * 3.0;
@@ -157,7 +154,7 @@ fn rigid_body_poles_are_the_pi_roots() {
     plant.electrics.computational_delay_s = 10e-6;
     plant.mechanics.encoder_cpr = 1 << 20;
     plant.sensors = plant_host::SensorsConfig::default();
-    let mut cfg = common::table1();
+    let mut cfg = table1_drive();
     cfg.encoder_cpr = 1 << 20;
     cfg.position_bandwidth_rad_s = 0.0;
     cfg.velocity_bandwidth_rad_s = 20.0;
@@ -302,4 +299,11 @@ fn fig6_linear_analysis() {
         assert!(pm > 0.0 && pm < 90.0, "{pm}");
     }
     assert!(with.engaged.smallest_damping > without.engaged.smallest_damping);
+}
+
+/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+fn table1_drive() -> controller_core::DriveConfig {
+    machine_file::table1()
+        .expect("configs/table1.toml composes")
+        .drive
 }

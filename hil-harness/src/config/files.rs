@@ -97,9 +97,5 @@ pub fn config_path(name_or_path: &str) -> Result<PathBuf> {
 
 /// Reads a TOML file into a value tree.
 pub fn read_table(path: &Path) -> Result<Table> {
-    let text = std::fs::read_to_string(path).map_err(|e| HarnessError::io(path, e))?;
-    text.parse::<Table>().map_err(|e| HarnessError::Parse {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })
+    Ok(machine_file::read(path)?)
 }

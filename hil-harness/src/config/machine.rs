@@ -1,57 +1,19 @@
 //! A machine file's value tree into plant-host's `PlantConfig` and controller-core's
-//! `DriveConfig`: each deserialized once, each validated by its owner's one validator.
+//! `DriveConfig`, through the one composer every user of a machine file shares
+//! ([`machine_file::compose`]: the firmware build bakes its drive through it too).
 
-use super::typed::typed;
-use crate::error::{HarnessError, Result};
+use crate::error::Result;
 use controller_core::DriveConfig;
 use plant_host::PlantConfig;
-use toml::{Table, Value};
+use toml::Table;
 
-/// The `[drive]` keys that describe the machine. Each defaults to the plant's value
-/// ([`machine_values`]): set them in `[drive]` only to model a drive tuned for another
-/// machine.
-pub const MACHINE_KEYS: [&str; 6] = [
-    "base_speed_rpm",
-    "encoder_cpr",
-    "motor_inertia_s",
-    "load_inertia_s",
-    "winding_resistance_pu",
-    "winding_inductance_pu_s",
-];
-
-/// The plant's value of each of [`MACHINE_KEYS`], in order.
-fn machine_values(plant: &PlantConfig) -> [Value; 6] {
-    let m = &plant.mechanics;
-    let e = &plant.electrics;
-    [
-        Value::Float(m.base_speed_rpm),
-        // The drive counts what the interpolator delivers.
-        Value::Integer(i64::from(plant.counts_per_rev())),
-        Value::Float(m.motor_inertia_s),
-        Value::Float(m.load_inertia_s),
-        Value::Float(e.winding_resistance_pu),
-        Value::Float(e.winding_inductance_pu_s),
-    ]
-}
+pub use machine_file::MACHINE_KEYS;
 
 /// The plant and the drive of a (merged) machine file. The `[drive]` table goes to
 /// controller-core, the rest to plant-host; a table neither knows is an error naming it.
-pub fn machine(mut doc: Table) -> Result<(PlantConfig, DriveConfig)> {
-    let mut drive = match doc.remove("drive") {
-        None => Table::new(),
-        Some(Value::Table(t)) => t,
-        Some(_) => return Err(HarnessError::config("drive", "must be a table")),
-    };
-    let plant =
-        PlantConfig::from_table(doc).map_err(|e| HarnessError::config(e.key(), e.to_string()))?;
-    for (key, value) in MACHINE_KEYS.into_iter().zip(machine_values(&plant)) {
-        drive.entry(key).or_insert(value);
-    }
-    let drive: DriveConfig = typed("drive", Value::Table(drive))?;
-    drive
-        .validate()
-        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
-    Ok((plant, drive))
+pub fn machine(doc: Table) -> Result<(PlantConfig, DriveConfig)> {
+    let m = machine_file::compose(doc)?;
+    Ok((m.plant, m.drive))
 }
 
 #[cfg(test)]
@@ -60,6 +22,7 @@ mod tests {
     use super::*;
     use controller_core::{AfbMode, Estimator, FilterConfig, ObserverInertia, ObserverTorque};
     use controller_core::{ObserverConfig, PiInertia};
+    use toml::Value;
 
     /// configs/table1.toml with `extra` TOML appended (a table given twice is merged key by
     /// key, the later value winning).

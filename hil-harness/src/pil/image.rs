@@ -39,8 +39,14 @@ fn backend(what: &str, e: impl std::fmt::Display) -> HarnessError {
 
 /// Runs `cargo build -p firmware --release --target thumbv7em-none-eabihf` with `args`
 /// into [`firmware_target_dir`], holding its lock file while `then` runs on the release
-/// directory. Adds the ARM target to the toolchain first if it lacks it.
-fn build_locked<T>(args: &[&str], then: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
+/// directory. Adds the ARM target to the toolchain first if it lacks it. The image carries
+/// the drive of the machine file `drive` (`STIFFDRIVE_DRIVE`, an absolute path), or
+/// `configs/table1.toml` for `None`, whatever the caller's environment says.
+fn build_locked<T>(
+    args: &[&str],
+    drive: Option<&Path>,
+    then: impl FnOnce(&Path) -> Result<T>,
+) -> Result<T> {
     let root = workspace_root();
     provision::ensure_arm_target(&root).map_err(|e| backend("ARM target", e))?;
     let target_dir = firmware_target_dir();
@@ -49,12 +55,17 @@ fn build_locked<T>(args: &[&str], then: impl FnOnce(&Path) -> Result<T>) -> Resu
         .map_err(|e| backend("lock file", e))?;
     lock.lock().map_err(|e| backend("lock", e))?;
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let status = Command::new(&cargo)
-        .current_dir(&root)
+    let mut cmd = Command::new(&cargo);
+    cmd.current_dir(&root)
         .args(["build", "-p", "firmware", "--release"])
         .args(["--target", provision::ARM_TARGET])
         .args(args)
-        .env("CARGO_TARGET_DIR", &target_dir)
+        .env("CARGO_TARGET_DIR", &target_dir);
+    match drive {
+        Some(file) => cmd.env("STIFFDRIVE_DRIVE", file),
+        None => cmd.env_remove("STIFFDRIVE_DRIVE"),
+    };
+    let status = cmd
         .stdout(Stdio::null())
         .stderr(Stdio::inherit())
         .status()
@@ -84,26 +95,50 @@ pub fn build_pil_image_with(features: &[&str]) -> Result<PathBuf> {
     if !features.is_empty() {
         args.extend(["--features", joined.as_str()]);
     }
-    build_locked(&args, |release| {
-        let built = release.join("pil");
-        if !built.is_file() {
-            return Err(HarnessError::Backend(format!(
-                "PIL: the firmware image {} was not produced",
-                built.display()
-            )));
-        }
-        let images = release.join("images");
-        std::fs::create_dir_all(&images).map_err(|e| backend("images directory", e))?;
-        let name = if features.is_empty() {
-            "pil".to_string()
-        } else {
-            format!("pil-{}", features.join("-"))
-        };
-        let elf = images.join(&name);
-        let tmp = images.join(format!("{name}.tmp"));
-        std::fs::copy(&built, &tmp).map_err(|e| backend("copy of the image", e))?;
-        std::fs::rename(&tmp, &elf).map_err(|e| backend("rename of the image", e))?;
-        Ok(elf)
+    let name = if features.is_empty() {
+        "pil".to_string()
+    } else {
+        format!("pil-{}", features.join("-"))
+    };
+    build_locked(&args, None, |release| copy_out(release, "pil", &name))
+}
+
+/// Copies the built binary `bin` of `release` to `release/images/name` (atomically, by
+/// rename) and returns that path.
+fn copy_out(release: &Path, bin: &str, name: &str) -> Result<PathBuf> {
+    let built = release.join(bin);
+    if !built.is_file() {
+        return Err(HarnessError::Backend(format!(
+            "the firmware image {} was not produced",
+            built.display()
+        )));
+    }
+    let images = release.join("images");
+    std::fs::create_dir_all(&images).map_err(|e| backend("images directory", e))?;
+    let elf = images.join(name);
+    let tmp = images.join(format!("{name}.tmp"));
+    std::fs::copy(&built, &tmp).map_err(|e| backend("copy of the image", e))?;
+    std::fs::rename(&tmp, &elf).map_err(|e| backend("rename of the image", e))?;
+    Ok(elf)
+}
+
+/// Builds the STM32F4 board's image (`--no-default-features --features board-stm32f4`)
+/// carrying the drive of the machine file `drive` and returns the ELF path,
+/// `images/stm32f4-<file stem>`.
+pub fn build_board_image(drive: &Path) -> Result<PathBuf> {
+    let stem = drive
+        .file_stem()
+        .map_or_else(|| "drive".into(), |s| s.to_string_lossy().into_owned());
+    let name = format!("stm32f4-{stem}");
+    let args = [
+        "--bin",
+        "firmware",
+        "--no-default-features",
+        "--features",
+        "board-stm32f4",
+    ];
+    build_locked(&args, Some(drive), |release| {
+        copy_out(release, "firmware", &name)
     })
 }
 
@@ -111,5 +146,5 @@ pub fn build_pil_image_with(features: &[&str]) -> Result<PathBuf> {
 /// on the release directory that holds them, with the build lock held (so no concurrent
 /// feature build replaces an image while it is read).
 pub fn with_all_images<T>(check: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
-    build_locked(&["--bins"], check)
+    build_locked(&["--bins"], None, check)
 }

@@ -1,22 +1,20 @@
-//! Linear analysis of the engaged plant (gears in contact, no lost motion) with nalgebra:
-//! its state-space model and modes, the stiffness of Eq. 1 (Fig. 2), and the closed velocity
-//! loop's frequency response, margins and sampled-data stability with and without
-//! acceleration feedback. Controller gains are plain numbers: this crate does not depend on
-//! the controller.
+//! Linear analysis of the plant with nalgebra: the engaged plant's state-space model and
+//! modes, its sampled forms, the PI stiffness of Eq. 1 (Fig. 2), and the frequency-response
+//! measurement and two-inertia fit of identification. This crate does not depend on the
+//! controller: the closed loop's one linear model (poles, margins, stability, the model
+//! `tune` designs on) is the harness's, which mirrors the controller's tick.
 
 mod engaged;
 mod fit;
 mod frf;
 mod sampled;
 mod stiffness;
-mod velocity_loop;
 
 pub use engaged::{EngagedPlant, Modes, PlantResponse};
 pub use fit::{fit_two_inertia, FitError, FitResult, TwoInertiaFit};
 pub use frf::{closed_loop_response, h1, FrfError, MeasuredResponse};
 pub use sampled::{continuous, state, Gears, SampledPlant};
 pub use stiffness::{PiStiffness, StiffnessPoint};
-pub use velocity_loop::{LoopPoint, Margins, VelocityLoop};
 
 /// `n` frequencies log-spaced from `lo` to `hi` (rad/s), both included.
 pub fn log_space(lo: f64, hi: f64, n: usize) -> Vec<f64> {
