@@ -1,4 +1,4 @@
-//! Prints the linear-analysis figures quoted in plant-host/README.md:
+//! Prints the linear-analysis figures quoted in docs/design.md:
 //! `cargo run --release -p plant-host --example analysis_report`.
 //! Acceleration here comes from differencing the encoder (no observer): the figures bound
 //! what the differentiation path allows; the controller's observer is analysed elsewhere.

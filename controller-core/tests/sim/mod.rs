@@ -1,4 +1,4 @@
-//! A small two-inertia plant with lost motion (design notes, Fig. 3), an RL winding and the
+//! A small two-inertia plant with lost motion (the paper's Fig. 3; `plant-host/README.md`), an RL winding and the
 //! paper's 0.18 ms computational delay, closed around the real fixed-point `Controller`.
 //! Test-only: it lets the core's tests check stability of a design without the plant crate.
 #![allow(

@@ -161,7 +161,7 @@ impl VelocityLoop {
         )
     }
 
-    /// Margins of the acceleration loop alone (the design notes' trap 1).
+    /// Margins of the acceleration loop alone (a loop of its own: `docs/design.md`).
     pub fn accel_margins(&self) -> Margins {
         margins(
             |w| self.point(w).map(|p| p.accel_loop_gain),
