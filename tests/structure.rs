@@ -248,7 +248,7 @@ fn the_tracker_scanner_sees_a_reference_and_passes_prose() {
         format!("see {word} 12"),
         format!("({} 3)", word.to_lowercase()),
         format!("the {}-14 note", word.to_lowercase()),
-        format!("{word} #7"),
+        format!("{word} #{}", 7),
     ] {
         assert!(names_a_tracker_item(&hit), "{hit}");
     }

@@ -1,13 +1,13 @@
-//! The acceleration loop in the whole linear loop (`docs/design.md`): the controller's tick written in f64 (observer or
-//! differentiation, acceleration feedback, velocity PI, the velocity tick every second
-//! current tick) around a rigid inertia (gears separated: Jm; engaged: J_total) or the
-//! engaged Table 1 two-mass shaft (65 Hz resonance, no lost motion), with the current loop
-//! as its designed first-order response and the 0.18 ms computation delay, discretized
-//! exactly. The map over one velocity period is built column by column from unit vectors
-//! and its spectral radius decides stability (ρ < 1). No quantization, no lost-motion
-//! transitions: this is the linear skeleton of the closed-loop simulations.
+//! The acceleration loop in the whole linear loop (`docs/design.md`): the controller's tick written
+//! in f64 (observer or differentiation, acceleration feedback, velocity PI, the velocity tick every
+//! second current tick) around a rigid inertia (gears separated: Jm; engaged: J_total) or the
+//! engaged Table 1 two-mass shaft (65 Hz resonance, no lost motion), with the current loop as its
+//! designed first-order response and the 0.18 ms computation delay, discretized exactly. The map
+//! over one velocity period is built column by column from unit vectors and its spectral radius
+//! decides stability (ρ < 1). No quantization, no lost-motion transitions: this is the linear
+//! skeleton of the closed-loop simulations.
 //!
-//! The observer-fed acceleration loop is modelled two ways: as the controller now runs it
+//! The observer-fed acceleration loop is modelled two ways: as the controller runs it
 //! (Ellis estimate, closed form; `Structure::ClosedForm`) and one tick late
 //! (â = u + d with the last tick's torque; `Structure::OneTickLate`), to show the
 //! inner-loop limit of the one-tick-late form and that the closed form has none.
@@ -63,7 +63,8 @@ fn matmul(a: &Mat, b: &Mat) -> Mat {
 }
 
 /// The engaged two-inertia coupling (no lost motion): shaft torque
-/// T_s = Jl·ω_ar²·δ + 2ζ·Jl·ω_ar·(ωm − ωl) with the twist δ in pu·s (K and D as in `plant-host/README.md`).
+/// T_s = Jl·ω_ar²·δ + 2ζ·Jl·ω_ar·(ωm − ωl) with the twist δ in pu·s (K and D as in
+/// `plant-host/README.md`).
 #[derive(Clone, Copy, Debug)]
 struct Shaft {
     jl: f64,
@@ -457,11 +458,11 @@ impl Plant {
     }
 }
 
-/// The inner loop (`docs/design.md`). Around a rigid motor that is exactly the observer's
-/// model (J = Jm, torque = command), the one-tick-late structure (â = u + d with the last tick's torque)
-/// is unstable beyond Ka/J_model = (2 − α)/α: the linear model finds that limit within 3 %
-/// at 50–400 Hz. The closed form is stable at every Ka up to the search's end,
-/// 1000·J_total (Ka/Jm = 8400).
+/// The inner loop (`docs/design.md`). Around a rigid motor that is exactly the observer's model
+/// (J = Jm, torque = command), the one-tick-late structure (â = u + d with the last tick's torque)
+/// is unstable beyond Ka/J_model = (2 − α)/α: the linear model finds that limit within 3 % at
+/// 50–400 Hz. The closed form is stable at every Ka up to the search's end, 1000·J_total
+/// (Ka/Jm = 8400).
 #[test]
 fn the_closed_form_has_no_inner_loop_limit() {
     let base = common::table1();
