@@ -48,8 +48,8 @@ fn afb_stiffens_above_the_velocity_bandwidth_and_not_below() {
 
 /// At the same gains, AFB lowers the shaft-torque ripple after a 50 % shock at rated speed
 /// (the torque inside its limit) and after fig6's 50 % load step with a 65,536-count
-/// interpolated encoder (the report's criterion for these comparisons). The issue's
-/// stronger figures (30 % and 40 % lower) are not met: see REPORT.md.
+/// interpolated encoder (the report's criterion for these comparisons). The stronger
+/// targets (30 % and 40 % lower) are not met: see REPORT.md.
 #[test]
 fn afb_lowers_the_shaft_ripple_after_a_load_step_at_the_same_gains() {
     for (afb, off) in [

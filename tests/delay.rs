@@ -1,6 +1,6 @@
 //! The computational delay is modelled for every value the config accepts: longer delays
-//! change the run (the first version clamped everything to one current period, so 0.5, 5
-//! and 10 ms gave the trace of 250 µs).
+//! change the run (a delay clamped to one current period would give 0.5, 5 and 10 ms the
+//! trace of 250 µs).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use hil_harness::{resolve, run_scenario};

@@ -1,4 +1,4 @@
-//! Processor in the loop, end to end (GitHub issue 7): the firmware's `pil` image, built for
+//! Processor in the loop, end to end: the firmware's `pil` image, built for
 //! the Cortex-M4F, runs in QEMU and controls the simulated machine through `pil-link`.
 //!
 //! * `fig6` through the firmware matches the host build bit for bit (every controller

@@ -1,5 +1,5 @@
-//! The identification's frequency-response measurement through the firmware in QEMU
-//! (issue 13, deliverable 3): the PRBS on the torque reference, as `identify` runs it on
+//! The identification's frequency-response measurement through the firmware in QEMU:
+//! the PRBS on the torque reference, as `identify` runs it on
 //! `configs/table1.toml` (one PRBS period instead of 32, Welch segments of 2048 samples),
 //! travels to the firmware in the `Config` frame, the firmware's own controller adds it,
 //! and the record (excitation, torque reference, measured current, encoder counts) is the

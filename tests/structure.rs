@@ -1,13 +1,20 @@
-//! The shape issue 14 asks of the source tree, checked on every `cargo test`: no source
-//! file over 500 lines, no function over 80 lines outside tests, and the Table 1 numbers
-//! only in `configs/table1.toml` (no `.rs` file outside `tests/` holds them).
+//! The shape of the source tree, checked on every `cargo test`:
+//!
+//! * small modules: no source file over 600 lines and no function over 100 lines (outside
+//!   `#[cfg(test)]` modules). A cap is a smell detector: a file or function that grows past
+//!   it is usually two ideas;
+//! * one source of truth: the Table 1 numbers live only in `configs/table1.toml` (no `.rs`
+//!   file outside `tests/` holds them);
+//! * the tree explains itself: no tracked file (outside `target/`, `.git/` and `out/`) refers
+//!   to a work-tracker item by number, because a reader of the tree cannot open one. Say
+//!   what the code does and why instead; design reasons go in `docs/design.md`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use std::path::{Path, PathBuf};
 
-const MAX_FILE_LINES: usize = 500;
-const MAX_FN_LINES: usize = 80;
+const MAX_FILE_LINES: usize = 600;
+const MAX_FN_LINES: usize = 100;
 /// Table 1's motor and load inertias (s) and anti-resonance (Hz).
 const TABLE1_VALUES: [&str; 3] = ["0.117", "0.863", "22.5"];
 
@@ -92,7 +99,7 @@ fn long_functions(text: &str) -> Vec<(String, usize, usize)> {
 }
 
 #[test]
-fn no_source_file_over_500_lines_and_no_function_over_80() {
+fn no_source_file_over_600_lines_and_no_function_over_100() {
     let mut bad = Vec::new();
     for p in sources() {
         let text = std::fs::read_to_string(&p).unwrap();
@@ -146,4 +153,110 @@ fn the_function_scanner_sees_a_long_function_and_skips_tests() {
     let found = long_functions(&text);
     assert_eq!(found.len(), 1, "{found:?}");
     assert_eq!(found[0].0, "long");
+}
+
+/// Every tracked file of the repository (`git ls-files`), or, without git, every file below
+/// the workspace root; `target/`, `.git/` and `out/` left out either way.
+fn tracked_files() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            let name = e.file_name().to_string_lossy().to_string();
+            if p.is_dir() {
+                if !matches!(name.as_str(), "target" | ".git" | "out") {
+                    walk(&p, out);
+                }
+            } else {
+                out.push(p);
+            }
+        }
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let listed = std::process::Command::new("git")
+        .args(["ls-files", "-z"])
+        .current_dir(root)
+        .output()
+        .ok()
+        .filter(|o| o.status.success());
+    let mut out = Vec::new();
+    match listed {
+        Some(o) => {
+            for name in o.stdout.split(|&b| b == 0).filter(|n| !n.is_empty()) {
+                let rel = String::from_utf8_lossy(name).to_string();
+                let first = rel.split('/').next().unwrap_or("");
+                if !matches!(first, "target" | ".git" | "out") {
+                    out.push(root.join(rel));
+                }
+            }
+        }
+        None => walk(root, &mut out),
+    }
+    out.sort();
+    out
+}
+
+/// Whether `line` refers to a tracker item by number: "issue" or "Issue", then a space, a
+/// hyphen, `#` or ` #`, then a digit (the regular expression `[Ii]ssue[ -]?#?[0-9]`).
+fn names_a_tracker_item(line: &str) -> bool {
+    let b = line.as_bytes();
+    line.match_indices("ssue").any(|(at, _)| {
+        if at == 0 || !matches!(b[at - 1], b'I' | b'i') {
+            return false;
+        }
+        let mut k = at + 4;
+        if matches!(b.get(k), Some(b' ' | b'-')) {
+            k += 1;
+        }
+        if b.get(k) == Some(&b'#') {
+            k += 1;
+        }
+        b.get(k).is_some_and(u8::is_ascii_digit)
+    })
+}
+
+#[test]
+fn no_tracked_file_refers_to_a_tracker_item_by_number() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut bad = Vec::new();
+    for p in tracked_files() {
+        let Ok(bytes) = std::fs::read(&p) else {
+            continue;
+        };
+        let text = String::from_utf8_lossy(&bytes);
+        for (k, line) in text.lines().enumerate() {
+            if names_a_tracker_item(line) {
+                let rel = p.strip_prefix(root).unwrap_or(&p);
+                bad.push(format!("{}:{}: {}", rel.display(), k + 1, line.trim()));
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "tracker references (say what the code does instead):\n{}",
+        bad.join("\n")
+    );
+}
+
+#[test]
+fn the_tracker_scanner_sees_a_reference_and_passes_prose() {
+    // Built at run time, so this file does not hold what it looks for.
+    let word = format!("{}ssue", 'I');
+    for hit in [
+        format!("see {word} 12"),
+        format!("({} 3)", word.to_lowercase()),
+        format!("the {}-14 note", word.to_lowercase()),
+        format!("{word} #{}", 7),
+    ] {
+        assert!(names_a_tracker_item(&hit), "{hit}");
+    }
+    for prose in [
+        format!("an {} with 3 parts", word.to_lowercase()),
+        "a tissue, 3 layers".to_string(),
+        "ssue 1 at the start".to_string(),
+    ] {
+        assert!(!names_a_tracker_item(&prose), "{prose}");
+    }
 }

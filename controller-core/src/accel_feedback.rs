@@ -14,7 +14,7 @@
 //! the torque command: â = u + r with u = T/J_model (T the torque applied over the tick)
 //! and r the residual the measurement drives ([`crate::observer`]). Fed back with Ka, the
 //! command T enters its own estimate: T → u → â → F → T. Evaluated one tick late (the
-//! torque of the last tick in â, as the first version did) this loop is closed inside the
+//! torque of the last tick in â) this loop is closed inside the
 //! controller, whatever the machine does, and with a first-order F (y ← y + α·(x − y)) it is
 //! y\[n\] = (1 − α − α·Ka/J)·y\[n−1\]: stable only for Ka/J_model < (2 − α)/α (3.04, 1.52,
 //! 0.77 × J_total at 50, 100, 200 Hz and 4 kHz with J_model = Jm).

@@ -165,7 +165,7 @@ mod tests {
     /// micromath (f32) against cfgmath (f64) over the arguments the coefficient design uses,
     /// as the largest relative error against std's f64, on the functions and on the derived
     /// coefficients. `cargo test -p controller-core --lib micromath -- --nocapture` prints
-    /// the figures quoted in `controller-core/README.md`.
+    /// the figures quoted in `docs/design.md`.
     #[test]
     fn micromath_against_cfgmath() {
         // Called through the trait: on the host, f32's inherent methods would shadow it.

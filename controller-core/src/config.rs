@@ -139,7 +139,7 @@ pub struct ObserverConfig {
     pub bandwidth_hz: f32,
     /// Model inertia.
     pub model_inertia: ObserverInertia,
-    /// Torque input of the model (see `controller-core/README.md` for the measurement
+    /// Torque input of the model (see `docs/design.md` for the measurement
     /// behind the default, `Command`).
     pub torque_input: ObserverTorque,
 }
@@ -320,7 +320,7 @@ impl Default for FaultLimits {
 
 pub mod defaults {
     //! stiffdrive's design defaults of the settings a configuration may omit (the ones
-    //! `controller-core/README.md` explains: acceleration feedback in the error form at
+    //! `docs/design.md` explains: acceleration feedback in the error form at
     //! Ka = 0.5·J_total from the observer, first-order filter at 100 Hz, every current tick;
     //! observer at 75 Hz with the motor-inertia model). They are design choices, not machine
     //! data: the machine and loop-rate keys have no default.

@@ -4,8 +4,8 @@
 //! v[n] = (p[n] − p[n−1]) · k_vel          k_vel = 2π/(cpr·ω_b·Ts)     [pu per count]
 //! a[n] = (Δp[n] − Δp[n−1]) · k_acc        k_acc = k_vel/Ts            [pu/s per count]
 //! ```
-//! Both are quantized to whole counts: at 4096 CPR, 1000 rpm and 0.5 ms one count of
-//! velocity is 0.029 pu and one count of acceleration 58.6 pu/s (design notes, trap 2).
+//! Both are quantized to whole counts: at 4096 CPR, 1000 rpm and 0.5 ms one count of velocity is
+//! 0.029 pu and one count of acceleration 58.6 pu/s (`docs/design.md`, "Encoder quantization").
 
 use crate::per_unit::{counts_to_pu, mul_gain, sat_i32, Gain, Pu, PuPerS, TickGain};
 

@@ -232,7 +232,7 @@ impl LowPass {
         match *self {
             Self::None => x,
             Self::FirstOrder { .. } => {
-                // y (Q.46) = h + α·x; the state keeps Q32.32 (≫ 14, the old y + (α·(x − y16) ≫ 14)).
+                // y (Q.46) = h + α·x; the state keeps Q32.32 (≫ 14, equal to y + (α·(x − y16) ≫ 14)).
                 let y46 = self.add_feedthrough(h46, x);
                 s.y_q32 = y46 >> 14;
                 // |y46| < 2^63 ⇒ |y_q32| < 2^49: the rounding add cannot overflow.

@@ -22,10 +22,10 @@
 //! not know (u = 0) it is â = G·a with, in continuous terms (l1 = 3ω_o, l2 = 3ω_o²,
 //! l3 = ω_o³), G = (3ω_o²·s + ω_o³)/(s + ω_o)³: its error 1 − G falls like s², so â follows
 //! the true acceleration up to about the observer bandwidth. With the torque known,
-//! â = G·a + (1 − G)·u. The earlier output u + d left out l2·e and had
+//! â = G·a + (1 − G)·u. The plain output u + d leaves out l2·e and has
 //! G = ω_o³/(s + ω_o)³, whose error falls only like s; at 4096 CPR it passes less encoder
-//! noise, but the acceleration the load causes reached it only through the slow disturbance
-//! state (â/a = 0.43 at 20 rad/s with the Table 1 drive), so it is gone.
+//! noise, but the acceleration the load causes reaches it only through the slow disturbance
+//! state, so the observer does not offer it (`docs/design.md`).
 //! `tests/estimator.rs` checks the fixed-point observer against the exact discrete
 //! transfer function of this form.
 //!

@@ -198,7 +198,7 @@ mod tests {
     use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, TickGain};
     use fixed::types::I32F32;
 
-    /// The step in 64 bits throughout, as it was before the 32-bit form.
+    /// The step in 64 bits throughout: the reference the 32-bit form must equal.
     fn reference(c: &PiCoefficients, s: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
         let limit = c.limit.to_bits().saturating_abs();
         let lim64 = i64::from(limit) << 16;

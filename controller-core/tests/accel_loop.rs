@@ -1,6 +1,6 @@
 //! The acceleration loop closed through a plant, with the real fixed-point controller
 //! (`tests/sim`: Euler two-inertia model with the 0.5° dead zone, RL winding, 0.18 ms
-//! delay, 4096 CPR): the inner-loop limit is gone, what limits Ka now, and whether the
+//! delay, 4096 CPR): the closed form has no inner-loop limit, what limits Ka, and whether the
 //! observer should be driven by the torque command or the measured current.
 //! `cargo test -p controller-core --release --test accel_loop -- --nocapture`
 #![allow(
@@ -21,24 +21,25 @@ fn run(cfg: &DriveConfig, plant: &PlantParams, sc: &Scenario) -> RunSummary {
     run_scenario(&mut ctl, cfg, plant, sc)
 }
 
-/// (2 − α)/α·Jm/J_total: the old inner-loop limit on Ka/J_total for a first-order corner.
-fn old_limit(fc: f64) -> f64 {
+/// (2 − α)/α·Jm/J_total: the inner-loop limit on Ka/J_total of the one-tick-late form, for a
+/// first-order corner.
+fn one_tick_late_limit(fc: f64) -> f64 {
     let alpha = 1.0 - (-std::f64::consts::TAU * fc / 4000.0).exp();
     (2.0 - alpha) / alpha * 0.117 / 0.98
 }
 
-/// A rigid motor (the load decoupled: Jl → 0, so the plant is the observer's Jm model;
-/// the current loop and the 0.18 ms delay stay), the Fig. 6 ramp without load: with the
-/// AFB filter at 100 Hz the first version's inner loop diverged above Ka = 1.52·J_total.
-/// Now Ka = 3× and 10× that limit must run stable, and the torque ripple must stay within
-/// 3× the no-AFB ripple (bounded, not diverging).
+/// A rigid motor (the load decoupled: Jl → 0, so the plant is the observer's Jm model; the current
+/// loop and the 0.18 ms delay stay), the Fig. 6 ramp without load: with the AFB filter at 100 Hz
+/// the one-tick-late inner loop diverges above Ka = 1.52·J_total. With the closed form, Ka = 3× and
+/// 10× that limit must run stable, and the torque ripple must stay within 3× the no-AFB ripple
+/// (bounded, not diverging).
 #[test]
-fn rigid_motor_runs_far_above_the_old_inner_loop_limit() {
+fn rigid_motor_runs_far_above_the_one_tick_late_limit() {
     let mut plant = PlantParams::table1();
     plant.jl_s = 1e-9;
     let mut sc = Scenario::fig6(2.0);
     sc.load_pu = 0.0;
-    let lim = old_limit(100.0);
+    let lim = one_tick_late_limit(100.0);
     let mut off = common::table1();
     off.accel_feedback.mode = AfbMode::Off;
     let r_off = run(&off, &plant, &sc);
@@ -50,7 +51,7 @@ fn rigid_motor_runs_far_above_the_old_inner_loop_limit() {
         cfg.accel_feedback.filter = FilterConfig::FirstOrder { corner_hz: 100.0 };
         let r = run(&cfg, &plant, &sc);
         println!(
-            "rigid motor, Ka = {:.2}·J_total ({factor}× the old limit {lim:.2}): {r:?}",
+            "rigid motor, Ka = {:.2}·J_total ({factor}× the one-tick-late limit {lim:.2}): {r:?}",
             cfg.accel_feedback.gain_fraction
         );
         assert!(r.stable(), "{factor}×: {r:?}");
@@ -61,11 +62,11 @@ fn rigid_motor_runs_far_above_the_old_inner_loop_limit() {
     }
 }
 
-/// What limits Ka now, with the Table 1 machine (lost motion, resonance at 65 Hz): Ka swept
-/// from 0.25 to 16·J_total (filter 100 Hz), Fig. 6 and the Fig. 4 run in which the gears
-/// separate. Printed: stability, 50 %-step speed dip, torque ripple. Checked: Ka = 0.5 and
-/// 1·J_total (the settings) stable in both runs, and their speed dip after the 50 %
-/// step below the no-AFB dip (AFB stiffens, at the same velocity gains).
+/// What limits Ka with the Table 1 machine (lost motion, resonance at 65 Hz): Ka swept from
+/// 0.25 to 16·J_total (filter 100 Hz), Fig. 6 and the Fig. 4 run in which the gears separate.
+/// Printed: stability, 50 %-step speed dip, torque ripple. Checked: Ka = 0.5 and 1·J_total (the
+/// gains the design sweep keeps) stable in both runs, and their speed dip after the 50 % step below
+/// the no-AFB dip (AFB stiffens, at the same velocity gains).
 #[test]
 fn ka_sweep_through_the_table1_machine() {
     let plant = PlantParams::table1();

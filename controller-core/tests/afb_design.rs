@@ -1,6 +1,6 @@
-//! Trap 1: the acceleration-feedback path is a loop of its own. These tests close the real
-//! fixed-point controller around a two-inertia plant with lost motion, an RL winding and
-//! the 0.18 ms computational delay, and sweep the AFB design space to choose the defaults.
+//! The acceleration-feedback path is a loop of its own (`docs/design.md`). These tests close the
+//! real fixed-point controller around a two-inertia plant with lost motion, an RL winding and the
+//! 0.18 ms computational delay, and sweep the AFB design space to choose the defaults.
 //! `cargo test -p controller-core --release --test afb_design -- --nocapture` prints the table.
 #![allow(
     clippy::unwrap_used,
@@ -53,11 +53,11 @@ fn default_table1_design_and_its_ka_neighbours_are_stable() {
     }
 }
 
-/// Trap 2 in numbers: with raw differentiation as the velocity feedback at 4096 CPR the
-/// Table 1 velocity loop (one count = 2.7 pu of torque) without acceleration feedback
-/// cannot hold the Fig. 6 command without riding the torque limit. With the default AFB
-/// (observer, closed form) at the same velocity gains (PI sized for J_total) it no longer
-/// rides the limit, though the count chatter stays large (printed ripple ≈ 0.6 pu RMS).
+/// Encoder quantization in numbers (`docs/design.md`): with raw differentiation as the velocity
+/// feedback at 4096 CPR the Table 1 velocity loop (one count = 2.7 pu of torque) without
+/// acceleration feedback cannot hold the Fig. 6 command without riding the torque limit. With the
+/// default AFB (observer, closed form) at the same velocity gains (PI sized for J_total) it does
+/// not ride the limit, though the count chatter stays large (printed ripple ≈ 0.6 pu RMS).
 #[test]
 fn raw_differentiated_velocity_feedback_at_4096_cpr() {
     let plant = PlantParams::table1();

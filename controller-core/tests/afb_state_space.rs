@@ -1,16 +1,16 @@
-//! Trap 1, the whole linear loop: the controller's tick written in f64 (observer or
-//! differentiation, acceleration feedback, velocity PI, the velocity tick every second
-//! current tick) around a rigid inertia (gears separated: Jm; engaged: J_total) or the
-//! engaged Table 1 two-mass shaft (65 Hz resonance, no lost motion), with the current loop
-//! as its designed first-order response and the 0.18 ms computation delay, discretized
-//! exactly. The map over one velocity period is built column by column from unit vectors
-//! and its spectral radius decides stability (ρ < 1). No quantization, no lost-motion
-//! transitions: this is the linear skeleton of the closed-loop simulations.
+//! The acceleration loop in the whole linear loop (`docs/design.md`): the controller's tick written
+//! in f64 (observer or differentiation, acceleration feedback, velocity PI, the velocity tick every
+//! second current tick) around a rigid inertia (gears separated: Jm; engaged: J_total) or the
+//! engaged Table 1 two-mass shaft (65 Hz resonance, no lost motion), with the current loop as its
+//! designed first-order response and the 0.18 ms computation delay, discretized exactly. The map
+//! over one velocity period is built column by column from unit vectors and its spectral radius
+//! decides stability (ρ < 1). No quantization, no lost-motion transitions: this is the linear
+//! skeleton of the closed-loop simulations.
 //!
-//! The observer-fed acceleration loop is modelled two ways: as the controller now runs it
-//! (Ellis estimate, closed form; `Structure::ClosedForm`) and as the first version did
-//! (â = u + d with the last tick's torque; `Structure::OneTickLate`), to show the old
-//! inner-loop limit and that it is gone.
+//! The observer-fed acceleration loop is modelled two ways: as the controller runs it
+//! (Ellis estimate, closed form; `Structure::ClosedForm`) and one tick late
+//! (â = u + d with the last tick's torque; `Structure::OneTickLate`), to show the
+//! inner-loop limit of the one-tick-late form and that the closed form has none.
 //! `cargo test -p controller-core --release --test afb_state_space -- --nocapture`
 #![allow(
     clippy::unwrap_used,
@@ -63,7 +63,8 @@ fn matmul(a: &Mat, b: &Mat) -> Mat {
 }
 
 /// The engaged two-inertia coupling (no lost motion): shaft torque
-/// T_s = Jl·ω_ar²·δ + 2ζ·Jl·ω_ar·(ωm − ωl) with the twist δ in pu·s (design notes' K and D).
+/// T_s = Jl·ω_ar²·δ + 2ζ·Jl·ω_ar·(ωm − ωl) with the twist δ in pu·s (K and D as in
+/// `plant-host/README.md`).
 #[derive(Clone, Copy, Debug)]
 struct Shaft {
     jl: f64,
@@ -152,7 +153,7 @@ enum Structure {
     /// The controller as it is: Ellis acceleration, the loop through the observer's model
     /// solved in closed form for this tick's torque (`accel_feedback` module docs).
     ClosedForm,
-    /// The first version: â = u + d with the torque of the last tick, fed back as is.
+    /// One tick late: â = u + d with the torque of the last tick, fed back as is.
     OneTickLate,
 }
 
@@ -457,13 +458,13 @@ impl Plant {
     }
 }
 
-/// Trap 1's inner loop. Around a rigid motor that is exactly the observer's model (J = Jm,
-/// torque = command), the first version's structure (â = u + d with the last tick's torque)
-/// is unstable beyond Ka/J_model = (2 − α)/α: the linear model finds that limit within 3 %
-/// at 50–400 Hz. The closed form is stable at every Ka up to the search's end,
-/// 1000·J_total (Ka/Jm = 8400).
+/// The inner loop (`docs/design.md`). Around a rigid motor that is exactly the observer's model
+/// (J = Jm, torque = command), the one-tick-late structure (â = u + d with the last tick's torque)
+/// is unstable beyond Ka/J_model = (2 − α)/α: the linear model finds that limit within 3 % at
+/// 50–400 Hz. The closed form is stable at every Ka up to the search's end, 1000·J_total
+/// (Ka/Jm = 8400).
 #[test]
-fn the_inner_loop_limit_is_gone() {
+fn the_closed_form_has_no_inner_loop_limit() {
     let base = common::table1();
     println!(
         "| corner [Hz] | (2 − α)/α·Jm/J_total | one tick late, rigid Jm | closed form, rigid Jm |"
@@ -472,7 +473,7 @@ fn the_inner_loop_limit_is_gone() {
     for fc in [50.0f32, 100.0, 200.0, 400.0] {
         let alpha = 1.0 - (-std::f64::consts::TAU * f64::from(fc) / 4000.0).exp();
         let formula = (2.0 - alpha) / alpha * JM / JT;
-        let old = ka_limit(
+        let late = ka_limit(
             &base,
             fc,
             Plant::Rigid(JM),
@@ -480,7 +481,7 @@ fn the_inner_loop_limit_is_gone() {
             Actuator::Ideal,
             1000.0,
         );
-        let new = ka_limit(
+        let closed = ka_limit(
             &base,
             fc,
             Plant::Rigid(JM),
@@ -488,20 +489,20 @@ fn the_inner_loop_limit_is_gone() {
             Actuator::Ideal,
             1000.0,
         );
-        println!("| {fc} | {formula:.3} | {old:.3} | {new:.2} |");
+        println!("| {fc} | {formula:.3} | {late:.3} | {closed:.2} |");
         assert!(
-            (f64::from(old) / formula - 1.0).abs() < 0.03,
-            "{fc} Hz: {old} vs {formula}"
+            (f64::from(late) / formula - 1.0).abs() < 0.03,
+            "{fc} Hz: {late} vs {formula}"
         );
-        assert!(new >= 999.0, "{fc} Hz: closed form limited at {new}");
+        assert!(closed >= 999.0, "{fc} Hz: closed form limited at {closed}");
     }
 }
 
 /// What is left: the loop through the machine, with the designed current loop and the
 /// 0.18 ms delay, gears separated (plant Jm) and engaged (plant J_total, model Jm). Checks:
 /// the Table 1 default is stable for both inertias with Ka halved and doubled; AFB off is
-/// stable; the closed form allows at least the old structure's Ka at every corner, and with
-/// the gears separated more than the old in-controller limit (2 − α)/α·Jm.
+/// stable; the closed form allows at least the one-tick-late structure's Ka at every corner,
+/// and more than that structure's in-controller limit (2 − α)/α·Jm.
 #[test]
 fn acceleration_loop_limits_through_the_plant() {
     let base = common::table1();
@@ -511,22 +512,22 @@ fn acceleration_loop_limits_through_the_plant() {
     for fc in [25.0f32, 50.0, 100.0, 200.0, 400.0] {
         let lim = |p, st| ka_limit(&base, fc, p, st, Actuator::Drive, 1000.0);
         let plants = [Plant::Rigid(JM), Plant::Rigid(JT), Plant::TwoMass];
-        let old = plants.map(|p| lim(p, Structure::OneTickLate));
-        let new = plants.map(|p| lim(p, Structure::ClosedForm));
+        let late = plants.map(|p| lim(p, Structure::OneTickLate));
+        let closed = plants.map(|p| lim(p, Structure::ClosedForm));
         println!(
             "| {fc} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
-            old[0], old[1], old[2], new[0], new[1], new[2]
+            late[0], late[1], late[2], closed[0], closed[1], closed[2]
         );
         let alpha = 1.0 - (-std::f64::consts::TAU * f64::from(fc) / 4000.0).exp();
-        let old_inner = ((2.0 - alpha) / alpha * JM / JT) as f32;
-        for (o, n) in old.iter().zip(&new) {
+        let inner_limit = ((2.0 - alpha) / alpha * JM / JT) as f32;
+        for (o, n) in late.iter().zip(&closed) {
             assert!(
                 *n >= o * 0.999,
                 "{fc} Hz: closed form {n} below one tick late {o}"
             );
             assert!(
-                *n > old_inner,
-                "{fc} Hz: {n} vs the old inner limit {old_inner}"
+                *n > inner_limit,
+                "{fc} Hz: {n} vs the one-tick-late inner limit {inner_limit}"
             );
         }
     }

@@ -162,7 +162,7 @@ fn table1_observer() -> (Observer, controller_core::Gains, DriveConfig) {
     (o, g, cfg)
 }
 
-/// Measured â/a of the fixed-point observer at ω [rad/s] (u = 0), and the old u + d form's
+/// Measured â/a of the fixed-point observer at ω [rad/s] (u = 0), and the u + d form's
 /// d/a from the same run (through the load-torque output, T_L = −J·d).
 fn measure(o: &Observer, g: &controller_core::Gains, cfg: &DriveConfig, w: f64) -> (C, C) {
     let ts = 1.0 / f64::from(cfg.current_rate_hz);
@@ -205,15 +205,15 @@ fn observer_acceleration_follows_its_transfer_function() {
     let wo = std::f64::consts::TAU * f64::from(cfg.observer.bandwidth_hz);
     let l = g.observer_l.map(f64::from);
     println!("Table 1 observer, 75 Hz (ω_o = {wo:.0} rad/s), 4 kHz, 4096 CPR, u = 0:");
-    println!("| ω [rad/s] | measured â/a | phase [°] | discrete TF | phase [°] | continuous G·e^(−sTs/2) | phase [°] | old u + d form: d/a | G_old = ω_o³/(s+ω_o)³ |");
+    println!("| ω [rad/s] | measured â/a | phase [°] | discrete TF | phase [°] | continuous G·e^(−sTs/2) | phase [°] | u + d form: d/a | G_ud = ω_o³/(s+ω_o)³ |");
     println!("|---|---|---|---|---|---|---|---|---|");
     let freqs = [20.0f64, 40.0, 100.0, 250.0, 471.0, 1000.0, 2000.0];
     for w in freqs {
-        let (m, old) = measure(&o, &g, &cfg, w);
+        let (m, ud) = measure(&o, &g, &cfg, w);
         let h = discrete_tf(l, w * ts).scale(-1.0 / (w * ts).powi(2));
         let gc = ellis_g(w, wo).mul(C::expj(-w * ts / 2.0));
         let p = C(wo, 0.0).div(C(wo, w));
-        let g_old = p.mul(p).mul(p);
+        let g_ud = p.mul(p).mul(p);
         println!(
             "| {w:.0} | {:.4} | {:.2} | {:.4} | {:.2} | {:.4} | {:.2} | {:.3} | {:.3} |",
             m.abs(),
@@ -222,8 +222,8 @@ fn observer_acceleration_follows_its_transfer_function() {
             h.arg_deg(),
             gc.abs(),
             gc.arg_deg(),
-            old.abs(),
-            g_old.abs()
+            ud.abs(),
+            g_ud.abs()
         );
         assert!(
             (m.abs() / h.abs() - 1.0).abs() < 0.01,
@@ -256,7 +256,7 @@ fn observer_acceleration_follows_its_transfer_function() {
 }
 
 /// Why the Ellis form: its error 1 − G ≈ 3·(s/ω_o)² falls like s², the u + d form's
-/// 1 − G_old ≈ 3·s/ω_o only like s. At ω = ω_o/20 (23.6 rad/s) the expected errors are 0.75 %
+/// 1 − G_ud ≈ 3·s/ω_o only like s. At ω = ω_o/20 (23.6 rad/s) the expected errors are 0.75 %
 /// (plus 0.3 % from the half-tick delay) and 15 %; the measured |1 − â/a| must be below
 /// 1.5 % for the Ellis output and above 10 % for d/a of the same run.
 #[test]
@@ -264,10 +264,10 @@ fn low_frequency_error_falls_like_s_squared() {
     let (o, g, cfg) = table1_observer();
     let wo = std::f64::consts::TAU * f64::from(cfg.observer.bandwidth_hz);
     let w = wo / 20.0;
-    let (m, old) = measure(&o, &g, &cfg, w);
+    let (m, ud) = measure(&o, &g, &cfg, w);
     let err = C(1.0, 0.0).sub(m).abs();
-    let err_old = C(1.0, 0.0).sub(old).abs();
-    println!("ω = {w:.1} rad/s: |1 − â/a| Ellis {err:.4}, u + d form {err_old:.4}");
+    let err_ud = C(1.0, 0.0).sub(ud).abs();
+    println!("ω = {w:.1} rad/s: |1 − â/a| Ellis {err:.4}, u + d form {err_ud:.4}");
     assert!(err < 0.015, "{err}");
-    assert!(err_old > 0.1, "{err_old}");
+    assert!(err_ud > 0.1, "{err_ud}");
 }

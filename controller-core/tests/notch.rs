@@ -75,7 +75,7 @@ fn run_ticks(c: &mut Controller, ratio: u32, settle: usize, n: usize) -> (Vec<f6
     (x, y)
 }
 
-/// The acceptance: a tone at the centre, put on the torque reference before the
+/// The notch's acceptance criterion: a tone at the centre, put on the torque reference before the
 /// notch, reaches the current loop attenuated by the configured depth within 1 dB; a tone
 /// far below it (10 Hz) passes within 0.1 dB.
 #[test]

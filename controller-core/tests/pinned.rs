@@ -1,5 +1,5 @@
 //! Behaviours pinned down one by one, each written against a mutant of the tick path that
-//! survived every earlier test (a sign flipped, a comparison loosened, an arm deleted).
+//! the other tests did not catch (a sign flipped, a comparison loosened, an arm deleted).
 //! Each test is named after the behaviour it guarantees.
 #![allow(
     clippy::unwrap_used,

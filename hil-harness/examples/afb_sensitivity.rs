@@ -1,4 +1,4 @@
-//! Issue 11's two AFB pairs (`shock-50`, `fig6-65k` against their no-AFB runs at the same
+//! The report's two linear AFB pairs (`shock-50`, `fig6-65k` against their no-AFB runs at the same
 //! gains) over a grid of observer bandwidth × AFB filter corner: how much the shaft-torque
 //! ripple result moves with the estimator, and at what frequency the ripple is.
 //!

@@ -1,5 +1,5 @@
-//! The command line: `run`, `linear`, `identify`, `sweep`, `stiffness`, `sec2-map`, `reproduce`, `pil`,
-//! `replay`, `flash`.
+//! The command line: `run`, `linear`, `tune`, `identify`, `commission`, `sweep`, `stiffness`,
+//! `sec2-map`, `reproduce`, `pil`, `schema`, `replay`, `flash`.
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;

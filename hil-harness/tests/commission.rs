@@ -1,6 +1,6 @@
 //! `commission` on a machine no shipped config and no other test describes: identify it,
-//! tune on the identified model, and verify on the machine itself (issue 13's "a plant the
-//! tests have not seen": identify -> tune gives a design whose nonlinear run is stable and
+//! tune on the identified model, and verify on the machine itself (a plant the other
+//! tests have not seen: identify -> tune gives a design whose nonlinear run is stable and
 //! better than the no-AFB design).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 

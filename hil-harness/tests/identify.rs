@@ -1,6 +1,6 @@
 //! `identify` on the shipped plants (table1, printing-press, dyno) with encoder noise and
 //! current noise on, quantization as configured: the estimates against the values in the
-//! config files (read from the files). Targets (issue 13): Jm and Jl within 5 %,
+//! config files (read from the files). Targets: Jm and Jl within 5 %,
 //! anti-resonance and resonance within 3 %, lost motion within one count or 10 %.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 

@@ -81,11 +81,11 @@ fn mirror_vs_controller(cfg: &DriveConfig) -> (f64, f64) {
 }
 
 fn variants() -> Vec<(&'static str, DriveConfig)> {
-    // The drive this test was written and calibrated on: Table 1's bandwidths as 2π·f
-    // and the 0.6 ms winding of the old in-code drive. With the file's rounded values
+    // The drive this test is calibrated on: Table 1's bandwidths as 2π·f and
+    // L = 6e-4 pu·s. With the file's rounded values
     // (94.25 rad/s, 1998 rad/s, 0.5 ms) the second-order variant's worst torque deviation
     // is 4.06e-3 pu instead of 3.21e-3 pu: the peak of the rounding noise moves with the
-    // trajectory (a measurement kept in the issue-14 note, not a bound moved to pass).
+    // trajectory (a measurement, not a bound moved to pass).
     let mut base = table1_drive();
     let tau = 2.0 * std::f32::consts::PI;
     base.winding_inductance_pu_s = 0.0006;
@@ -221,7 +221,7 @@ fn predicted_stiffness_matches_the_measured() {
                 .measured;
             let source = hil_harness::experiments::stiffness::source_name(source);
             eprintln!("{source} {w} rad/s: predicted {predicted:.3}, measured {measured:.3}");
-            // The issue asks for 10 %; the model is exact for the linear loop, so 2 %.
+            // 10 % would be enough for design; the model is exact for the linear loop, so 2 %.
             assert!(
                 (predicted / measured - 1.0).abs() < 0.02,
                 "{source} at {w} rad/s"

@@ -1,7 +1,7 @@
-//! Issue 13's notch in the closed loop: a velocity PI stiff enough to excite a lightly damped
-//! shaft resonance, run with and without a notch at that resonance; the same notch in the
-//! linear model of the loop; and the `[drive.notch]` errors as a machine file or `--set`
-//! meets them.
+//! The torque-reference notch in the closed loop: a velocity PI stiff enough to excite a lightly
+//! damped shaft resonance, run with and without a notch at that resonance; the same notch in the
+//! linear model of the loop; and the `[drive.notch]` errors as a machine file or `--set` meets
+//! them.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use hil_harness::engine::trace::TraceRow;

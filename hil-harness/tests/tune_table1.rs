@@ -1,4 +1,4 @@
-//! `tune --config configs/table1.toml --max-bandwidth` against the Must-show: the
+//! `tune --config configs/table1.toml --max-bandwidth` against what `tune` must show: the
 //! written config runs `fig6` stably, `drive.toml` is the tuned drive, the figures are
 //! written and linked, and the damping fitted to the nonlinear loop's step responses
 //! (gears engaged throughout, torque below its limit) against the model's smallest damping.
@@ -111,7 +111,7 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
     );
 }
 
-/// The Must-show: the model's smallest damping within 0.05 of the damping fitted
+/// What `tune` must show: the model's smallest damping within 0.05 of the damping fitted
 /// to the nonlinear loop's step response. On this tree it fails at the design `tune`
 /// chooses for Table 1's 4096-count encoder: the nonlinear loop is better damped than the
 /// model (both in `tune.md`). The test above shows the cause: with a 4x finer encoder the

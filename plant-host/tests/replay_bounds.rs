@@ -26,7 +26,7 @@ fn error(rows: &[&str]) -> String {
 fn a_span_past_the_bound_is_refused_before_simulating() {
     let e = error(&["0,0,0", "1000,0,0"]);
     assert!(e.contains("bounded to 600 s"), "{e}");
-    // The hang of the first version (t = 0 and t = 1e7 s): refused too.
+    // A span that would take hours to simulate (t = 0 and t = 1e7 s): refused too.
     let e = error(&["0,0,0", "10000000,0,0"]);
     assert!(e.contains("t_s = 10000000 is outside"), "{e}");
     // Exactly the bound is fine.

@@ -80,8 +80,8 @@ pub(super) struct Coefficients {
     pub(super) max_count_step_abs: MagnitudeLimit,
     /// Overcurrent, I²t and stall ([`crate::protection`]).
     pub(super) protection: Protection,
-    /// The torque-reference notch (Q2.30), `None` without one: the current tick then does
-    /// exactly what it did before the notch existed.
+    /// The torque-reference notch (Q2.30), `None` without one: the current tick then has
+    /// no notch step at all.
     pub(super) notch: Option<Notch>,
 }
 

@@ -1,6 +1,7 @@
-//! A small two-inertia plant with lost motion (design notes, Fig. 3), an RL winding and the
-//! paper's 0.18 ms computational delay, closed around the real fixed-point `Controller`.
-//! Test-only: it lets the core's tests check stability of a design without the plant crate.
+//! A small two-inertia plant with lost motion (the paper's Fig. 3; `plant-host/README.md`), an RL
+//! winding and the paper's 0.18 ms computational delay, closed around the real fixed-point
+//! `Controller`. Test-only: it lets the core's tests check stability of a design without the plant
+//! crate.
 #![allow(
     dead_code,
     clippy::unwrap_used,

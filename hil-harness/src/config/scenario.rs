@@ -180,7 +180,8 @@ pub struct SineLoad {
     pub start_s: f64,
 }
 
-/// Metric windows and thresholds; absent values take the defaults documented in the README.
+/// Metric windows and thresholds; absent values take the defaults documented in
+/// `hil-harness/README.md`.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MetricSpec {

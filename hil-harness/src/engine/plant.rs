@@ -75,12 +75,12 @@ mod tests {
     }
 
     #[test]
-    fn the_hand_written_conversions_match_the_fixed_crate_and_the_old_round() {
+    fn the_hand_written_conversions_match_the_fixed_crate_and_round_to_nearest() {
         for x in samples() {
-            let old_pu = (x * 65536.0)
+            let nearest = (x * 65536.0)
                 .round()
                 .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
-            assert_eq!(pu(x).to_bits(), old_pu, "pu {x:e}");
+            assert_eq!(pu(x).to_bits(), nearest, "pu {x:e}");
             assert_eq!(pu_s(x), PuPerS::saturating_from_num(x), "pu_s {x:e}");
             assert_eq!(
                 counts(x * 1e9),

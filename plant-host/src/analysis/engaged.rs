@@ -50,7 +50,7 @@ pub struct PlantResponse {
 }
 
 impl EngagedPlant {
-    /// From the `[plant]` parameters (K, D from the design notes' formulas).
+    /// From the `[plant]` parameters (K, D from the formulas in `plant-host/README.md`).
     pub fn new(m: &MechanicsConfig) -> Self {
         let d = m.derived();
         let (wb, k, c) = (d.base_speed_rad_s, d.stiffness_pu_per_rad, d.damping_pu);

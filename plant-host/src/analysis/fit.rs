@@ -9,7 +9,7 @@
 //!   ωm/Tm = (Jl·s + Bl + Z) / ((Jm·s + Bm)·(Jl·s + Bl + Z) + Z·(Jl·s + Bl))
 //!   θm/Tm = e^(−s·τ)·ω_b·(ωm/Tm)/s          \[rad per pu torque\]
 //!
-//! with K = Jl·ω_ar²/ω_b and D = 2·ζ·Jl·ω_ar (the design notes' formulas). Only the sum
+//! with K = Jl·ω_ar²/ω_b and D = 2·ζ·Jl·ω_ar (the formulas in `plant-host/README.md`). Only the sum
 //! Bm + Bl of the viscous frictions shows in motor-side data, so the fit reports it as
 //! one figure, `viscous_pu`.
 //!

@@ -206,7 +206,7 @@ impl PlantConfig {
     }
 }
 
-/// Constants derived once from [`MechanicsConfig`] (the design notes' formulas).
+/// Constants derived once from [`MechanicsConfig`] (the formulas in `plant-host/README.md`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MechanicsDerived {
     /// ω_b = 2π·base_speed_rpm/60, rad/s per pu speed.

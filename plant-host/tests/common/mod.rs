@@ -1,9 +1,9 @@
-//! Test support: the shipped machine files (Table 1 lives only in `configs/table1.toml`),
-//! and an independent reference integrator for the accuracy tests: fine fixed-step classical RK4
-//! on the equations as the issue writes them, with the contact law classified from the state
-//! (memoryless) and frozen within a step; when the classification changes across a step, the
-//! step is bisected (re-integrated from its start) to locate the switching instant. It shares
-//! no code with the crate's exact piecewise-linear integrator.
+//! Test support: the shipped machine files (Table 1 lives only in `configs/table1.toml`), and an
+//! independent reference integrator for the accuracy tests: fine fixed-step classical RK4 on the
+//! equations as `plant-host/README.md` writes them, with the contact law classified from the state
+//! (memoryless) and frozen within a step; when the classification changes across a step, the step
+//! is bisected (re-integrated from its start) to locate the switching instant. It shares no code
+//! with the crate's exact piecewise-linear integrator.
 #![allow(
     dead_code,
     clippy::unwrap_used,
@@ -56,7 +56,8 @@ pub struct RefParams {
 }
 
 impl RefParams {
-    /// From the raw Table-1-style numbers, re-deriving K and D from the issue's formulas.
+    /// From the raw Table-1-style numbers, re-deriving K and D from the formulas in
+    /// `plant-host/README.md`.
     pub fn from_raw(
         base_rpm: f64,
         jm: f64,

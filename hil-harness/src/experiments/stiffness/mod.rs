@@ -396,7 +396,7 @@ mod tests {
         ((a.0 * b.0 + a.1 * b.1) / d, (a.1 * b.0 - a.0 * b.1) / d)
     }
 
-    fn old_filter(f: FilterConfig, w: f64) -> (f64, f64) {
+    fn filter_by_hand(f: FilterConfig, w: f64) -> (f64, f64) {
         match f {
             FilterConfig::None => (1.0, 0.0),
             FilterConfig::FirstOrder { corner_hz } => {
@@ -411,14 +411,14 @@ mod tests {
         }
     }
 
-    fn old_observer(wo: f64, w: f64) -> (f64, f64) {
+    fn observer_by_hand(wo: f64, w: f64) -> (f64, f64) {
         let s_plus = (wo, w);
         let den = cmul(cmul(s_plus, s_plus), s_plus);
         cdiv((wo * wo * wo, 3.0 * wo * wo * w), den)
     }
 
     #[test]
-    fn num_complex_responses_match_the_old_helpers_bit_for_bit() {
+    fn num_complex_responses_match_hand_written_complex_arithmetic_bit_for_bit() {
         let filters = [
             FilterConfig::None,
             FilterConfig::FirstOrder { corner_hz: 100.0 },
@@ -429,18 +429,18 @@ mod tests {
         ];
         for w in [0.5, 3.0, 20.0, 94.25, 400.0, 2500.0] {
             for f in filters {
-                let (new, old) = (filter_response(f, w), old_filter(f, w));
+                let (got, want) = (filter_response(f, w), filter_by_hand(f, w));
                 assert_eq!(
-                    (new.re.to_bits(), new.im.to_bits()),
-                    (old.0.to_bits(), old.1.to_bits()),
+                    (got.re.to_bits(), got.im.to_bits()),
+                    (want.0.to_bits(), want.1.to_bits()),
                     "{f:?} at {w}"
                 );
             }
             let wo = 2.0 * PI * 75.0;
             let s_plus = Complex64::new(wo, w);
-            let new = Complex64::new(wo * wo * wo, 3.0 * wo * wo * w) / (s_plus * s_plus * s_plus);
-            let old = old_observer(wo, w);
-            assert_eq!((new.re, new.im), old, "observer at {w}");
+            let got = Complex64::new(wo * wo * wo, 3.0 * wo * wo * w) / (s_plus * s_plus * s_plus);
+            let want = observer_by_hand(wo, w);
+            assert_eq!((got.re, got.im), want, "observer at {w}");
         }
     }
 }

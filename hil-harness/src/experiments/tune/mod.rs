@@ -249,7 +249,7 @@ pub struct TuneResult {
 }
 
 /// How far the damping fitted to the nonlinear loop's step response may be from the
-/// model's smallest damping (the acceptance figure).
+/// model's smallest damping (the acceptance figure of `tune`; `tests/tune_table1.rs`).
 pub const DAMPING_TOLERANCE: f64 = 0.05;
 
 fn has_lost_motion(cfg: &RunConfig) -> bool {
