@@ -44,21 +44,71 @@ pub fn known_scenarios() -> Vec<String> {
     names
 }
 
-/// The value tree of `configs/scenarios/NAME.toml`; a name with no file (or not a plain
-/// name) lists the known scenarios.
+/// The value tree of `configs/scenarios/NAME.toml`, with its `extends` resolved; a name with
+/// no file (or not a plain name) lists the known scenarios.
 pub fn scenario_table(name: &str) -> Result<Table> {
+    scenario_table_in(&configs_dir().join("scenarios"), name, &mut Vec::new())
+}
+
+/// How many scenarios an `extends` chain may hold: enough for any real use, and a bound on
+/// a chain that loops.
+const MAX_EXTENDS_DEPTH: usize = 8;
+
+/// [`scenario_table`] from the scenario folder `dir`, `chain` holding the scenarios that
+/// extend this one (to refuse a loop).
+fn scenario_table_in(dir: &Path, name: &str, chain: &mut Vec<String>) -> Result<Table> {
     let valid = !name.is_empty()
         && name
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
-    let path = configs_dir().join("scenarios").join(format!("{name}.toml"));
+    let path = dir.join(format!("{name}.toml"));
     if !valid || !path.is_file() {
         return Err(HarnessError::UnknownScenario {
             name: name.to_string(),
             known: known_scenarios(),
         });
     }
-    read_table(&path)
+    let mut doc = read_table(&path)?;
+    let parent = match doc.get_mut("scenario").and_then(|s| s.as_table_mut()) {
+        Some(spec) => spec.remove("extends"),
+        None => None,
+    };
+    let Some(parent) = parent else {
+        return Ok(doc);
+    };
+    let Some(parent) = parent.as_str().map(str::to_string) else {
+        return Err(HarnessError::config(
+            "scenario.extends",
+            "must be the name of a scenario under configs/scenarios/",
+        ));
+    };
+    chain.push(name.to_string());
+    if chain.contains(&parent) || chain.len() > MAX_EXTENDS_DEPTH {
+        chain.push(parent);
+        return Err(HarnessError::config(
+            "scenario.extends",
+            format!(
+                "a loop or a chain longer than {MAX_EXTENDS_DEPTH}: {}",
+                chain.join(" extends ")
+            ),
+        ));
+    }
+    let mut base = scenario_table_in(dir, &parent, chain)?;
+    merge_over(&mut base, doc);
+    Ok(base)
+}
+
+/// `over` laid on `base`: a table present in both is merged key by key, anything else
+/// (values, arrays such as `[[scenario.load]]`) is replaced by `over`'s.
+fn merge_over(base: &mut Table, over: Table) {
+    for (key, value) in over {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_over(b, o),
+            (_, value) => {
+                base.insert(key, value);
+            }
+        }
+    }
 }
 
 /// The scenario of a scenario file's value tree, validated.
@@ -98,4 +148,71 @@ pub fn config_path(name_or_path: &str) -> Result<PathBuf> {
 /// Reads a TOML file into a value tree.
 pub fn read_table(path: &Path) -> Result<Table> {
     Ok(machine_file::read(path)?)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) {
+        std::fs::write(dir.join(format!("{name}.toml")), text).unwrap();
+    }
+
+    #[test]
+    fn extends_lays_the_scenario_over_its_parent() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        write(
+            dir,
+            "base",
+            "[scenario]\ndescription = \"b\"\nconfig = \"table1\"\nduration_s = 2.5\n\
+             [scenario.profile]\nspeed_pu = 1.0\naccel_s = 1.0\n\
+             [[scenario.load]]\nt_s = 1.5\ntorque_pu = 0.5\n\
+             [scenario.set]\n\"drive.velocity_bandwidth_rad_s\" = 50.0\n",
+        );
+        write(
+            dir,
+            "twin",
+            "[scenario]\nextends = \"base\"\ndescription = \"t\"\n\
+             [[scenario.load]]\nt_s = 1.0\ntorque_pu = 0.25\n\
+             [scenario.set]\n\"drive.accel_feedback.mode\" = \"off\"\n",
+        );
+        let t = scenario_table_in(dir, "twin", &mut Vec::new()).unwrap();
+        let s = t["scenario"].as_table().unwrap();
+        assert_eq!(s["description"].as_str(), Some("t"));
+        assert_eq!(s["duration_s"].as_float(), Some(2.5), "kept from the parent");
+        assert!(!s.contains_key("extends"));
+        // Tables merge key by key; arrays are replaced whole.
+        let set = s["set"].as_table().unwrap();
+        assert_eq!(set.len(), 2, "{set:?}");
+        let load = s["load"].as_array().unwrap();
+        assert_eq!(load.len(), 1);
+        assert_eq!(load[0]["t_s"].as_float(), Some(1.0));
+    }
+
+    #[test]
+    fn an_extends_loop_or_a_missing_parent_is_an_error() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        write(dir, "a", "[scenario]\nextends = \"b\"\n");
+        write(dir, "b", "[scenario]\nextends = \"a\"\n");
+        let e = scenario_table_in(dir, "a", &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("scenario.extends") && e.contains("a extends b extends a"),
+            "{e}"
+        );
+        write(dir, "c", "[scenario]\nextends = \"nosuch\"\n");
+        let e = scenario_table_in(dir, "c", &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nosuch"), "{e}");
+        write(dir, "d", "[scenario]\nextends = 3\n");
+        let e = scenario_table_in(dir, "d", &mut Vec::new())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("scenario.extends"), "{e}");
+    }
 }
