@@ -7,7 +7,10 @@
 //!   file outside `tests/` holds them);
 //! * the tree explains itself: no tracked file (outside `target/`, `.git/` and `out/`) refers
 //!   to a work-tracker item by number, because a reader of the tree cannot open one. Say
-//!   what the code does and why instead; design reasons go in `docs/design.md`.
+//!   what the code does and why instead; design reasons go in `docs/design.md`;
+//! * shared code is a crate, not a file borrowed by path: no `#[path]` attribute anywhere
+//!   reaches into a `tests/` folder (the machine file's composer is the `machine-file`
+//!   crate, not a test helper that a build script or another crate's tests include).
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
@@ -259,4 +262,47 @@ fn the_tracker_scanner_sees_a_reference_and_passes_prose() {
     ] {
         assert!(!names_a_tracker_item(&prose), "{prose}");
     }
+}
+
+/// The `#[path = "…"]` attributes of a Rust text that reach into a `tests/` folder from outside
+/// it, as (line number, attribute).
+fn paths_into_tests(text: &str) -> Vec<(usize, String)> {
+    text.lines()
+        .enumerate()
+        .filter_map(|(i, line)| {
+            let t = line.trim_start();
+            let rest = t.strip_prefix("#[path")?;
+            let target = rest.split('"').nth(1)?;
+            let reaches = target.starts_with("..") && target.contains("tests/");
+            reaches.then(|| (i + 1, t.to_string()))
+        })
+        .collect()
+}
+
+#[test]
+fn no_file_includes_a_test_helper_by_path() {
+    let mut found = Vec::new();
+    for path in tracked_files() {
+        if path.extension().is_some_and(|e| e == "rs") {
+            let text = std::fs::read_to_string(&path).unwrap_or_default();
+            for (line, attr) in paths_into_tests(&text) {
+                found.push(format!("{}:{line}: {attr}", path.display()));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "test helpers included by path (make them a crate or a module of the same test \
+         binary):\n{}",
+        found.join("\n")
+    );
+}
+
+#[test]
+fn the_path_scanner_sees_an_include_into_tests_and_passes_a_local_module() {
+    let text = "#[path = \"../../controller-core/tests/common/mod.rs\"]\nmod common;\n\
+                #[path = \"fw_bench/blocks.rs\"]\nmod blocks;\n";
+    let found = paths_into_tests(text);
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert_eq!(found[0].0, 1);
 }

@@ -7,8 +7,14 @@
     clippy::panic
 )]
 
-#[path = "../../controller-core/tests/common/mod.rs"]
-mod common;
+/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+mod common {
+    pub fn table1() -> controller_core::DriveConfig {
+        machine_file::table1()
+            .expect("configs/table1.toml composes")
+            .drive
+    }
+}
 
 use pil_link::{
     Decoder, Frame, FrameKind, LinkError, SequenceCheck, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION,

@@ -9,8 +9,14 @@
     clippy::panic
 )]
 
-#[path = "../../controller-core/tests/common/mod.rs"]
-mod common;
+/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+mod common {
+    pub fn table1() -> controller_core::DriveConfig {
+        machine_file::table1()
+            .expect("configs/table1.toml composes")
+            .drive
+    }
+}
 
 use controller_core::excitation::{ExcitationConfig, Injection, Waveform};
 use pil_link::wire::Writer;

@@ -181,7 +181,11 @@ mod tests {
         let t = scenario_table_in(dir, "twin", &mut Vec::new()).unwrap();
         let s = t["scenario"].as_table().unwrap();
         assert_eq!(s["description"].as_str(), Some("t"));
-        assert_eq!(s["duration_s"].as_float(), Some(2.5), "kept from the parent");
+        assert_eq!(
+            s["duration_s"].as_float(),
+            Some(2.5),
+            "kept from the parent"
+        );
         assert!(!s.contains_key("extends"));
         // Tables merge key by key; arrays are replaced whole.
         let set = s["set"].as_table().unwrap();
