@@ -1,6 +1,6 @@
 //! The paper's setting (velocity and acceleration by differentiation at 4096 CPR) against
 //! the observer, with and without acceleration feedback, on the test plant of
-//! `tests/sim/mod.rs` (Table 1 mechanics, 0.5° lost motion, 0.18 ms delay).
+//! `tests/it/sim.rs` (Table 1 mechanics, 0.5° lost motion, 0.18 ms delay).
 //! `cargo run -p controller-core --release --example velocity_feedback_table`
 #![allow(
     clippy::unwrap_used,
@@ -12,7 +12,7 @@
 
 #[path = "../tests/common/mod.rs"]
 mod common;
-#[path = "../tests/sim/mod.rs"]
+#[path = "../tests/it/sim.rs"]
 mod sim;
 
 use controller_core::{AfbMode, Controller, Estimator, FilterConfig};
