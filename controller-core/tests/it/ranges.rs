@@ -1,6 +1,8 @@
 //! The range arguments behind the plain (wrapping) adds of the tick path, checked against
 //! the saturating arithmetic they replaced: inside the ranges the code states, the results
-//! are the same bits. (Outside them only hand-made states or coefficients differ.)
+//! are the same bits. Outside them (hand-made states or coefficients) the last tests pin
+//! what the code does instead: the first-order state limited to ±2^48, and the saturating
+//! add for an α outside [0, 1].
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
 use controller_core::filter::{LowPass, LowPassState};
@@ -85,5 +87,81 @@ proptest! {
             prop_assert_eq!(out, reference);
             prop_assert_eq!(s, r);
         }
+    }
+}
+
+/// `begin` on a first-order state of `y_q32` (Q32.32).
+fn first_order_h(f: &LowPass, y_q32: i64) -> i64 {
+    f.begin(&LowPassState {
+        y_q32,
+        ..LowPassState::default()
+    })
+    .0
+}
+
+/// A first-order state beyond ±2^48 (which only a hand-set state or a hand-made α reaches)
+/// steps as the state at ±2^48: `begin` limits it before it shifts it to Q.46, whatever its
+/// low bits. At +2^48 the Q16.16 state is saturated (2^31 − 1), so h = 2^62 − α·(2^31 − 1).
+#[test]
+fn first_order_state_beyond_2_48_steps_as_the_state_at_2_48() {
+    let f = LowPass::FirstOrder {
+        alpha: Coef::from_num(0.5),
+    };
+    let top = first_order_h(&f, 1 << 48);
+    assert_eq!(top, (1 << 62) - ((1 << 31) - 1) * (1 << 29));
+    let bottom = first_order_h(&f, -(1 << 48));
+    assert_eq!(bottom, -(1 << 62) + (1 << 31) * (1 << 29));
+    // Beyond the limit by whole Q16.16 steps (low 16 bits zero), by odd amounts, and at
+    // the ends of i64.
+    for beyond in [
+        1 << 16,
+        1 << 46,
+        (1 << 47) + (1 << 16),
+        1,
+        12_345,
+        i64::MAX - (1 << 48),
+    ] {
+        assert_eq!(
+            first_order_h(&f, (1 << 48) + beyond),
+            top,
+            "+2^48 + {beyond}"
+        );
+        assert_eq!(
+            first_order_h(&f, -(1 << 48) - beyond),
+            bottom,
+            "-2^48 - {beyond}"
+        );
+    }
+    assert_eq!(first_order_h(&f, i64::MIN), bottom);
+}
+
+/// A hand-made α outside [0, 1] takes the saturating add: where h + α·x leaves i64, the
+/// output goes to the limit of the sum's sign instead of wrapping round to the other one.
+/// α = −2 (raw i32::MIN) at the state +2^48 gives h = 2^63 − 2^31, and x = −32768 pu adds
+/// α·x = 2^62 (Q.46); mirrored, the state −2^48 gives h = −2^63 and x = 32768 pu − 1 LSB
+/// adds −2^62 + 2^31.
+#[test]
+fn first_order_with_alpha_outside_0_1_saturates_instead_of_wrapping() {
+    let f = LowPass::FirstOrder {
+        alpha: Coef::from_bits(i32::MIN),
+    };
+    for (y_q32, x, h, sum, out) in [
+        (
+            1i64 << 48,
+            Pu::MIN,
+            i64::MAX - (1 << 31) + 1,
+            i64::MAX,
+            Pu::MAX,
+        ),
+        (-(1i64 << 48), Pu::MAX, i64::MIN, i64::MIN, Pu::MIN),
+    ] {
+        let mut s = LowPassState {
+            y_q32,
+            ..LowPassState::default()
+        };
+        assert_eq!(first_order_h(&f, y_q32), h);
+        assert_eq!(f.add_feedthrough(h, x), sum);
+        assert_eq!(f.process(&mut s, x), out);
+        assert_eq!(s.y_q32, sum >> 14);
     }
 }
