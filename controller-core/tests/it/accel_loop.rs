@@ -1,8 +1,8 @@
 //! The acceleration loop closed through a plant, with the real fixed-point controller
-//! (`tests/sim`: Euler two-inertia model with the 0.5° dead zone, RL winding, 0.18 ms
+//! (`sim`: Euler two-inertia model with the 0.5° dead zone, RL winding, 0.18 ms
 //! delay, 4096 CPR): the inner-loop limit is gone, what limits Ka now, and whether the
 //! observer should be driven by the torque command or the measured current.
-//! `cargo test -p controller-core --release --test accel_loop -- --nocapture`
+//! `cargo test -p controller-core --release --test it accel_loop:: -- --nocapture`
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,

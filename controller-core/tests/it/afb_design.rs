@@ -1,7 +1,7 @@
 //! Trap 1: the acceleration-feedback path is a loop of its own. These tests close the real
 //! fixed-point controller around a two-inertia plant with lost motion, an RL winding and
 //! the 0.18 ms computational delay, and sweep the AFB design space to choose the defaults.
-//! `cargo test -p controller-core --release --test afb_design -- --nocapture` prints the table.
+//! `cargo test -p controller-core --release --test it afb_design:: -- --nocapture` prints the table.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -141,7 +141,7 @@ fn afb_design_sweep() {
 /// At 10⁶ CPR (the printing-press encoder) the quantization that ruins differentiation at
 /// 4096 CPR falls by 244×, and the differentiated acceleration loop's limit shows: with
 /// differentiated velocity and acceleration, Ka = 0.5·J_total and a first-order filter,
-/// the linear analysis (`tests/afb_state_space.rs`, gears separated) allows 95 Hz at 4 kHz
+/// the linear analysis (`afb_state_space`, gears separated) allows 95 Hz at 4 kHz
 /// and 46 Hz at 2 kHz. The simulation must be stable at about half of each (45 Hz, 23 Hz)
 /// and unstable at about twice (190 Hz, 93 Hz). The default (observer) design is stable
 /// too. This also exercises every Q-format at the high count rate.

@@ -11,7 +11,7 @@
 //! (Ellis estimate, closed form; `Structure::ClosedForm`) and as the first version did
 //! (â = u + d with the last tick's torque; `Structure::OneTickLate`), to show the old
 //! inner-loop limit and that it is gone.
-//! `cargo test -p controller-core --release --test afb_state_space -- --nocapture`
+//! `cargo test -p controller-core --release --test it afb_state_space:: -- --nocapture`
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,

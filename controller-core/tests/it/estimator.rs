@@ -14,7 +14,7 @@
 //!    gain and 3°·(ω/ω_o) + 0.5° in phase (the pole mapping z = e^(sTs) is exact, the rest
 //!    is an O(ωTs) approximation; above ω_o, at ωTs = 0.25–0.5, it is printed, not checked).
 //!
-//! `cargo test -p controller-core --release --test estimator -- --nocapture` prints the table.
+//! `cargo test -p controller-core --release --test it estimator:: -- --nocapture` prints the table.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,

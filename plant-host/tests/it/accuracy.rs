@@ -1,5 +1,5 @@
 //! Must-show: a replay of a 1 s, 4 kHz torque profile that crosses the lost-motion gap many
-//! times agrees with an independent high-accuracy integration (tests/common) within 1e-4 rad
+//! times agrees with an independent high-accuracy integration (`common`) within 1e-4 rad
 //! and 1e-4 pu at every row. Run with `-- --nocapture` to see the measured errors.
 #![allow(
     clippy::unwrap_used,

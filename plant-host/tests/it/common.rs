@@ -1,6 +1,6 @@
 //! Test support: the shipped machine files (Table 1 lives only in `configs/table1.toml`),
 //! and an independent reference integrator for the accuracy tests: fine fixed-step classical RK4
-//! on the equations as the issue writes them, with the contact law classified from the state
+//! on the model's equations as written, with the contact law classified from the state
 //! (memoryless) and frozen within a step; when the classification changes across a step, the
 //! step is bisected (re-integrated from its start) to locate the switching instant. It shares
 //! no code with the crate's exact piecewise-linear integrator.

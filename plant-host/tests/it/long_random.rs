@@ -1,5 +1,5 @@
 //! A longer random run against the reference (~3 s): 20 s of random held torques at 4 kHz,
-//! ~1500 edge crossings. `cargo test -p plant-host --test long_random -- --nocapture`
+//! ~1500 edge crossings. `cargo test -p plant-host --test it long_random:: -- --nocapture`
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
