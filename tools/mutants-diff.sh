@@ -26,7 +26,7 @@ profile="${MUTANTS_PROFILE:-test}"
 status=0
 for pkg in controller-core plant-host pil-link; do
   features=()
-  # pil-link's socket tests (tests/session.rs) need its `std` feature.
+  # pil-link's socket tests (tests/it/session.rs) need its `std` feature.
   if [[ $pkg == pil-link ]]; then features=(--features std); fi
   cargo mutants -p "$pkg" "${features[@]}" --in-diff "$out/changes.diff" --profile "$profile" \
     --colors never -o "$out/$pkg" || status=$?

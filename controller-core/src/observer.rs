@@ -26,7 +26,7 @@
 //! G = ω_o³/(s + ω_o)³, whose error falls only like s; at 4096 CPR it passes less encoder
 //! noise, but the acceleration the load causes reaches it only through the slow disturbance
 //! state, so the observer does not offer it (`docs/design.md`).
-//! `tests/estimator.rs` checks the fixed-point observer against the exact discrete
+//! `tests/it/estimator.rs` checks the fixed-point observer against the exact discrete
 //! transfer function of this form.
 //!
 //! For the acceleration feedback the observer also gives the acceleration it predicts for
@@ -128,7 +128,7 @@ impl Observer {
         //                          from 2^47 on, so nothing read from it changes)
         // so |u + d|, |d + l2·e|, |u + d + l2·e| and |d + l3·e| are below 2^61 and
         // |v + u + d + l2·e| below 2^62: every add is exact, and the step is the saturating
-        // one bit for bit while |v|, |d| < 2^60 (tests/ranges.rs). Beyond that (never
+        // one bit for bit while |v|, |d| < 2^60 (tests/it/ranges.rs). Beyond that (never
         // reached from a real encoder) v and d saturate at 2^60 instead of 2^63. States a
         // caller makes up beyond these ranges wrap in `predicted_acceleration_pu_s` (no
         // panic).

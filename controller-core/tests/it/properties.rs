@@ -1,0 +1,190 @@
+//! Property tests: arbitrary counts, jumps, currents and setpoints never panic (the test
+//! profile keeps overflow checks on, so a wrap would panic) and keep every command within
+//! its limit; arbitrary settings never panic the design.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+use crate::common;
+use controller_core::per_unit::count_diff;
+use controller_core::{
+    design, AfbMode, AfbRate, Controller, Counts, CurrentInputs, DriveConfig, Estimator,
+    FilterConfig, Pu, Setpoint, VelocityInputs,
+};
+use proptest::prelude::*;
+
+fn config(bits: u8, mode: u8, rate: bool, src: bool, vel_src: bool, filter: u8) -> DriveConfig {
+    let mut c = common::table1();
+    c.counter_bits = bits;
+    c.accel_feedback.mode = [AfbMode::Off, AfbMode::Plain, AfbMode::Error][usize::from(mode % 3)];
+    c.accel_feedback.rate = if rate {
+        AfbRate::Current
+    } else {
+        AfbRate::Velocity
+    };
+    c.accel_feedback.source = if src {
+        Estimator::Observer
+    } else {
+        Estimator::Differentiation
+    };
+    c.velocity_estimator = if vel_src {
+        Estimator::Observer
+    } else {
+        Estimator::Differentiation
+    };
+    c.accel_feedback.filter = match filter % 3 {
+        0 => FilterConfig::None,
+        1 => FilterConfig::FirstOrder { corner_hz: 80.0 },
+        _ => FilterConfig::SecondOrder {
+            corner_hz: 150.0,
+            q: 0.9,
+        },
+    };
+    c
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn ticks_never_panic_and_respect_limits(
+        bits in prop_oneof![Just(16u8), Just(20u8), Just(32u8)],
+        mode in 0u8..3, rate: bool, src: bool, vel_src: bool, filter in 0u8..3,
+        steps in proptest::collection::vec(
+            (any::<u32>(), any::<i32>(), any::<bool>(), any::<i64>(), any::<i32>(), any::<i32>(), any::<bool>(), any::<bool>()),
+            1..300),
+    ) {
+        let cfg = config(bits, mode, rate, src, vel_src, filter);
+        let mut c = Controller::new(&cfg).unwrap();
+        let tlim = Pu::from_num(cfg.torque_limit_pu);
+        let vlim = Pu::from_num(cfg.voltage_limit_pu);
+        let mut raw = 0u32;
+        for (count, cur, jump, pos, vel, acc, vtick, fault_in) in steps {
+            // Mostly small moves, sometimes arbitrary jumps.
+            raw = if jump { count } else { raw.wrapping_add(count % 64) };
+            let o = c.current_tick(CurrentInputs { encoder_count: raw, current_pu: Pu::from_bits(cur) });
+            prop_assert!(o.current_ref_pu.abs() <= tlim);
+            prop_assert!(o.voltage_cmd_pu.abs() <= vlim);
+            prop_assert!(o.accel_fb_pu.abs() <= tlim);
+            if o.fault.is_some() { prop_assert_eq!(o.current_ref_pu, Pu::ZERO); }
+            if vtick {
+                let v = c.velocity_tick(VelocityInputs {
+                    encoder_count: raw,
+                    setpoint: Setpoint { position_counts: Counts::from_bits(pos), velocity_pu: Pu::from_bits(vel), acceleration_pu_s: Pu::from_bits(acc) },
+                    fault_input: fault_in && (pos % 7 == 0),
+                });
+                prop_assert!(v.current_ref_pu.abs() <= tlim);
+                prop_assert!(v.accel_fb_pu.abs() <= tlim);
+                if v.fault.is_some() { prop_assert_eq!(v.current_ref_pu, Pu::ZERO); }
+            }
+        }
+    }
+
+    #[test]
+    fn blocks_never_panic_on_extreme_inputs(
+        xs in proptest::collection::vec((any::<i32>(), any::<i64>(), any::<i32>()), 1..200),
+    ) {
+        use controller_core::filter::{design_low_pass, LowPass, LowPassState};
+        use controller_core::observer::{Observer, ObserverState};
+        use controller_core::differentiator::{Differentiator, DifferentiatorState};
+        use controller_core::pi::{PiCoefficients, PiState};
+        use controller_core::per_unit::{Coef, Gain, TickGain};
+        let filters: Vec<LowPass> = [
+            FilterConfig::FirstOrder { corner_hz: 1.0 },
+            FilterConfig::SecondOrder { corner_hz: 5.0, q: 10.0 },
+            FilterConfig::SecondOrder { corner_hz: 1900.0, q: 0.1 },
+        ].iter().map(|f| LowPass::quantize(&design_low_pass(f, 4000.0, &controller_core::ranges::AFB_FILTER_CORNER_HZ, &controller_core::ranges::AFB_FILTER_Q).unwrap(), "t").unwrap()).collect();
+        let mut fs = [LowPassState::default(); 3];
+        let obs = Observer { l1: Coef::from_num(1.9), l2: Coef::from_num(1.9), l3: Coef::from_num(1.9),
+            k_u: TickGain::MAX, k_vel: TickGain::MAX, k_acc: Gain::MAX, k_load: Gain::MIN };
+        let mut os = ObserverState::default();
+        let diff = Differentiator { k_vel: TickGain::MAX, k_acc: Gain::MAX };
+        let mut ds = DifferentiatorState::default();
+        let pi = PiCoefficients { kp: Gain::MAX, ki_ts: TickGain::MAX, limit: Pu::MAX };
+        let mut ps = PiState::default();
+        for (x, p, t) in xs {
+            for (f, s) in filters.iter().zip(fs.iter_mut()) {
+                let _ = f.process(s, Pu::from_bits(x));
+            }
+            obs.update(&mut os, p, Pu::from_bits(t));
+            let _ = obs.estimate(&os);
+            let _ = diff.update(&mut ds, p);
+            let u = pi.update(&mut ps, Pu::from_bits(x), Pu::from_bits(t));
+            prop_assert!(u.abs() <= Pu::MAX);
+        }
+    }
+
+    #[test]
+    fn profiles_never_panic(
+        v in prop_oneof![any::<f32>(), -12.0f32..12.0],
+        ta in prop_oneof![any::<f32>(), 0.0f32..3.0],
+        th in prop_oneof![any::<f32>(), 0.0f32..3.0, Just(f32::INFINITY)],
+        td in prop_oneof![any::<f32>(), 0.0f32..3.0],
+        delay in prop_oneof![any::<f32>(), 0.0f32..1.0],
+        tj in prop_oneof![any::<f32>(), 0.0f32..1.0],
+        scurve: bool, start: i64, cpr in prop_oneof![Just(4096u32), Just(1_000_000u32)],
+    ) {
+        use controller_core::{Profile, ProfileConfig, ProfileKind};
+        let cfg = ProfileConfig {
+            kind: if scurve { ProfileKind::SCurve { jerk_time_s: tj } } else { ProfileKind::Trapezoid },
+            peak_velocity_pu: v,
+            accel_time_s: ta,
+            hold_time_s: th,
+            decel_time_s: td,
+            start_delay_s: delay,
+        };
+        let mut drive = common::table1();
+        drive.encoder_cpr = cpr;
+        drive.counter_bits = 32;
+        if let Ok(p) = Profile::new(&cfg, &drive) {
+            let mut p = p.with_start_position(Counts::from_bits(start >> 8));
+            for _ in 0..2000 {
+                let sp = p.next();
+                prop_assert!(sp.velocity_pu.abs() <= Pu::from_num(10.01));
+            }
+        }
+    }
+
+    #[test]
+    fn count_diff_recovers_any_motion_below_half_range(
+        bits in 16u8..=32, start: u32, delta in any::<i32>(),
+    ) {
+        let half = if bits == 32 { i64::from(i32::MAX) } else { (1i64 << (bits - 1)) - 1 };
+        let d = (i64::from(delta) % half) as i32;
+        let m = if bits == 32 { u64::from(u32::MAX) } else { (1u64 << bits) - 1 };
+        let a = (u64::from(start) & m) as u32;
+        let b = ((i64::from(a) + i64::from(d)) as u64 & m) as u32;
+        prop_assert_eq!(count_diff(b, a, bits), d);
+    }
+
+    #[test]
+    fn design_never_panics(
+        v in proptest::collection::vec(prop_oneof![any::<f32>(), -10.0f32..10_000.0], 12),
+        cpr: u32, bits: u8, fc: u32, fv: u32,
+    ) {
+        let mut c = common::table1();
+        c.base_speed_rpm = v[0];
+        c.motor_inertia_s = v[1];
+        c.load_inertia_s = v[2];
+        c.position_bandwidth_rad_s = v[3];
+        c.velocity_bandwidth_rad_s = v[4];
+        c.current_bandwidth_rad_s = v[5];
+        c.winding_inductance_pu_s = v[6];
+        c.accel_feedback.gain_fraction = v[7];
+        c.accel_feedback.filter = FilterConfig::SecondOrder { corner_hz: v[8], q: v[9] };
+        c.observer.bandwidth_hz = v[10];
+        c.faults.following_error_counts = v[11];
+        c.encoder_cpr = cpr;
+        c.counter_bits = bits;
+        c.current_rate_hz = fc % 200_000;
+        c.velocity_rate_hz = fv % 200_000;
+        let _ = design(&c);
+        if let Ok(mut ctl) = Controller::new(&c) {
+            let o = ctl.current_tick(CurrentInputs { encoder_count: 12345, current_pu: Pu::from_num(1) });
+            prop_assert!(o.current_ref_pu.abs() <= Pu::saturating_from_num(c.torque_limit_pu));
+        }
+    }
+}
