@@ -9,7 +9,7 @@
 //!    the inputs plus the expected output words are written to `$OUT_DIR/lil_data.rs` for the
 //!    `fw-lil` image, which runs the same sequence on the target and compares bit for bit.
 //! 3. The drive: the machine file named by `STIFFDRIVE_DRIVE` (a path; a relative one is
-//!    taken from the workspace root), else `configs/table1.toml`, composed by the one
+//!    taken from the workspace root), else `configs/machines/table1.toml`, composed by the one
 //!    composer the harness uses (`machine_file::compose`: its `[drive]` table, with the
 //!    machine keys it omits taken from the plant), validated by `design()` (a bad file fails
 //!    the build naming the key) and encoded with pil-link's settings codec into
@@ -38,7 +38,7 @@ fn main() {
     let root = manifest.join("..");
     let drive_file = match env::var_os("STIFFDRIVE_DRIVE") {
         Some(p) if !p.is_empty() => root.join(p),
-        _ => root.join("configs/table1.toml"),
+        _ => root.join("configs/machines/table1.toml"),
     };
     println!("cargo:rerun-if-changed={}", drive_file.display());
     let cfg = match bake_drive(&drive_file, &root, &out) {

@@ -257,7 +257,11 @@ fn run_case(case: &Case, dir: &Path, bin: &Path) -> Result<(), String> {
         args = [
             "replay",
             "--config",
-            configs.join("table1.toml").to_str().unwrap(),
+            configs
+                .join("machines")
+                .join("table1.toml")
+                .to_str()
+                .unwrap(),
             "--torque",
             dir.join("torque.csv").to_str().unwrap(),
             "--out",
@@ -326,17 +330,17 @@ fn every_malformed_input_is_refused_cleanly() {
     let mut cases = Vec::new();
     // Machine configs, each under a scenario that reads it.
     cases.extend(file_cases(
-        "table1.toml",
+        "machines/table1.toml",
         &s(&["run", "--scenario", "fig6"]),
         &[],
     ));
     cases.extend(file_cases(
-        "printing-press.toml",
+        "machines/printing-press.toml",
         &s(&["run", "--scenario", "fig6", "--config", "printing-press"]),
         &[],
     ));
     cases.extend(file_cases(
-        "scenarios/plants/dyno.toml",
+        "machines/dyno.toml",
         &s(&["run", "--scenario", "shock"]),
         &[],
     ));
@@ -358,7 +362,7 @@ fn every_malformed_input_is_refused_cleanly() {
         ));
     }
     // Settings the chosen filter kind does not read: an error that names them, not a no-op.
-    let table1 = std::fs::read_to_string(configs().join("table1.toml")).unwrap();
+    let table1 = std::fs::read_to_string(configs().join("machines").join("table1.toml")).unwrap();
     for (extra, key) in [
         (
             "[drive.velocity_filter]\nkind = \"none\"\ncorner_hz = 50.0\n",
@@ -377,7 +381,7 @@ fn every_malformed_input_is_refused_cleanly() {
     ] {
         cases.push(Case {
             label: format!("table1.toml: {}", extra.replace('\n', " ")),
-            file: "table1.toml".into(),
+            file: "machines/table1.toml".into(),
             text: format!("{table1}\n{extra}"),
             args: s(&["run", "--scenario", "fig6"]),
             must_name: key.into(),

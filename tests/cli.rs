@@ -190,9 +190,10 @@ fn replay_runs_the_plant_on_a_generated_torque_csv() {
 
     // A bad config names the key and writes nothing.
     let bad = tmp.path().join("bad.toml");
-    let good =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/table1.toml"))
-            .unwrap();
+    let good = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/machines/table1.toml"),
+    )
+    .unwrap();
     std::fs::write(
         &bad,
         good.replace("motor_inertia_s = 0.117", "motor_inertia_s = -1.0"),
@@ -223,9 +224,10 @@ fn replay_runs_the_plant_on_a_generated_torque_csv() {
 fn flash_refuses_a_bad_drive_before_building() {
     let tmp = tempfile::tempdir().unwrap();
     let file = tmp.path().join("bad.toml");
-    let table1 =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/table1.toml"))
-            .unwrap();
+    let table1 = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/machines/table1.toml"),
+    )
+    .unwrap();
     let bad = table1.replace(
         "velocity_bandwidth_rad_s = 94.25",
         "velocity_bandwidth_rad_s = -5.0",

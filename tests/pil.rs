@@ -381,9 +381,9 @@ fn qemu_ends_by_itself_when_the_harness_goes_silent() {
     drop(link);
 }
 
-/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+/// The paper's Table 1 drive, composed from `configs/machines/table1.toml` by the one composer.
 fn table1_drive() -> controller_core::DriveConfig {
     machine_file::table1()
-        .expect("configs/table1.toml composes")
+        .expect("configs/machines/table1.toml composes")
         .drive
 }

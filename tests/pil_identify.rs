@@ -1,6 +1,6 @@
 //! The identification's frequency-response measurement through the firmware in QEMU:
 //! the PRBS on the torque reference, as `identify` runs it on
-//! `configs/table1.toml` (one PRBS period instead of 32, Welch segments of 2048 samples),
+//! `configs/machines/table1.toml` (one PRBS period instead of 32, Welch segments of 2048 samples),
 //! travels to the firmware in the `Config` frame, the firmware's own controller adds it,
 //! and the record (excitation, torque reference, measured current, encoder counts) is the
 //! host loop's bit for bit, tick for tick; so are every controller output and the fitted
@@ -42,7 +42,7 @@ fn first_difference(host: &Record, pil: &Record) -> Option<(&'static str, usize)
 #[test]
 fn the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for_bit() {
     fw_runner::provision::ensure_qemu().unwrap();
-    let (base, spec) = load("configs/table1.toml", &SETS.map(String::from)).unwrap();
+    let (base, spec) = load("configs/machines/table1.toml", &SETS.map(String::from)).unwrap();
     let (cfg, excitation) = frequency_response_setup(&base, &spec).unwrap();
     // 8191 PRBS bits of one tick each at 4 kHz.
     let ticks = 8191;
@@ -106,7 +106,7 @@ fn the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for
 #[test]
 fn the_firmware_refuses_a_bad_excitation_with_a_config_fault() {
     fw_runner::provision::ensure_qemu().unwrap();
-    let (base, spec) = load("configs/table1.toml", &SETS.map(String::from)).unwrap();
+    let (base, spec) = load("configs/machines/table1.toml", &SETS.map(String::from)).unwrap();
     let (cfg, mut excitation) = frequency_response_setup(&base, &spec).unwrap();
     // A 3-bit LFSR is outside 7..=20: controller-core refuses it, and so must the firmware.
     excitation.waveform = Waveform::Prbs {

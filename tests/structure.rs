@@ -3,7 +3,7 @@
 //! * small modules: no source file over 600 lines and no function over 100 lines (outside
 //!   `#[cfg(test)]` modules). A cap is a smell detector: a file or function that grows past
 //!   it is usually two ideas;
-//! * one source of truth: the Table 1 numbers live only in `configs/table1.toml` (no `.rs`
+//! * one source of truth: the Table 1 numbers live only in `configs/machines/table1.toml` (no `.rs`
 //!   file outside `tests/` holds them);
 //! * the tree explains itself: no tracked file (outside `target/`, `.git/` and `out/`) refers
 //!   to a work-tracker item by number, because a reader of the tree cannot open one. Say
@@ -136,11 +136,12 @@ fn the_table1_numbers_live_only_in_the_config_file() {
             }
         }
     }
-    let table1 =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/table1.toml"))
-            .unwrap();
+    let table1 = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/machines/table1.toml"),
+    )
+    .unwrap();
     for v in TABLE1_VALUES {
-        assert!(table1.contains(v), "configs/table1.toml lost {v}");
+        assert!(table1.contains(v), "configs/machines/table1.toml lost {v}");
     }
     assert!(
         bad.is_empty(),

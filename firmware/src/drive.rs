@@ -1,5 +1,5 @@
 //! The drive the firmware runs: the machine file named by `STIFFDRIVE_DRIVE` at build time
-//! (else `configs/table1.toml`), baked by `build.rs` (composed by `machine_file::compose`,
+//! (else `configs/machines/table1.toml`), baked by `build.rs` (composed by `machine_file::compose`,
 //! validated by `design()`, encoded with pil-link's settings codec) and decoded here at
 //! start-up. There is no second spelling of the settings in the firmware.
 

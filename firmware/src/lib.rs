@@ -10,7 +10,7 @@
 //!   interrupts; the handler bodies).
 //! * [`trace`]: the trend buffer (fixed-size capture of chosen signals, dumped on request).
 //! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU).
-//! * [`drive`]: the drive settings baked at build time (`STIFFDRIVE_DRIVE`, else `configs/table1.toml`).
+//! * [`drive`]: the drive settings baked at build time (`STIFFDRIVE_DRIVE`, else `configs/machines/table1.toml`).
 //! * [`lil`]: the loop-in-the-loop record format and its reference run.
 //! * `boards::qemu` / `boards::stm32f4`, `rt`: the hardware edge, target builds only.
 //!

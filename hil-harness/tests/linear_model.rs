@@ -147,7 +147,10 @@ fn the_mirror_follows_the_fixed_point_controller() {
 /// J·s² + Kp·s + Ki.
 #[test]
 fn rigid_body_poles_are_the_pi_roots() {
-    let table1 = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    let table1 = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../configs/machines/table1.toml"
+    );
     let mut plant = PlantConfig::from_machine_file(table1.as_ref()).unwrap();
     plant.mechanics.backlash_deg = 0.0;
     plant.mechanics.anti_resonance_hz = 400.0;
@@ -301,9 +304,9 @@ fn fig6_linear_analysis() {
     assert!(with.engaged.smallest_damping > without.engaged.smallest_damping);
 }
 
-/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+/// The paper's Table 1 drive, composed from `configs/machines/table1.toml` by the one composer.
 fn table1_drive() -> controller_core::DriveConfig {
     machine_file::table1()
-        .expect("configs/table1.toml composes")
+        .expect("configs/machines/table1.toml composes")
         .drive
 }

@@ -1,4 +1,4 @@
-//! `tune --config configs/table1.toml --max-bandwidth` against what `tune` must show: the
+//! `tune --config configs/machines/table1.toml --max-bandwidth` against what `tune` must show: the
 //! written config runs `fig6` stably, `drive.toml` is the tuned drive, the figures are
 //! written and linked, and the damping fitted to the nonlinear loop's step responses
 //! (gears engaged throughout, torque below its limit) against the model's smallest damping.
@@ -12,7 +12,7 @@ use std::time::Instant;
 
 /// Runs `tune` on Table 1 with `--max-bandwidth` into `dir`; returns `tune.json`.
 fn tune_table1(dir: &Path) -> serde_json::Value {
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/table1.toml");
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/machines/table1.toml");
     let t0 = Instant::now();
     let text = tune(
         &config.display().to_string(),

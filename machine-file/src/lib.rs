@@ -19,9 +19,9 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
-/// The text of `configs/table1.toml`: the paper's Table 1 machine and drive, the drive a
+/// The text of `configs/machines/table1.toml`: the paper's Table 1 machine and drive, the drive a
 /// firmware image carries unless its build is given another file.
-pub const TABLE1_TOML: &str = include_str!("../../configs/table1.toml");
+pub const TABLE1_TOML: &str = include_str!("../../configs/machines/table1.toml");
 
 /// The `[drive]` keys that describe the machine, each defaulting to the plant's value.
 pub const MACHINE_KEYS: [&str; 6] = [

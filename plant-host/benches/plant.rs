@@ -2,7 +2,7 @@
 //! - mechanics: 4000 steps of 250 µs under a torque profile that crosses the gap ~40 times.
 //! - drive: winding + mechanics in the harness's pattern, a new voltage the computational
 //!   delay after each 250 µs tick (8000 `advance` calls per simulated second), plus the
-//!   encoder and ADC reads. The plant is `configs/table1.toml`.
+//!   encoder and ADC reads. The plant is `configs/machines/table1.toml`.
 #![allow(missing_docs, clippy::unwrap_used)]
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
@@ -17,7 +17,10 @@ fn profile(t: f64) -> (f64, f64) {
 }
 
 fn bench(c: &mut Criterion) {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../configs/machines/table1.toml"
+    );
     let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
     let delay = cfg.electrics.computational_delay_s;
     let rest = 250e-6 - delay;

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 fn config(name: &str) -> Result<PlantConfig, plant_host::PlantError> {
     PlantConfig::from_machine_file(
         &PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../configs")
+            .join("../configs/machines")
             .join(name),
     )
 }

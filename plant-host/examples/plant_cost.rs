@@ -7,7 +7,10 @@ use std::f64::consts::PI;
 use std::time::Instant;
 
 fn main() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../configs/machines/table1.toml"
+    );
     let cfg = match PlantConfig::from_machine_file(path.as_ref()) {
         Ok(cfg) => cfg,
         Err(e) => {

@@ -20,7 +20,7 @@ use crate::sensors::Sensors;
 ///
 /// ```
 /// use plant_host::{PlantConfig, TwoInertiaPlant};
-/// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+/// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/machines/table1.toml");
 /// let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
 /// let mut plant = TwoInertiaPlant::torque_driven(&cfg);
 /// // 1 pu torque for 10 ms: the motor crosses the half-gap alone, then drags the load.
@@ -120,7 +120,7 @@ impl TwoInertiaPlant {
     ///
     /// ```
     /// use plant_host::{PlantConfig, TwoInertiaPlant};
-    /// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    /// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/machines/table1.toml");
     /// let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
     /// let (mut a, mut b) = (TwoInertiaPlant::voltage_driven(&cfg), TwoInertiaPlant::voltage_driven(&cfg));
     /// let step = a.fixed_step(180e-6).unwrap();
@@ -181,7 +181,7 @@ impl TwoInertiaPlant {
     ///
     /// ```
     /// use plant_host::{PlantConfig, TwoInertiaPlant};
-    /// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+    /// # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/machines/table1.toml");
     /// let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
     /// let (mut a, mut b) = (TwoInertiaPlant::voltage_driven(&cfg), TwoInertiaPlant::voltage_driven(&cfg));
     /// let delay = cfg.electrics.computational_delay_s;

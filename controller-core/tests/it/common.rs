@@ -1,11 +1,11 @@
-//! Test support: the paper's Table 1 drive from `configs/table1.toml`, composed by the one
+//! Test support: the paper's Table 1 drive from `configs/machines/table1.toml`, composed by the one
 //! composer of a machine file (`machine_file::compose`) that the harness and the firmware
 //! build use.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use controller_core::DriveConfig;
 
-/// The text of `configs/table1.toml`.
+/// The text of `configs/machines/table1.toml`.
 pub const TABLE1_TOML: &str = machine_file::TABLE1_TOML;
 
 /// The drive of a machine file's text.
@@ -20,12 +20,12 @@ pub fn try_drive_of(text: &str) -> Result<DriveConfig, String> {
         .map_err(|e| e.to_string())
 }
 
-/// The paper's Table 1 drive (`configs/table1.toml`).
+/// The paper's Table 1 drive (`configs/machines/table1.toml`).
 pub fn table1() -> DriveConfig {
     drive_of(TABLE1_TOML)
 }
 
-/// A number of a table of `configs/table1.toml` (e.g. `("plant", "anti_resonance_hz")`).
+/// A number of a table of `configs/machines/table1.toml` (e.g. `("plant", "anti_resonance_hz")`).
 pub fn table1_number(table: &str, key: &str) -> f64 {
     let doc: toml::Table = TABLE1_TOML.parse().unwrap();
     match doc.get(table).and_then(|t| t.get(key)) {

@@ -1,6 +1,6 @@
 //! Loop-in-the-loop: the run's settings, the record layout and the reference run.
 //!
-//! The drive of the run is the one `build.rs` bakes from `configs/table1.toml`
+//! The drive of the run is the one `build.rs` bakes from `configs/machines/table1.toml`
 //! (`firmware::drive::baked` in the image). This file depends on controller-core and `core`
 //! only, because it is compiled twice: into
 //! the firmware library (target and host) and into `build.rs` (host), where

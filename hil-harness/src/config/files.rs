@@ -25,6 +25,11 @@ pub fn configs_dir() -> PathBuf {
         .join("configs")
 }
 
+/// The machine files' folder, `configs/machines/`.
+pub fn machines_dir() -> PathBuf {
+    configs_dir().join("machines")
+}
+
 /// Names of the scenarios under `configs/scenarios/`, sorted.
 pub fn known_scenarios() -> Vec<String> {
     let dir = configs_dir().join("scenarios");
@@ -123,25 +128,23 @@ pub fn load_scenario(name: &str) -> Result<ScenarioSpec> {
     scenario_of(scenario_table(name)?)
 }
 
-/// Finds a config by path, or by name as `configs/NAME.toml` (then the harness's own
-/// test-stand plants, `configs/scenarios/plants/NAME.toml`).
+/// Finds a machine file by path, or by name as `configs/machines/NAME.toml`.
 pub fn config_path(name_or_path: &str) -> Result<PathBuf> {
     let p = Path::new(name_or_path);
     if p.is_file() {
         return Ok(p.to_path_buf());
     }
-    for dir in [
-        configs_dir(),
-        configs_dir().join("scenarios").join("plants"),
-    ] {
-        let by_name = dir.join(format!("{name_or_path}.toml"));
-        if by_name.is_file() {
-            return Ok(by_name);
-        }
+    let valid = !name_or_path.is_empty()
+        && name_or_path
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    let by_name = machines_dir().join(format!("{name_or_path}.toml"));
+    if valid && by_name.is_file() {
+        return Ok(by_name);
     }
     Err(HarnessError::io(
         p,
-        "no such config file (give a path or a name under configs/)",
+        "no such machine file (give a path, or a name under configs/machines/)",
     ))
 }
 

@@ -24,10 +24,12 @@ mod tests {
     use controller_core::{ObserverConfig, PiInertia};
     use toml::Value;
 
-    /// configs/table1.toml with `extra` TOML appended (a table given twice is merged key by
+    /// configs/machines/table1.toml with `extra` TOML appended (a table given twice is merged key by
     /// key, the later value winning).
     fn parse(extra: &str) -> Result<DriveConfig> {
-        let path = crate::config::configs_dir().join("table1.toml");
+        let path = crate::config::configs_dir()
+            .join("machines")
+            .join("table1.toml");
         let mut doc = crate::config::read_table(&path).unwrap();
         let extra: Table = extra.parse().unwrap();
         merge(&mut doc, extra);
@@ -47,7 +49,9 @@ mod tests {
 
     #[test]
     fn machine_values_come_from_the_plant_and_keys_override_them() {
-        let path = crate::config::configs_dir().join("table1.toml");
+        let path = crate::config::configs_dir()
+            .join("machines")
+            .join("table1.toml");
         let (plant, _) = machine(crate::config::read_table(&path).unwrap()).unwrap();
         let cfg = parse("[drive]\nvelocity_bandwidth_rad_s = 50\n").unwrap();
         assert_eq!(cfg.velocity_bandwidth_rad_s, 50.0);
@@ -170,7 +174,9 @@ mod tests {
 
     #[test]
     fn a_file_without_the_drives_loop_keys_is_an_error_naming_them() {
-        let path = crate::config::configs_dir().join("table1.toml");
+        let path = crate::config::configs_dir()
+            .join("machines")
+            .join("table1.toml");
         let mut doc = crate::config::read_table(&path).unwrap();
         if let Some(Value::Table(d)) = doc.get_mut("drive") {
             d.remove("current_rate_hz");

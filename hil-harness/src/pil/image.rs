@@ -41,7 +41,7 @@ fn backend(what: &str, e: impl std::fmt::Display) -> HarnessError {
 /// into [`firmware_target_dir`], holding its lock file while `then` runs on the release
 /// directory. Adds the ARM target to the toolchain first if it lacks it. The image carries
 /// the drive of the machine file `drive` (`STIFFDRIVE_DRIVE`, an absolute path), or
-/// `configs/table1.toml` for `None`, whatever the caller's environment says.
+/// `configs/machines/table1.toml` for `None`, whatever the caller's environment says.
 fn build_locked<T>(
     args: &[&str],
     drive: Option<&Path>,

@@ -32,7 +32,7 @@ pub fn dyno(runs: &Runs) -> Result<Section> {
          saturates; about 10 Hz torque oscillation in the measured torque without acceleration \
          feedback, reduced in magnitude by 75-80 % with it.",
         format!(
-            "dyno plant as assumed in `configs/scenarios/plants/dyno.toml` (Jm {} s + Jl {} s, \
+            "dyno plant as assumed in `configs/machines/dyno.toml` (Jm {} s + Jl {} s, \
              coupling anti-resonance {} Hz, engaged resonance {:.1} Hz, backlash {} deg). \
              Shaft-torque ripple during the acceleration (the scenario's ripple window): {:.4} \
              pu RMS at about {:.1} Hz without AFB, {:.4} pu RMS at about {:.1} Hz with: {}. \

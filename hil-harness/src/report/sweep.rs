@@ -59,7 +59,7 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
              at the same bandwidth, one per observer bandwidth of the grid (the observer also \
              gives the velocity feedback); \"without AFB\" is the better of them. The modelled \
              press: {cpr} counts/rev, lost motion {} deg ({:.0} counts), Jm {} s, Jl {} s \
-             (`configs/printing-press.toml`).",
+             (`configs/machines/printing-press.toml`).",
             crate::experiments::sweep::BANDWIDTHS_RAD_S,
             crate::experiments::sweep::GAINS,
             crate::experiments::sweep::FILTERS,

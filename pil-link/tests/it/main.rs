@@ -2,11 +2,11 @@
 //! the Table 1 drive (`common`).
 //! `cargo test -p pil-link --features std --test it <module>::` runs one module.
 
-/// The paper's Table 1 drive, composed from `configs/table1.toml` by the one composer.
+/// The paper's Table 1 drive, composed from `configs/machines/table1.toml` by the one composer.
 mod common {
     pub fn table1() -> controller_core::DriveConfig {
         machine_file::table1()
-            .expect("configs/table1.toml composes")
+            .expect("configs/machines/table1.toml composes")
             .drive
     }
 }

@@ -110,7 +110,10 @@ mod tests {
     /// kept when a state is not finite.
     #[test]
     fn the_short_guard_test_is_the_dense_one() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/table1.toml");
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../configs/machines/table1.toml"
+        );
         let cfg = PlantConfig::from_machine_file(path.as_ref()).unwrap();
         let model = Model::new(
             &cfg.mechanics,

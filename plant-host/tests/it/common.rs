@@ -1,4 +1,4 @@
-//! Test support: the shipped machine files (Table 1 lives only in `configs/table1.toml`), and an
+//! Test support: the shipped machine files (Table 1 lives only in `configs/machines/table1.toml`), and an
 //! independent reference integrator for the accuracy tests: fine fixed-step classical RK4 on the
 //! equations as `plant-host/README.md` writes them, with the contact law classified from the state
 //! (memoryless) and frozen within a step; when the classification changes across a step, the step
@@ -21,7 +21,7 @@ use std::path::PathBuf;
 /// `configs/NAME` of the workspace.
 pub fn config_path(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../configs")
+        .join("../configs/machines")
         .join(name)
 }
 
@@ -35,7 +35,7 @@ pub fn config(name: &str) -> PlantConfig {
     PlantConfig::from_machine_file(&config_path(name)).unwrap()
 }
 
-/// The paper's Table 1 plant, from `configs/table1.toml`.
+/// The paper's Table 1 plant, from `configs/machines/table1.toml`.
 pub fn table1() -> PlantConfig {
     config("table1.toml")
 }

@@ -17,7 +17,7 @@ use plant_host::{
 use std::path::PathBuf;
 use toml::{Table, Value};
 
-/// The plant tables of `configs/table1.toml` as a value tree (its `[drive]` removed, as the
+/// The plant tables of `configs/machines/table1.toml` as a value tree (its `[drive]` removed, as the
 /// harness does).
 fn table1_doc() -> Table {
     let mut doc: Table = common::config_text("table1.toml").parse().unwrap();
@@ -73,7 +73,7 @@ fn shipped_configs_parse_and_round_trip() {
     let counts = pp.mechanics.backlash_deg / 360.0 * 1e6;
     assert!((counts - 150.0).abs() < 1e-6, "{counts}");
     assert!((pp.mechanics.load_inertia_s / pp.mechanics.motor_inertia_s - 8.0).abs() < 1e-12);
-    let dyno = common::config("scenarios/plants/dyno.toml");
+    let dyno = common::config("dyno.toml");
     assert_eq!(dyno.mechanics.backlash_deg, 0.0);
 }
 
