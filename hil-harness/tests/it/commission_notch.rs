@@ -5,7 +5,7 @@
 //! must be better with it than without it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-mod common;
+use crate::common;
 
 use hil_harness::experiments::commission::commission;
 use hil_harness::experiments::tune::Constraints;

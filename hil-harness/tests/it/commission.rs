@@ -4,7 +4,7 @@
 //! better than the no-AFB design).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-mod common;
+use crate::common;
 
 use hil_harness::experiments::commission::commission;
 use hil_harness::experiments::tune::Constraints;

@@ -3,7 +3,7 @@
 //! same constraints.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-mod common;
+use crate::common;
 
 use hil_harness::experiments::tune::{candidates, search, without_afb, Candidate, Constraints};
 
