@@ -380,3 +380,60 @@ fn guard_list(
         (BacklashModel::Clamped, Contact::Braking) => [one(lin(force, k * g), Contact::Free), None],
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use crate::model::{Model, Winding};
+
+    /// Every linear part of every guard, in each mode of both laws, with the winding (so the
+    /// current is a state): its value is c·x + k and its rate the derivative of that value
+    /// along the mode's dynamics, c·(A·x + B·u), with every component of the state counting
+    /// (the current drives the motor speed, so it enters the rate of the clamped law's force).
+    #[test]
+    fn guard_values_and_rates_follow_the_mode_dynamics() {
+        let x = Vec5::new(0.003, -1.2, 0.7, -0.4, 1.5);
+        let u = Vec3::new(0.8, -0.3, 1.0);
+        let close = |got: f64, want: f64| (got - want).abs() <= 1e-12 * (1.0 + want.abs());
+        let mut parts = 0;
+        for law in [BacklashModel::DeadZone, BacklashModel::Clamped] {
+            let model = Model {
+                motor_inertia_s: 0.2,
+                load_inertia_s: 0.5,
+                motor_viscous_pu: 0.01,
+                load_viscous_pu: 0.02,
+                base_speed_rad_s: 300.0,
+                shaft: Shaft {
+                    k: 40.0,
+                    d: 0.3,
+                    g: 0.004,
+                },
+                law,
+                winding: Some(Winding {
+                    r_pu: 0.05,
+                    l_pu_s: 0.002,
+                }),
+                load_locked: false,
+            };
+            for contact in Contact::ALL {
+                let (a, b) = model.matrices(contact);
+                let dx = a * x + b * u;
+                for guard in guard_list(contact, law, &model.shaft, &a, &b)
+                    .iter()
+                    .flatten()
+                {
+                    for l in guard.lins() {
+                        let c = Vec5::from(l.c);
+                        let (value, rate) = (c.dot(&x) + l.k, c.dot(&dx));
+                        assert!(close(l.value(&x), value), "{law:?} {contact:?} {c:?}");
+                        assert!(close(l.rate(&x, &u), rate), "{law:?} {contact:?} {c:?}");
+                        parts += 1;
+                    }
+                }
+            }
+        }
+        // Dead zone: 2 + 1 + 1 parts; clamped: 4 + 1 + 1.
+        assert_eq!(parts, 10);
+    }
+}
