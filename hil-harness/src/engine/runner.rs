@@ -195,17 +195,25 @@ pub fn controller(cfg: &RunConfig) -> Result<Controller> {
 pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
     let mut controller = controller(cfg)?;
     let mut out = run_with_backend(cfg, &mut controller)?;
-    if out.metrics.oscillation.kind == OscillationKind::LimitCycle {
-        // A drive that cannot take the finer counts (its counter width, say) keeps the
-        // verdict unconfirmed.
-        let again = finer_encoder(cfg)
-            .and_then(|fine| Some((self::controller(&fine).ok()?, fine)))
-            .and_then(|(mut c, fine)| run_with_backend(&fine, &mut c).ok());
-        if let Some(again) = again {
-            out.metrics.confirm(&again.metrics, &cfg.metric_windows());
-        }
-    }
+    confirm_limit_cycle(cfg, &mut out);
     Ok(out)
+}
+
+/// The `oscillation` rule's step 5 on a finished run of `cfg`: a `limit_cycle` verdict is
+/// checked by the same run on the host controller with the encoder interpolated
+/// [`CONFIRM_INTERPOLATION`] times more ([`Metrics::confirm`](crate::engine::metrics::Metrics::confirm)).
+/// A drive that cannot take the finer counts (its counter width, say) keeps the verdict
+/// unconfirmed (`interpolated_amplitude_pu` stays `null`).
+pub fn confirm_limit_cycle(cfg: &RunConfig, out: &mut RunOutput) {
+    if out.metrics.oscillation.kind != OscillationKind::LimitCycle {
+        return;
+    }
+    let again = finer_encoder(cfg)
+        .and_then(|fine| Some((self::controller(&fine).ok()?, fine)))
+        .and_then(|(mut c, fine)| run_with_backend(&fine, &mut c).ok());
+    if let Some(again) = again {
+        out.metrics.confirm(&again.metrics);
+    }
 }
 
 /// `cfg` with its encoder interpolated [`CONFIRM_INTERPOLATION`] times more (the drive

@@ -38,6 +38,15 @@ pub fn fig4(runs: &Runs) -> Result<Section> {
              position-difference panel is the paper's Fig. 4 signal set.",
             verdict(ok4)
         ),
+    )
+    .row(
+        "Fig. 4: the gears separate; the twist shows in counts",
+        "resonance and lost motion visible in the position differences",
+        format!(
+            "largest |motor - load| {:.2} counts against {gap_counts:.2} counts of lost motion",
+            m4.max_twist_counts
+        ),
+        verdict(ok4),
     ))
 }
 
@@ -113,5 +122,19 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
                 format!("; failed: {}.", failed.join(", "))
             }
         ),
+    )
+    .row(
+        format!("Fig. 6/7 ({what}): slight overshoot; AFB calms the load step"),
+        "slight overshoot after the ramp; slight oscillation after the 50 % step",
+        format!(
+            "overshoot {} pu; shaft-torque ripple {:.4} pu with AFB, {:.4} pu without; \
+             verdict {} at {:.1} Hz",
+            fmt_opt(ma.overshoot_pu),
+            ma.shaft_torque_ripple_rms_pu,
+            mo.shaft_torque_ripple_rms_pu,
+            ma.oscillation.kind.word(),
+            ma.oscillation.freq_hz
+        ),
+        verdict(ok),
     ))
 }
