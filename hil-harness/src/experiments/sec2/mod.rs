@@ -379,6 +379,24 @@ mod tests {
         assert_eq!(s.unstable_with_where_stable_without, 1);
     }
 
+    /// The confirming rerun of a run without AFB (the oscillation rule's step 5) borrows
+    /// its gains from the AFB design counting the finer encoder: the gains are those of
+    /// the same map's run at that encoder, bit for bit.
+    #[test]
+    fn the_confirming_rerun_of_a_run_without_afb_has_the_finer_encoders_gains() {
+        use crate::engine::metrics::oscillation::CONFIRM_INTERPOLATION;
+        use crate::engine::runner::{finer_encoder, regulator_gains, same_regulator_gains};
+        let coarse = no_afb_config(&base_config(1).unwrap(), 100.0).unwrap();
+        let fine = finer_encoder(&coarse).unwrap();
+        let direct = no_afb_config(&base_config(CONFIRM_INTERPOLATION).unwrap(), 100.0).unwrap();
+        let (g, d) = (
+            regulator_gains(&fine).unwrap(),
+            regulator_gains(&direct).unwrap(),
+        );
+        assert_eq!(g.cfg.encoder_cpr, d.cfg.encoder_cpr);
+        assert!(same_regulator_gains(&g, &d), "{g:?}\n{d:?}");
+    }
+
     #[test]
     fn the_run_without_afb_has_the_gains_of_its_afb_design() {
         for (n, fv) in ENCODER_INTERPOLATIONS
