@@ -6,6 +6,7 @@ use super::runs::gains_line;
 use super::section::{change, verdict, Section};
 use super::{get, Runs, SLIGHT_OVERSHOOT_PU};
 use crate::commands::fmt_opt;
+use crate::engine::metrics::Metrics;
 use crate::error::Result;
 
 /// Fig. 4: the gears separate and the twist is visible in counts.
@@ -71,7 +72,7 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
     .collect();
     let sens = &ca.plant.sensors;
     let afb_cfg = &ca.drive.accel_feedback;
-    Ok(Section::claim(
+    let section = Section::claim(
         format!(
             "{} ({what}, {} counts/rev)",
             fill(
@@ -122,8 +123,13 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
                 format!("; failed: {}.", failed.join(", "))
             }
         ),
-    )
-    .row(
+    );
+    Ok(fig6_row(section, what, ma, mo, ok))
+}
+
+/// Fig. 6/7's row of the claims table.
+fn fig6_row(s: Section, what: &str, ma: &Metrics, mo: &Metrics, ok: bool) -> Section {
+    s.row(
         format!("Fig. 6/7 ({what}): slight overshoot; AFB calms the load step"),
         "slight overshoot after the ramp; slight oscillation after the 50 % step",
         format!(
@@ -136,5 +142,5 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
             ma.oscillation.freq_hz
         ),
         verdict(ok),
-    ))
+    )
 }

@@ -39,7 +39,8 @@ fn ended(l: &Limit) -> String {
     } else {
         let _ = write!(
             s,
-            " (the speed criterion alone, without the oscillation verdict: {} rad/s; this              point moved it)",
+            " (the speed criterion alone, without the oscillation verdict: {} rad/s; this \
+             point moved it)",
             l.by_speed_rad_s
         );
     }
@@ -62,7 +63,10 @@ pub fn decided(points: &[SweepPoint], plants: &[&str]) -> String {
         }
     }
     format!(
-        "What ended each limit (the first point above it judged unstable, with its oscillation          verdict from `summary.json`'s rule): {}. The oscillation verdict changed {} of {}          points from the speed criterion alone (`stable` ≠ `stable_by_speed` in          `sweep/sweep.csv`; verdicts {:?}).",
+        "What ended each limit (the first point above it judged unstable, with its \
+         oscillation verdict from `summary.json`'s rule): {}. The oscillation verdict changed \
+         {} of {} points from the speed criterion alone (`stable` ≠ `stable_by_speed` in \
+         `sweep/sweep.csv`; verdicts {:?}).",
         limits.join("; "),
         moved.len(),
         points.iter().filter(|p| p.error.is_empty()).count(),

@@ -159,6 +159,17 @@ fn bandwidths(tunes: &[MachineTune]) -> String {
     )
 }
 
+/// The runs whose `stable` the oscillation verdict decided, one paragraph each.
+fn moved_by_verdict(tunes: &[MachineTune]) -> String {
+    let mut s = String::new();
+    for t in tunes {
+        for line in t.runs.iter().filter_map(LoopRun::moved_by_verdict) {
+            let _ = write!(s, "\n{}: {line}.\n", t.machine);
+        }
+    }
+    s
+}
+
 /// The section: both designs per machine, their runs, and the verdict by [`CRITERION`].
 pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
     let mut m = format!(
@@ -199,13 +210,7 @@ pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
             loop_row(&mut m, &t.machine, r);
         }
     }
-    for (t, line) in tunes.iter().flat_map(|t| {
-        t.runs
-            .iter()
-            .filter_map(move |r| Some((t, r.moved_by_verdict()?)))
-    }) {
-        let _ = write!(m, "\n{}: {line}.\n", t.machine);
-    }
+    m.push_str(&moved_by_verdict(tunes));
     let passed = tunes.iter().filter(|t| t.passed).count();
     let verdict = match passed {
         n if n == tunes.len() && n > 0 => "**agrees**",
