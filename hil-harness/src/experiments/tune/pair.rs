@@ -130,8 +130,8 @@ impl LoopRun {
 
     /// The header of [`LoopRun::row`]'s table columns (after any leading columns).
     pub const HEADER: &'static str = "design | bandwidth (rad/s) | AFB | stable | oscillation \
-        verdict | fault | shaft-torque ripple after the load step (pu) | its ring frequency \
-        (Hz) | droop (pu) |";
+        verdict | fault | shaft-torque ripple after the load step (pu) | its peak in the \
+        resonance band (Hz) | droop (pu) |";
     /// The markdown separator of [`LoopRun::HEADER`]'s nine columns.
     pub const RULE: &'static str = "---|---|---|---|---|---|---|---|---|";
 
