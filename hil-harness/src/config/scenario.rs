@@ -400,6 +400,9 @@ impl ScenarioSpec {
             stable_saturation_fraction: m.stable_saturation_fraction.unwrap_or(0.2),
             torque_limit_pu,
             machine: None,
+            excitation_hz: self
+                .sine_load
+                .map(|sl| sl.freq_rad_s / (2.0 * std::f64::consts::PI)),
         }
     }
 }

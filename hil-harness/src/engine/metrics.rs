@@ -40,6 +40,9 @@ pub struct MetricWindows {
     /// The machine the bands and the count-rate tone come from; `None` = unknown (no
     /// tone, the noise band from 5 Hz, the shaft band 5 Hz to Nyquist).
     pub machine: Option<MachineBands>,
+    /// Frequency of the scenario's injected sine load (Hz), which the oscillation verdict
+    /// leaves out (the `oscillation` module's rule); `None` without one.
+    pub excitation_hz: Option<f64>,
 }
 
 /// What the spectral metrics need of the machine and the drive.
@@ -57,10 +60,14 @@ pub struct MachineBands {
 /// The metrics written to `summary.json`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Metrics {
-    /// Stable by the criterion of [`MetricWindows`]: no fault, all signals finite, speed
-    /// error bounded by 0.5 pu, its oscillation (`oscillation_pu`) below the threshold and
-    /// the torque not stuck at its limit in the stability window.
+    /// Stable: [`Metrics::stable_by_speed`] and the oscillation verdict neither
+    /// `limit_cycle` nor `diverging`.
     pub stable: bool,
+    /// The criterion of [`MetricWindows`] alone, without the oscillation verdict (the
+    /// `stable` of earlier versions): no fault, all signals finite, speed error bounded by
+    /// 0.5 pu, its oscillation (`oscillation_pu`) below the threshold and the torque not
+    /// stuck at its limit in the stability window.
+    pub stable_by_speed: bool,
     /// The controller reported a fault at some point of the run.
     pub faulted: bool,
     /// RMS of the motor speed error minus its centred moving average (the ripple
@@ -75,7 +82,9 @@ pub struct Metrics {
     /// The same for the shaft (transducer) torque (pu).
     pub shaft_torque_ripple_rms_pu: f64,
     /// Dominant ripple frequency of the shaft torque in the ripple window: the peak of its
-    /// spectrum above 5 Hz (Hz).
+    /// spectrum in the machine's resonance band ([`MachineBands::resonance_band_hz`]; above
+    /// 5 Hz for an unknown machine), so the shaft's ring and not the encoder's count-rate
+    /// tone (Hz).
     pub shaft_ripple_freq_hz: f64,
     /// Largest drop of motor speed below command after the load step, less the error
     /// just before it (pu). `None` without a step.
@@ -232,6 +241,7 @@ fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
     let some_nan = |o: Option<f64>| o.map(|_| nan);
     Metrics {
         stable: false,
+        stable_by_speed: false,
         faulted,
         oscillation_pu: nan,
         limit_cycle_torque_pu: nan,
@@ -258,6 +268,7 @@ fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
             tone_hz: None,
             growth: nan,
             interpolated_amplitude_pu: None,
+            excitation_hz: fig.oscillation.excitation_hz,
         },
         torque_saturated_s: nan,
         mean_torque_pu: nan,
@@ -273,10 +284,9 @@ fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
 impl Metrics {
     /// A `limit_cycle` verdict checked against the same run with the encoder interpolated
     /// (`again`, the `oscillation` module's step 5): if that run has no limit cycle (and
-    /// no fault), the
-    /// oscillation came from the counts and is `quantization`; `stable` is then the
-    /// scenario's own tests (speed oscillation, saturated share) alone.
-    pub fn confirm(&mut self, again: &Metrics, w: &MetricWindows) {
+    /// no fault), the oscillation came from the counts and is `quantization`; `stable` is
+    /// then the scenario's own tests alone ([`Metrics::stable_by_speed`]).
+    pub fn confirm(&mut self, again: &Metrics) {
         let o = &mut self.oscillation;
         o.interpolated_amplitude_pu = Some(again.oscillation.amplitude_pu);
         if o.kind != OscillationKind::LimitCycle
@@ -289,10 +299,7 @@ impl Metrics {
             return;
         }
         o.kind = OscillationKind::Quantization;
-        self.stable = !self.faulted
-            && self.invalid_reason.is_none()
-            && self.oscillation_pu < w.stable_oscillation_pu
-            && o.saturated_fraction <= w.stable_saturation_fraction;
+        self.stable = self.stable_by_speed && self.invalid_reason.is_none();
     }
 }
 
@@ -306,12 +313,17 @@ fn series(rows: &[TraceRow], win: (f64, f64), f: impl Fn(&TraceRow) -> f64) -> V
 fn spectral(rows: &[TraceRow], w: &MetricWindows, fs: f64) -> (f64, f64, f64) {
     let nyquist = fs / 2.0;
     let shaft = series(rows, w.ripple_window_s, |r| r.shaft_torque_pu);
-    let freq = spectrum::peak(&shaft, fs, oscillation::F_MIN_HZ, oscillation::HALF_BAND_HZ)
-        .map_or(0.0, |p| p.freq_hz);
     let (bw_hz, band) = w.machine.map_or(
         (oscillation::F_MIN_HZ, (oscillation::F_MIN_HZ, nyquist)),
         |m| (m.velocity_bandwidth_hz, m.resonance_band_hz),
     );
+    let search = spectrum::Band {
+        lo_hz: band.0.max(oscillation::F_MIN_HZ),
+        hi_hz: band.1,
+        skip: &[],
+    };
+    let freq =
+        spectrum::peak(&shaft, fs, &search, oscillation::HALF_BAND_HZ).map_or(0.0, |p| p.freq_hz);
     let torque = series(rows, w.stable_window_s, |r| r.current_pu);
     (
         freq,
@@ -346,6 +358,7 @@ fn verdict(p: &Pass, rows: &[TraceRow], fs: f64, oscillation_pu: f64, sat: f64) 
         saturated_fraction: sat,
         finite_and_bounded: p.first_bad_t_s.is_none() && p.bounded,
         speed_oscillates: oscillation_pu.is_nan() || oscillation_pu >= w.stable_oscillation_pu,
+        excitation_hz: w.excitation_hz,
     };
     let torque = series(rows, w.stable_window_s, |r| r.current_pu);
     oscillation::classify(&torque, &evidence)
@@ -370,13 +383,14 @@ fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
         p.saturated_in_window as f64 / p.stable_rows as f64
     };
     let oscillation = verdict(p, rows, fs, oscillation_pu, sat_fraction);
-    let stable = p.first_bad_t_s.is_none()
+    let stable_by_speed = p.first_bad_t_s.is_none()
         && !p.faulted
         && p.stable_rows > 0
         && p.bounded
         && oscillation_pu.is_finite()
         && oscillation_pu < w.stable_oscillation_pu
-        && sat_fraction <= w.stable_saturation_fraction
+        && sat_fraction <= w.stable_saturation_fraction;
+    let stable = stable_by_speed
         && !matches!(
             oscillation.kind,
             OscillationKind::LimitCycle | OscillationKind::Diverging
@@ -395,6 +409,7 @@ fn finish(p: &Pass, rows: &[TraceRow]) -> Metrics {
     let ring = shaft_ring(rows, w, dt);
     let m = Metrics {
         stable,
+        stable_by_speed,
         faulted: p.faulted,
         oscillation_pu,
         limit_cycle_torque_pu: cycle.rms(),

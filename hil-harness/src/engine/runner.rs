@@ -195,22 +195,31 @@ pub fn controller(cfg: &RunConfig) -> Result<Controller> {
 pub fn run_scenario(cfg: &RunConfig) -> Result<RunOutput> {
     let mut controller = controller(cfg)?;
     let mut out = run_with_backend(cfg, &mut controller)?;
-    if out.metrics.oscillation.kind == OscillationKind::LimitCycle {
-        // A drive that cannot take the finer counts (its counter width, say) keeps the
-        // verdict unconfirmed.
-        let again = finer_encoder(cfg)
-            .and_then(|fine| Some((self::controller(&fine).ok()?, fine)))
-            .and_then(|(mut c, fine)| run_with_backend(&fine, &mut c).ok());
-        if let Some(again) = again {
-            out.metrics.confirm(&again.metrics, &cfg.metric_windows());
-        }
-    }
+    confirm_limit_cycle(cfg, &mut out);
     Ok(out)
 }
 
+/// The `oscillation` rule's step 5 on a finished run of `cfg`: a `limit_cycle` verdict is
+/// checked by the same run on the host controller with the encoder interpolated
+/// [`CONFIRM_INTERPOLATION`] times more ([`Metrics::confirm`](crate::engine::metrics::Metrics::confirm)).
+/// A drive that cannot take the finer counts (its counter width, say) keeps the verdict
+/// unconfirmed (`interpolated_amplitude_pu` stays `null`).
+pub fn confirm_limit_cycle(cfg: &RunConfig, out: &mut RunOutput) {
+    if out.metrics.oscillation.kind != OscillationKind::LimitCycle {
+        return;
+    }
+    let again = finer_encoder(cfg)
+        .and_then(|fine| Some((self::controller(&fine).ok()?, fine)))
+        .and_then(|(mut c, fine)| run_with_backend(&fine, &mut c).ok());
+    if let Some(again) = again {
+        out.metrics.confirm(&again.metrics);
+    }
+}
+
 /// `cfg` with its encoder interpolated [`CONFIRM_INTERPOLATION`] times more (the drive
-/// counting the finer counts); `None` if the counts would not fit the drive's range.
-fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
+/// counting the finer counts, and so the AFB drive a comparison run borrows its gains
+/// from); `None` if the counts would not fit the drive's range.
+pub(crate) fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
     let mut fine = cfg.clone();
     let s = &mut fine.plant.sensors;
     s.encoder_interpolation = s.encoder_interpolation.checked_mul(CONFIRM_INTERPOLATION)?;
@@ -220,9 +229,15 @@ fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
             == u64::from(fine.plant.mechanics.encoder_cpr)
                 * u64::from(fine.plant.sensors.encoder_interpolation))
     .then(|| {
-        fine.drive.encoder_cpr = cpr;
-        // A limit in counts stays the same angle.
-        fine.drive.faults.following_error_counts *= CONFIRM_INTERPOLATION as f32;
+        // A limit in counts stays the same angle. A comparison run's gains are designed
+        // from its AFB run's drive: that drive counts the finer counts too, or the gains
+        // would scale the finer counts as the coarse ones.
+        for d in
+            std::iter::once(&mut fine.drive).chain(fine.gains_of.as_mut().map(|g| &mut g.drive))
+        {
+            d.encoder_cpr = cpr;
+            d.faults.following_error_counts *= CONFIRM_INTERPOLATION as f32;
+        }
         fine
     })
 }

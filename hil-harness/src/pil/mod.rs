@@ -14,6 +14,12 @@
 //! bit-for-bit comparison with the host run of the same scenario), `firmware.defmt` (the
 //! firmware's defmt log) and `firmware.log` (decoded in-process by `fw-runner`'s defmt decoder).
 //!
+//! `summary.json`'s oscillation verdict follows the same rule as a host run's; a
+//! `limit_cycle` is confirmed by rerunning the scenario with the encoder interpolated
+//! (the rule's step 5) on the host build of controller-core, which the comparison checks
+//! bit for bit against the firmware at the run's own encoder. A run cut at a link fault
+//! keeps its verdict unconfirmed (`interpolated_amplitude_pu` is `null`).
+//!
 //! On a link fault (lost, corrupted or late frame, seen by either side) the run stops
 //! driving the firmware at that tick, waits for the firmware to show its latched safe state,
 //! writes the trace up to the fault and returns an error naming both sides' view.

@@ -317,6 +317,12 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
     } else {
         None
     };
+    if link.fault.is_none() {
+        // The oscillation rule's step 5: a limit cycle is rerun with the encoder
+        // interpolated, on the host build of controller-core (the firmware image counts the
+        // encoder of the run); a run cut at a link fault keeps its verdict unconfirmed.
+        crate::engine::runner::confirm_limit_cycle(&cfg, &mut run);
+    }
     write_files(
         &staging,
         &cfg,

@@ -6,6 +6,7 @@ use super::runs::gains_line;
 use super::section::{change, verdict, Section};
 use super::{get, Runs, SLIGHT_OVERSHOOT_PU};
 use crate::commands::fmt_opt;
+use crate::engine::metrics::Metrics;
 use crate::error::Result;
 
 /// Fig. 4: the gears separate and the twist is visible in counts.
@@ -38,6 +39,15 @@ pub fn fig4(runs: &Runs) -> Result<Section> {
              position-difference panel is the paper's Fig. 4 signal set.",
             verdict(ok4)
         ),
+    )
+    .row(
+        "Fig. 4: the gears separate; the twist shows in counts",
+        "resonance and lost motion visible in the position differences",
+        format!(
+            "largest |motor - load| {:.2} counts against {gap_counts:.2} counts of lost motion",
+            m4.max_twist_counts
+        ),
+        verdict(ok4),
     ))
 }
 
@@ -62,7 +72,7 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
     .collect();
     let sens = &ca.plant.sensors;
     let afb_cfg = &ca.drive.accel_feedback;
-    Ok(Section::claim(
+    let section = Section::claim(
         format!(
             "{} ({what}, {} counts/rev)",
             fill(
@@ -113,5 +123,24 @@ pub fn fig6(runs: &Runs, afb: &str, off: &str, what: &str, figure: &str) -> Resu
                 format!("; failed: {}.", failed.join(", "))
             }
         ),
-    ))
+    );
+    Ok(fig6_row(section, what, ma, mo, ok))
+}
+
+/// Fig. 6/7's row of the claims table.
+fn fig6_row(s: Section, what: &str, ma: &Metrics, mo: &Metrics, ok: bool) -> Section {
+    s.row(
+        format!("Fig. 6/7 ({what}): slight overshoot; AFB calms the load step"),
+        "slight overshoot after the ramp; slight oscillation after the 50 % step",
+        format!(
+            "overshoot {} pu; shaft-torque ripple {:.4} pu with AFB, {:.4} pu without; \
+             verdict {} at {:.1} Hz",
+            fmt_opt(ma.overshoot_pu),
+            ma.shaft_torque_ripple_rms_pu,
+            mo.shaft_torque_ripple_rms_pu,
+            ma.oscillation.kind.word(),
+            ma.oscillation.freq_hz
+        ),
+        verdict(ok),
+    )
 }

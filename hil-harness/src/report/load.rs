@@ -64,6 +64,20 @@ pub fn dyno(runs: &Runs) -> Result<Section> {
             pct(DYNO_REDUCTION.0),
             pct(DYNO_REDUCTION.1)
         ),
+    )
+    .row(
+        "Fig. 9/10: AFB reduces the dyno's torque oscillation",
+        "75-80 % less",
+        format!(
+            "shaft-torque ripple {:.4} pu with AFB, {:.4} pu without: {}",
+            on.shaft_torque_ripple_rms_pu,
+            off.shaft_torque_ripple_rms_pu,
+            change(
+                on.shaft_torque_ripple_rms_pu,
+                off.shaft_torque_ripple_rms_pu
+            )
+        ),
+        verdict(okd),
     ))
 }
 
@@ -107,6 +121,18 @@ pub fn shock(runs: &Runs, afb: &str, off: &str, figures: &str) -> Result<Section
             "{} (criterion: less shaft-torque ripple with AFB than without, at the same gains).",
             verdict(oks)
         ),
+    )
+    .row(
+        fill(
+            "Fig. 11/12: AFB reduces the ripple after a {load} shock at {bw} rad/s",
+            ca,
+        ),
+        "less torque ripple with AFB",
+        format!(
+            "shaft-torque ripple {:.4} pu with AFB, {:.4} pu without",
+            on.shaft_torque_ripple_rms_pu, offm.shaft_torque_ripple_rms_pu
+        ),
+        verdict(oks),
     ))
 }
 
@@ -143,5 +169,18 @@ pub fn shock_30(runs: &Runs) -> Result<Section> {
              ripple with AFB at {bw30} rad/s).",
             verdict(ok30)
         ),
+    )
+    .row(
+        format!("Fig. 13: at {bw30} rad/s the speed droops; more torque noise without AFB"),
+        "slight droop; more torque noise without AFB",
+        format!(
+            "droop {} pu at {bw30} rad/s against {} pu at {bw} rad/s; shaft-torque ripple \
+             {:.4} pu without AFB, {:.4} pu with",
+            fmt_opt(s30_off.metrics.load_step_droop_pu),
+            fmt_opt(s_off.metrics.load_step_droop_pu),
+            s30_off.metrics.shaft_torque_ripple_rms_pu,
+            s30_on.metrics.shaft_torque_ripple_rms_pu
+        ),
+        verdict(ok30),
     ))
 }

@@ -9,6 +9,7 @@
 //! [`sweep`] and [`tune`] (Sec. III-D), [`stiffness`] (Fig. 2, Eq. 1), [`runs`] (gains, all runs, speed);
 //! [`figures`] draws the comparison plots.
 
+pub mod claims;
 pub mod facts;
 pub mod fig6;
 pub mod figures;
@@ -117,6 +118,7 @@ pub fn run_all(names: &[&str]) -> Result<Runs> {
 struct Results {
     runs: Runs,
     sweep: Vec<crate::experiments::sweep::SweepResult>,
+    sweep_points: Vec<crate::experiments::sweep::SweepPoint>,
     stiffness: Vec<crate::experiments::stiffness::StiffnessPoint>,
     sec2: Vec<crate::experiments::sec2::MapPoint>,
     tunes: Vec<MachineTune>,
@@ -170,7 +172,7 @@ fn sections(r: &Results, elapsed_s: f64) -> Result<Vec<Section>> {
             "Fig. 11 and Fig. 12, the linear shock",
         )?,
         load::shock_30(runs)?,
-        sweep::section(&r.sweep)?,
+        sweep::section(&r.sweep_points, &r.sweep)?,
         tune::section(&r.tunes, &Constraints::default())?,
         stiffness::section(&r.stiffness)?,
         runs::all_runs(runs)?,
@@ -186,7 +188,8 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
     for (name, (cfg, out)) in &runs {
         write_run(&dir.join(name), cfg, out)?;
     }
-    let (sweep, sweep_text) = crate::experiments::sweep::sweep_into(&subdir(dir, "sweep")?)?;
+    let (sweep_points, sweep, sweep_text) =
+        crate::experiments::sweep::sweep_into(&subdir(dir, "sweep")?)?;
     let (stiffness, stiff_text) =
         crate::experiments::stiffness::stiffness_into(&subdir(dir, "stiffness")?)?;
     let sec2 = crate::experiments::sec2::map_into(&subdir(dir, "sec2")?)?;
@@ -201,14 +204,20 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
     let results = Results {
         runs,
         sweep,
+        sweep_points,
         stiffness,
         sec2,
         tunes,
     };
+    let all = sections(&results, t0.elapsed().as_secs_f64())?;
     let mut report = String::from(PREAMBLE);
-    for s in sections(&results, t0.elapsed().as_secs_f64())? {
+    report.push_str(&claims::section(&all).markdown());
+    for s in &all {
         report.push_str(&s.markdown());
     }
+    let claims_path = dir.join("claims.md");
+    std::fs::write(&claims_path, claims::table(&all))
+        .map_err(|e| HarnessError::io(&claims_path, e))?;
     report.push('\n');
     report.push_str(pil);
     let path = dir.join("REPORT.md");

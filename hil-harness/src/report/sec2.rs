@@ -23,10 +23,14 @@ pub fn observer(runs: &Runs) -> Result<Section> {
         &["fig6-no-afb/trace.png"],
         "If the acceleration signal was not fed back, the system would become unstable.",
         format!(
-            "same gains as fig6, AFB off, velocity from the drive's observer: stable {}; \
-             speed-error oscillation in the stability window ({}) {:.4} pu; motor-torque ripple \
-             {:.3} pu RMS; droop {} pu; twist up to {:.1} counts. {}.",
+            "same gains as fig6, AFB off, velocity from the drive's observer: stable {} \
+             (oscillation verdict {} at {:.1} Hz, ±{:.3} pu); speed-error oscillation in the \
+             stability window ({}) {:.4} pu; motor-torque ripple {:.3} pu RMS; droop {} pu; \
+             twist up to {:.1} counts. {}.",
             m.stable,
+            m.oscillation.kind.word(),
+            m.oscillation.freq_hz,
+            m.oscillation.amplitude_pu,
             stable_window(c6),
             m.oscillation_pu,
             m.torque_ripple_rms_pu,
@@ -45,6 +49,18 @@ pub fn observer(runs: &Runs) -> Result<Section> {
                  repeats the claim with that estimator."
             }
         ),
+    )
+    .row(
+        "Sec. II: without AFB the loop is unstable (drive's observer)",
+        "unstable without AFB",
+        format!(
+            "stable {}; verdict {} at {:.1} Hz, ±{:.3} pu",
+            m.stable,
+            m.oscillation.kind.word(),
+            m.oscillation.freq_hz,
+            m.oscillation.amplitude_pu
+        ),
+        verdict(okn),
     ))
 }
 
@@ -69,6 +85,7 @@ pub fn differentiation(runs: &Runs, map: &[MapPoint]) -> Result<Section> {
         ENCODER_INTERPOLATIONS,
         stable_window(c)
     );
+    let mut rows = Vec::new();
     for n in ENCODER_INTERPOLATIONS {
         let m = at(map, n);
         let ms = summarize(&m);
@@ -92,11 +109,27 @@ pub fn differentiation(runs: &Runs, map: &[MapPoint]) -> Result<Section> {
             table(&m),
             summary_text(&m)
         );
+        rows.push(super::section::ClaimRow {
+            claim: format!(
+                "Sec. II with differentiation, encoder x{n}: unstable without AFB, stable with"
+            ),
+            paper: "unstable without AFB; stable with".into(),
+            measured: format!(
+                "without AFB unstable at velocity-filter corners {:?} Hz; with AFB stable in {} \
+                 of {} cells of those rows",
+                ms.unstable_without_hz,
+                ms.stable_with_where_unstable_without,
+                ms.cells_where_unstable_without
+            ),
+            verdict: v.into(),
+        });
     }
-    Ok(Section::text(
+    let mut s = Section::text(
         "Sec. II with the paper's estimator: velocity and acceleration by differentiation",
         body,
-    ))
+    );
+    s.rows = rows;
+    Ok(s)
 }
 
 /// Sec. II: at 1-2 rad/s the loop without AFB is stable but highly oscillatory.
@@ -139,5 +172,17 @@ pub fn low_bandwidth(runs: &Runs) -> Result<Section> {
                  oscillation at this bandwidth is not reproduced."
             }
         ),
+    )
+    .row(
+        fill(
+            "Sec. II: at {bw} rad/s stable but highly oscillatory",
+            cl,
+        ),
+        "stable but highly oscillatory at 1-2 rad/s",
+        format!(
+            "stable {}; speed-error oscillation {:.4} pu (criterion above {HIGHLY_OSCILLATORY_PU} pu)",
+            m.stable, m.oscillation_pu
+        ),
+        low_verdict,
     ))
 }

@@ -17,6 +17,22 @@ pub struct Section {
     pub measured: String,
     /// The verdict and its criterion (`None` for a table or a note).
     pub assessment: Option<String>,
+    /// The section's rows of the claims table ([`super::claims`]).
+    pub rows: Vec<ClaimRow>,
+}
+
+/// One row of the claims table: the claim, the paper's figure, the measured figure and the
+/// verdict, each formatted by the function that judged the claim.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ClaimRow {
+    /// The claim, short.
+    pub claim: String,
+    /// The paper's figure.
+    pub paper: String,
+    /// The measured figure.
+    pub measured: String,
+    /// The verdict (`**agrees**` ...).
+    pub verdict: String,
 }
 
 impl Section {
@@ -34,7 +50,26 @@ impl Section {
             paper: Some(paper.into()),
             measured,
             assessment: Some(assessment),
+            rows: Vec::new(),
         }
+    }
+
+    /// This section with a row of the claims table.
+    #[must_use]
+    pub fn row(
+        mut self,
+        claim: impl Into<String>,
+        paper: impl Into<String>,
+        measured: String,
+        verdict: impl Into<String>,
+    ) -> Self {
+        self.rows.push(ClaimRow {
+            claim: claim.into(),
+            paper: paper.into(),
+            measured,
+            verdict: verdict.into(),
+        });
+        self
     }
 
     /// A table or a note: a heading and a body.

@@ -177,5 +177,16 @@ pub fn section(stiff: &[StiffnessPoint]) -> Result<Section> {
             list(&f.high),
             holds(f.ok_high)
         ),
+    )
+    .row(
+        "Fig. 2/Eq. 1: AFB adds stiffness above the velocity bandwidth",
+        "J s^2 + Kp s + Ki without AFB; higher with AFB above the velocity bandwidth",
+        format!(
+            "without AFB within {:.0} % of Eq. 1; with AFB / without, from 3x the velocity \
+             bandwidth to the observer bandwidth: {}",
+            100.0 * f.eq1_err,
+            list(&f.high)
+        ),
+        verdict,
     ))
 }

@@ -3,8 +3,76 @@
 use super::section::Section;
 use super::{SWEEP_NO_AFB_MAX_RAD_S, SWEEP_RATIO_MIN};
 use crate::error::Result;
-use crate::experiments::sweep::SweepResult;
+use crate::experiments::sweep::limits::{limit, moved, Limit};
+use crate::experiments::sweep::{SweepPoint, SweepResult};
 use std::fmt::Write as _;
+
+/// A point's oscillation verdict: `limit_cycle at 178.2 Hz, ±0.512 pu`.
+pub fn verdict_of(p: &SweepPoint) -> String {
+    match p.oscillation {
+        Some(k) => format!(
+            "{} at {:.1} Hz, ±{:.3} pu",
+            k.word(),
+            p.oscillation_freq_hz,
+            p.oscillation_amplitude_pu
+        ),
+        None => "not run".into(),
+    }
+}
+
+/// What ended one limit, and the limit without the oscillation verdict when that differs.
+fn ended(l: &Limit) -> String {
+    let side = if l.afb { "with AFB" } else { "without AFB" };
+    let mut s = format!("{} {side}: {} rad/s", l.plant, l.limit_rad_s);
+    if let Some(p) = l.ended_by {
+        let _ = write!(
+            s,
+            "; at {} rad/s ({}) the verdict is {}{}",
+            p.bandwidth_rad_s,
+            p.design,
+            verdict_of(p),
+            if p.faulted { ", faulted" } else { "" }
+        );
+    }
+    if l.by_speed_rad_s == l.limit_rad_s {
+        s.push_str(" (the speed criterion alone gives the same limit)");
+    } else {
+        let _ = write!(
+            s,
+            " (the speed criterion alone, without the oscillation verdict: {} rad/s; this \
+             point moved it)",
+            l.by_speed_rad_s
+        );
+    }
+    s
+}
+
+/// The paragraph on what decided the limits, and the points the oscillation verdict moved.
+pub fn decided(points: &[SweepPoint], plants: &[&str]) -> String {
+    let limits: Vec<String> = plants
+        .iter()
+        .flat_map(|p| [limit(points, p, false), limit(points, p, true)])
+        .map(|l| ended(&l))
+        .collect();
+    let moved = moved(points);
+    let mut kinds: Vec<&str> = Vec::new();
+    for p in &moved {
+        let k = p.oscillation.map_or("not run", |k| k.word());
+        if !kinds.contains(&k) {
+            kinds.push(k);
+        }
+    }
+    format!(
+        "What ended each limit (the first point above it judged unstable, with its \
+         oscillation verdict from `summary.json`'s rule): {}. The oscillation verdict changed \
+         {} of {} points from the speed criterion alone (`stable` ≠ `stable_by_speed` in \
+         `sweep/sweep.csv`; verdicts {:?}).",
+        limits.join("; "),
+        moved.len(),
+        points.iter().filter(|p| p.error.is_empty()).count(),
+        kinds
+    )
+}
 
 /// Sec. III-D's verdict on the printing press's largest bandwidths (without AFB, with AFB)
 /// \[rad/s\]: the AFB design reaches at least [`SWEEP_RATIO_MIN`] times the bandwidth
@@ -22,7 +90,7 @@ pub fn bandwidth_verdict(press: Option<(f64, f64)>) -> &'static str {
 }
 
 /// The sweep's findings per plant, and the printing press against the paper.
-pub fn section(sweep: &[SweepResult]) -> Result<Section> {
+pub fn section(points: &[SweepPoint], sweep: &[SweepResult]) -> Result<Section> {
     let mut found = String::new();
     for s in sweep {
         let _ = write!(
@@ -59,7 +127,7 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
              at the same bandwidth, one per observer bandwidth of the grid (the observer also \
              gives the velocity feedback); \"without AFB\" is the better of them. The modelled \
              press: {cpr} counts/rev, lost motion {} deg ({:.0} counts), Jm {} s, Jl {} s \
-             (`configs/machines/printing-press.toml`).",
+             (`configs/machines/printing-press.toml`). {}",
             crate::experiments::sweep::BANDWIDTHS_RAD_S,
             crate::experiments::sweep::GAINS,
             crate::experiments::sweep::FILTERS,
@@ -67,7 +135,8 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
             mech.backlash_deg,
             mech.backlash_deg / 360.0 * f64::from(cpr),
             mech.motor_inertia_s,
-            mech.load_inertia_s
+            mech.load_inertia_s,
+            decided(points, &crate::experiments::sweep::PLANTS)
         ),
         format!(
             "{sweep_verdict} (criteria: on the printing press the best AFB design reaches at \
@@ -79,5 +148,20 @@ pub fn section(sweep: &[SweepResult]) -> Result<Section> {
              model can say. The next section applies the same criteria to the highest bandwidths \
              `tune` finds with and without AFB under its constraints."
         ),
+    )
+    .row(
+        "Sec. III-D: AFB raises the largest stable velocity bandwidth (sweep)",
+        "printing press: 140 rad/s with AFB, 30 rad/s without",
+        sweep
+            .iter()
+            .map(|s| {
+                format!(
+                    "{}: {} rad/s with AFB, {} rad/s without",
+                    s.plant, s.with_afb_rad_s, s.without_afb_rad_s
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; "),
+        sweep_verdict,
     ))
 }

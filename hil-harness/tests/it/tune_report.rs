@@ -54,8 +54,15 @@ fn the_tune_section_is_built_from_the_dyno_runs() {
     eprintln!("{md}");
     for r in &t.runs {
         let row = format!(
-            "| dyno | {} | {} | {} | {} | {} | {:.4} |",
-            r.design, r.bandwidth_rad_s, r.afb, r.stable, r.faulted, r.shaft_torque_ripple_rms_pu
+            "| dyno | {} | {} | {} | {} | {} at {:.1} Hz | {} | {:.4} |",
+            r.design,
+            r.bandwidth_rad_s,
+            r.afb,
+            r.stable,
+            r.oscillation.word(),
+            r.oscillation_freq_hz,
+            r.faulted,
+            r.shaft_torque_ripple_rms_pu
         );
         assert!(md.contains(&row), "missing {row}");
     }

@@ -21,6 +21,7 @@ fn windows(end: f64) -> MetricWindows {
         stable_saturation_fraction: 0.2,
         torque_limit_pu: 2.0,
         machine: None,
+        excitation_hz: None,
     }
 }
 
@@ -120,6 +121,11 @@ fn a_damped_second_order_ring_has_its_frequency_and_damping() {
 /// Motor torque of the stability window: `mean + chatter`, at 2 kHz, 1 pu speed; the
 /// machine's count-rate tone at 68 266.7 counts/s is 266.7 Hz.
 fn torque_run(chatter: impl Fn(f64) -> f64) -> Metrics {
+    torque_run_with(None, chatter)
+}
+
+/// [`torque_run`] of a scenario that injects a sine load at `excitation_hz`.
+fn torque_run_with(excitation_hz: Option<f64>, chatter: impl Fn(f64) -> f64) -> Metrics {
     let rows: Vec<TraceRow> = (0..5000)
         .map(|k| {
             let t = k as f64 * 5e-4;
@@ -139,6 +145,7 @@ fn torque_run(chatter: impl Fn(f64) -> f64) -> Metrics {
         velocity_bandwidth_hz: 15.0,
         resonance_band_hz: (15.0, 90.0),
     });
+    w.excitation_hz = excitation_hz;
     compute(&Trace { rows }, &w)
 }
 
@@ -174,4 +181,29 @@ fn a_tone_off_the_count_rate_with_quantization_is_a_limit_cycle() {
     // And a growing one diverges.
     let grow = torque_run(|t| 0.05 * (4.0 * t).exp() * (2.0 * PI * 178.0 * t).sin());
     assert_eq!(grow.oscillation.kind, OscillationKind::Diverging);
+}
+
+#[test]
+fn an_injected_sine_is_not_an_oscillation_but_one_riding_on_it_is() {
+    let fx = 47.0;
+    let forced = |t: f64| 0.5 * (2.0 * PI * fx * t + 0.3).sin();
+    // Not knowing the excitation, ±0.5 pu narrowband off the count-rate tone is a limit cycle.
+    let blind = torque_run(forced);
+    assert_eq!(blind.oscillation.kind, OscillationKind::LimitCycle);
+    // Knowing it, the forced response is taken out: nothing is left.
+    let m = torque_run_with(Some(fx), forced);
+    let o = &m.oscillation;
+    assert_eq!(o.kind, OscillationKind::None, "{o:?}");
+    assert!(m.stable && o.amplitude_pu < 1e-6, "{o:?}");
+    assert_eq!(o.excitation_hz, Some(fx));
+    // Its harmonics are the forced response too (a sine through the lost motion).
+    let harmonic = torque_run_with(Some(fx), |t| {
+        forced(t) + 0.2 * (2.0 * PI * 2.0 * fx * t).sin()
+    });
+    assert_eq!(harmonic.oscillation.kind, OscillationKind::None);
+    // A limit cycle riding on the forced response is still found, at its own frequency.
+    let both = torque_run_with(Some(fx), |t| forced(t) + 0.3 * (2.0 * PI * 178.0 * t).sin());
+    let o = &both.oscillation;
+    assert_eq!(o.kind, OscillationKind::LimitCycle, "{o:?}");
+    assert!((o.freq_hz - 178.0).abs() < 1.0 && !both.stable, "{o:?}");
 }

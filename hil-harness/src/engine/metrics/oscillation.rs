@@ -17,6 +17,14 @@
 //!   folded into [0, f_s/2]. Its harmonics 2 and 3 (folded the same way) count as the tone
 //!   too. n is the mean motor speed over the window.
 //!
+//! - **A forced sine is not an oscillation.** When the scenario injects a sine load at
+//!   f_x (`scenario.sine_load`), the loop's forced response at f_x and its harmonics 2 and
+//!   3 is taken out first: a least-squares sine at each is subtracted from the detrended
+//!   torque (so `amplitude_pu` and `growth` measure what is left), and the peak search and
+//!   both energies of `narrowband_fraction` skip ±[`EXCITATION_BINS`]/T around each (T the
+//!   window's length: that many bins of its spectrum), so the rest of the rule judges only
+//!   what the loop does by itself. `excitation_hz` records f_x.
+//!
 //! The kind, first match wins:
 //!
 //! 1. `diverging`: a value is not finite, the speed error leaves ±0.5 pu, or a narrowband
@@ -33,20 +41,24 @@
 //!    tone, broadband chatter, or a narrowband ripple too small to be a limit cycle.
 //! 4. `none`: `amplitude_pu` < [`A_NOISE_PU`].
 //!
-//! 5. **Confirmation** (`engine::runner::run_scenario`, host runs only): a `limit_cycle` is
-//!    run again with the encoder interpolated [`CONFIRM_INTERPOLATION`] times more (its
-//!    following-error limit in counts scaled with it); if that run has no limit cycle, does
-//!    not diverge and does not fault, the oscillation came from the counts: it is
-//!    `quantization`, and `interpolated_amplitude_pu` records the rerun's amplitude.
+//! 5. **Confirmation** (`engine::runner::confirm_limit_cycle`, after every host run and
+//!    every PIL run that ends without a link fault; the rerun is always on the host build):
+//!    a `limit_cycle` is run again with the encoder interpolated [`CONFIRM_INTERPOLATION`]
+//!    times more (its following-error limit in counts scaled with it); if that run has no
+//!    limit cycle, does not diverge and does not fault, the oscillation came from the
+//!    counts: it is `quantization`. `interpolated_amplitude_pu` records the rerun's
+//!    amplitude; `null` on a `limit_cycle` means the verdict is unconfirmed.
 //!
 //! `stable` is false for `diverging` and `limit_cycle`.
 //!
 //! Measured on table1 (`summary.json`): the velocity-mode drive at 30 rad/s with error-form
 //! AFB (gain 0.5, 100 Hz 2nd-order filter, differentiated encoder) oscillates at 178 Hz,
-//! ±2 pu, 19 % of the window at the limit and not at its 133 Hz tone: `limit_cycle`.
+//! ±2 pu, 19 % of the window at the limit (which decides it: the window's count-rate tone,
+//! 182 Hz, is within the tolerance of the peak): `limit_cycle`, which the 256× rerun
+//! confirms (±1.8 pu).
 //! `fig6` chatters at 266.7 Hz, the tone of 1 pu × 4096 counts at 2 kHz: `quantization`.
 
-use super::spectrum::{detrended, peak};
+use super::spectrum::{detrended, peak, Band};
 use serde::Serialize;
 
 /// Lowest frequency of the oscillation's spectrum (Hz): below it is the slow part of the
@@ -66,6 +78,9 @@ pub const A_LIMIT_CYCLE_PU: f64 = 0.1;
 pub const SAT_LIMIT_CYCLE: f64 = 0.05;
 /// Growth of the torque's RMS across the window (last / first quarter) that diverges.
 pub const GROWTH_DIVERGING: f64 = 2.0;
+/// Half-width, in spectral bins (1/T), of the band around an injected sine's frequency and
+/// its harmonics 2 and 3 that the peak search skips.
+pub const EXCITATION_BINS: f64 = 3.0;
 /// Extra encoder interpolation of the confirming rerun (step 5).
 pub const CONFIRM_INTERPOLATION: u32 = 256;
 
@@ -81,6 +96,19 @@ pub enum OscillationKind {
     LimitCycle,
     /// Growing or unbounded (unstable).
     Diverging,
+}
+
+impl OscillationKind {
+    /// The kind as `summary.json` writes it (`limit_cycle` ...).
+    #[must_use]
+    pub const fn word(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Quantization => "quantization",
+            Self::LimitCycle => "limit_cycle",
+            Self::Diverging => "diverging",
+        }
+    }
 }
 
 /// `summary.json`'s `oscillation` object: the verdict and its evidence (module docs).
@@ -104,6 +132,8 @@ pub struct Oscillation {
     /// The amplitude of the confirming rerun with the encoder interpolated (step 5);
     /// `null` when there was none.
     pub interpolated_amplitude_pu: Option<f64>,
+    /// The injected sine's frequency, taken out of the verdict (Hz); `null` without one.
+    pub excitation_hz: Option<f64>,
 }
 
 /// What the classification needs besides the torque.
@@ -121,6 +151,8 @@ pub(super) struct Evidence {
     pub finite_and_bounded: bool,
     /// The speed oscillation reached the scenario's threshold.
     pub speed_oscillates: bool,
+    /// The frequency of the scenario's injected sine load (Hz), if any.
+    pub excitation_hz: Option<f64>,
 }
 
 /// `f` folded into [0, fs/2] as sampling at `fs` aliases it.
@@ -147,18 +179,107 @@ fn rms(x: &[f64]) -> f64 {
     (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt()
 }
 
+/// The frequencies the forced response of an injected sine at `f_x` lies at: the sine's
+/// and its harmonics 2 and 3, those below Nyquist.
+fn forced(f_x: Option<f64>, fs: f64) -> Vec<f64> {
+    f_x.filter(|f| f.is_finite() && *f > 0.0)
+        .map(|f| {
+            (1..=3)
+                .map(|h| f64::from(h) * f)
+                .filter(|f| *f < fs / 2.0)
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// `x` less its least-squares fit by a straight line and a sine at each frequency of
+/// `freqs` (Hz, sampled at `fs`), fitted together (a sine is not orthogonal to a line over
+/// a window of whole and part periods); without `freqs`, [`detrended`].
+fn without_sines(x: &[f64], fs: f64, freqs: &[f64]) -> Vec<f64> {
+    if freqs.is_empty() || x.len() < 2 + 2 * freqs.len() {
+        return detrended(x);
+    }
+    let mid = (x.len() as f64 - 1.0) / 2.0;
+    let basis = |k: usize| -> Vec<f64> {
+        let t = k as f64;
+        let mut b = vec![1.0, (t - mid) / mid.max(1.0)];
+        for f in freqs {
+            let (s, c) = (2.0 * std::f64::consts::PI * f / fs * t).sin_cos();
+            b.extend([c, s]);
+        }
+        b
+    };
+    let m = 2 + 2 * freqs.len();
+    // Normal equations [AᵀA | Aᵀx], solved by Gauss-Jordan elimination with partial pivoting.
+    let mut a = vec![vec![0.0; m + 1]; m];
+    for (k, v) in x.iter().enumerate() {
+        let b = basis(k);
+        for (row, bi) in a.iter_mut().zip(&b) {
+            for (cell, bj) in row.iter_mut().zip(b.iter().chain([v])) {
+                *cell += bi * bj;
+            }
+        }
+    }
+    for col in 0..m {
+        let pivot = (col..m)
+            .max_by(|p, q| {
+                let at = |r: usize| {
+                    a.get(r)
+                        .and_then(|row| row.get(col))
+                        .map_or(0.0, |v| v.abs())
+                };
+                at(*p).total_cmp(&at(*q))
+            })
+            .unwrap_or(col);
+        a.swap(col, pivot);
+        let Some(prow) = a.get(col).cloned() else {
+            return detrended(x);
+        };
+        let p = prow.get(col).copied().unwrap_or(0.0);
+        if p.abs() < 1e-12 {
+            return detrended(x);
+        }
+        for (r, row) in a.iter_mut().enumerate() {
+            let f = row.get(col).copied().unwrap_or(0.0) / p;
+            if r != col {
+                row.iter_mut().zip(&prow).for_each(|(c, pv)| *c -= f * pv);
+            }
+        }
+    }
+    let coef: Vec<f64> = a
+        .iter()
+        .enumerate()
+        .map(|(r, row)| row.get(m).copied().unwrap_or(0.0) / row.get(r).copied().unwrap_or(1.0))
+        .collect();
+    x.iter()
+        .enumerate()
+        .map(|(k, v)| v - basis(k).iter().zip(&coef).map(|(b, c)| b * c).sum::<f64>())
+        .collect()
+}
+
 /// The verdict on the motor torque `torque` of the stability window (module docs).
 pub(super) fn classify(torque: &[f64], e: &Evidence) -> Oscillation {
-    let d = detrended(torque);
+    let span_s = torque.len() as f64 / e.fs_hz.max(f64::MIN_POSITIVE);
+    let bin_hz = 1.0 / span_s.max(f64::MIN_POSITIVE);
+    let lobe_hz = 2.0 * bin_hz;
+    let forced_hz = forced(e.excitation_hz, e.fs_hz);
+    let skip: Vec<(f64, f64)> = forced_hz
+        .iter()
+        .map(|f| (f - EXCITATION_BINS * bin_hz, f + EXCITATION_BINS * bin_hz))
+        .collect();
+    let d = without_sines(torque, e.fs_hz, &forced_hz);
     let (lo, hi) = d
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
             (a.min(*v), b.max(*v))
         });
     let amplitude_pu = if d.is_empty() { 0.0 } else { (hi - lo) / 2.0 };
-    let span_s = torque.len() as f64 / e.fs_hz.max(f64::MIN_POSITIVE);
-    let lobe_hz = 2.0 / span_s.max(f64::MIN_POSITIVE);
-    let p = peak(torque, e.fs_hz, F_MIN_HZ, HALF_BAND_HZ.max(lobe_hz));
+    let band = Band {
+        lo_hz: F_MIN_HZ,
+        hi_hz: f64::INFINITY,
+        skip: &skip,
+    };
+    let p = peak(&d, e.fs_hz, &band, HALF_BAND_HZ.max(lobe_hz));
     let (freq_hz, narrowband_fraction) =
         p.map_or((0.0, 0.0), |p| (p.freq_hz, p.narrowband_fraction));
     let (tone_hz, at_tone) = tone(e, freq_hz, TONE_TOL_HZ.max(lobe_hz));
@@ -191,5 +312,6 @@ pub(super) fn classify(torque: &[f64], e: &Evidence) -> Oscillation {
         tone_hz,
         growth,
         interpolated_amplitude_pu: None,
+        excitation_hz: e.excitation_hz,
     }
 }

@@ -67,20 +67,55 @@ pub(super) struct Peak {
     pub narrowband_fraction: f64,
 }
 
-/// [`Peak`] of `x` sampled at `fs_hz`, over frequencies above `f_min_hz`; `None` for an
-/// empty or silent window.
-pub(super) fn peak(x: &[f64], fs_hz: f64, f_min_hz: f64, half_band_hz: f64) -> Option<Peak> {
+/// The frequencies a peak search looks at: `lo_hz ..= hi_hz`, less the `skip` intervals.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Band<'a> {
+    /// Lowest frequency (Hz).
+    pub lo_hz: f64,
+    /// Highest frequency (Hz); infinite = up to Nyquist.
+    pub hi_hz: f64,
+    /// Intervals (Hz) left out of the search and of both energies.
+    pub skip: &'a [(f64, f64)],
+}
+
+impl Band<'_> {
+    /// Everything from `lo_hz` up.
+    #[cfg(test)]
+    pub const fn above(lo_hz: f64) -> Band<'static> {
+        Band {
+            lo_hz,
+            hi_hz: f64::INFINITY,
+            skip: &[],
+        }
+    }
+
+    fn holds(&self, f: f64) -> bool {
+        f >= self.lo_hz && f <= self.hi_hz && !self.skip.iter().any(|(a, b)| f >= *a && f <= *b)
+    }
+}
+
+/// [`Peak`] of `x` sampled at `fs_hz`, over the frequencies of `band`; `None` for an empty
+/// or silent window.
+pub(super) fn peak(x: &[f64], fs_hz: f64, band: &Band, half_band_hz: f64) -> Option<Peak> {
     if x.len() < 4 || fs_hz <= 0.0 {
         return None;
     }
     let (p, df) = padded_power(x, fs_hz);
-    let first = (f_min_hz / df).ceil() as usize;
+    let first = (band.lo_hz / df).ceil() as usize;
+    let inside = |i: usize| band.holds(i as f64 * df);
     let (k, _) = p
         .iter()
         .enumerate()
         .skip(first)
+        .filter(|(i, _)| inside(*i))
         .max_by(|a, b| a.1.total_cmp(b.1))?;
-    let total: f64 = p.iter().skip(first).sum();
+    let total: f64 = p
+        .iter()
+        .enumerate()
+        .skip(first)
+        .filter(|(i, _)| inside(*i))
+        .map(|(_, v)| v)
+        .sum();
     if total.is_nan() || total <= 0.0 {
         return None;
     }
@@ -102,7 +137,7 @@ pub(super) fn peak(x: &[f64], fs_hz: f64, f_min_hz: f64, half_band_hz: f64) -> O
         .iter()
         .enumerate()
         .skip(first)
-        .filter(|(i, _)| (*i as f64 * df - freq_hz).abs() <= half_band_hz)
+        .filter(|(i, _)| inside(*i) && (*i as f64 * df - freq_hz).abs() <= half_band_hz)
         .map(|(_, v)| v)
         .sum();
     Some(Peak {
@@ -170,7 +205,7 @@ mod tests {
         let x: Vec<f64> = (0..1000)
             .map(|k| 0.3 * (2.0 * PI * 178.3 * k as f64 / fs).sin() + 1e-3 * k as f64)
             .collect();
-        let p = peak(&x, fs, 5.0, 4.0).unwrap();
+        let p = peak(&x, fs, &Band::above(5.0), 4.0).unwrap();
         assert!((p.freq_hz - 178.3).abs() < 0.1, "{p:?}");
         assert!(p.narrowband_fraction > 0.95, "{p:?}");
     }

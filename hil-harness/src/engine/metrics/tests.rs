@@ -15,6 +15,7 @@ fn windows() -> MetricWindows {
         stable_saturation_fraction: 0.2,
         torque_limit_pu: 2.0,
         machine: None,
+        excitation_hz: None,
     }
 }
 

@@ -221,12 +221,14 @@ fn finish(c: &Commissioning, with: &Tuned, out: &Path) -> Result<String> {
         |n| format!("notch at {:.1} Hz", n.centre_hz),
     );
     let line = format!(
-        "commission {}: {}; {notch}; on the machine: ripple {:.4} pu with AFB, {:.4} pu \
-         without -> {}",
+        "commission {}: {}; {notch}; on the machine: ripple {:.4} pu with AFB ({}), {:.4} pu \
+         without ({}) -> {}",
         c.config,
         tune::summary_line(with, &out.join("tune")),
         c.runs[0].shaft_torque_ripple_rms_pu,
+        c.runs[0].verdict(),
         c.runs[1].shaft_torque_ripple_rms_pu,
+        c.runs[1].verdict(),
         out.display()
     );
     if c.passed {

@@ -65,6 +65,14 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
     for r in c.runs.iter().chain(&c.without_notch) {
         let _ = writeln!(md, "|{}", r.row());
     }
+    for line in c
+        .runs
+        .iter()
+        .chain(&c.without_notch)
+        .filter_map(super::OnMachine::moved_by_verdict)
+    {
+        let _ = writeln!(md, "\n{line}.");
+    }
     let _ = writeln!(
         md,
         "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).",

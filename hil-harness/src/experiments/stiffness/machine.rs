@@ -134,4 +134,21 @@ current_bandwidth_rad_s = 2000.0
         assert!(text.contains("100 rad/s"), "{text}");
         assert!(csv.lines().skip(1).all(|l| !l.contains("NaN")), "{csv}");
     }
+
+    /// The forced response to the sine is not an oscillation (the `oscillation` rule leaves
+    /// the injected frequency out): at 40 rad/s, which table1's loop follows just above the
+    /// verdict's 5 Hz floor, and at 100 rad/s, the runs with AFB from the observer and
+    /// without are stable on table1 and on the dyno, where nothing else oscillates.
+    #[test]
+    fn a_forced_sine_alone_is_stable_on_table1_and_the_dyno() {
+        for config in ["table1", "dyno"] {
+            let (base, source) = machine_base(config, &[]).unwrap();
+            for w in [40.0, 100.0] {
+                for afb in [None, Some(source)] {
+                    let p = measure_on(&base, afb, w).unwrap();
+                    assert!(p.stable, "{config} {w} rad/s {afb:?}: {p:?}");
+                }
+            }
+        }
+    }
 }

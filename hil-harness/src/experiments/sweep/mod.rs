@@ -7,10 +7,12 @@
 
 pub mod figure;
 pub mod grid;
+pub mod limits;
 
 pub use grid::{designs, without_afb_of, AfbDesign, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
 
 use crate::config::{borrow_gains, resolve, RunConfig};
+use crate::engine::metrics::OscillationKind;
 use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
 use crate::plot::save;
@@ -60,6 +62,14 @@ pub struct SweepPoint {
     pub bandwidth_rad_s: f64,
     /// The run's `stable` metric.
     pub stable: bool,
+    /// The run's `stable_by_speed`: the criterion without the oscillation verdict.
+    pub stable_by_speed: bool,
+    /// The oscillation verdict (`summary.json`'s `oscillation.kind`); empty if not run.
+    pub oscillation: Option<OscillationKind>,
+    /// Its spectral peak (Hz).
+    pub oscillation_freq_hz: f64,
+    /// Its torque amplitude (pu).
+    pub oscillation_amplitude_pu: f64,
     /// Standard deviation of speed error in the stability window (pu).
     pub oscillation_pu: f64,
     /// Torque ripple RMS in the loaded window (pu).
@@ -179,6 +189,10 @@ impl SweepPoint {
             observer_hz: design.observer_hz,
             bandwidth_rad_s: bw,
             stable: false,
+            stable_by_speed: false,
+            oscillation: None,
+            oscillation_freq_hz: f64::NAN,
+            oscillation_amplitude_pu: f64::NAN,
             oscillation_pu: f64::NAN,
             torque_ripple_rms_pu: f64::NAN,
             limit_cycle_torque_pu: f64::NAN,
@@ -198,6 +212,10 @@ fn run_point(base: &Result<RunConfig>, plant: &str, design: &AfbDesign, bw: f64)
     match run {
         Ok(out) => {
             point.stable = out.metrics.stable;
+            point.stable_by_speed = out.metrics.stable_by_speed;
+            point.oscillation = Some(out.metrics.oscillation.kind);
+            point.oscillation_freq_hz = out.metrics.oscillation.freq_hz;
+            point.oscillation_amplitude_pu = out.metrics.oscillation.amplitude_pu;
             point.oscillation_pu = out.metrics.oscillation_pu;
             point.torque_ripple_rms_pu = out.metrics.torque_ripple_rms_pu;
             point.limit_cycle_torque_pu = out.metrics.limit_cycle_torque_pu;
@@ -299,8 +317,9 @@ fn write_csv(points: &[SweepPoint], path: &Path) -> Result<()> {
     w.flush().map_err(|e| HarnessError::io(path, e))
 }
 
-/// `hil-harness sweep` into a staging directory; returns the results and a text summary.
-pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepResult>, String)> {
+/// `hil-harness sweep` into a staging directory; returns the points, the results and a
+/// text summary.
+pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepPoint>, Vec<SweepResult>, String)> {
     let designs = designs(default_observer_hz());
     let points = sweep_points(&PLANTS, &BANDWIDTHS_RAD_S, &designs, &[]);
     let results = results(&points, &PLANTS, &designs);
@@ -337,12 +356,12 @@ pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepResult>, String)> {
     if errors > 0 {
         let _ = writeln!(text, "{errors} grid points were rejected by the configuration checks (see sweep.csv `error`)");
     }
-    Ok((results, text))
+    Ok((points, results, text))
 }
 
 /// `hil-harness sweep`.
 pub fn sweep(out: &Path) -> Result<String> {
-    crate::output::staged(out, |dir| sweep_into(dir).map(|(_, text)| text))
+    crate::output::staged(out, |dir| sweep_into(dir).map(|(_, _, text)| text))
 }
 
 #[cfg(test)]

@@ -171,6 +171,10 @@ pub struct Verification {
     pub scenario: &'static str,
     /// Its `stable` metric.
     pub stable: bool,
+    /// Its oscillation verdict (`summary.json`'s `oscillation.kind`).
+    pub oscillation: crate::engine::metrics::OscillationKind,
+    /// Its spectral peak \[Hz\].
+    pub oscillation_freq_hz: f64,
     /// Whether the controller faulted.
     pub faulted: bool,
     /// Shaft-torque ripple after the step \[pu\].
@@ -211,6 +215,8 @@ fn verify(bases: &[RunConfig], c: &Candidate) -> Result<Vec<Verification>> {
             Ok(Verification {
                 scenario: s,
                 stable: m.stable,
+                oscillation: m.oscillation.kind,
+                oscillation_freq_hz: m.oscillation.freq_hz,
                 faulted: m.faulted,
                 shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
                 limit_cycle_torque_pu: m.limit_cycle_torque_pu,
@@ -392,8 +398,20 @@ pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
 pub fn summary_line(t: &Tuned, out: &Path) -> String {
     let r = &t.result;
     let c = &r.design.candidate;
+    let verified: Vec<String> = r
+        .verification
+        .iter()
+        .map(|v| {
+            format!(
+                "{} {} at {:.1} Hz",
+                v.scenario,
+                v.oscillation.word(),
+                v.oscillation_freq_hz
+            )
+        })
+        .collect();
     format!(
-        "tune {}: {} rad/s, {}; damping {:.3} (fitted in the loop {}); -> {}",
+        "tune {}: {} rad/s, {}; damping {:.3} (fitted in the loop {}); verified: {}; -> {}",
         r.config,
         c.bandwidth_rad_s,
         c.afb.label(),
@@ -403,6 +421,7 @@ pub fn summary_line(t: &Tuned, out: &Path) -> String {
             (None, true) => "-: no decaying oscillatory mode".into(),
             (None, false) => "-".into(),
         },
+        verified.join(", "),
         out.display()
     )
 }

@@ -179,14 +179,20 @@ pub fn markdown(r: &TuneResult, drive_toml: &str, images: &[String; 2]) -> Strin
     );
     let _ = writeln!(
         s,
-        "| verification | stable | faulted | shaft-torque ripple (pu) | torque chatter (pu) |\n\
-         |---|---|---|---|---|"
+        "| verification | stable | oscillation verdict | faulted | shaft-torque ripple (pu) | \
+         torque chatter (pu) |\n|---|---|---|---|---|---|"
     );
     for v in &r.verification {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.4} | {:.4} |",
-            v.scenario, v.stable, v.faulted, v.shaft_torque_ripple_rms_pu, v.limit_cycle_torque_pu
+            "| {} | {} | {} at {:.1} Hz | {} | {:.4} | {:.4} |",
+            v.scenario,
+            v.stable,
+            v.oscillation.word(),
+            v.oscillation_freq_hz,
+            v.faulted,
+            v.shaft_torque_ripple_rms_pu,
+            v.limit_cycle_torque_pu
         );
     }
     let _ = write!(

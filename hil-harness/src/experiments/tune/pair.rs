@@ -11,6 +11,7 @@ use super::{bandwidths, BANDWIDTHS_RAD_S};
 use super::{candidates, design, design_from, search, without_afb, Candidate, Constraints};
 use super::{Judged, Tuned};
 use crate::config::RunConfig;
+use crate::engine::metrics::OscillationKind;
 use crate::engine::runner::run_scenario;
 use crate::error::Result;
 use serde::Serialize;
@@ -87,11 +88,20 @@ pub struct LoopRun {
     pub afb: String,
     /// The scenario's `stable`.
     pub stable: bool,
+    /// The oscillation verdict of the run (`summary.json`'s `oscillation.kind`).
+    pub oscillation: OscillationKind,
+    /// Its spectral peak \[Hz\].
+    pub oscillation_freq_hz: f64,
+    /// Its torque amplitude \[pu\].
+    pub oscillation_amplitude_pu: f64,
+    /// The scenario's `stable_by_speed`: the criterion without the oscillation verdict.
+    pub stable_by_speed: bool,
     /// A fault latched.
     pub faulted: bool,
     /// Shaft-torque ripple after the load step \[pu\].
     pub shaft_torque_ripple_rms_pu: f64,
-    /// Its dominant frequency, from zero crossings \[Hz\].
+    /// Its dominant frequency: the peak of the shaft torque's spectrum in the machine's
+    /// resonance band (the ring) \[Hz\].
     pub shaft_ripple_freq_hz: f64,
     /// Speed droop at the load step \[pu\] (none without a load step).
     pub load_step_droop_pu: Option<f64>,
@@ -107,6 +117,10 @@ impl LoopRun {
             bandwidth_rad_s: design.bandwidth_rad_s,
             afb: design.afb.label(),
             stable: m.stable,
+            oscillation: m.oscillation.kind,
+            oscillation_freq_hz: m.oscillation.freq_hz,
+            oscillation_amplitude_pu: m.oscillation.amplitude_pu,
+            stable_by_speed: m.stable_by_speed,
             faulted: m.faulted,
             shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
             shaft_ripple_freq_hz: m.shaft_ripple_freq_hz,
@@ -115,20 +129,50 @@ impl LoopRun {
     }
 
     /// The header of [`LoopRun::row`]'s table columns (after any leading columns).
-    pub const HEADER: &'static str = "design | bandwidth (rad/s) | AFB | stable | fault | \
-        shaft-torque ripple after the load step (pu) | its frequency (Hz) | droop (pu) |";
-    /// The markdown separator of [`LoopRun::HEADER`]'s eight columns.
-    pub const RULE: &'static str = "---|---|---|---|---|---|---|---|";
+    pub const HEADER: &'static str = "design | bandwidth (rad/s) | AFB | stable | oscillation \
+        verdict | fault | shaft-torque ripple after the load step (pu) | its peak in the \
+        resonance band (Hz) | droop (pu) |";
+    /// The markdown separator of [`LoopRun::HEADER`]'s nine columns.
+    pub const RULE: &'static str = "---|---|---|---|---|---|---|---|---|";
+
+    /// The oscillation verdict and its frequency: `limit_cycle at 178.2 Hz`.
+    #[must_use]
+    pub fn verdict(&self) -> String {
+        format!(
+            "{} at {:.1} Hz",
+            self.oscillation.word(),
+            self.oscillation_freq_hz
+        )
+    }
+
+    /// When the oscillation verdict decided this run's `stable` against the speed criterion
+    /// alone: a sentence naming the verdict that did.
+    #[must_use]
+    pub fn moved_by_verdict(&self) -> Option<String> {
+        (self.stable != self.stable_by_speed).then(|| {
+            format!(
+                "{}: the speed criterion alone says stable {}; the oscillation verdict, {} at \
+                 {:.1} Hz, ±{:.3} pu, makes it {}",
+                self.design,
+                self.stable_by_speed,
+                self.oscillation.word(),
+                self.oscillation_freq_hz,
+                self.oscillation_amplitude_pu,
+                if self.stable { "stable" } else { "unstable" }
+            )
+        })
+    }
 
     /// This run as the cells of [`LoopRun::HEADER`], each followed by `|`.
     #[must_use]
     pub fn row(&self) -> String {
         format!(
-            " {} | {} | {} | {} | {} | {:.4} | {:.1} | {} |",
+            " {} | {} | {} | {} | {} | {} | {:.4} | {:.1} | {} |",
             self.design,
             self.bandwidth_rad_s,
             self.afb,
             self.stable,
+            self.verdict(),
             self.faulted,
             self.shaft_torque_ripple_rms_pu,
             self.shaft_ripple_freq_hz,
@@ -163,6 +207,10 @@ mod tests {
             bandwidth_rad_s: 1.0,
             afb: String::new(),
             stable,
+            oscillation: OscillationKind::Quantization,
+            oscillation_freq_hz: 0.0,
+            oscillation_amplitude_pu: 0.0,
+            stable_by_speed: stable,
             faulted: false,
             shaft_torque_ripple_rms_pu: ripple,
             shaft_ripple_freq_hz: 0.0,

@@ -12,6 +12,7 @@
 //! is fig6's `stable` metric. Every cell is reported; no point is picked from the map.
 
 use crate::config::{borrow_gains, resolve, RunConfig};
+use crate::engine::metrics::OscillationKind;
 use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
 use crate::plot::{save, Figure, Legend, Panel, Series};
@@ -20,6 +21,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
+
+mod text;
+pub use text::{summary_text, table};
 
 /// Velocity-feedback filter corners (Hz, first order at the velocity rate).
 pub const VELOCITY_CORNERS_HZ: [f64; 9] = [10.0, 15.0, 25.0, 35.0, 50.0, 75.0, 100.0, 150.0, 250.0];
@@ -47,6 +51,14 @@ pub struct MapPoint {
     pub afb_corner_hz: f64,
     /// fig6's `stable` metric.
     pub stable: bool,
+    /// fig6's `stable_by_speed`: the criterion without the oscillation verdict.
+    pub stable_by_speed: bool,
+    /// The oscillation verdict; empty if not run.
+    pub oscillation: Option<OscillationKind>,
+    /// Its spectral peak (Hz).
+    pub oscillation_freq_hz: f64,
+    /// Its torque amplitude (pu).
+    pub oscillation_amplitude_pu: f64,
     /// Speed-error oscillation in the stability window (pu).
     pub oscillation_pu: f64,
     /// Motor-torque chatter in the stability window (pu).
@@ -118,6 +130,10 @@ fn run_cell(
         velocity_corner_hz,
         afb_corner_hz: afb_corner_hz.unwrap_or(0.0),
         stable: false,
+        stable_by_speed: false,
+        oscillation: None,
+        oscillation_freq_hz: f64::NAN,
+        oscillation_amplitude_pu: f64::NAN,
         oscillation_pu: f64::NAN,
         limit_cycle_torque_pu: f64::NAN,
         shaft_torque_ripple_rms_pu: f64::NAN,
@@ -139,6 +155,10 @@ fn run_cell(
         Ok((g, out)) => {
             let m = &out.metrics;
             p.stable = m.stable;
+            p.stable_by_speed = m.stable_by_speed;
+            p.oscillation = Some(m.oscillation.kind);
+            p.oscillation_freq_hz = m.oscillation.freq_hz;
+            p.oscillation_amplitude_pu = m.oscillation.amplitude_pu;
             p.oscillation_pu = m.oscillation_pu;
             p.limit_cycle_torque_pu = m.limit_cycle_torque_pu;
             p.shaft_torque_ripple_rms_pu = m.shaft_torque_ripple_rms_pu;
@@ -187,6 +207,8 @@ pub fn map_points() -> Vec<MapPoint> {
 pub struct MapSummary {
     /// Velocity corners at which the loop without AFB is unstable.
     pub unstable_without_hz: Vec<f64>,
+    /// The same by `stable_by_speed` alone (without the oscillation verdict).
+    pub unstable_without_by_speed_hz: Vec<f64>,
     /// AFB cells in those rows, and how many of them are stable.
     pub cells_where_unstable_without: usize,
     /// Of those, stable with AFB.
@@ -210,12 +232,13 @@ pub fn at(points: &[MapPoint], interpolation: u32) -> Vec<MapPoint> {
 pub fn summarize(points: &[MapPoint]) -> MapSummary {
     let mut s = MapSummary::default();
     for fv in VELOCITY_CORNERS_HZ {
-        let without = points
-            .iter()
-            .find(|p| !p.afb && p.velocity_corner_hz == fv)
-            .is_some_and(|p| p.stable);
+        let run = points.iter().find(|p| !p.afb && p.velocity_corner_hz == fv);
+        let without = run.is_some_and(|p| p.stable);
         if !without {
             s.unstable_without_hz.push(fv);
+        }
+        if !run.is_some_and(|p| p.stable_by_speed) {
+            s.unstable_without_by_speed_hz.push(fv);
         }
         for p in points
             .iter()
@@ -231,52 +254,6 @@ pub fn summarize(points: &[MapPoint]) -> MapSummary {
         }
     }
     s
-}
-
-fn cell(p: Option<&MapPoint>) -> String {
-    match p {
-        None => "-".into(),
-        Some(p) if !p.error.is_empty() => "rejected".into(),
-        Some(p) if p.stable => format!("stable ({:.3})", p.oscillation_pu),
-        Some(p) => format!(
-            "**unstable** ({:.3}{}, {:.2} s at the limit)",
-            p.oscillation_pu,
-            if p.faulted { ", tripped" } else { "" },
-            p.torque_saturated_s
-        ),
-    }
-}
-
-/// The map as a Markdown table: one row per velocity corner, the run without AFB first.
-pub fn table(points: &[MapPoint]) -> String {
-    let mut t = String::from("| velocity filter (Hz) | without AFB |");
-    for fa in AFB_CORNERS_HZ {
-        let _ = write!(t, " AFB filter {fa} Hz |");
-    }
-    t.push_str("\n|---|---|");
-    for _ in AFB_CORNERS_HZ {
-        t.push_str("---|");
-    }
-    for fv in VELOCITY_CORNERS_HZ {
-        let _ = write!(
-            t,
-            "\n| {fv} | {} |",
-            cell(points.iter().find(|p| !p.afb && p.velocity_corner_hz == fv))
-        );
-        for fa in AFB_CORNERS_HZ {
-            let _ = write!(
-                t,
-                " {} |",
-                cell(
-                    points
-                        .iter()
-                        .find(|p| p.afb && p.velocity_corner_hz == fv && p.afb_corner_hz == fa)
-                )
-            );
-        }
-    }
-    t.push('\n');
-    t
 }
 
 /// One map as a chart panel: each AFB cell by the stability with and without AFB.
@@ -335,22 +312,6 @@ pub fn map_into(dir: &Path) -> Result<Vec<MapPoint>> {
     Ok(points)
 }
 
-/// One paragraph of what the map of one encoder shows, counted from its points.
-pub fn summary_text(points: &[MapPoint]) -> String {
-    let s = summarize(points);
-    format!(
-        "Without AFB the loop is unstable at velocity-filter corners {:?} Hz (of {:?} Hz). \
-         In those rows the loop with AFB is stable in {} of {} cells; in the rows where the \
-         loop without AFB is stable, AFB makes it unstable in {} of {} cells.",
-        s.unstable_without_hz,
-        VELOCITY_CORNERS_HZ,
-        s.stable_with_where_unstable_without,
-        s.cells_where_unstable_without,
-        s.unstable_with_where_stable_without,
-        s.cells_where_stable_without
-    )
-}
-
 /// `hil-harness sec2-map`.
 pub fn sec2(out: &Path) -> Result<String> {
     let cpr = resolve(SCENARIO, None, &[])?.plant.mechanics.encoder_cpr;
@@ -384,6 +345,10 @@ mod tests {
             velocity_corner_hz: fv,
             afb_corner_hz: fa,
             stable,
+            stable_by_speed: stable,
+            oscillation: None,
+            oscillation_freq_hz: 0.0,
+            oscillation_amplitude_pu: 0.0,
             oscillation_pu: 0.0,
             limit_cycle_torque_pu: 0.0,
             shaft_torque_ripple_rms_pu: 0.0,
@@ -412,6 +377,24 @@ mod tests {
         assert_eq!(s.stable_with_where_unstable_without, 1);
         assert_eq!(s.cells_where_stable_without, 1);
         assert_eq!(s.unstable_with_where_stable_without, 1);
+    }
+
+    /// The confirming rerun of a run without AFB (the oscillation rule's step 5) borrows
+    /// its gains from the AFB design counting the finer encoder: the gains are those of
+    /// the same map's run at that encoder, bit for bit.
+    #[test]
+    fn the_confirming_rerun_of_a_run_without_afb_has_the_finer_encoders_gains() {
+        use crate::engine::metrics::oscillation::CONFIRM_INTERPOLATION;
+        use crate::engine::runner::{finer_encoder, regulator_gains, same_regulator_gains};
+        let coarse = no_afb_config(&base_config(1).unwrap(), 100.0).unwrap();
+        let fine = finer_encoder(&coarse).unwrap();
+        let direct = no_afb_config(&base_config(CONFIRM_INTERPOLATION).unwrap(), 100.0).unwrap();
+        let (g, d) = (
+            regulator_gains(&fine).unwrap(),
+            regulator_gains(&direct).unwrap(),
+        );
+        assert_eq!(g.cfg.encoder_cpr, d.cfg.encoder_cpr);
+        assert!(same_regulator_gains(&g, &d), "{g:?}\n{d:?}");
     }
 
     #[test]
