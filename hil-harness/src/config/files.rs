@@ -32,7 +32,11 @@ pub fn machines_dir() -> PathBuf {
 
 /// Names of the scenarios under `configs/scenarios/`, sorted.
 pub fn known_scenarios() -> Vec<String> {
-    let dir = configs_dir().join("scenarios");
+    scenarios_in(&configs_dir().join("scenarios"))
+}
+
+/// The scenario names in the folder `dir`, sorted.
+fn scenarios_in(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .map(|rd| {
             rd.filter_map(|e| e.ok())
@@ -62,12 +66,8 @@ const MAX_EXTENDS_DEPTH: usize = 8;
 /// [`scenario_table`] from the scenario folder `dir`, `chain` holding the scenarios that
 /// extend this one (to refuse a loop).
 fn scenario_table_in(dir: &Path, name: &str, chain: &mut Vec<String>) -> Result<Table> {
-    let valid = !name.is_empty()
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
     let path = dir.join(format!("{name}.toml"));
-    if !valid || !path.is_file() {
+    if !is_scenario_in(dir, name) {
         return Err(HarnessError::UnknownScenario {
             name: name.to_string(),
             known: known_scenarios(),
@@ -87,6 +87,15 @@ fn scenario_table_in(dir: &Path, name: &str, chain: &mut Vec<String>) -> Result<
             "must be the name of a scenario under configs/scenarios/",
         ));
     };
+    if !is_scenario_in(dir, &parent) {
+        return Err(HarnessError::config(
+            "scenario.extends",
+            format!(
+                "no scenario `{parent}`: one of {}",
+                scenarios_in(dir).join(", ")
+            ),
+        ));
+    }
     chain.push(name.to_string());
     if chain.contains(&parent) || chain.len() > MAX_EXTENDS_DEPTH {
         chain.push(parent);
@@ -101,6 +110,15 @@ fn scenario_table_in(dir: &Path, name: &str, chain: &mut Vec<String>) -> Result<
     let mut base = scenario_table_in(dir, &parent, chain)?;
     merge_over(&mut base, doc);
     Ok(base)
+}
+
+/// Whether `name` is a plain name with a scenario file in `dir`.
+fn is_scenario_in(dir: &Path, name: &str) -> bool {
+    let plain = !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    plain && dir.join(format!("{name}.toml")).is_file()
 }
 
 /// `over` laid on `base`: a table present in both is merged key by key, anything else
@@ -215,7 +233,10 @@ mod tests {
         let e = scenario_table_in(dir, "c", &mut Vec::new())
             .unwrap_err()
             .to_string();
-        assert!(e.contains("nosuch"), "{e}");
+        assert!(
+            e.contains("scenario.extends") && e.contains("nosuch") && e.contains("a, b, c"),
+            "{e}"
+        );
         write(dir, "d", "[scenario]\nextends = 3\n");
         let e = scenario_table_in(dir, "d", &mut Vec::new())
             .unwrap_err()
