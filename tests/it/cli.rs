@@ -247,3 +247,58 @@ fn flash_refuses_a_bad_drive_before_building() {
         stderr(&o)
     );
 }
+
+/// `summary.json`'s load-step figures are the trace's: the peak shaft torque is the largest
+/// |shaft_torque_pu| from the step on, and the peak droop the largest |e − e₀| there, with
+/// e = command − motor speed and e₀ its mean over the two velocity-bandwidth half periods
+/// before the step (the definition in `hil-harness/src/engine/metrics/response.rs`).
+#[test]
+fn the_summarys_peak_droop_and_peak_shaft_torque_are_the_traces() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("fig6");
+    let o = stiffdrive(&["run", "--scenario", "fig6", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+            .unwrap();
+    let csv = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|c| *c == name).unwrap();
+    let (t, cmd, vel, shaft) = (
+        col("t_s"),
+        col("vel_cmd_pu"),
+        col("motor_vel_pu"),
+        col("shaft_torque_pu"),
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    // fig6's load step (configs/scenarios/fig6.toml).
+    let step = rows.iter().position(|r| r[t] >= 1.5).unwrap();
+    let dt = rows[1][t] - rows[0][t];
+    let f_bw = summary["velocity_bandwidth_rad_s"].as_f64().unwrap() / std::f64::consts::TAU;
+    let n = (1.0 / (2.0 * f_bw * dt)).round() as usize;
+    let err = |r: &Vec<f64>| r[cmd] - r[vel];
+    let e0 = rows[step - 2 * n..step].iter().map(err).sum::<f64>() / (2 * n) as f64;
+    let droop = rows[step..]
+        .iter()
+        .map(|r| (err(r) - e0).abs())
+        .fold(0.0, f64::max);
+    let peak_shaft = rows[step..]
+        .iter()
+        .map(|r| r[shaft].abs())
+        .fold(0.0, f64::max);
+    let field = |k: &str| summary[k].as_f64().unwrap();
+    // The trace holds each value as printed (shortest round trip), so they agree to round-off.
+    assert!(
+        (field("peak_droop_pu") - droop).abs() < 1e-12 && droop > 1e-3,
+        "summary {} against trace {droop}",
+        field("peak_droop_pu")
+    );
+    assert!(
+        (field("peak_shaft_torque_pu") - peak_shaft).abs() < 1e-12 && peak_shaft > 0.1,
+        "summary {} against trace {peak_shaft}",
+        field("peak_shaft_torque_pu")
+    );
+}
