@@ -24,7 +24,7 @@ pub enum Command {
     Linear(ScenarioArgs),
     /// Design the acceleration feedback, estimator and velocity loop from the plant on the
     /// linear model, with margins, and prove the design in the nonlinear loop; writes
-    /// DIR/drive.toml, DIR/config.toml, DIR/tune.md (with DIR/tune-bode.png and
+    /// DIR/drive.toml (the machine file with the tuned drive), DIR/tune.md (with DIR/tune-bode.png and
     /// DIR/tune-poles.png) and DIR/tune.json.
     Tune {
         /// Configuration (path, or name under configs/).

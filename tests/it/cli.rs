@@ -259,8 +259,7 @@ fn the_summarys_peak_droop_and_peak_shaft_torque_are_the_traces() {
     let o = stiffdrive(&["run", "--scenario", "fig6", "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let csv = std::fs::read_to_string(out.join("trace.csv")).unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();

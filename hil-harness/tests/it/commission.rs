@@ -38,7 +38,6 @@ fn commissioning_an_unseen_machine_gives_a_stable_design_better_than_no_afb() {
         "identified.toml",
         "identify/plant.toml",
         "tune/drive.toml",
-        "tune/config.toml",
         "tune/tune.md",
     ] {
         assert!(out.join(f).is_file(), "{f} not written");
@@ -71,8 +70,8 @@ fn commissioning_an_unseen_machine_gives_a_stable_design_better_than_no_afb() {
         assert!(v != *truth, "{k}: the file's value, not a measurement");
         assert!((v / truth - 1.0).abs() < 0.05, "{k}: {v} against {truth}");
     }
-    // The tuned config runs with `run --config` as it is.
-    let tuned = out.join("tune/config.toml").display().to_string();
+    // The tuned machine file runs with `run --config` as it is.
+    let tuned = out.join("tune/drive.toml").display().to_string();
     let cfg = hil_harness::resolve("fig6", Some(&tuned), &[]).unwrap();
     assert!(hil_harness::run_scenario(&cfg).unwrap().metrics.stable);
 }

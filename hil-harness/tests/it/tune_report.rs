@@ -29,7 +29,7 @@ fn the_tune_section_is_built_from_the_dyno_runs() {
         "{t:?}"
     );
     assert_eq!(t.passed, afb_passes(&t.runs[0], &t.runs[1]));
-    for f in ["tune.md", "tune.json", "drive.toml", "config.toml"] {
+    for f in ["tune.md", "tune.json", "drive.toml"] {
         assert!(dir.path().join("dyno").join(f).is_file(), "{f}");
         assert!(
             dir.path().join("dyno/no-afb").join(f).is_file(),

@@ -1,5 +1,5 @@
 //! `tune --config configs/machines/table1.toml --max-bandwidth` against what `tune` must show: the
-//! written config runs `fig6` stably, `drive.toml` is the tuned drive, the figures are
+//! written `drive.toml` runs `fig6` stably with the tuned drive, `tune.md` shows that drive, the figures are
 //! written and linked, and the damping fitted to the nonlinear loop's step responses
 //! (gears engaged throughout, torque below its limit) against the model's smallest damping.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
@@ -50,8 +50,8 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
     let out = out_dir(&tmp);
     let json = tune_table1(&out);
 
-    // `run --scenario fig6 --config DIR/config.toml` is stable, with the tuned drive.
-    let config = out.join("config.toml").display().to_string();
+    // `run --scenario fig6 --config DIR/drive.toml` is stable, with the tuned drive.
+    let config = out.join("drive.toml").display().to_string();
     let cfg = hil_harness::resolve("fig6", Some(&config), &[]).unwrap();
     let m = hil_harness::run_scenario(&cfg).unwrap().metrics;
     assert!(m.stable && !m.faulted, "{m:?}");
@@ -61,15 +61,20 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
             .as_f64()
             .unwrap()
     );
-    // drive.toml is the whole [drive] table of that drive.
-    let drive: toml::Table = std::fs::read_to_string(out.join("drive.toml"))
-        .unwrap()
-        .parse()
-        .unwrap();
-    let drive: controller_core::DriveConfig = drive["drive"].clone().try_into().unwrap();
-    assert_eq!(drive, cfg.drive);
-
+    // drive.toml composes to that drive as the firmware build composes it, and tune.md shows
+    // the whole [drive] table of it.
+    let composed = machine_file::load(&out.join("drive.toml")).unwrap();
+    assert_eq!(composed.drive, cfg.drive);
     let md = std::fs::read_to_string(out.join("tune.md")).unwrap();
+    let shown = md
+        .split("```toml\n")
+        .nth(1)
+        .and_then(|s| s.split("```").next())
+        .unwrap();
+    let shown: toml::Table = shown.parse().unwrap();
+    let shown: controller_core::DriveConfig = shown["drive"].clone().try_into().unwrap();
+    assert_eq!(shown, cfg.drive);
+
     for img in ["tune-bode.png", "tune-poles.png"] {
         assert!(out.join(img).is_file(), "{img}");
         assert!(md.contains(&format!("]({img})")), "{img} not linked");

@@ -4,6 +4,7 @@
 
 /// The paper's Table 1 drive, composed from `configs/machines/table1.toml` by the one composer.
 mod common {
+    #[allow(clippy::expect_used)]
     pub fn table1() -> controller_core::DriveConfig {
         machine_file::table1()
             .expect("configs/machines/table1.toml composes")

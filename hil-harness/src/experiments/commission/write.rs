@@ -44,7 +44,7 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
          ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
          {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin {:.1} deg, gain \
          margin {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the \
-         `[drive]` table to flash; `tune/config.toml` is the identified file with it.\n\n\
+         identified machine file with that drive.\n\n\
          ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
          | {} \n|{}\n",
         notch_text(c),

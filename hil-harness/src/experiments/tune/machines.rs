@@ -88,7 +88,7 @@ pub fn tune_machine(
 }
 
 /// Tunes `machines` in parallel and writes, into `dir`, `<machine>/` (the AFB design's
-/// `tune.md`, `tune.json`, `drive.toml`, `config.toml` and figures), `<machine>/no-afb/`
+/// `tune.md`, `tune.json`, `drive.toml` and figures), `<machine>/no-afb/`
 /// (the same for the no-AFB design) and `machines.json` (every [`MachineTune`]).
 pub fn tune_into(
     dir: &Path,

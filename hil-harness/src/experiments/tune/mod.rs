@@ -441,7 +441,8 @@ pub fn tune(
     Ok(summary_line(&t, out))
 }
 
-/// The figures, `drive.toml`, `config.toml`, `tune.md` and `tune.json` into `dir`.
+/// The figures, `drive.toml` (the machine file with the tuned drive), `tune.md` and
+/// `tune.json` into `dir`.
 fn write_files(
     dir: &Path,
     result: &TuneResult,
@@ -458,10 +459,9 @@ fn write_files(
     let files = [
         ("tune.md", output::markdown(result, &drive, &images)),
         (
-            "config.toml",
+            "drive.toml",
             output::merged_config(&base.config_path, &base.drive, &tuned.drive)?,
         ),
-        ("drive.toml", drive),
         ("tune.json", json + "\n"),
     ];
     for (name, text) in files {

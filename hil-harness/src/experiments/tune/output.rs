@@ -1,5 +1,7 @@
-//! What `tune` writes: the tuned `controller_core::DriveConfig` serialized as the `[drive]`
-//! table, the input config with the keys the design changed, and `tune.md`.
+//! What `tune` writes: `drive.toml`, the input machine file with the `[drive]` keys the
+//! design changed (so `run --config`, `flash --config` and the firmware build's
+//! `STIFFDRIVE_DRIVE` take it as it is), and `tune.md`, which shows the whole tuned
+//! `controller_core::DriveConfig` as its `[drive]` table.
 
 use super::damping::StepFit;
 use super::TuneResult;
@@ -40,7 +42,7 @@ pub fn drive_table(drive: &DriveConfig) -> Result<Table> {
     }
 }
 
-/// `DIR/drive.toml`: the whole tuned `[drive]` table.
+/// The whole tuned `[drive]` table, as `tune.md` shows it.
 pub fn drive_toml(drive: &DriveConfig) -> Result<String> {
     let mut doc = Table::new();
     doc.insert("drive".into(), Value::Table(drive_table(drive)?));
@@ -82,8 +84,9 @@ fn set_keys(table: &mut Table, keys: Table) {
     }
 }
 
-/// `DIR/config.toml`: the input config file with its `[drive]` table's keys set where the
-/// tuned drive differs from the drive the file gives (`base`).
+/// `DIR/drive.toml`: the input machine file with its `[drive]` table's keys set where the
+/// tuned drive differs from the drive the file gives (`base`); it composes to the tuned
+/// drive.
 pub fn merged_config(
     config_path: &Path,
     base: &DriveConfig,
