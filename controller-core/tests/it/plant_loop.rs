@@ -1,7 +1,9 @@
-//! A small two-inertia plant with lost motion (the paper's Fig. 3; `plant-host/README.md`), an RL
-//! winding and the paper's 0.18 ms computational delay, closed around the real fixed-point
-//! `Controller`. Test-only: it lets the core's tests check stability of a design without the plant
-//! crate.
+//! The real fixed-point `Controller` closed around plant-host's `TwoInertiaPlant` (the paper's
+//! Fig. 3 with lost motion, the RL winding with back-EMF, the 0.18 ms computational delay and the
+//! current ADC; `plant-host/README.md`), with the judging of `accel_loop` and `afb_design`.
+//! The linear model of the loop (`hil-harness/src/experiments/linear/`, used by `afb_loop`)
+//! cannot run what these runs decide on: the lost motion's transitions, the encoder and ADC
+//! quantization, the fixed-point clamps and the fault checks.
 #![allow(
     dead_code,
     clippy::unwrap_used,
@@ -13,66 +15,7 @@
 use controller_core::{
     Controller, CurrentInputs, DriveConfig, Profile, ProfileConfig, Pu, VelocityInputs,
 };
-
-/// Mechanical and electrical plant parameters (pu, motor side).
-#[derive(Clone, Copy, Debug)]
-pub struct PlantParams {
-    pub jm_s: f64,
-    pub jl_s: f64,
-    pub f_ar_hz: f64,
-    pub zeta: f64,
-    pub backlash_rad: f64,
-    pub r_pu: f64,
-    pub l_pu_s: f64,
-    pub base_rad_s: f64,
-}
-
-impl PlantParams {
-    pub fn table1() -> Self {
-        Self {
-            jm_s: 0.117,
-            jl_s: 0.863,
-            f_ar_hz: 22.5,
-            zeta: 0.05,
-            backlash_rad: 0.5f64.to_radians(),
-            r_pu: 0.05,
-            l_pu_s: 0.0006,
-            base_rad_s: 1000.0 * std::f64::consts::TAU / 60.0,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug, Default)]
-pub struct PlantState {
-    pub theta_m: f64,
-    pub theta_l: f64,
-    pub w_m: f64,
-    pub w_l: f64,
-    pub i: f64,
-}
-
-impl PlantState {
-    /// Integrate dt seconds with voltage v and load torque tl (semi-implicit Euler).
-    pub fn step(&mut self, p: &PlantParams, v: f64, tl: f64, dt: f64) {
-        let w_ar = std::f64::consts::TAU * p.f_ar_hz;
-        let k = p.jl_s * w_ar * w_ar / p.base_rad_s;
-        let d = 2.0 * p.zeta * p.jl_s * w_ar;
-        let g = p.backlash_rad / 2.0;
-        let delta = self.theta_m - self.theta_l;
-        let ts = if delta > g {
-            k * (delta - g) + d * (self.w_m - self.w_l)
-        } else if delta < -g {
-            k * (delta + g) + d * (self.w_m - self.w_l)
-        } else {
-            0.0
-        };
-        self.i += (v - p.r_pu * self.i) / p.l_pu_s * dt;
-        self.w_m += (self.i - ts) / p.jm_s * dt;
-        self.w_l += (ts - tl) / p.jl_s * dt;
-        self.theta_m += p.base_rad_s * self.w_m * dt;
-        self.theta_l += p.base_rad_s * self.w_l * dt;
-    }
-}
+use plant_host::{PlantConfig, TwoInertiaPlant};
 
 /// Result of a closed-loop run.
 #[derive(Clone, Copy, Debug, Default)]
@@ -108,8 +51,8 @@ impl RunSummary {
 }
 
 /// The paper's Fig. 6 scenario: ramp to 1 pu in 1 s, hold; 50 % load step at 1.5 s.
-/// Judged over [1.7 s, end). Computational delay 0.18 ms between sampling and applying.
-pub fn run_fig6(cfg: &DriveConfig, plant: &PlantParams, end_s: f64) -> RunSummary {
+/// Judged over [1.7 s, end). The plant's computational delay between sampling and applying.
+pub fn run_fig6(cfg: &DriveConfig, plant: &PlantConfig, end_s: f64) -> RunSummary {
     let mut ctl = Controller::new(cfg).expect("config");
     run_scenario(&mut ctl, cfg, plant, &Scenario::fig6(end_s))
 }
@@ -158,24 +101,22 @@ impl Scenario {
 pub fn run_scenario(
     ctl: &mut Controller,
     cfg: &DriveConfig,
-    plant: &PlantParams,
+    plant: &PlantConfig,
     sc: &Scenario,
 ) -> RunSummary {
     let end_s = sc.end_s;
     let mut profile = Profile::new(&sc.profile, cfg).expect("profile");
     let ts = 1.0 / f64::from(cfg.current_rate_hz);
     let ratio = cfg.current_rate_hz / cfg.velocity_rate_hz;
-    let substeps = 25u32;
-    let dt = ts / f64::from(substeps);
-    let delay_steps = ((0.18e-3 / dt).round() as u32).min(substeps);
     let mask: u64 = if cfg.counter_bits >= 32 {
         u64::from(u32::MAX)
     } else {
         (1u64 << cfg.counter_bits) - 1
     };
-    let mut x = PlantState::default();
-    let mut v_applied = 0.0f64;
-    let mut v_pending;
+    // The encoder the drive is configured for (a test may change the drive's CPR).
+    let mut plant = *plant;
+    plant.mechanics.encoder_cpr = cfg.encoder_cpr;
+    let mut x = TwoInertiaPlant::voltage_driven(&plant);
     let n_ticks = (end_s / ts) as u64;
     let judge_from = (sc.judge_from_s / ts) as u64;
     let limit = f64::from(cfg.torque_limit_pu);
@@ -194,8 +135,7 @@ pub fn run_scenario(
     let (mut aerr_sq, mut aerr_n) = (0.0f64, 0u64);
     for k in 0..n_ticks {
         let t = k as f64 * ts;
-        let counts =
-            (x.theta_m * f64::from(cfg.encoder_cpr) / std::f64::consts::TAU).floor() as i64;
+        let counts = x.encoder_count();
         let raw = (counts as u64 & mask) as u32;
         if k % u64::from(ratio) == 0 {
             let sp = profile.next();
@@ -216,25 +156,20 @@ pub fn run_scenario(
             }
         }
         w_prev2 = w_prev;
-        w_prev = x.w_m;
+        w_prev = x.motor_vel_pu();
         let out = ctl.current_tick(CurrentInputs {
             encoder_count: raw,
-            current_pu: Pu::saturating_from_num(x.i),
+            current_pu: Pu::saturating_from_num(x.current_sample()),
         });
         faulted |= out.fault.is_some();
-        v_pending = out.voltage_cmd_pu.to_num::<f64>();
+        let v = out.voltage_cmd_pu.to_num::<f64>();
         let tl = if t >= sc.load_step_s { sc.load_pu } else { 0.0 };
-        for s in 0..substeps {
-            if s == delay_steps {
-                v_applied = v_pending;
-            }
-            x.step(plant, v_applied, tl, dt);
-        }
+        x.advance_period(ts, v, tl).expect("finite voltage");
         if t >= sc.load_step_s && t < sc.load_step_s + 0.3 {
-            dip = dip.max((x.w_m - v_cmd_now).abs());
+            dip = dip.max((x.motor_vel_pu() - v_cmd_now).abs());
         }
         if k >= judge_from {
-            let e = x.w_m - v_cmd_now;
+            let e = x.motor_vel_pu() - v_cmd_now;
             sq += e * e;
             n += 1;
             let iref = out.current_ref_pu.to_num::<f64>();
@@ -243,8 +178,8 @@ pub fn run_scenario(
             if iref.abs() >= limit * 0.999 {
                 at_limit += 1;
             }
-            max_ls = max_ls.max((x.w_l - x.w_m).abs());
-            let el = x.w_l - v_cmd_now;
+            max_ls = max_ls.max((x.load_vel_pu() - x.motor_vel_pu()).abs());
+            let el = x.load_vel_pu() - v_cmd_now;
             lsq += el * el;
             hist.push_back(iref);
             hist_sum += iref;
