@@ -150,9 +150,9 @@ fn afb_design_sweep() {
 /// At 10⁶ CPR (the printing-press encoder) the quantization that ruins differentiation at
 /// 4096 CPR falls by 244×, and the differentiated acceleration loop's limit shows: with
 /// differentiated velocity and acceleration, Ka = 0.5·J_total and a first-order filter,
-/// the linear analysis (`afb_state_space`, gears separated) allows 95 Hz at 4 kHz
-/// and 46 Hz at 2 kHz. The simulation must be stable at about half of each (45 Hz, 23 Hz)
-/// and unstable at about twice (190 Hz, 93 Hz). The default (observer) design is stable
+/// the linear model of the loop (`afb_loop`, gears apart) allows 53.8 Hz at 4 kHz
+/// and 37.3 Hz at 2 kHz. The simulation must be stable below each (45 Hz, 23 Hz)
+/// and unstable above twice each (190 Hz, 93 Hz). The default (observer) design is stable
 /// too. This also exercises every Q-format at the high count rate.
 #[test]
 fn high_resolution_encoder_and_the_acceleration_loop_limit() {
