@@ -49,8 +49,9 @@
 //! grows, g·Ka → J_model/b0 and the closed form tends to a fixed controller, so Ka buys
 //! inertia, not instability, as long as J_model is at most the inertia the motor drives
 //! (a J_total model on the separated motor is unstable). The linear model of the whole loop,
-//! with the real current regulator and winding (`tests/it/afb_loop.rs`), puts the limit at
-//! 7–11·J_total for 25–400 Hz filters, far above the one-tick-late limit. In practice Ka is limited by the
+//! with the real current regulator and winding (`tests/it/afb_loop.rs`), agrees in speed
+//! mode; with the position loop it finds a slow mode that limits Ka to 7–11·J_total for
+//! 25–400 Hz filters, far above the one-tick-late limit. In practice Ka is limited by the
 //! count noise the estimate passes (`tests/it/accel_loop.rs`).
 //!
 //! With the acceleration from differentiation there is no model term, and the plain update

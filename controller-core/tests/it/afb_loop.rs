@@ -18,8 +18,17 @@ const JT: f64 = 0.98;
 /// The linear loop of `cfg` with Ka scaled by `ka_scale` from its design (beyond the
 /// settings' range where the scale asks for it), with the gears `gears`.
 fn model(cfg: &DriveConfig, ka_scale: f64, gears: Gears) -> LoopModel {
+    model_with(cfg, ka_scale, gears, true)
+}
+
+/// [`model`], with the position loop or in speed mode (no position loop).
+fn model_with(cfg: &DriveConfig, ka_scale: f64, gears: Gears, position_loop: bool) -> LoopModel {
     let mut g = design(cfg).unwrap();
     g.ka = (f64::from(g.ka) * ka_scale) as f32;
+    if !position_loop {
+        g.kpp = 0.0;
+        g.k_pos_pu_per_count = 0.0;
+    }
     let coef = Coefficients::new(cfg, &g).unwrap();
     LoopModel::new(
         coef,
@@ -74,25 +83,25 @@ fn default_design_and_its_ka_neighbours_are_stable() {
 }
 
 /// The closed form through the plant: the largest stable Ka/J_total (observer-fed, error
-/// form, first-order filter) up to 1000·J_total, gears apart and engaged, lies above
-/// (2 − α)/α·Jm/J_total, the inner-loop limit of the one-tick-late structure
-/// (`afb_skeleton`) at every corner from 25 to 400 Hz. The limit is finite here (about
-/// 9–11·J_total apart and 7–9·J_total engaged, printed), where the skeleton, with its
-/// first-order current loop, finds none up to 1000·J_total.
+/// form, first-order filter, 25 to 400 Hz) up to 1000·J_total, gears apart and engaged. In
+/// speed mode the closed form has no limit up to the search's end, as in the skeleton
+/// (`afb_skeleton`). With the Table 1 position loop the limit is finite, a slow mode (about
+/// 3 Hz) of the position loop around a velocity loop that Ka slows down, and still above
+/// (2 − α)/α·Jm/J_total, the inner-loop limit of the one-tick-late structure.
 #[test]
 fn closed_form_ka_limits_through_the_plant() {
     let base = common::table1();
     println!("Observer-fed AFB, closed form, largest stable Ka/J_total (1000 = the search's end):");
-    println!("| filter corner [Hz] | (2 − α)/α·Jm/J_total | gears apart | engaged |");
-    println!("|---|---|---|---|");
+    println!("| filter corner [Hz] | (2 − α)/α·Jm/J_total | speed mode: apart | engaged | position loop: apart | engaged |");
+    println!("|---|---|---|---|---|---|");
     for fc in [25.0f32, 50.0, 100.0, 200.0, 400.0] {
         let mut c = base;
         c.accel_feedback.gain_fraction = 1.0;
         c.accel_feedback.filter = FilterConfig::FirstOrder { corner_hz: fc };
         // Bisect on a log scale: the limits span three decades.
-        let limit = |gears| {
+        let limit = |gears, position_loop| {
             let l = bisect(0.01f64.ln(), 1000f64.ln(), |lf| {
-                model(&c, lf.exp(), gears).spectral_radius() < 1.0
+                model_with(&c, lf.exp(), gears, position_loop).spectral_radius() < 1.0
             });
             if l == 0.0 {
                 0.0
@@ -100,14 +109,23 @@ fn closed_form_ka_limits_through_the_plant() {
                 l.exp()
             }
         };
-        let (apart, engaged) = (limit(Gears::Apart), limit(Gears::Engaged));
+        let speed = [Gears::Apart, Gears::Engaged].map(|g| limit(g, false));
+        let pos = [Gears::Apart, Gears::Engaged].map(|g| limit(g, true));
         let alpha = 1.0 - (-std::f64::consts::TAU * f64::from(fc) / 4000.0).exp();
         let inner = (2.0 - alpha) / alpha * JM / JT;
-        println!("| {fc} | {inner:.3} | {apart:.2} | {engaged:.2} |");
-        assert!(
-            apart > inner && engaged > inner,
-            "{fc} Hz: {apart} {engaged} vs the one-tick-late inner limit {inner}"
+        println!(
+            "| {fc} | {inner:.3} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            speed[0], speed[1], pos[0], pos[1]
         );
+        for l in speed {
+            assert!(l >= 999.0, "{fc} Hz: speed mode limited at {l}");
+        }
+        for l in pos {
+            assert!(
+                l > inner,
+                "{fc} Hz: {l} vs the one-tick-late inner limit {inner}"
+            );
+        }
     }
 }
 

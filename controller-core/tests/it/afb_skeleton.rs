@@ -541,8 +541,9 @@ fn the_closed_form_allows_at_least_the_one_tick_late_ka() {
 /// stable first-order corner. Checks that the higher AFB rate allows at least twice the
 /// corner with the gears separated (the differentiation and hold delays halve). The linear
 /// model of the loop does not bear this out (`afb_loop::differentiated_acceleration_corner_limits`
-/// prints 53.8 Hz at 4 kHz and 37.3 Hz at 2 kHz for Ka = 0.5·J_total, gears apart), so the
-/// ratio is this skeleton's, with its first-order current loop.
+/// prints 53.8 Hz at 4 kHz and 37.3 Hz at 2 kHz for Ka = 0.5·J_total, gears apart; 54.0 Hz
+/// and 37.6 Hz in speed mode), so the ratio is this skeleton's, with its first-order current
+/// loop.
 #[test]
 fn differentiated_acceleration_corner_limits() {
     let base = common::table1();
