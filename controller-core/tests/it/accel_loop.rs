@@ -1,7 +1,10 @@
-//! The acceleration loop closed through a plant, with the real fixed-point controller
-//! (`sim`: Euler two-inertia model with the 0.5° dead zone, RL winding, 0.18 ms
+//! The acceleration loop closed through the plant with the real fixed-point controller
+//! (`plant_loop`: plant-host's Table 1 plant with the 0.5° dead zone, RL winding, 0.18 ms
 //! delay, 4096 CPR): the closed form has no inner-loop limit, what limits Ka, and whether the
-//! observer should be driven by the torque command or the measured current.
+//! observer should be driven by the torque command or the measured current. These runs
+//! judge what the linear model of the loop (`afb_loop`) leaves out: the gears separating in
+//! the lost motion, the count and ADC quantization, the fixed-point clamps and the closed
+//! form's Q16.16 arithmetic.
 //! `cargo test -p controller-core --release --test it accel_loop:: -- --nocapture`
 #![allow(
     clippy::unwrap_used,
@@ -11,12 +14,14 @@
 )]
 
 use crate::common;
-use crate::sim;
+use crate::plant_loop;
 
+use common::table1_plant;
 use controller_core::{AfbMode, Controller, DriveConfig, FilterConfig, ObserverTorque};
-use sim::{run_scenario, PlantParams, RunSummary, Scenario};
+use plant_host::PlantConfig;
+use plant_loop::{run_scenario, RunSummary, Scenario};
 
-fn run(cfg: &DriveConfig, plant: &PlantParams, sc: &Scenario) -> RunSummary {
+fn run(cfg: &DriveConfig, plant: &PlantConfig, sc: &Scenario) -> RunSummary {
     let mut ctl = Controller::new(cfg).unwrap();
     run_scenario(&mut ctl, cfg, plant, sc)
 }
@@ -35,8 +40,8 @@ fn one_tick_late_limit(fc: f64) -> f64 {
 /// (bounded, not diverging).
 #[test]
 fn rigid_motor_runs_far_above_the_one_tick_late_limit() {
-    let mut plant = PlantParams::table1();
-    plant.jl_s = 1e-9;
+    let mut plant = table1_plant();
+    plant.mechanics.load_inertia_s = 1e-9;
     let mut sc = Scenario::fig6(2.0);
     sc.load_pu = 0.0;
     let lim = one_tick_late_limit(100.0);
@@ -69,7 +74,7 @@ fn rigid_motor_runs_far_above_the_one_tick_late_limit() {
 /// the no-AFB dip (AFB stiffens, at the same velocity gains).
 #[test]
 fn ka_sweep_through_the_table1_machine() {
-    let plant = PlantParams::table1();
+    let plant = table1_plant();
     let mut off = common::table1();
     off.accel_feedback.mode = AfbMode::Off;
     let off6 = run(&off, &plant, &Scenario::fig6(2.5));
@@ -111,7 +116,7 @@ fn ka_sweep_through_the_table1_machine() {
 /// and the speed dip at once (then the default should change).
 #[test]
 fn observer_torque_input_command_or_measured_current() {
-    let plant = PlantParams::table1();
+    let plant = table1_plant();
     let mut rows = Vec::new();
     for input in [ObserverTorque::Command, ObserverTorque::MeasuredCurrent] {
         for mode in [AfbMode::Off, AfbMode::Error] {

@@ -1,4 +1,4 @@
-//! Test support: the paper's Table 1 drive from `configs/machines/table1.toml`, composed by the one
+//! Test support: the paper's Table 1 drive and plant from `configs/machines/table1.toml`, composed by the one
 //! composer of a machine file (`machine_file::compose`) that the harness and the firmware
 //! build use.
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -33,4 +33,12 @@ pub fn table1_number(table: &str, key: &str) -> f64 {
         Some(toml::Value::Integer(n)) => *n as f64,
         other => panic!("{table}.{key}: {other:?}"),
     }
+}
+
+/// The Table 1 plant of `configs/machines/table1.toml` (lost motion 0.5°, RL winding,
+/// 0.18 ms computational delay, 12-bit current ADC), as the harness runs it.
+pub fn table1_plant() -> plant_host::PlantConfig {
+    machine_file::from_text(TABLE1_TOML)
+        .expect("table1 composes")
+        .plant
 }

@@ -1,7 +1,9 @@
-//! A small two-inertia plant with lost motion (the paper's Fig. 3; `plant-host/README.md`), an RL
-//! winding and the paper's 0.18 ms computational delay, closed around the real fixed-point
-//! `Controller`. Test-only: it lets the core's tests check stability of a design without the plant
-//! crate.
+//! A hand-written two-inertia plant with lost motion (the paper's Fig. 3; `plant-host/README.md`),
+//! an RL winding without back-EMF and the 0.18 ms computational delay, Euler-integrated, closed
+//! around the real fixed-point `Controller`. It serves one test only,
+//! `afb_design::raw_differentiated_velocity_feedback_at_4096_cpr`, whose claim (the default AFB
+//! keeps raw differentiated velocity feedback off the torque limit) holds on this plant and
+//! fails on plant-host's: every other closed-loop run uses plant-host's plant (`plant_loop`).
 #![allow(
     dead_code,
     clippy::unwrap_used,
