@@ -12,90 +12,18 @@
     clippy::indexing_slicing
 )]
 
-use controller_core::{
-    Controller, CurrentInputs, DriveConfig, Profile, ProfileConfig, Pu, VelocityInputs,
-};
+use controller_core::{Controller, CurrentInputs, DriveConfig, Profile, Pu, VelocityInputs};
 use plant_host::{PlantConfig, TwoInertiaPlant};
 
-/// Result of a closed-loop run.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct RunSummary {
-    /// RMS of (motor speed − commanded speed) over the judging window [pu].
-    pub speed_err_rms_pu: f64,
-    /// Peak-to-peak of the current reference over the window [pu].
-    pub torque_p2p_pu: f64,
-    /// Fraction of the window the current reference sat at the torque limit.
-    pub limit_fraction: f64,
-    /// A fault latched during the run.
-    pub faulted: bool,
-    /// Largest |load − motor speed| over the window [pu].
-    pub max_load_speed_err_pu: f64,
-    /// RMS of the current reference minus its 10 ms moving average over the window [pu]:
-    /// the torque ripple (quantization noise and oscillation).
-    pub torque_ripple_rms_pu: f64,
-    /// RMS of (load speed − commanded speed) over the window [pu].
-    pub load_speed_err_rms_pu: f64,
-    /// Largest |motor speed − commanded speed| in the 0.3 s after the load step [pu]
-    /// (the speed dip: the inverse of the drive's stiffness against the step).
-    pub speed_dip_pu: f64,
-    /// RMS of the controller's acceleration estimate (velocity-tick output) minus the
-    /// motor's true mean acceleration over the same current tick, over the window [pu/s].
-    pub accel_est_err_rms_pu_s: f64,
-}
-
-impl RunSummary {
-    /// Crude stability verdict: bounded, not riding the torque limit, not faulted.
-    pub fn stable(&self) -> bool {
-        !self.faulted && self.limit_fraction < 0.02 && self.speed_err_rms_pu < 0.02
-    }
-}
+// The run's summary and the scenarios are the hand-written loop's (`sim`), so both plants
+// are judged alike.
+pub use super::sim::{RunSummary, Scenario};
 
 /// The paper's Fig. 6 scenario: ramp to 1 pu in 1 s, hold; 50 % load step at 1.5 s.
 /// Judged over [1.7 s, end). The plant's computational delay between sampling and applying.
 pub fn run_fig6(cfg: &DriveConfig, plant: &PlantConfig, end_s: f64) -> RunSummary {
     let mut ctl = Controller::new(cfg).expect("config");
     run_scenario(&mut ctl, cfg, plant, &Scenario::fig6(end_s))
-}
-
-/// A closed-loop scenario: profile, load step, judging window.
-#[derive(Clone, Copy, Debug)]
-pub struct Scenario {
-    pub profile: ProfileConfig,
-    pub load_step_s: f64,
-    pub load_pu: f64,
-    pub judge_from_s: f64,
-    pub end_s: f64,
-}
-
-impl Scenario {
-    pub fn fig6(end_s: f64) -> Self {
-        Self {
-            profile: ProfileConfig::fig6(),
-            load_step_s: 1.5,
-            load_pu: 0.5,
-            judge_from_s: 1.7,
-            end_s,
-        }
-    }
-    /// Fig. 4 style: trapezoid up, cruise, down to standstill with no load, so the gears
-    /// separate on deceleration and float in the lost motion at standstill. Judged over
-    /// the whole run.
-    pub fn fig4() -> Self {
-        Self {
-            profile: ProfileConfig {
-                kind: controller_core::ProfileKind::Trapezoid,
-                peak_velocity_pu: 0.5,
-                accel_time_s: 0.5,
-                hold_time_s: 0.5,
-                decel_time_s: 0.5,
-                start_delay_s: 0.05,
-            },
-            load_step_s: f64::INFINITY,
-            load_pu: 0.0,
-            judge_from_s: 0.0,
-            end_s: 2.0,
-        }
-    }
 }
 
 pub fn run_scenario(
