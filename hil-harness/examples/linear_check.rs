@@ -1,13 +1,14 @@
 //! Prints the linear model's stability prediction against the nonlinear loop on a grid.
 use hil_harness::experiments::linear::check::check_grid;
-use hil_harness::experiments::sweep::{default_observer_hz, designs, BANDWIDTHS_RAD_S};
+use hil_harness::experiments::sweep::{default_observer_hz, designs};
 
-fn main() {
-    let designs: Vec<_> = designs(default_observer_hz())
+fn main() -> hil_harness::Result<()> {
+    let grid = hil_harness::config::sweep_grid()?;
+    let designs: Vec<_> = designs(&grid, default_observer_hz())
         .into_iter()
         .step_by(6)
         .collect();
-    let bws: Vec<f64> = BANDWIDTHS_RAD_S.iter().copied().step_by(2).collect();
+    let bws: Vec<f64> = grid.bandwidths_rad_s.iter().copied().step_by(2).collect();
     let pts = check_grid(&["table1", "dyno"], &bws, &designs);
     let agree = pts.iter().filter(|p| p.predicted == p.measured).count();
     for p in &pts {
@@ -37,4 +38,5 @@ fn main() {
     for (c, pr) in lc.iter().rev().take(25) {
         println!("chatter {c:.3} predicted {pr}");
     }
+    Ok(())
 }

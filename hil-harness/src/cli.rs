@@ -108,12 +108,17 @@ pub enum Command {
     },
     /// Run one scenario through the firmware in QEMU (processor in the loop).
     Pil(crate::pil::PilArgs),
-    /// Write the JSON Schema of a machine file (`configs/*.toml`: the plant tables and
-    /// `[drive]`, with every range), for an editor to complete and check a config.
+    /// Write the JSON Schema of a machine file (`configs/machines/*.toml`: the plant tables
+    /// and `[drive]`, with every range), or with `--grids` of the grids file
+    /// (`configs/grids.toml`), for an editor to complete and check it.
     Schema {
-        /// Output file.
-        #[arg(long, default_value = "configs/machine.schema.json")]
-        out: PathBuf,
+        /// The grids file's schema instead of the machine file's.
+        #[arg(long)]
+        grids: bool,
+        /// Output file [default: configs/machine.schema.json, with `--grids`
+        /// configs/grids.schema.json].
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Build the STM32F4-Discovery image carrying a machine file's drive (e.g. a
     /// `drive.toml` from `tune` or `commission`) and run it on the board through probe-rs.

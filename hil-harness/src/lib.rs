@@ -103,7 +103,15 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             out,
         } => replay::replay(&config, &torque, &out),
         Command::Pil(args) => pil::pil_command(&args),
-        Command::Schema { out } => config::schema::write_schema(&out),
+        Command::Schema { grids, out } => {
+            use config::schema::{write_schema, SchemaOf};
+            let of = if grids {
+                SchemaOf::Grids
+            } else {
+                SchemaOf::Machine
+            };
+            write_schema(of, &out.unwrap_or_else(|| of.default_out().into()))
+        }
         Command::Flash { config, build_only } => flash::flash(&config, build_only),
     }
 }

@@ -316,6 +316,33 @@ fn a_second_run_replaces_what_stiffdrive_wrote() {
     }
     let committed = std::fs::read(configs().join("machine.schema.json")).unwrap();
     assert_eq!(std::fs::read(&schema).unwrap(), committed);
+    // The grids file's schema likewise; it does not replace the machine file's.
+    let grids = |out: &Path| {
+        stiffdrive(
+            &[
+                "schema".into(),
+                "--grids".into(),
+                "--out".into(),
+                out.to_str().unwrap().into(),
+            ],
+            tmp.path(),
+            false,
+        )
+    };
+    let grids_schema = tmp.path().join("grids.schema.json");
+    for _ in 0..2 {
+        let o = grids(&grids_schema);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let committed = std::fs::read(configs().join("grids.schema.json")).unwrap();
+    assert_eq!(std::fs::read(&grids_schema).unwrap(), committed);
+    let o = grids(&schema);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("was not written by stiffdrive"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     let torque = tmp.path().join("torque.csv");
     std::fs::write(
         &torque,

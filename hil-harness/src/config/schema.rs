@@ -1,9 +1,13 @@
-//! The JSON Schema of a machine file (`configs/*.toml`): plant-host's tables and
+//! The JSON Schema of a machine file (`configs/machines/*.toml`): plant-host's tables and
 //! controller-core's `[drive]`, each generated from its type (schemars), with the bounds of
 //! the owners' range tables (`plant_host::RANGES`, `controller_core::RANGES`) as
 //! `minimum`/`maximum`. An editor with a TOML language server (taplo, Even Better TOML)
 //! completes and checks a drive file against it: `hil-harness schema --out FILE`.
+//!
+//! And the schema of the grids file (`configs/grids.toml`, [`super::grids`]), with the
+//! bounds of [`super::grids::RANGES`]: `hil-harness schema --grids`.
 
+use super::grids::{GridsFile, MAX_VALUES, RANGES as GRID_RANGES};
 use super::machine::MACHINE_KEYS;
 use crate::error::{HarnessError, Result};
 use serde_json::{Map, Value};
@@ -153,14 +157,99 @@ fn is_machine_schema(bytes: &[u8]) -> bool {
     })
 }
 
-/// `hil-harness schema --out FILE`: writes the machine-file schema as pretty JSON (an
-/// existing file only if it is a schema stiffdrive wrote; see [`SCHEMA_MARK`]).
-pub fn write_schema(out: &std::path::Path) -> Result<String> {
-    crate::output::check_file_target(out, &SCHEMA_MARK)?;
-    let text = serde_json::to_string_pretty(&machine_schema()?)
+/// The schema of the grids file, every list's bounds in it: `minItems`/`maxItems` on the
+/// list, `minimum` (or `exclusiveMinimum`) and `maximum` on its values.
+pub fn grids_schema() -> Result<Value> {
+    let mut root = to_value(schemars::schema_for!(GridsFile))?;
+    for r in GRID_RANGES {
+        let (list, field) = match r.key.split_once('.') {
+            Some((list, field)) => (list, vec![field]),
+            None => (r.key, Vec::new()),
+        };
+        let at = format!("/$defs/Grid/properties/{list}");
+        if let Some(Value::Object(o)) = root.pointer_mut(&at) {
+            o.insert("minItems".into(), Value::from(1));
+            o.insert("maxItems".into(), Value::from(MAX_VALUES));
+        }
+        let low = if r.min_exclusive {
+            "exclusiveMinimum"
+        } else {
+            "minimum"
+        };
+        let bounds = [(low, r.min), ("maximum", r.max)];
+        let mut holders_of = Vec::new();
+        holders(&root, format!("{at}/items"), &field, &mut holders_of);
+        if holders_of.is_empty() {
+            return Err(HarnessError::Backend(format!(
+                "schema: the grid key `{}` is not in the generated schema",
+                r.key
+            )));
+        }
+        for p in holders_of {
+            if let Some(Value::Object(o)) = root.pointer_mut(&p) {
+                for (name, v) in bounds {
+                    o.insert(name.into(), Value::from(v));
+                }
+            }
+        }
+    }
+    Ok(root)
+}
+
+/// What marks a file as `schema --grids`'s output: JSON whose root is titled `GridsFile`
+/// with a `$schema`.
+pub const GRIDS_SCHEMA_MARK: crate::output::FileMark = crate::output::FileMark {
+    what: "a grids-file JSON Schema stiffdrive wrote",
+    is_ours: is_grids_schema,
+};
+
+fn is_grids_schema(bytes: &[u8]) -> bool {
+    serde_json::from_slice::<Value>(bytes).is_ok_and(|v| {
+        v.get("$schema").is_some() && v.get("title").and_then(Value::as_str) == Some("GridsFile")
+    })
+}
+
+/// Which file `hil-harness schema` describes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SchemaOf {
+    /// A machine file (`configs/machines/*.toml`).
+    Machine,
+    /// The grids file (`configs/grids.toml`).
+    Grids,
+}
+
+impl SchemaOf {
+    /// Where `schema` writes without `--out`, from the working directory.
+    #[must_use]
+    pub fn default_out(self) -> &'static str {
+        match self {
+            Self::Machine => "configs/machine.schema.json",
+            Self::Grids => "configs/grids.schema.json",
+        }
+    }
+}
+
+/// `hil-harness schema [--grids] --out FILE`: writes the schema as pretty JSON (an existing
+/// file only if it is a schema of the same kind stiffdrive wrote; see [`SCHEMA_MARK`],
+/// [`GRIDS_SCHEMA_MARK`]).
+pub fn write_schema(of: SchemaOf, out: &std::path::Path) -> Result<String> {
+    let (mark, schema, what) = match of {
+        SchemaOf::Machine => (
+            &SCHEMA_MARK,
+            machine_schema as fn() -> Result<Value>,
+            "machine",
+        ),
+        SchemaOf::Grids => (
+            &GRIDS_SCHEMA_MARK,
+            grids_schema as fn() -> Result<Value>,
+            "grids",
+        ),
+    };
+    crate::output::check_file_target(out, mark)?;
+    let text = serde_json::to_string_pretty(&schema()?)
         .map_err(|e| HarnessError::Backend(format!("schema: {e}")))?;
-    crate::output::write_file(out, (text + "\n").as_bytes(), &SCHEMA_MARK)?;
-    Ok(format!("machine-file JSON Schema -> {}", out.display()))
+    crate::output::write_file(out, (text + "\n").as_bytes(), mark)?;
+    Ok(format!("{what}-file JSON Schema -> {}", out.display()))
 }
 
 #[cfg(test)]
@@ -195,6 +284,30 @@ mod tests {
             committed == text,
             "configs/machine.schema.json is stale: run `cargo run --release -- schema`"
         );
+    }
+
+    #[test]
+    fn the_grids_schema_holds_the_ranges_and_the_committed_one_is_current() {
+        let s = grids_schema().unwrap();
+        let grid = &s["$defs"]["Grid"]["properties"];
+        assert_eq!(grid["gains"]["minItems"], 1);
+        assert_eq!(grid["gains"]["items"]["maximum"], 20.0);
+        assert_eq!(grid["bandwidths_rad_s"]["items"]["exclusiveMinimum"], 0.0);
+        let filters = s["$defs"]["GridFilter"]["oneOf"].as_array().unwrap();
+        assert_eq!(filters.len(), 2);
+        for f in filters {
+            assert_eq!(f["properties"]["corner_hz"]["maximum"], 500.0, "{f}");
+        }
+        let text = serde_json::to_string_pretty(&s).unwrap() + "\n";
+        let committed =
+            std::fs::read_to_string(crate::config::configs_dir().join("grids.schema.json"))
+                .unwrap();
+        assert!(
+            committed == text,
+            "configs/grids.schema.json is stale: run `cargo run --release -- schema --grids`"
+        );
+        assert!(is_grids_schema(text.as_bytes()));
+        assert!(!is_machine_schema(text.as_bytes()));
     }
 
     #[test]

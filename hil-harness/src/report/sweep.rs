@@ -110,6 +110,7 @@ pub fn section(points: &[SweepPoint], sweep: &[SweepResult]) -> Result<Section> 
     let pp = sweep.iter().find(|s| s.plant == "printing-press");
     let sweep_verdict = bandwidth_verdict(pp.map(|s| (s.without_afb_rad_s, s.with_afb_rad_s)));
     let press = crate::config::resolve("sweep", Some("printing-press"), &[])?;
+    let grid = crate::config::sweep_grid()?;
     let (mech, cpr) = (&press.plant.mechanics, press.plant.counts_per_rev());
     Ok(Section::claim(
         "Sec. III-D: largest stable velocity bandwidth, printing-press stand (and Table 1)",
@@ -119,8 +120,9 @@ pub fn section(points: &[SweepPoint], sweep: &[SweepResult]) -> Result<Section> 
          went unstable.",
         format!(
             "{found}Probe run `configs/scenarios/sweep.toml` in speed mode; a bandwidth counts \
-             only if every grid point below it passes too. Grid: {:?} rad/s; AFB designs: error \
-             form, Ka/J_total in {:?}, filters {:?}, acceleration from differentiation or from \
+             only if every grid point below it passes too. Grid (`[sweep]` of \
+             `configs/grids.toml`): {:?} rad/s; AFB designs: error form, Ka/J_total in {:?}, \
+             filters {:?}, acceleration from differentiation or from \
              the observer at {:?} Hz (every point in `sweep/sweep.csv`; points whose gains do \
              not fit controller-core's fixed-point formats are rejected there and count as not \
              achievable). The runs without AFB use the gains of each plant's default AFB design \
@@ -128,10 +130,10 @@ pub fn section(points: &[SweepPoint], sweep: &[SweepResult]) -> Result<Section> 
              gives the velocity feedback); \"without AFB\" is the better of them. The modelled \
              press: {cpr} counts/rev, lost motion {} deg ({:.0} counts), Jm {} s, Jl {} s \
              (`configs/machines/printing-press.toml`). {}",
-            crate::experiments::sweep::BANDWIDTHS_RAD_S,
-            crate::experiments::sweep::GAINS,
-            crate::experiments::sweep::FILTERS,
-            crate::experiments::sweep::OBSERVER_HZ,
+            grid.bandwidths_rad_s,
+            grid.gains,
+            grid.filter_configs(),
+            grid.observer_hz,
             mech.backlash_deg,
             mech.backlash_deg / 360.0 * f64::from(cpr),
             mech.motor_inertia_s,

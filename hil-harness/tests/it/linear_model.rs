@@ -240,7 +240,8 @@ fn predicted_stiffness_matches_the_measured() {
 fn predicted_quantization_noise_matches_the_measured_chatter() {
     use controller_core::{AfbMode, Estimator};
     use hil_harness::experiments::sweep::{default_observer_hz, designs, point_config, AfbDesign};
-    let afb = designs(default_observer_hz())
+    let grid = hil_harness::config::sweep_grid().unwrap();
+    let afb = designs(&grid, default_observer_hz())
         .into_iter()
         .find(|d| {
             d.mode == AfbMode::Error && d.source == Estimator::Observer && d.gain_fraction == 0.5

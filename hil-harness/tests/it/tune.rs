@@ -24,7 +24,7 @@ fn other_machine(dir: &std::path::Path) -> String {
 fn tune_on_a_machine_it_was_not_written_for() {
     let dir = tempfile::tempdir().unwrap();
     let config = other_machine(dir.path());
-    let grid = candidates(&[60.0]);
+    let grid = candidates(&hil_harness::config::tune_grid().unwrap(), &[60.0]);
     let k = Constraints::default();
     let with = search(&config, &grid, &k).unwrap();
     let without = search(&config, &without_afb(&grid), &k).unwrap();

@@ -158,10 +158,11 @@ pub fn commission(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
-    let bws = tune::bandwidths(target_bandwidth)?;
+    let grid = crate::config::tune_grid()?;
+    let bws = tune::bandwidths(&grid, target_bandwidth)?;
     let staging = Staging::new(out)?;
     let (base, ident, doc, identified) = identify_into(&staging, config, sets)?;
-    let judged = tune::judge_grid(&identified, &tune::candidates(&bws), constraints)?;
+    let judged = tune::judge_grid(&identified, &tune::candidates(&grid, &bws), constraints)?;
     let fig6 = resolve("fig6", Some(&identified), &[])?;
     let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
     let (tuned_on, name, judged) = match &decision.notch {

@@ -1,12 +1,12 @@
 //! The sweep figure.
 
-use super::{SweepPoint, SweepResult, BANDWIDTHS_RAD_S, QUIET_TORQUE_PU};
+use super::{SweepPoint, SweepResult, QUIET_TORQUE_PU};
 use crate::plot::{Figure, Legend, Panel, Series};
 
 /// The sweep figure: per plant, the torque chatter (unloaded, at speed) against
 /// bandwidth without AFB and with the best quiet design, stable and unstable points apart,
-/// with the quiet threshold.
-pub fn figure(points: &[SweepPoint], results: &[SweepResult]) -> Figure {
+/// with the quiet threshold across the grid's `bandwidths`.
+pub fn figure(points: &[SweepPoint], results: &[SweepResult], bandwidths: &[f64]) -> Figure {
     let panels = results
         .iter()
         .map(|r| {
@@ -19,7 +19,7 @@ pub fn figure(points: &[SweepPoint], results: &[SweepResult]) -> Figure {
                     .collect()
             };
             let best = r.best_quiet_design.as_str();
-            let (lo, hi) = BANDWIDTHS_RAD_S
+            let (lo, hi) = bandwidths
                 .iter()
                 .fold((f64::MAX, 0.0f64), |a, x| (a.0.min(*x), a.1.max(*x)));
             Panel {

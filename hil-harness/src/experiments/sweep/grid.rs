@@ -1,43 +1,8 @@
-//! The sweep's grid: acceleration-feedback designs as typed drive settings, and the
-//! velocity bandwidths they are tried at.
+//! The sweep's designs: acceleration-feedback designs as typed drive settings, made from
+//! the sweep's grid (`[sweep]` of `configs/grids.toml`, [`crate::config::grids`]).
 
+use crate::config::Grid;
 use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig};
-use core::f32::consts::FRAC_1_SQRT_2;
-
-/// Velocity bandwidths tried (rad/s).
-pub const BANDWIDTHS_RAD_S: [f64; 17] = [
-    1.5, 3.0, 5.0, 10.0, 20.0, 30.0, 45.0, 60.0, 94.2, 120.0, 140.0, 190.0, 250.0, 350.0, 500.0,
-    700.0, 1000.0,
-];
-
-/// Filters tried on the acceleration (second order: Q = 1/√2).
-pub const FILTERS: [FilterConfig; 6] = [
-    first_order(25.0),
-    first_order(50.0),
-    first_order(100.0),
-    first_order(250.0),
-    butterworth(100.0),
-    butterworth(250.0),
-];
-
-/// A first-order low-pass at `corner_hz`.
-pub const fn first_order(corner_hz: f32) -> FilterConfig {
-    FilterConfig::FirstOrder { corner_hz }
-}
-
-/// A second-order Butterworth (Q = 1/√2) low-pass at `corner_hz`.
-pub const fn butterworth(corner_hz: f32) -> FilterConfig {
-    FilterConfig::SecondOrder {
-        corner_hz,
-        q: FRAC_1_SQRT_2,
-    }
-}
-
-/// Gains tried (Ka / J_total).
-pub const GAINS: [f32; 5] = [0.25, 0.5, 1.0, 2.0, 4.0];
-
-/// Observer bandwidths tried when the observer is the acceleration source (Hz).
-pub const OBSERVER_HZ: [f32; 2] = [75.0, 150.0];
 
 /// One acceleration-feedback design: the `[drive.accel_feedback]` settings it changes, and
 /// the observer bandwidth.
@@ -151,12 +116,12 @@ pub fn without_afb_of(d: &AfbDesign, default_observer_hz: f32) -> AfbDesign {
     }
 }
 
-/// The grid of designs: error-form AFB over source (differentiation, or the observer at
-/// each bandwidth) × gain × filter, and without AFB at each observer bandwidth the AFB
-/// designs use ([`without_afb_of`]; `default_observer_hz` is the configs' observer).
-pub fn designs(default_observer_hz: f32) -> Vec<AfbDesign> {
+/// The designs of `grid`: error-form AFB over source (differentiation, or the observer at
+/// each of `grid.observer_hz`) × gain × filter, and without AFB at each observer bandwidth
+/// the AFB designs use ([`without_afb_of`]; `default_observer_hz` is the configs' observer).
+pub fn designs(grid: &Grid, default_observer_hz: f32) -> Vec<AfbDesign> {
     let mut v = vec![AfbDesign::OFF];
-    for hz in OBSERVER_HZ {
+    for &hz in &grid.observer_hz {
         let off = without_afb_of(
             &AfbDesign {
                 observer_hz: hz,
@@ -170,10 +135,11 @@ pub fn designs(default_observer_hz: f32) -> Vec<AfbDesign> {
     }
     let sources = [(Estimator::Differentiation, 0.0)]
         .into_iter()
-        .chain(OBSERVER_HZ.iter().map(|hz| (Estimator::Observer, *hz)));
+        .chain(grid.observer_hz.iter().map(|hz| (Estimator::Observer, *hz)));
+    let filters = grid.filter_configs();
     for (source, observer_hz) in sources {
-        for gain_fraction in GAINS {
-            for filter in FILTERS {
+        for &gain_fraction in &grid.gains {
+            for &filter in &filters {
                 v.push(AfbDesign {
                     mode: AfbMode::Error,
                     gain_fraction,

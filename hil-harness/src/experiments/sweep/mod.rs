@@ -1,7 +1,7 @@
 //! `hil-harness sweep`: the largest stable velocity bandwidth of each plant, without
 //! acceleration feedback and with it. "With" is the best design found over a grid of
-//! gain fraction, filter corner and estimator (not a single hand-picked design). The
-//! probe run is `configs/scenarios/sweep.toml` in speed mode (position loop off), and
+//! gain fraction, filter corner and estimator (not a single hand-picked design): the grid
+//! is `[sweep]` of `configs/grids.toml`. The probe run is `configs/scenarios/sweep.toml` in speed mode (position loop off), and
 //! "stable" is the run's `stable` metric. A bandwidth counts only if every grid point
 //! below it is stable too.
 
@@ -9,7 +9,7 @@ pub mod figure;
 pub mod grid;
 pub mod limits;
 
-pub use grid::{designs, without_afb_of, AfbDesign, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
+pub use grid::{designs, without_afb_of, AfbDesign};
 
 use crate::config::{borrow_gains, resolve, RunConfig};
 use crate::engine::metrics::OscillationKind;
@@ -320,8 +320,9 @@ fn write_csv(points: &[SweepPoint], path: &Path) -> Result<()> {
 /// `hil-harness sweep` into a staging directory; returns the points, the results and a
 /// text summary.
 pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepPoint>, Vec<SweepResult>, String)> {
-    let designs = designs(default_observer_hz());
-    let points = sweep_points(&PLANTS, &BANDWIDTHS_RAD_S, &designs, &[]);
+    let grid = crate::config::sweep_grid()?;
+    let designs = designs(&grid, default_observer_hz());
+    let points = sweep_points(&PLANTS, &grid.bandwidths_rad_s, &designs, &[]);
     let results = results(&points, &PLANTS, &designs);
     write_csv(&points, &dir.join("sweep.csv"))?;
     let mut w = csv::Writer::from_path(dir.join("sweep_summary.csv"))
@@ -330,7 +331,8 @@ pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepPoint>, Vec<SweepResult>, Stri
         w.serialize(r).map_err(|e| HarnessError::io(dir, e))?;
     }
     w.flush().map_err(|e| HarnessError::io(dir, e))?;
-    save(&figure::figure(&points, &results), &dir.join("sweep"))?;
+    let figure = figure::figure(&points, &results, &grid.bandwidths_rad_s);
+    save(&figure, &dir.join("sweep"))?;
     let mut text = String::new();
     for r in &results {
         let _ = writeln!(
@@ -394,9 +396,10 @@ mod tests {
 
     #[test]
     fn the_run_without_afb_has_the_gains_of_every_design() {
+        let grid = crate::config::sweep_grid().unwrap();
         for plant in PLANTS {
-            for bw in [10.0, 94.2] {
-                for d in designs(default_observer_hz())
+            for bw in [10.0, 94.25] {
+                for d in designs(&grid, default_observer_hz())
                     .iter()
                     .filter(|d| d.mode != AfbMode::Off)
                 {
@@ -422,12 +425,14 @@ mod tests {
     #[test]
     fn the_design_grid_holds_off_and_every_combination() {
         let hz = default_observer_hz();
-        let d = designs(hz);
+        let grid = crate::config::sweep_grid().unwrap();
+        let d = designs(&grid, hz);
         let offs = d.iter().filter(|x| x.mode == AfbMode::Off).count();
-        assert_eq!(offs, OBSERVER_HZ.len(), "one per observer bandwidth");
+        let observers = grid.observer_hz.len();
+        assert_eq!(offs, observers, "one per observer bandwidth");
         assert_eq!(
             d.len(),
-            offs + (1 + OBSERVER_HZ.len()) * GAINS.len() * FILTERS.len()
+            offs + (1 + observers) * grid.gains.len() * grid.filters.len()
         );
         // Every AFB design has its run without AFB in the grid.
         assert!(d.iter().all(|x| d.contains(&without_afb_of(x, hz))));

@@ -1,37 +1,11 @@
-//! `tune`'s grid: candidates as typed drive settings (a velocity bandwidth and the sweep's
-//! [`AfbDesign`]).
+//! `tune`'s candidates as typed drive settings (a velocity bandwidth and the sweep's
+//! [`AfbDesign`]), made from `tune`'s grid (`[tune]` of `configs/grids.toml`,
+//! [`crate::config::grids`]).
 
+use crate::config::Grid;
 use crate::experiments::sweep::AfbDesign;
-use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig, PiInertia};
-use core::f32::consts::FRAC_1_SQRT_2;
+use controller_core::{AfbMode, DriveConfig, Estimator, PiInertia};
 use serde::Serialize;
-
-/// Velocity bandwidths tried with `--max-bandwidth` \[rad/s\] (110: a step of about 15 %
-/// between Table 1's 94.25 and 120, where Table 1's limit lies).
-pub const BANDWIDTHS_RAD_S: [f64; 11] = [
-    30.0, 45.0, 60.0, 94.25, 110.0, 120.0, 150.0, 200.0, 250.0, 350.0, 500.0,
-];
-/// Ka / J_total tried.
-pub const GAINS: [f32; 4] = [0.25, 0.5, 1.0, 2.0];
-/// AFB filters tried (second order: Q = 1/√2); 25 Hz is the sweep's lowest corner, the
-/// best damped at Table 1's higher bandwidths.
-pub const FILTERS: [FilterConfig; 7] = [
-    FilterConfig::FirstOrder { corner_hz: 25.0 },
-    FilterConfig::FirstOrder { corner_hz: 50.0 },
-    FilterConfig::FirstOrder { corner_hz: 100.0 },
-    FilterConfig::FirstOrder { corner_hz: 200.0 },
-    FilterConfig::FirstOrder { corner_hz: 400.0 },
-    FilterConfig::SecondOrder {
-        corner_hz: 100.0,
-        q: FRAC_1_SQRT_2,
-    },
-    FilterConfig::SecondOrder {
-        corner_hz: 200.0,
-        q: FRAC_1_SQRT_2,
-    },
-];
-/// Observer bandwidths tried \[Hz\].
-pub const OBSERVER_HZ: [f32; 4] = [75.0, 100.0, 150.0, 250.0];
 
 /// One candidate: a velocity bandwidth and an acceleration-feedback design (the sweep's
 /// [`AfbDesign`], observer bandwidth included).
@@ -52,13 +26,15 @@ impl Candidate {
     }
 }
 
-/// The grid for the bandwidths `bws`: without AFB, and the error and plain forms over
-/// [`GAINS`] × [`FILTERS`] × (observer, differentiation), at every observer bandwidth.
+/// The candidates of `grid` at the bandwidths `bws`: without AFB, and the error and plain
+/// forms over `grid.gains` × `grid.filters` × (observer, differentiation), at every one of
+/// `grid.observer_hz`.
 #[must_use]
-pub fn candidates(bws: &[f64]) -> Vec<Candidate> {
+pub fn candidates(grid: &Grid, bws: &[f64]) -> Vec<Candidate> {
+    let filters = grid.filter_configs();
     let mut v = Vec::new();
     for &bandwidth_rad_s in bws {
-        for observer_hz in OBSERVER_HZ {
+        for &observer_hz in &grid.observer_hz {
             let mut push = |afb: AfbDesign| {
                 v.push(Candidate {
                     bandwidth_rad_s,
@@ -69,10 +45,10 @@ pub fn candidates(bws: &[f64]) -> Vec<Candidate> {
                 observer_hz,
                 ..AfbDesign::OFF
             });
-            for gain_fraction in GAINS {
+            for &gain_fraction in &grid.gains {
                 for source in [Estimator::Observer, Estimator::Differentiation] {
                     for mode in [AfbMode::Error, AfbMode::Plain] {
-                        for filter in FILTERS {
+                        for &filter in &filters {
                             push(AfbDesign {
                                 mode,
                                 gain_fraction,

@@ -2,8 +2,9 @@
 //! `--max-bandwidth`) the velocity bandwidth of a machine from its config, on the linear
 //! model of the whole loop ([`crate::experiments::linear`]), then prove the design in the nonlinear loop.
 //!
-//! 1. Every candidate of a fixed grid (form, Ka, filter, acceleration source, observer
-//!    bandwidth, and the velocity bandwidth when asked for the maximum) is judged on the
+//! 1. Every candidate of the grid (`[tune]` of `configs/grids.toml`: form, Ka, filter,
+//!    acceleration source, observer bandwidth, and the velocity bandwidth when asked for
+//!    the maximum) is judged on the
 //!    linear model, with the gears engaged and, on a machine with lost motion, apart:
 //!    - smallest damping ≥ `min_damping` in both; with a notch on the torque reference
 //!      (`[drive.notch]`), the poles within [`notch_band`] are judged apart: those are
@@ -32,9 +33,9 @@ pub mod pair;
 pub mod plots;
 pub mod summary;
 
-pub use grid::{candidates, without_afb, Candidate, BANDWIDTHS_RAD_S, FILTERS, GAINS, OBSERVER_HZ};
+pub use grid::{candidates, without_afb, Candidate};
 
-use crate::config::{resolve, RunConfig};
+use crate::config::{resolve, Grid, RunConfig};
 use crate::engine::runner::regulator_gains;
 use crate::engine::runner::run_scenario;
 use crate::error::{HarnessError, Result};
@@ -340,15 +341,15 @@ pub struct Tuned {
     pub tuned: RunConfig,
 }
 
-/// The velocity bandwidths to search: `target_bandwidth` alone, or the whole grid.
-pub fn bandwidths(target_bandwidth: Option<f64>) -> Result<Vec<f64>> {
+/// The velocity bandwidths to search: `target_bandwidth` alone, or all of `grid`'s.
+pub fn bandwidths(grid: &Grid, target_bandwidth: Option<f64>) -> Result<Vec<f64>> {
     match target_bandwidth {
         Some(w) if w.is_finite() && w > 0.0 => Ok(vec![w]),
         Some(w) => Err(HarnessError::config(
             "--target-bandwidth",
             format!("{w}: must be a positive number of rad/s"),
         )),
-        None => Ok(BANDWIDTHS_RAD_S.to_vec()),
+        None => Ok(grid.bandwidths_rad_s.clone()),
     }
 }
 
@@ -358,9 +359,10 @@ pub fn design(
     target_bandwidth: Option<f64>,
     constraints: &Constraints,
 ) -> Result<Tuned> {
-    let bws = bandwidths(target_bandwidth)?;
+    let grid = crate::config::tune_grid()?;
+    let bws = bandwidths(&grid, target_bandwidth)?;
     // judge_grid resolves the config first, so a bad one is reported before the search.
-    let judged = judge_grid(config, &candidates(&bws), constraints)?;
+    let judged = judge_grid(config, &candidates(&grid, &bws), constraints)?;
     design_from(config, judged, constraints)
 }
 

@@ -3,14 +3,14 @@
 //! machine and `reproduce` reports for the shipped machines, written once here.
 //!
 //! The no-AFB design is searched at the bandwidths the AFB design was searched at and at
-//! every bandwidth of [`BANDWIDTHS_RAD_S`] below the highest of them, highest first: at the
+//! every bandwidth of `tune`'s grid below the highest of them, highest first: at the
 //! bandwidth asked for if it can be had there, else the highest below it that meets the
 //! constraints.
 
-use super::{bandwidths, BANDWIDTHS_RAD_S};
+use super::bandwidths;
 use super::{candidates, design, design_from, search, without_afb, Candidate, Constraints};
 use super::{Judged, Tuned};
-use crate::config::RunConfig;
+use crate::config::{Grid, RunConfig};
 use crate::engine::metrics::OscillationKind;
 use crate::engine::runner::run_scenario;
 use crate::error::Result;
@@ -26,15 +26,15 @@ pub struct Pair {
     pub without: Tuned,
 }
 
-/// The bandwidths the no-AFB design is searched at, for an AFB search at `bws` (module
-/// docs), ascending and each once.
+/// The bandwidths the no-AFB design is searched at, for an AFB search at `bws` on `grid`
+/// (module docs), ascending and each once.
 #[must_use]
-pub fn no_afb_bandwidths(bws: &[f64]) -> Vec<f64> {
+pub fn no_afb_bandwidths(grid: &Grid, bws: &[f64]) -> Vec<f64> {
     let top = bws.iter().copied().fold(0.0, f64::max);
     let mut v: Vec<f64> = bws
         .iter()
         .copied()
-        .chain(BANDWIDTHS_RAD_S.iter().copied().filter(|w| *w < top))
+        .chain(grid.bandwidths_rad_s.iter().copied().filter(|w| *w < top))
         .collect();
     v.sort_by(f64::total_cmp);
     v.dedup();
@@ -58,13 +58,14 @@ pub fn design_both_from(
     target_bandwidth: Option<f64>,
     constraints: &Constraints,
 ) -> Result<Pair> {
-    let bws = bandwidths(target_bandwidth)?;
+    let grid = crate::config::tune_grid()?;
+    let bws = bandwidths(&grid, target_bandwidth)?;
     let with = match judged {
         Some(j) => design_from(config, j, constraints)?,
         None => design(config, target_bandwidth, constraints)?,
     };
-    let grid = without_afb(&candidates(&no_afb_bandwidths(&bws)));
-    let result = search(config, &grid, constraints).map_err(|e| {
+    let no_afb = without_afb(&candidates(&grid, &no_afb_bandwidths(&grid, &bws)));
+    let result = search(config, &no_afb, constraints).map_err(|e| {
         crate::error::HarnessError::config("tune", format!("{config} without AFB: {e}"))
     })?;
     let mut tuned = with.base.clone();
@@ -199,6 +200,7 @@ pub fn afb_passes(with: &LoopRun, without: &LoopRun) -> bool {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
 
     fn run(stable: bool, ripple: f64) -> LoopRun {
@@ -227,13 +229,12 @@ mod tests {
 
     #[test]
     fn no_afb_bandwidths_are_the_target_and_the_grid_below_it() {
-        let top = BANDWIDTHS_RAD_S[3];
-        let v = no_afb_bandwidths(&[top]);
+        let grid = crate::config::tune_grid().unwrap();
+        let all = &grid.bandwidths_rad_s;
+        let top = all[3];
+        let v = no_afb_bandwidths(&grid, &[top]);
         assert_eq!(v.last().copied(), Some(top));
         assert_eq!(v.len(), 4);
-        assert_eq!(
-            no_afb_bandwidths(&BANDWIDTHS_RAD_S),
-            BANDWIDTHS_RAD_S.to_vec()
-        );
+        assert_eq!(no_afb_bandwidths(&grid, all), all.clone());
     }
 }
