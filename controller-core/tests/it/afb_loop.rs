@@ -1,5 +1,5 @@
 //! The acceleration loop in the linear model of the whole discrete loop that `tune` designs
-//! with (`hil-harness/src/experiments/linear/`): the controller's ticks in f64 with its
+//! with (`loop-model/`): the controller's ticks in f64 with its
 //! quantized coefficients (observer, closed-form acceleration feedback, differentiators,
 //! velocity, position and current regulators) around plant-host's exactly sampled Table 1
 //! plant (RL winding, 0.18 ms delay), with the gears apart (the motor alone, Jm) or engaged
@@ -9,7 +9,7 @@
 
 use crate::common;
 use controller_core::{design, AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig};
-use hil_harness::experiments::linear::{Coefficients, LoopModel};
+use loop_model::{Coefficients, LoopModel};
 use plant_host::analysis::Gears;
 
 const JM: f64 = 0.117;

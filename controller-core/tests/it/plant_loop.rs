@@ -1,7 +1,7 @@
 //! The real fixed-point `Controller` closed around plant-host's `TwoInertiaPlant` (the paper's
 //! Fig. 3 with lost motion, the RL winding with back-EMF, the 0.18 ms computational delay and the
 //! current ADC; `plant-host/README.md`), with the judging of `accel_loop` and `afb_design`.
-//! The linear model of the loop (`hil-harness/src/experiments/linear/`, used by `afb_loop`)
+//! The linear model of the loop (`loop-model/`, used by `afb_loop`)
 //! cannot run what these runs decide on: the lost motion's transitions, the encoder and ADC
 //! quantization, the fixed-point clamps and the fault checks.
 #![allow(

@@ -1,19 +1,13 @@
-//! The linear model of the whole discrete loop: the controller's ticks in f64 with its
-//! quantized coefficients ([`mirror`], with the torque-reference notch: [`notch`]) around
-//! the exactly sampled plant ([`model`]), for poles, damping, margins and stiffness.
+//! The linear model of a run's loop: the `loop-model` crate (the controller's ticks in f64
+//! with its quantized coefficients around the exactly sampled plant) built for a
+//! [`RunConfig`], the `linear` command ([`analyze`]) and its check against the nonlinear
+//! loop ([`check`]).
 
 pub mod analyze;
 pub mod check;
-pub mod hessenberg;
-pub mod margins;
-pub mod mirror;
-pub mod model;
-pub mod notch;
-mod reduce;
 
-pub use margins::{margins_of, Margins};
-pub use mirror::{Break, Coefficients};
-pub use model::LoopModel;
+pub use loop_model::{hessenberg, margins, mirror, model, notch};
+pub use loop_model::{margins_of, Break, Coefficients, LoopModel, Margins};
 
 use crate::config::RunConfig;
 use crate::error::Result;

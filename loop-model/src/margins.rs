@@ -22,7 +22,7 @@ pub struct Margins {
 /// margin the smallest at the −180° (mod 360°) crossings after it.
 ///
 /// ```
-/// use hil_harness::experiments::linear::margins::margins_of;
+/// use loop_model::margins::margins_of;
 /// use nalgebra::Complex;
 /// // L = K·e^(−sτ)/s, K = 10 rad/s, τ = 10 ms: crossover 10 rad/s, PM = 90° − 5.7°,
 /// // the −180° crossing at π/(2τ) with |L| = 2Kτ/π: GM = 20·log10(π/(2Kτ)) = 17.9 dB.
