@@ -87,6 +87,18 @@ pub struct AccelFeedbackConfig {
     pub rate: AfbRate,
     /// Source of the measured acceleration.
     pub source: Estimator,
+    /// How far beyond the torque limit the velocity regulator may ask while it is
+    /// saturated, as a fraction of `torque_limit_pu`, 0..=1. The regulator's output is
+    /// clamped so that it plus the AFB term reaches the limit; the AFB term is recomputed
+    /// every current tick after that, so without headroom each tick-to-tick change of the
+    /// estimate (count noise) takes the torque off the limit while the drive is saturated.
+    /// With it, the torque stays at the limit until the regulator itself asks for less.
+    /// 0 is the plain clamp and the default: in loops that oscillate through the limit the
+    /// headroom also holds the torque there longer, which turned one design `tune` had
+    /// verified into one it refuses (`docs/design.md`). 0.15 is the middle of the range
+    /// (0.1 to 0.2) in which the dyno's saturated acceleration has less shaft ripple with
+    /// AFB than without; `configs/machines/dyno.toml` sets it.
+    pub limit_headroom_fraction: f32,
 }
 
 /// Inertia the observer's model uses to turn the torque command into acceleration.
@@ -330,13 +342,14 @@ pub mod defaults {
     };
 
     /// Acceleration feedback: error form, Ka = 0.5·J_total, first order at 100 Hz, every
-    /// current tick, acceleration from the observer.
+    /// current tick, acceleration from the observer, no headroom beyond the torque limit.
     pub const ACCEL_FEEDBACK: AccelFeedbackConfig = AccelFeedbackConfig {
         mode: AfbMode::Error,
         gain_fraction: 0.5,
         filter: FilterConfig::FirstOrder { corner_hz: 100.0 },
         rate: AfbRate::Current,
         source: Estimator::Observer,
+        limit_headroom_fraction: 0.0,
     };
     /// Observer: 75 Hz, motor-inertia model, driven by the torque command.
     pub const OBSERVER: ObserverConfig = ObserverConfig {

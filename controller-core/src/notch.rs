@@ -275,6 +275,39 @@ impl Notch {
 mod tests {
     use super::*;
 
+    /// A coefficient that must lie in [−1, 1] and does not is refused with that range and
+    /// the coefficient set's name; b1 (= a1) may lie outside it.
+    #[test]
+    #[allow(clippy::panic)]
+    fn quantize_refuses_a_unit_coefficient_outside_its_range_with_the_range() {
+        let ok = NotchDesign {
+            b0: 0.9,
+            b1: -1.8,
+            b2: 0.9,
+            a2: 0.8,
+        };
+        assert!(Notch::quantize(&ok, "notch coefficients").is_ok());
+        for bad in [
+            NotchDesign { b0: 1.5, ..ok },
+            NotchDesign { b2: -1.25, ..ok },
+            NotchDesign { a2: 1.01, ..ok },
+        ] {
+            match Notch::quantize(&bad, "notch coefficients") {
+                Err(ConfigError::OutOfRange {
+                    param,
+                    min,
+                    max,
+                    min_exclusive,
+                    ..
+                }) => {
+                    assert_eq!(param, "notch coefficients");
+                    assert_eq!((min, max, min_exclusive), (-1.0, 1.0, false));
+                }
+                other => panic!("{bad:?}: {other:?}"),
+            }
+        }
+    }
+
     const RATE: f32 = 4000.0;
     const NAMES: NotchParams = NotchParams {
         centre_hz: "notch.centre_hz",

@@ -169,13 +169,6 @@ impl Observer {
         Pu::from_bits(mul_bits::<20>(q32_to_q20(s.acc), self.k_acc.to_bits()))
     }
 
-    /// The residual acceleration r = â − u (what the torque input does not explain) \[pu/s\].
-    #[inline]
-    #[must_use]
-    pub fn residual_acceleration_pu_s(&self, s: &ObserverState) -> PuPerS {
-        Pu::from_bits(mul_bits::<20>(q32_to_q20(s.residual), self.k_acc.to_bits()))
-    }
-
     /// The acceleration the observer expects over the coming tick if the torque `torque_pu`
     /// is applied: â⁺ = T·k_u + r \[pu/s\]. T (Q16.16) · k_u (Q8.24) = Q.40 → Q.32 counts/tick²,
     /// plus r (Q.32), then as [`Observer::acceleration_pu_s`].

@@ -13,7 +13,12 @@
 //! [`PiCoefficients::update_with_offset`] judges the saturation on the output plus a term
 //! added after the regulator (the velocity loop passes the acceleration-feedback term), so the
 //! integrator also holds when it is the sum that sits at the torque limit, and clamps the
-//! output so that the sum, not the regulator alone, meets the limit.
+//! output so that the sum, not the regulator alone, meets the limit. With a headroom h
+//! ([`PiCoefficients::update_with_offset_within`]) the output may reach h beyond that
+//! bound while the regulator asks for more, so that a downstream term that changes after
+//! the regulator ran (the acceleration feedback, recomputed every current tick) by less
+//! than h cannot take the sum off the limit. The headroom holds no state: the integral's
+//! anti-windup is the same, and the output leaves the bound as soon as Kp·e + I + ff does.
 
 use fixed::types::I32F32;
 
@@ -52,7 +57,7 @@ impl PiCoefficients {
     /// ```
     #[inline]
     pub fn update(&self, state: &mut PiState, e: Pu, ff: Pu) -> Pu {
-        self.step::<true>(state, e, ff, Pu::ZERO, self.abs_limit())
+        self.step::<true>(state, e, ff, Pu::ZERO, [self.abs_limit(), 0])
     }
 
     /// |limit| as raw bits (saturating): a negative limit in hand-made coefficients cannot
@@ -66,11 +71,13 @@ impl PiCoefficients {
     /// by the caller once, at configuration (the controller's ticks).
     #[inline(always)]
     pub(crate) fn update_within(&self, state: &mut PiState, e: Pu, ff: Pu, abs_limit: i32) -> Pu {
-        self.step::<true>(state, e, ff, Pu::ZERO, abs_limit)
+        self.step::<true>(state, e, ff, Pu::ZERO, [abs_limit, 0])
     }
 
     /// [`PiCoefficients::update_with_offset`] with `abs_limit` =
-    /// [`PiCoefficients::abs_limit`] resolved by the caller once, at configuration.
+    /// [`PiCoefficients::abs_limit`] resolved by the caller once, at configuration, and the
+    /// output bound widened by `headroom` (raw Q16.16 bits, taken as 0 when negative; module
+    /// docs): the output is clamped to `[−limit − off − headroom, limit − off + headroom]`.
     #[inline(always)]
     pub(crate) fn update_with_offset_within(
         &self,
@@ -78,9 +85,9 @@ impl PiCoefficients {
         e: Pu,
         ff: Pu,
         offset: Pu,
-        abs_limit: i32,
+        limit_headroom: [i32; 2],
     ) -> Pu {
-        self.step::<false>(state, e, ff, offset, abs_limit)
+        self.step::<false>(state, e, ff, offset, limit_headroom)
     }
 
     /// As [`PiCoefficients::update`], with the anti-windup decision taken on
@@ -100,7 +107,7 @@ impl PiCoefficients {
     /// ```
     #[inline(always)]
     pub fn update_with_offset(&self, state: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
-        self.step::<false>(state, e, ff, offset, self.abs_limit())
+        self.step::<false>(state, e, ff, offset, [self.abs_limit(), 0])
     }
 
     /// [`PiCoefficients::update_with_offset`]; `ZERO_OFFSET` when the caller passes an offset
@@ -113,7 +120,7 @@ impl PiCoefficients {
         e: Pu,
         ff: Pu,
         offset: Pu,
-        abs_limit: i32,
+        [abs_limit, headroom]: [i32; 2],
     ) -> Pu {
         // |limit| (`abs_limit`), so a negative limit in hand-made coefficients cannot invert
         // the clamp.
@@ -133,7 +140,11 @@ impl PiCoefficients {
         // range. Outside the range (never with the shipped drives' limits and signals), the
         // 64-bit form.
         let mag = |x: i32| x ^ (x >> 31);
-        if (mag(p) | mag(ff) | mag(offset) | limit) < 1 << 29 && i_now >> 45 == i_now >> 63 {
+        // The headroom (≥ 0; below 2^29 in range) widens the bounds to under 3·2^29.
+        let headroom = headroom.max(0);
+        if (mag(p) | mag(ff) | mag(offset) | limit | headroom) < 1 << 29
+            && i_now >> 45 == i_now >> 63
+        {
             let i_whole = (i_now >> 16) as i32;
             let u_trial = p + ff + offset + i_whole;
             let pushing_out = (u_trial >= limit && inc > 0) || (u_trial <= -limit && inc < 0);
@@ -145,19 +156,19 @@ impl PiCoefficients {
             } else {
                 offset.max(-limit).min(limit)
             };
-            let u_clamped = u.max(-limit - off).min(limit - off);
+            let u_clamped = u.max(-limit - off - headroom).min(limit - off + headroom);
             state.saturated = u_clamped != u;
             return Pu::from_bits(u_clamped);
         }
-        self.update_wide(state, [p, ff, offset, limit], inc)
+        self.update_wide(state, [p, ff, offset, limit, headroom], inc)
     }
 
     /// [`PiCoefficients::update_with_offset`] in 64 bits, for terms outside the 32-bit
     /// form's range (out of line: it never runs with the shipped drives).
     #[cold]
     #[inline(never)]
-    fn update_wide(&self, state: &mut PiState, terms: [i32; 4], inc: i64) -> Pu {
-        let [p, ff, offset, limit] = terms;
+    fn update_wide(&self, state: &mut PiState, terms: [i32; 5], inc: i64) -> Pu {
+        let [p, ff, offset, limit, headroom] = terms;
         let i_now = state.integral.to_bits();
         let u_trial = i64::from(p) + i64::from(ff) + i64::from(offset) + (i_now >> 16);
         let pushing_out =
@@ -172,7 +183,10 @@ impl PiCoefficients {
         // max/min rather than clamp: clamp carries a (never taken) panic branch.
         // In 32 bits: 0 ≤ limit ≤ i32::MAX, so −limit is an i32 too.
         let off = i64::from(offset.max(-limit).min(limit));
-        let u_clamped = u.max(-i64::from(limit) - off).min(i64::from(limit) - off);
+        let h = i64::from(headroom);
+        let u_clamped = u
+            .max(-i64::from(limit) - off - h)
+            .min(i64::from(limit) - off + h);
         state.saturated = u_clamped != u;
         Pu::from_bits(sat_i32(u_clamped))
     }
@@ -199,7 +213,7 @@ mod tests {
     use fixed::types::I32F32;
 
     /// The step in 64 bits throughout: the reference the 32-bit form must equal.
-    fn reference(c: &PiCoefficients, s: &mut PiState, e: Pu, ff: Pu, offset: Pu) -> Pu {
+    fn reference(c: &PiCoefficients, s: &mut PiState, e: Pu, ff: Pu, offset: Pu, h: i32) -> Pu {
         let limit = c.limit.to_bits().saturating_abs();
         let lim64 = i64::from(limit) << 16;
         let inc = (i64::from(e.to_bits()) * i64::from(c.ki_ts.to_bits()) + (1 << 7)) >> 8;
@@ -217,7 +231,10 @@ mod tests {
         s.integral = I32F32::from_bits(i_next);
         let u = i64::from(p) + i64::from(ff.to_bits()) + (i_next >> 16);
         let off = i64::from(offset.to_bits().max(-limit).min(limit));
-        let u_clamped = u.max(-i64::from(limit) - off).min(i64::from(limit) - off);
+        let h = i64::from(h.max(0));
+        let u_clamped = u
+            .max(-i64::from(limit) - off - h)
+            .min(i64::from(limit) - off + h);
         s.saturated = u_clamped != u;
         Pu::from_bits(sat_i32(u_clamped))
     }
@@ -252,7 +269,7 @@ mod tests {
     }
 
     /// The 32-bit form gives the 64-bit one's output and state, inside its range, at its
-    /// edges and beyond them.
+    /// edges and beyond them, with and without a headroom.
     #[test]
     fn update_matches_the_64_bit_form() {
         let mut next = xorshift(0x2545_F491_4F6C_DD1D);
@@ -286,13 +303,18 @@ mod tests {
                 integral: I32F32::from_bits(integral),
                 saturated: k % 2 == 0,
             };
+            let h = if k % 3 == 0 { 0 } else { pick(next()) };
             let (mut a, mut b) = (s0, s0);
-            let ua = c.update_with_offset(&mut a, e, ff, off);
-            let ub = reference(&c, &mut b, e, ff, off);
+            let ua = if h == 0 && k % 2 == 0 {
+                c.update_with_offset(&mut a, e, ff, off)
+            } else {
+                c.update_with_offset_within(&mut a, e, ff, off, [c.abs_limit(), h])
+            };
+            let ub = reference(&c, &mut b, e, ff, off, h);
             assert_eq!(
                 (ua, a),
                 (ub, b),
-                "{c:?} {s0:?} e {e:?} ff {ff:?} off {off:?}"
+                "{c:?} {s0:?} e {e:?} ff {ff:?} off {off:?} headroom {h}"
             );
         }
     }
@@ -322,5 +344,44 @@ mod tests {
                 "{c:?} {s0:?} e {e:?} ff {ff:?}"
             );
         }
+    }
+
+    /// The headroom: a saturated regulator asks up to `headroom` beyond the bound, so the
+    /// downstream sum stays at the limit when the downstream term drops by less than the
+    /// headroom after the regulator ran (and leaves it when it drops by more); the integral
+    /// holds either way, and a regulator inside the bound is not affected.
+    #[test]
+    fn the_headroom_keeps_a_saturated_sum_at_the_limit() {
+        let c = PiCoefficients {
+            kp: Gain::from_num(10),
+            ki_ts: TickGain::from_num(0.01),
+            limit: Pu::from_num(2),
+        };
+        let h = Pu::from_num(0.3).to_bits();
+        let afb_held = Pu::from_num(-0.2);
+        let lim = c.abs_limit();
+        let (mut plain, mut wide) = (PiState::default(), PiState::default());
+        let e = Pu::from_num(1); // Kp·e = 10 pu: far beyond the limit
+        let u_plain = c.update_with_offset_within(&mut plain, e, Pu::ZERO, afb_held, [lim, 0]);
+        let u_wide = c.update_with_offset_within(&mut wide, e, Pu::ZERO, afb_held, [lim, h]);
+        assert_eq!(u_plain, Pu::from_num(2.2));
+        assert_eq!(u_wide, Pu::from_num(2.5));
+        assert_eq!(
+            (plain.integral, wide.integral),
+            (I32F32::ZERO, I32F32::ZERO)
+        );
+        // The AFB term has since fallen by 0.25 pu: the sum (clamped to ±2) stays at the
+        // limit only with the headroom; by 0.35 pu it leaves it either way.
+        let sum = |u: Pu, afb: f64| u.saturating_add(Pu::from_num(afb)).min(Pu::from_num(2));
+        assert!(sum(u_plain, -0.45) < Pu::from_num(2));
+        assert_eq!(sum(u_wide, -0.45), Pu::from_num(2));
+        assert!(sum(u_wide, -0.55) < Pu::from_num(2));
+        // Inside the bound the headroom changes nothing.
+        let (mut a, mut b) = (PiState::default(), PiState::default());
+        let small = Pu::from_num(0.01);
+        assert_eq!(
+            c.update_with_offset_within(&mut a, small, Pu::ZERO, afb_held, [lim, 0]),
+            c.update_with_offset_within(&mut b, small, Pu::ZERO, afb_held, [lim, h])
+        );
     }
 }

@@ -125,6 +125,9 @@ pub const VELOCITY_FILTER_CORNER_HZ: Range =
 pub const VELOCITY_FILTER_Q: Range = Range::real("velocity_filter.q", 0.1, 10.0, false);
 /// Ka as a fraction of J_total.
 pub const AFB_GAIN_FRACTION: Range = Range::real("accel_feedback.gain_fraction", 0.0, 20.0, false);
+/// The velocity regulator's headroom beyond the torque limit, as a fraction of the limit.
+pub const AFB_LIMIT_HEADROOM_FRACTION: Range =
+    Range::real("accel_feedback.limit_headroom_fraction", 0.0, 1.0, false);
 /// AFB filter corner \[Hz\] (and below the AFB rate / 2).
 pub const AFB_FILTER_CORNER_HZ: Range =
     Range::real("accel_feedback.filter.corner_hz", 0.0, INF, true);
@@ -191,6 +194,7 @@ pub const RANGES: &[Range] = &[
     VELOCITY_FILTER_CORNER_HZ,
     VELOCITY_FILTER_Q,
     AFB_GAIN_FRACTION,
+    AFB_LIMIT_HEADROOM_FRACTION,
     AFB_FILTER_CORNER_HZ,
     AFB_FILTER_Q,
     OBSERVER_BANDWIDTH_HZ,

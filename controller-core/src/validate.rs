@@ -142,6 +142,10 @@ impl DriveConfig {
             (&r::VELOCITY_FF_GAIN, self.velocity_ff_gain),
             (&r::ACCEL_FF_GAIN, self.accel_ff_gain),
             (&r::AFB_GAIN_FRACTION, self.accel_feedback.gain_fraction),
+            (
+                &r::AFB_LIMIT_HEADROOM_FRACTION,
+                self.accel_feedback.limit_headroom_fraction,
+            ),
             (&r::OVERSPEED_PU, f.overspeed_pu),
             (&r::FOLLOWING_ERROR_COUNTS, f.following_error_counts),
             (&r::ENCODER_JUMP_MARGIN, f.encoder_jump_margin),

@@ -91,7 +91,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 159;
+pub const LEN: usize = 163;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -260,6 +260,7 @@ fn put_accel_feedback(w: &mut Writer, afb: AccelFeedbackConfig) -> Result<(), Li
         filter,
         rate,
         source,
+        limit_headroom_fraction,
     } = afb;
     w.u8(match mode {
         AfbMode::Off => 0,
@@ -272,7 +273,8 @@ fn put_accel_feedback(w: &mut Writer, afb: AccelFeedbackConfig) -> Result<(), Li
         AfbRate::Current => 0,
         AfbRate::Velocity => 1,
     })?
-    .u8(estimator_byte(source))?;
+    .u8(estimator_byte(source))?
+    .u32(limit_headroom_fraction.to_bits())?;
     Ok(())
 }
 
@@ -294,12 +296,14 @@ fn get_accel_feedback(
         _ => return Err(bad),
     };
     let source = get_estimator(r, bad)?;
+    let limit_headroom_fraction = f(r)?;
     Ok(AccelFeedbackConfig {
         mode,
         gain_fraction,
         filter,
         rate,
         source,
+        limit_headroom_fraction,
     })
 }
 

@@ -72,6 +72,9 @@ pub(super) struct Coefficients {
     pub(super) afb_limit_abs: Pu,
     pub(super) current_limit_abs: i32,
     pub(super) velocity_limit_abs: i32,
+    /// The velocity regulator's headroom beyond the limit while saturated (raw Q16.16;
+    /// `accel_feedback.limit_headroom_fraction` × the torque limit, 0 without AFB).
+    pub(super) velocity_headroom: i32,
     /// |overspeed| as raw Q16.16 bits (the tick compares magnitudes).
     pub(super) overspeed_abs: MagnitudeLimit,
     /// |following error limit| as raw Q24.8 bits.
@@ -252,6 +255,21 @@ fn fault_limits(g: &Gains) -> Result<[MagnitudeLimit; 3], ConfigError> {
     ])
 }
 
+/// The velocity regulator's headroom beyond the torque limit (raw Q16.16): the fraction of
+/// the limit `accel_feedback.limit_headroom_fraction`, with AFB on; 0 with it off, where no
+/// term follows the regulator.
+fn velocity_headroom(cfg: &DriveConfig) -> Result<i32, ConfigError> {
+    if cfg.accel_feedback.mode == AfbMode::Off {
+        return Ok(0);
+    }
+    let h = cfg.accel_feedback.limit_headroom_fraction * cfg.torque_limit_pu;
+    Ok(quantize::<Pu>(
+        h,
+        "accel_feedback.limit_headroom_fraction × torque_limit_pu",
+    )?
+    .to_bits())
+}
+
 impl Coefficients {
     /// Quantize `g` (designed from, and carrying, validated settings).
     pub(super) fn from_gains(g: &Gains) -> Result<Self, ConfigError> {
@@ -312,6 +330,7 @@ impl Coefficients {
             afb_limit_abs: afb.abs_limit(),
             current_limit_abs: current_regulator.abs_limit(),
             velocity_limit_abs: velocity_regulator.abs_limit(),
+            velocity_headroom: velocity_headroom(cfg)?,
             overspeed_abs,
             following_error_abs,
             max_count_step_abs,

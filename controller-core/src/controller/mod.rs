@@ -440,7 +440,7 @@ impl Controller {
                 e,
                 ff,
                 self.state.afb,
-                self.coef.velocity_limit_abs,
+                [self.coef.velocity_limit_abs, self.coef.velocity_headroom],
             );
             let _ = self.run_afb(self.coef.afb_velocity, |_| a_est);
         }

@@ -344,3 +344,62 @@ fn opposing_afb_term_does_not_take_torque_away_at_the_limit() {
     let u = c.update_with_offset(&mut s, Pu::from_num(-1), Pu::ZERO, Pu::from_num(50));
     assert_eq!(u, Pu::from_num(-4));
 }
+
+/// Saturated with AFB on, the count noise swings the AFB term from one current tick to the
+/// next. A rigid machine accelerating at the torque limit (the encoder counts of
+/// ½·(T/J_total)·t², rounded, 4096 counts): with the plain clamp (headroom 0) the swings
+/// take the torque reference off the limit on many ticks; with the dyno's headroom (0.15
+/// of the limit) only the swings larger than it do, on at most a tenth as many ticks; with
+/// a headroom of the whole limit, on none.
+#[test]
+fn the_headroom_holds_a_saturated_torque_at_its_limit_through_afb_noise() {
+    let ticks_below_limit = |headroom: f32| {
+        let mut cfg = common::table1();
+        cfg.accel_feedback.limit_headroom_fraction = headroom;
+        cfg.position_bandwidth_rad_s = 0.0;
+        let lim = Pu::from_num(cfg.torque_limit_pu);
+        let accel_pu_s =
+            f64::from(cfg.torque_limit_pu) / f64::from(cfg.motor_inertia_s + cfg.load_inertia_s);
+        let counts_per_pu_s = f64::from(cfg.base_speed_rpm) / 60.0 * f64::from(cfg.encoder_cpr);
+        let dt = 1.0 / f64::from(cfg.current_rate_hz);
+        let mut c = Controller::new(&cfg).unwrap();
+        let mut below = 0;
+        for k in 0u32..600 {
+            let t = f64::from(k) * dt;
+            let count = (0.5 * accel_pu_s * counts_per_pu_s * t * t).round() as u32;
+            if k % 2 == 0 {
+                c.velocity_tick(VelocityInputs {
+                    encoder_count: count,
+                    setpoint: Setpoint {
+                        position_counts: Counts::ZERO,
+                        velocity_pu: Pu::from_num(1),
+                        acceleration_pu_s: Pu::ZERO,
+                    },
+                    fault_input: false,
+                });
+            }
+            let out = c.current_tick(CurrentInputs {
+                encoder_count: count,
+                current_pu: Pu::ZERO,
+            });
+            assert!(out.fault.is_none(), "{:?}", out.fault);
+            if k >= 100 && out.current_ref_pu < lim {
+                below += 1;
+            }
+        }
+        below
+    };
+    // table1.toml leaves the setting to its default, the plain clamp.
+    assert_eq!(common::table1().accel_feedback.limit_headroom_fraction, 0.0);
+    let (with, plain, wide) = (
+        ticks_below_limit(0.15),
+        ticks_below_limit(0.0),
+        ticks_below_limit(1.0),
+    );
+    eprintln!("ticks below the limit: {with} (0.15), {plain} (plain), {wide} (1.0)");
+    assert!(
+        with * 10 <= plain,
+        "{with} with the headroom, {plain} without"
+    );
+    assert_eq!(wide, 0);
+}

@@ -154,6 +154,40 @@ pub fn high_pass(x: &[f64], half: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The ripple of one signal `f` inside the window `win` by the metrics' definition
+/// ([`high_pass`] with the average `average_s`, then the RMS over the window), and the
+/// frequency of its spectral peak above [`oscillation::F_MIN_HZ`] (`None` when the window
+/// holds too few rows for a spectrum). For the report's look at where a ripple figure comes
+/// from; [`compute`] forms the metrics themselves.
+pub fn ripple_in(
+    rows: &[TraceRow],
+    win: (f64, f64),
+    average_s: f64,
+    f: impl Fn(&TraceRow) -> f64,
+) -> (f64, Option<f64>) {
+    let dt = match (rows.first(), rows.get(1)) {
+        (Some(a), Some(b)) => b.t_s - a.t_s,
+        _ => return (0.0, None),
+    };
+    if dt <= 0.0 {
+        return (0.0, None);
+    }
+    let half = ((average_s / dt) / 2.0).round().max(1.0) as usize;
+    let x: Vec<f64> = rows.iter().map(&f).collect();
+    let inside: Vec<f64> = high_pass(&x, half)
+        .into_iter()
+        .zip(rows)
+        .filter(|(_, r)| in_window(r, win))
+        .map(|(v, _)| v)
+        .collect();
+    let n = inside.len().max(1) as f64;
+    let rms = (inside.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+    let band = spectrum::Band::above(oscillation::F_MIN_HZ);
+    let freq =
+        spectrum::peak(&inside, 1.0 / dt, &band, oscillation::HALF_BAND_HZ).map(|p| p.freq_hz);
+    (rms, freq)
+}
+
 /// v − (mean of the samples i−half ..= i+half, clipped to 0..len), from prefix sums
 /// (`at(k)` = the sum of the first k samples).
 fn centred(at: impl Fn(usize) -> f64, i: usize, half: usize, len: usize, v: f64) -> f64 {

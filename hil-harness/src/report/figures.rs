@@ -53,6 +53,16 @@ const SHOCK_50: &[(&str, &str)] = &[
     ("AFB off, same gains", "shock-50-no-afb"),
     ("AFB on", "shock-50"),
 ];
+const DYNO_SAT: &[(&str, &str)] = &[
+    ("AFB, headroom", "dyno-accel"),
+    ("AFB, plain clamp", "dyno-accel-no-headroom"),
+    ("no AFB", "dyno-accel-no-afb"),
+];
+const SHOCK_SAT: &[(&str, &str)] = &[
+    ("AFB, headroom", "shock"),
+    ("AFB, plain clamp", "shock-no-headroom"),
+    ("no AFB", "shock-no-afb"),
+];
 const FIG6_ON: &[(&str, &str)] = &[("AFB on", "fig6")];
 const LOW_BW: &[(&str, &str)] = &[("AFB off, {bw} rad/s", "fig6-low-bw")];
 
@@ -79,6 +89,12 @@ const FIGURES: &[(&str, &[PanelSpec])] = &[
         spec("{load} shock at rated speed, {bw} rad/s: shaft torque", TORQUE, SHOCK_50, |r| r.shaft_torque_pu),
         spec("{bw} rad/s (Fig. 13): speed", SPEED, SHOCK_30, |r| r.motor_vel_pu),
         spec("{bw} rad/s (Fig. 13): shaft torque", TORQUE, SHOCK_30, |r| r.shaft_torque_pu),
+    ]),
+    ("saturation-compare", &[
+        spec("Dyno acceleration, {load} load: torque reference", TORQUE, DYNO_SAT, |r| r.torque_cmd_pu),
+        spec("Dyno acceleration: shaft torque", TORQUE, DYNO_SAT, |r| r.shaft_torque_pu),
+        spec("{load} shock at rated speed: torque reference", TORQUE, SHOCK_SAT, |r| r.torque_cmd_pu),
+        spec("{load} shock at rated speed: shaft torque", TORQUE, SHOCK_SAT, |r| r.shaft_torque_pu),
     ]),
 ];
 

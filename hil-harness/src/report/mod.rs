@@ -15,6 +15,7 @@ pub mod fig6;
 pub mod figures;
 pub mod load;
 pub mod runs;
+pub mod saturation;
 pub mod sec2;
 pub mod section;
 pub mod stiffness;
@@ -35,7 +36,7 @@ use std::path::Path;
 use std::time::Instant;
 
 /// Scenarios `reproduce` runs, in report order.
-pub const SCENARIOS: [&str; 14] = [
+pub const SCENARIOS: [&str; 16] = [
     "fig4",
     "fig6",
     "fig6-no-afb",
@@ -44,8 +45,10 @@ pub const SCENARIOS: [&str; 14] = [
     "fig6-low-bw",
     "dyno-accel-no-afb",
     "dyno-accel",
+    "dyno-accel-no-headroom",
     "shock-no-afb",
     "shock",
+    "shock-no-headroom",
     "shock-50-no-afb",
     "shock-50",
     "shock-30-no-afb",
@@ -172,6 +175,7 @@ fn sections(r: &Results, elapsed_s: f64) -> Result<Vec<Section>> {
             "Fig. 11 and Fig. 12, the linear shock",
         )?,
         load::shock_30(runs)?,
+        saturation::section(runs)?,
         sweep::section(&r.sweep_points, &r.sweep)?,
         tune::section(&r.tunes, &Constraints::default())?,
         stiffness::section(&r.stiffness)?,

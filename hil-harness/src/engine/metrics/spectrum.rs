@@ -80,7 +80,6 @@ pub(super) struct Band<'a> {
 
 impl Band<'_> {
     /// Everything from `lo_hz` up.
-    #[cfg(test)]
     pub const fn above(lo_hz: f64) -> Band<'static> {
         Band {
             lo_hz,
