@@ -48,7 +48,14 @@ pub enum HarnessError {
     Plot(String),
     /// Anything raised by a component crate (plant, controller, PIL link).
     Backend(String),
+    /// `tune` or `commission` found no design that meets the constraints: what was tried
+    /// and which constraint failed (exit code [`NO_DESIGN_EXIT_CODE`]). Not a bad input.
+    NoDesign(String),
 }
+
+/// The exit code of a `tune` or `commission` that found no design meeting the constraints
+/// (every other error exits 1, a command-line usage error 2).
+pub const NO_DESIGN_EXIT_CODE: u8 = 3;
 
 impl fmt::Display for HarnessError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -68,6 +75,7 @@ impl fmt::Display for HarnessError {
             Self::Parse { path, reason } => write!(f, "cannot parse {}: {reason}", path.display()),
             Self::Plot(reason) => write!(f, "plot failed: {reason}"),
             Self::Backend(reason) => write!(f, "{reason}"),
+            Self::NoDesign(reason) => write!(f, "no design: {reason}"),
         }
     }
 }
@@ -80,6 +88,16 @@ impl HarnessError {
         Self::Io {
             path: path.into(),
             reason: err.to_string(),
+        }
+    }
+
+    /// The process exit code for this error: [`NO_DESIGN_EXIT_CODE`] for
+    /// [`HarnessError::NoDesign`], 1 for every other.
+    #[must_use]
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Self::NoDesign(_) => NO_DESIGN_EXIT_CODE,
+            _ => 1,
         }
     }
 

@@ -52,7 +52,7 @@ pub fn main_with_default(default_command: &str) -> ExitCode {
         }
         Err(e) => {
             eprintln!("error: {e}");
-            ExitCode::FAILURE
+            ExitCode::from(e.exit_code())
         }
     }
 }

@@ -75,3 +75,68 @@ fn commissioning_an_unseen_machine_gives_a_stable_design_better_than_no_afb() {
     let cfg = hil_harness::resolve("fig6", Some(&tuned), &[]).unwrap();
     assert!(hil_harness::run_scenario(&cfg).unwrap().metrics.stable);
 }
+
+/// A light motor on a 12× load through a 30 Hz, 2 %-damped coupling, 16,384 noisy counts:
+/// the identification succeeds, but no design meets the constraints at 80 rad/s (the
+/// coupling's damping stays below 0.3 whatever the loop does). `commission` keeps the
+/// identification, writes `commission.md` with the closest designs and what each misses,
+/// writes no drive file, and fails with the no-design error (exit code 3), not a
+/// configuration error.
+#[test]
+fn commissioning_with_no_design_keeps_the_identification_and_says_what_failed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = tmp.path().join("light.toml");
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/machines/table1.toml"),
+    )
+    .unwrap();
+    let mut doc: toml::Table = text.parse().unwrap();
+    for (k, v) in [
+        ("motor_inertia_s", 0.05),
+        ("load_inertia_s", 0.6),
+        ("anti_resonance_hz", 30.0),
+        ("shaft_damping_ratio", 0.02),
+        ("backlash_deg", 0.1),
+    ] {
+        doc["plant"].as_table_mut().unwrap()[k] = toml::Value::Float(v);
+    }
+    doc["plant"].as_table_mut().unwrap()["encoder_cpr"] = toml::Value::Integer(16384);
+    let sensors = doc
+        .entry("sensors")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    sensors
+        .as_table_mut()
+        .unwrap()
+        .insert("encoder_noise_counts".into(), toml::Value::Float(0.5));
+    std::fs::write(&config, toml::to_string(&doc).unwrap()).unwrap();
+    let out = tmp.path().join("commission");
+    let err = commission(
+        config.to_str().unwrap(),
+        &[],
+        Some(80.0),
+        &Constraints::default(),
+        &out,
+    )
+    .unwrap_err();
+    assert_eq!(
+        err.exit_code(),
+        hil_harness::error::NO_DESIGN_EXIT_CODE,
+        "{err}"
+    );
+    assert_eq!(hil_harness::error::NO_DESIGN_EXIT_CODE, 3);
+    let msg = err.to_string();
+    assert!(msg.starts_with("no design: "), "{msg}");
+    assert!(!msg.contains("bad configuration"), "{msg}");
+    for f in [
+        "commission.md",
+        "identified.toml",
+        "identify/identify.md",
+        "identify/plant.toml",
+    ] {
+        assert!(out.join(f).is_file(), "{f} not written");
+    }
+    assert!(!out.join("tune/drive.toml").exists());
+    let md = std::fs::read_to_string(out.join("commission.md")).unwrap();
+    assert!(md.contains("## The designs that came closest"), "{md}");
+    assert!(md.contains("(needs ≥ 0.3)"), "{md}");
+}

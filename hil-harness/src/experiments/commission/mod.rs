@@ -24,6 +24,7 @@
 //!
 //! Everything is staged: on an error before the verification nothing is written.
 
+mod no_design;
 pub mod notch;
 mod write;
 
@@ -165,6 +166,7 @@ pub fn commission(
     let judged = tune::judge_grid(&identified, &tune::candidates(&grid, &bws), constraints)?;
     let fig6 = resolve("fig6", Some(&identified), &[])?;
     let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
+    let all_judged = judged.clone();
     let (tuned_on, name, judged) = match &decision.notch {
         None => (identified, "identified.toml", Some(judged)),
         Some(n) => {
@@ -177,7 +179,29 @@ pub fn commission(
             (path.display().to_string(), "notched.toml", None)
         }
     };
-    let pair = tune::pair::design_both_from(&tuned_on, judged, target_bandwidth, constraints)?;
+    let pair = match tune::pair::design_both_from(&tuned_on, judged, target_bandwidth, constraints)
+    {
+        Ok(p) => p,
+        Err(HarnessError::NoDesign(reason)) => {
+            // The identification stands on its own: keep it, say what failed, and exit
+            // with the no-design code.
+            let md = no_design::markdown(
+                &base.config_path.display().to_string(),
+                &all_judged,
+                constraints,
+                &reason,
+            );
+            staging.write("commission.md", &md)?;
+            staging.commit()?;
+            return Err(HarnessError::NoDesign(format!(
+                "{reason}; the identification is in {} (identify/, identified.toml), the \
+                 closest designs and what each misses in {}",
+                out.display(),
+                out.join("commission.md").display()
+            )));
+        }
+        Err(e) => return Err(e),
+    };
     let (mut with, without) = (pair.with, pair.without.result);
     with.result.config = name.into();
     let tune_md = staging.path("tune/tune.md")?;

@@ -321,13 +321,10 @@ pub fn choose(config: &str, mut judged: Vec<Judged>, k: &Constraints) -> Result<
         }
         refused.push((j, runs));
     }
-    Err(HarnessError::config(
-        "tune",
-        format!(
-            "no design of the {total} tried meets the constraints on the linear model and is \
-             stable in the loop ({feasible} met the constraints)"
-        ),
-    ))
+    Err(HarnessError::NoDesign(format!(
+        "none of the {total} designs tried meets the constraints on the linear model and is \
+         stable in the loop ({feasible} met the constraints on the linear model)"
+    )))
 }
 
 /// A finished design: what [`search`] chose, with its damping measured in the loop.

@@ -65,8 +65,11 @@ pub fn design_both_from(
         None => design(config, target_bandwidth, constraints)?,
     };
     let no_afb = without_afb(&candidates(&grid, &no_afb_bandwidths(&grid, &bws)));
-    let result = search(config, &no_afb, constraints).map_err(|e| {
-        crate::error::HarnessError::config("tune", format!("{config} without AFB: {e}"))
+    let result = search(config, &no_afb, constraints).map_err(|e| match e {
+        crate::error::HarnessError::NoDesign(m) => {
+            crate::error::HarnessError::NoDesign(format!("{config} without AFB: {m}"))
+        }
+        other => other,
     })?;
     let mut tuned = with.base.clone();
     result.design.candidate.apply(&mut tuned.drive);
