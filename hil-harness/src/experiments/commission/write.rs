@@ -75,10 +75,16 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
     }
     let _ = writeln!(
         md,
-        "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).",
+        "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).\n\n{}",
         if c.passed { "Passed" } else { "Failed" },
         crate::experiments::tune::pair::CRITERION,
-        super::NOTCH_CRITERION
+        super::NOTCH_CRITERION,
+        if c.passed {
+            "The drive to flash is `tune/drive.toml` (`cargo run --release -- flash \
+             --config DIR/tune/drive.toml`)."
+        } else {
+            "`tune/drive.toml` did not pass on the machine: do not flash it."
+        }
     );
     md
 }
