@@ -51,7 +51,10 @@ fn commissioning_an_unseen_machine_gives_a_stable_design_better_than_no_afb() {
     // Only a design that passed is called the one to flash.
     let md = std::fs::read_to_string(out.join("commission.md")).unwrap();
     assert!(md.contains("**Passed**"), "{md}");
-    assert!(md.contains("The drive to flash is `tune/drive.toml`"), "{md}");
+    assert!(
+        md.contains("The drive to flash is `tune/drive.toml`"),
+        "{md}"
+    );
     assert!(!md.contains("do not flash"), "{md}");
     // The loop damps this machine's resonance: no notch, the designs as without the feature.
     assert!(json["notch"]["notch"].is_null(), "{json}");

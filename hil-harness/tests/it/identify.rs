@@ -67,6 +67,13 @@ fn check(name: &str, ident: &Identification) -> Vec<String> {
     if lm_err.abs() > lm_limit {
         failures.push(format!("{name}: lost motion off by {lm_err:+.3} counts"));
     }
+    // A friction and a delay are never negative: the fit holds them at zero or above.
+    if f.viscous_pu < 0.0 || f.delay_s < 0.0 {
+        failures.push(format!(
+            "{name}: viscous {} pu, delay {} s: below zero",
+            f.viscous_pu, f.delay_s
+        ));
+    }
     failures
 }
 

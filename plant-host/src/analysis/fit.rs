@@ -18,8 +18,10 @@
 //! radians. Each bin is weighted by √(2·n·γ²/(1 − γ²)) for n averaged segments, the inverse
 //! of the estimate's standard error (Bendat and Piersol).
 //! Bins with γ² below `min_coherence` are left out. The parameters are Jm, Jl, f_ar and
-//! ζ (fitted as logarithms, so they stay positive), Bm + Bl and τ. Their standard errors
-//! come from the covariance s²·(JᵀJ)⁻¹ at the optimum.
+//! ζ (fitted as logarithms, so they stay positive), Bm + Bl and τ, the last two held at
+//! zero or above (a projected step: a bound parameter the step would take below zero is
+//! fixed at zero for that step, [`NON_NEGATIVE`]). Their standard errors come from the
+//! covariance s²·(JᵀJ)⁻¹ at the optimum.
 
 use super::frf::MeasuredResponse;
 use nalgebra::{Complex, DMatrix, DVector};
@@ -222,6 +224,40 @@ struct Optimum {
     iterations: usize,
 }
 
+/// The parameters held at zero or above: Bm + Bl (a friction) and τ (a delay).
+const NON_NEGATIVE: [usize; 2] = [4, 5];
+
+/// The Levenberg–Marquardt step for the damped normal equations `a`·step = −`jtr`, with
+/// the parameters of [`NON_NEGATIVE`] that the step would take below zero from `p` fixed
+/// (their step 0, the others solved again without them). `None` if `a` is singular.
+fn projected_step(a: &DMatrix<f64>, jtr: &DVector<f64>, p: &[f64; 6]) -> Option<DVector<f64>> {
+    let mut fixed = [false; 6];
+    let mut step = a.clone().lu().solve(&(-jtr))?;
+    for _ in 0..NON_NEGATIVE.len() {
+        let mut changed = false;
+        for &j in &NON_NEGATIVE {
+            let (pj, sj) = (p.get(j).copied()?, step.get(j).copied()?);
+            if !fixed[j] && pj + sj < 0.0 {
+                fixed[j] = true;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+        let mut b = a.clone();
+        let mut rhs = -jtr;
+        for (j, _) in fixed.iter().enumerate().filter(|(_, f)| **f) {
+            b.fill_row(j, 0.0);
+            b.fill_column(j, 0.0);
+            *b.get_mut((j, j))? = 1.0;
+            *rhs.get_mut(j)? = -p.get(j).copied()?;
+        }
+        step = b.lu().solve(&rhs)?;
+    }
+    Some(step)
+}
+
 /// Levenberg–Marquardt from `start` (at most 200 iterations, Marquardt's scaling, stops
 /// when a step gains less than 1e-12 relative).
 fn levenberg_marquardt(bins: &[Bin], start: [f64; 6], wb: f64) -> Optimum {
@@ -254,7 +290,7 @@ fn levenberg_marquardt(bins: &[Bin], start: [f64; 6], wb: f64) -> Optimum {
             // Marquardt's scaling: λ times the diagonal of JᵀJ.
             let mut a = jtj.clone();
             a.set_diagonal(&jtj.diagonal().map(|d| d + lambda * d.max(1e-12)));
-            let Some(step) = a.lu().solve(&(-&jtr)) else {
+            let Some(step) = projected_step(&a, &jtr, &p) else {
                 lambda *= 10.0;
                 continue;
             };
@@ -315,7 +351,12 @@ pub fn fit_two_inertia(
         return Err(FitError::TooFewBins { usable: bins.len() });
     }
     let wb = base_speed_rad_s;
-    let start = initial_guess(&bins, wb)?.to_params();
+    let mut start = initial_guess(&bins, wb)?.to_params();
+    for &j in &NON_NEGATIVE {
+        if let Some(v) = start.get_mut(j) {
+            *v = v.max(0.0);
+        }
+    }
     let Optimum {
         p,
         r,
