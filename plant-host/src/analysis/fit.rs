@@ -237,8 +237,9 @@ fn projected_step(a: &DMatrix<f64>, jtr: &DVector<f64>, p: &[f64; 6]) -> Option<
         let mut changed = false;
         for &j in &NON_NEGATIVE {
             let (pj, sj) = (p.get(j).copied()?, step.get(j).copied()?);
-            if !fixed[j] && pj + sj < 0.0 {
-                fixed[j] = true;
+            let f = fixed.get_mut(j)?;
+            if !*f && pj + sj < 0.0 {
+                *f = true;
                 changed = true;
             }
         }
