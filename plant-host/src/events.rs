@@ -383,7 +383,7 @@ fn guard_list(
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
     use super::*;
     use crate::model::{Model, Winding};
 
@@ -435,5 +435,98 @@ mod tests {
         }
         // Dead zone: 2 + 1 + 1 parts; clamped: 4 + 1 + 1.
         assert_eq!(parts, 10);
+    }
+
+    fn model(law: BacklashModel) -> Model {
+        Model {
+            motor_inertia_s: 0.2,
+            load_inertia_s: 0.5,
+            motor_viscous_pu: 0.01,
+            load_viscous_pu: 0.02,
+            base_speed_rad_s: 300.0,
+            shaft: Shaft {
+                k: 40.0,
+                d: 0.3,
+                g: 0.004,
+            },
+            law,
+            winding: Some(Winding {
+                r_pu: 0.05,
+                l_pu_s: 0.002,
+            }),
+            load_locked: false,
+        }
+    }
+
+    /// The guard's value at `x`: the smallest of its parts.
+    fn value(g: &Guard, x: &Vec5) -> f64 {
+        g.lins()
+            .iter()
+            .map(|l| l.value(x))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// From inside the gap, the motor 0.5 pu faster than the load and the twist 1 mrad from
+    /// the driving edge: under both laws the earliest crossing of the free mode's guards is
+    /// the driving edge's, and the time found is the first at which that guard is positive,
+    /// to within 1e-12 s (it is positive there, not positive 1e-12 s before, and nowhere
+    /// positive on a fine grid before that). Heading away from both edges (the speeds
+    /// equal), nothing is crossed within the step.
+    #[test]
+    fn first_crossing_is_the_earliest_time_a_guard_turns_positive() {
+        let u = Vec3::new(0.5, 0.0, 1.0);
+        let h = 2e-3;
+        for law in [BacklashModel::DeadZone, BacklashModel::Clamped] {
+            let m = model(law);
+            let (a, b) = m.matrices(Contact::Free);
+            let guards = Guards::new(Contact::Free, law, &m.shaft, &a, &b);
+            let x0 = Vec5::new(0.003, 0.0, 1.0, 0.5, 0.2);
+            let taylor = Taylor::new(&a, &b, &x0, &u, h);
+            let (t, target) = guards.first_crossing(&taylor, h).expect("a crossing");
+            assert_eq!(target, Contact::Driving, "{law:?}");
+            assert!(t > 0.0 && t <= h, "{law:?}: {t}");
+            let driving = guards.list[0].as_ref().unwrap();
+            assert!(value(driving, &taylor.state(t)) > 0.0, "{law:?}: {t}");
+            assert!(
+                value(driving, &taylor.state(t - 1e-12)) <= 0.0,
+                "{law:?}: {t}"
+            );
+            for j in 0..1000 {
+                let tau = (t - 1e-12) * f64::from(j) / 1000.0;
+                for g in guards.list.iter().flatten() {
+                    assert!(
+                        value(g, &taylor.state(tau)) <= 0.0,
+                        "{law:?}: {tau} before {t}"
+                    );
+                }
+            }
+            // A twist of 1 mrad at 0.5 pu·300 rad/s is crossed in about 6.7 µs.
+            assert!((t - 0.001 / 150.0).abs() < 1e-6, "{law:?}: {t}");
+            let still = Vec5::new(0.0, 0.0, 1.0, 1.0, 0.0);
+            let taylor = Taylor::new(&a, &b, &still, &Vec3::zeros(), h);
+            assert_eq!(guards.first_crossing(&taylor, h), None, "{law:?}");
+        }
+    }
+
+    /// The tangent-line bound of an interior maximum: the two end tangents meet at
+    /// t = (l1 − l0 − d1·h)/(d0 − d1), clamped to [0, h], at height l0 + d0·t, which must
+    /// exceed −½·min(|l0|, |l1|) for the step to be searched.
+    #[test]
+    fn peak_reaches_zero_takes_the_tangents_meeting_point_with_its_margin() {
+        // Tangents meet at t = 0.5, height −1 + 4·0.5 = 1: above the margin.
+        assert!(peak_reaches_zero(-1.0, -1.0, 4.0, -4.0, 1.0));
+        // Height −1 + 0.5·0.5 = −0.75, below −0.5.
+        assert!(!peak_reaches_zero(-1.0, -1.0, 0.5, -0.5, 1.0));
+        // Height −1 + 1.5·0.5 = −0.25, above −0.5 though below zero.
+        assert!(peak_reaches_zero(-1.0, -1.0, 1.5, -1.5, 1.0));
+        // Exactly at the margin: −1 + 1·0.5 = −0.5 is not above it.
+        assert!(!peak_reaches_zero(-1.0, -1.0, 1.0, -1.0, 1.0));
+        // Unequal ends: t = (−2 + 1 + 1)/(1 + 1) = 0, height −1: the margin is ½·min(1, 2).
+        assert!(!peak_reaches_zero(-1.0, -2.0, 1.0, -1.0, 1.0));
+        // The step's length enters the meeting point: t = (0 + 3·h)/(1 + 3), so h = 0.5
+        // gives t = 0.375 and the height −0.625, not above; h = 1 gives t = 0.75 and
+        // −0.25, above.
+        assert!(!peak_reaches_zero(-1.0, -1.0, 1.0, -3.0, 0.5));
+        assert!(peak_reaches_zero(-1.0, -1.0, 1.0, -3.0, 1.0));
     }
 }
