@@ -398,24 +398,7 @@ mod tests {
         let close = |got: f64, want: f64| (got - want).abs() <= 1e-12 * (1.0 + want.abs());
         let mut parts = 0;
         for law in [BacklashModel::DeadZone, BacklashModel::Clamped] {
-            let model = Model {
-                motor_inertia_s: 0.2,
-                load_inertia_s: 0.5,
-                motor_viscous_pu: 0.01,
-                load_viscous_pu: 0.02,
-                base_speed_rad_s: 300.0,
-                shaft: Shaft {
-                    k: 40.0,
-                    d: 0.3,
-                    g: 0.004,
-                },
-                law,
-                winding: Some(Winding {
-                    r_pu: 0.05,
-                    l_pu_s: 0.002,
-                }),
-                load_locked: false,
-            };
+            let model = model(law);
             for contact in Contact::ALL {
                 let (a, b) = model.matrices(contact);
                 let dx = a * x + b * u;
@@ -437,6 +420,7 @@ mod tests {
         assert_eq!(parts, 10);
     }
 
+    /// The test machine, with the winding (so the current is a state), under `law`.
     fn model(law: BacklashModel) -> Model {
         Model {
             motor_inertia_s: 0.2,
