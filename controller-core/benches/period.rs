@@ -10,7 +10,7 @@ use std::hint::black_box;
 use controller_core::{
     Controller, Counts, CurrentInputs, Profile, ProfileConfig, Pu, Setpoint, VelocityInputs,
 };
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::{Criterion, criterion_group, criterion_main};
 
 struct Rig {
     ctl: Controller,

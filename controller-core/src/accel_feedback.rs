@@ -59,7 +59,7 @@
 
 use crate::config::AfbMode;
 use crate::filter::{LowPass, LowPassState};
-use crate::per_unit::{mul_gain, sat_round_shr, Gain, Pu, PuPerS};
+use crate::per_unit::{Gain, Pu, PuPerS, mul_gain, sat_round_shr};
 
 /// Acceleration feedback coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -19,7 +19,7 @@
 
 use crate::config::{AfbMode, AfbRate, DriveConfig, ObserverInertia, PiInertia};
 use crate::error::ConfigError;
-use crate::filter::{design_low_pass, LowPassDesign};
+use crate::filter::{LowPassDesign, design_low_pass};
 use crate::notch::{NotchDesign, NotchParams};
 use crate::per_unit::counts_per_pu_s;
 use crate::ranges;

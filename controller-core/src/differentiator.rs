@@ -7,7 +7,7 @@
 //! Both are quantized to whole counts: at 4096 CPR, 1000 rpm and 0.5 ms one count of velocity is
 //! 0.029 pu and one count of acceleration 58.6 pu/s (`docs/design.md`, "Encoder quantization").
 
-use crate::per_unit::{counts_to_pu, mul_gain, sat_i32, Gain, Pu, PuPerS, TickGain};
+use crate::per_unit::{Gain, Pu, PuPerS, TickGain, counts_to_pu, mul_gain, sat_i32};
 
 /// Differentiator scale factors for one tick rate.
 #[derive(Clone, Copy, Debug, PartialEq)]

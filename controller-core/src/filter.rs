@@ -5,7 +5,7 @@
 
 use crate::config::FilterConfig;
 use crate::error::ConfigError;
-use crate::per_unit::{checked_q, sat_shr, Coef, Pu};
+use crate::per_unit::{Coef, Pu, checked_q, sat_shr};
 use crate::ranges::Range;
 use crate::validate::check_filter;
 

@@ -41,9 +41,9 @@ pub use config::{
 pub use controller::{
     Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs,
 };
-pub use design::{design, Gains};
+pub use design::{Gains, design};
 pub use error::{ConfigError, QFormat};
 pub use fault::Fault;
 pub use per_unit::{Counts, CountsErr, Pu, PuPerS};
 pub use profile::{Profile, ProfileConfig, ProfileKind};
-pub use ranges::{Range, RANGES};
+pub use ranges::{RANGES, Range};

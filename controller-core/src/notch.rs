@@ -32,7 +32,7 @@
 //! their sum saturates (one saturating add per sample: what fits the tick's budget).
 
 use crate::error::ConfigError;
-use crate::per_unit::{checked_q, sat_shr, Coef, Pu};
+use crate::per_unit::{Coef, Pu, checked_q, sat_shr};
 
 /// The settings of a notch (configuration, not state): defined with the drive settings,
 /// `[drive.notch]`.

@@ -33,7 +33,7 @@
 //! the coming tick under a torque T: â⁺ = T·k_u + r ([`Observer::predicted_acceleration_pu_s`]),
 //! which lets [`crate::accel_feedback`] solve the loop T → model → â → T in closed form.
 
-use crate::per_unit::{mul_bits, mul_gain, sat_bits, sat_shr, Coef, Gain, Pu, PuPerS, TickGain};
+use crate::per_unit::{Coef, Gain, Pu, PuPerS, TickGain, mul_bits, mul_gain, sat_bits, sat_shr};
 
 /// Observer coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -21,7 +21,7 @@
 //! Products are formed in 64 bits, rounded to nearest and saturated to the 32-bit result
 //! type, so no tick can overflow: a saturated signal is the worst case, never a wrap.
 
-use fixed::types::{I16F16, I1F31, I24F8, I2F30, I48F16, I8F24};
+use fixed::types::{I1F31, I2F30, I8F24, I16F16, I24F8, I48F16};
 
 /// Per-unit signal: speed, current, torque, voltage (Q16.16).
 pub type Pu = I16F16;

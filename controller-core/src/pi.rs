@@ -22,7 +22,7 @@
 
 use fixed::types::I32F32;
 
-use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, TickGain};
+use crate::per_unit::{Gain, Pu, TickGain, mul_gain, sat_i32};
 
 /// PI coefficients (Q-formats: `kp` Q16.16, `ki_ts` Q8.24, `limit` Q16.16).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -209,7 +209,7 @@ impl PiCoefficients {
 mod tests {
     #![allow(clippy::indexing_slicing)]
     use super::{PiCoefficients, PiState};
-    use crate::per_unit::{mul_gain, sat_i32, Gain, Pu, TickGain};
+    use crate::per_unit::{Gain, Pu, TickGain, mul_gain, sat_i32};
     use fixed::types::I32F32;
 
     /// The step in 64 bits throughout: the reference the 32-bit form must equal.

@@ -25,7 +25,7 @@
 use crate::config::DriveConfig;
 use crate::error::ConfigError;
 use crate::fault::Fault;
-use crate::per_unit::{quantize, Pu};
+use crate::per_unit::{Pu, quantize};
 
 /// The protections' settings, quantized (built once by [`Protection::new`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

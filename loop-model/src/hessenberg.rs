@@ -35,11 +35,7 @@ impl HessenbergResponse {
         // a = zI − H (upper Hessenberg), x = Qᵀ·B; reduced to upper triangular in place.
         let mut a: DMatrix<Complex<f64>> = DMatrix::from_fn(n, n, |i, j| {
             let h = self.h.get((i, j)).copied().unwrap_or(0.0);
-            if i == j {
-                z - h
-            } else {
-                Complex::new(-h, 0.0)
-            }
+            if i == j { z - h } else { Complex::new(-h, 0.0) }
         });
         let mut x: DVector<Complex<f64>> = self.b.map(Complex::from);
         let get =

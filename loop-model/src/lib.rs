@@ -15,6 +15,6 @@ pub mod model;
 pub mod notch;
 mod reduce;
 
-pub use margins::{margins_of, Margins};
+pub use margins::{Margins, margins_of};
 pub use mirror::{Break, Coefficients};
 pub use model::LoopModel;

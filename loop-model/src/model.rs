@@ -21,12 +21,12 @@
 //! - With the gears apart, the load coasts on its own. Its states are dropped.
 
 use super::hessenberg::HessenbergResponse;
-use super::margins::{margins_of, Margins};
+use super::margins::{Margins, margins_of};
 use super::mirror::{Break, Coefficients, Inputs, State};
 use super::reduce::{deflate, drop_unused};
 use nalgebra::{Complex, DMatrix, DVector};
-use plant_host::analysis::{state, Gears, SampledPlant};
 use plant_host::PlantConfig;
+use plant_host::analysis::{Gears, SampledPlant, state};
 use std::f64::consts::PI;
 use std::sync::OnceLock;
 

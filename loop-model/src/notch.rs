@@ -15,9 +15,9 @@
 //! model gains only the notch's own pole pair. The output clamp and the error feedback of
 //! the fixed-point filter are left out, as every clamp and rounding is in the mirror.
 
-use controller_core::notch::{Notch, NotchDesign};
 use controller_core::ConfigError;
 use controller_core::Gains;
+use controller_core::notch::{Notch, NotchDesign};
 
 /// The quantized coefficients of the controller's notch, as f64.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -10,11 +10,11 @@
 
 use controller_core::per_unit::{Counts, Pu, PuPerS};
 use controller_core::{Setpoint, VelocityInputs};
-use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{Criterion, Throughput, black_box, criterion_group, criterion_main};
 use pil_link::tick::Sensors;
 use pil_link::wire::{Reader, Writer};
 use pil_link::{
-    Decoder, FaultCode, FirmwareSession, Frame, FrameKind, Hello, SafeOutputs, Target, MAX_FRAME,
+    Decoder, FaultCode, FirmwareSession, Frame, FrameKind, Hello, MAX_FRAME, SafeOutputs, Target,
 };
 
 fn sensors_frame(seq: u16) -> Frame {

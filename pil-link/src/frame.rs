@@ -13,8 +13,8 @@
 //! The layout of bytes 0..7 is frozen across versions, so a peer can always read the
 //! version of a frame it does not understand and report `BadVersion` instead of garbage.
 
-use crate::crc::Crc32;
 use crate::LinkError;
+use crate::crc::Crc32;
 
 /// Two sync bytes open every frame; the decoder hunts for them after noise or an error.
 pub const SYNC: [u8; 2] = [0xA5, 0x5A];

@@ -134,17 +134,21 @@ impl core::fmt::Display for HostError {
             Self::Link(e) => write!(f, "harness detected a link fault: {e}"),
             Self::FirmwareFault(r) => {
                 write!(
-                f,
-                "firmware latched its safe state: {} (expected frame {}, {} ticks done; outputs: \
+                    f,
+                    "firmware latched its safe state: {} (expected frame {}, {} ticks done; outputs: \
                  torque bits {}, PWM voltage bits {}, enable pin {}, tick after the fault {})",
-                r.code.name(),
-                r.expected_seq,
-                r.ticks_done,
-                r.outputs.torque_cmd_bits,
-                r.outputs.pwm_voltage_bits,
-                if r.outputs.enable_pin { "high" } else { "low" },
-                if r.outputs.current_tick_ran { "ran" } else { "did NOT run" }
-            )
+                    r.code.name(),
+                    r.expected_seq,
+                    r.ticks_done,
+                    r.outputs.torque_cmd_bits,
+                    r.outputs.pwm_voltage_bits,
+                    if r.outputs.enable_pin { "high" } else { "low" },
+                    if r.outputs.current_tick_ran {
+                        "ran"
+                    } else {
+                        "did NOT run"
+                    }
+                )
             }
             Self::UnexpectedReply { expected, received } => {
                 write!(f, "expected a {expected:?} frame, got {received:?}")
@@ -247,10 +251,10 @@ impl<S: Transport> HostLink<S> {
         }
         let seq = self.next_seq;
         self.next_seq = self.next_seq.wrapping_add(1);
-        if self.send(FrameKind::Stop, seq, &[]).is_ok() {
-            if let Some(r) = self.await_fault(Instant::now() + wait) {
-                report = Some(r);
-            }
+        if self.send(FrameKind::Stop, seq, &[]).is_ok()
+            && let Some(r) = self.await_fault(Instant::now() + wait)
+        {
+            report = Some(r);
         }
         report
     }

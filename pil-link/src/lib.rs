@@ -26,11 +26,11 @@ pub mod settings;
 pub mod tick;
 pub mod wire;
 
-pub use crc::{crc32, Crc32};
+pub use crc::{Crc32, crc32};
 pub use error::LinkError;
 pub use frame::{
-    Decoder, Frame, FrameKind, SequenceCheck, CRC_LEN, HEADER_LEN, MAX_FRAME, MAX_PAYLOAD,
-    PROTOCOL_VERSION, SYNC,
+    CRC_LEN, Decoder, Frame, FrameKind, HEADER_LEN, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION, SYNC,
+    SequenceCheck,
 };
 pub use message::{FaultCode, FaultReport, Hello, HelloAck, SafeOutputs, WATCHDOG_MS_RANGE};
 pub use session::{FirmwareSession, SessionState, Target};

@@ -106,7 +106,7 @@ impl FaultCode {
                 return Err(LinkError::BadPayload {
                     kind: FrameKind::Fault as u8,
                     len,
-                })
+                });
             }
         })
     }

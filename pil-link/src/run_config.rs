@@ -17,8 +17,8 @@
 use crate::settings;
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
-use controller_core::excitation::{ExcitationConfig, Injection, Waveform};
 use controller_core::DriveConfig;
+use controller_core::excitation::{ExcitationConfig, Injection, Waveform};
 
 const TAG_NONE: u8 = 0;
 const TAG_PRBS: u8 = 1;

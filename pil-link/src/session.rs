@@ -17,7 +17,7 @@
 
 use crate::message::{FaultCode, FaultReport, Hello, HelloAck, SafeOutputs, WATCHDOG_MS_RANGE};
 use crate::wire::Writer;
-use crate::{Decoder, Frame, FrameKind, SequenceCheck, PROTOCOL_VERSION};
+use crate::{Decoder, Frame, FrameKind, PROTOCOL_VERSION, SequenceCheck};
 
 /// What the session drives: the controller behind the link.
 pub trait Target {

@@ -5,7 +5,7 @@
 //!   encoder and ADC reads. The plant is `configs/machines/table1.toml`.
 #![allow(missing_docs, clippy::unwrap_used)]
 
-use criterion::{black_box, criterion_group, criterion_main, Criterion};
+use criterion::{Criterion, black_box, criterion_group, criterion_main};
 use plant_host::{PlantConfig, TwoInertiaPlant};
 use std::f64::consts::PI;
 use std::time::Duration;

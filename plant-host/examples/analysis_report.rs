@@ -5,8 +5,8 @@
 //! command, the one model of the loop that `tune` designs on.
 #![allow(missing_docs)]
 
-use plant_host::analysis::{EngagedPlant, PiStiffness};
 use plant_host::PlantConfig;
+use plant_host::analysis::{EngagedPlant, PiStiffness};
 use std::f64::consts::PI;
 use std::path::PathBuf;
 

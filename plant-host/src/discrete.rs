@@ -92,10 +92,10 @@ impl MapCache {
     #[inline]
     pub(crate) fn step(&mut self, contact: Contact, h: f64, x: &Vec5, u: &Vec3) -> Vec5 {
         let key = h.to_bits();
-        if let Some(i) = self.keys.iter().position(|k| *k == key) {
-            if let Some(Some(d)) = self.maps.get(i).and_then(|m| m.get(contact.index())) {
-                return d.apply(x, u);
-            }
+        if let Some(i) = self.keys.iter().position(|k| *k == key)
+            && let Some(Some(d)) = self.maps.get(i).and_then(|m| m.get(contact.index()))
+        {
+            return d.apply(x, u);
         }
         self.step_slow(contact, key, h, x, u)
     }
@@ -133,10 +133,10 @@ impl MapCache {
         u: &Vec3,
     ) -> Vec5 {
         let key = h.to_bits();
-        if self.keys.get(slot) == Some(&key) {
-            if let Some(Some(d)) = self.maps.get(slot).and_then(|m| m.get(contact.index())) {
-                return d.apply(x, u);
-            }
+        if self.keys.get(slot) == Some(&key)
+            && let Some(Some(d)) = self.maps.get(slot).and_then(|m| m.get(contact.index()))
+        {
+            return d.apply(x, u);
         }
         self.step_slow(contact, key, h, x, u)
     }

@@ -5,7 +5,7 @@
 
 use crate::config::BacklashModel;
 use crate::model::{Contact, Mat5, Mat53, Shaft, Vec3, Vec5};
-use short::{finite, ShortGuards, TwistForm};
+use short::{ShortGuards, TwistForm, finite};
 
 mod short;
 
@@ -173,10 +173,10 @@ impl Guards {
     pub(crate) fn first_crossing(&self, taylor: &Taylor, h: f64) -> Option<(f64, Contact)> {
         let mut best: Option<(f64, Contact)> = None;
         for g in self.list.iter().flatten() {
-            if let Some(t) = first_crossing(taylor, g, h) {
-                if best.is_none_or(|(tb, _)| t < tb) {
-                    best = Some((t, g.target));
-                }
+            if let Some(t) = first_crossing(taylor, g, h)
+                && best.is_none_or(|(tb, _)| t < tb)
+            {
+                best = Some((t, g.target));
             }
         }
         best
@@ -305,25 +305,33 @@ fn first_crossing(t: &Taylor, g: &Guard, h: f64) -> Option<f64> {
         } else {
             lo = x;
         }
-        let mut next = if df != 0.0 {
-            x - f / df
-        } else {
-            0.5 * (lo + hi)
-        };
-        // Converged: step just across the root so the bracket closes.
-        if (next - x).abs() < 0.5 * TIME_TOL_S {
-            next = if f > 0.0 {
-                x - TIME_TOL_S
-            } else {
-                x + TIME_TOL_S
-            };
-        }
-        if !(next > lo && next < hi) {
-            next = 0.5 * (lo + hi);
-        }
-        x = next;
+        x = next_point(x, f, df, lo, hi);
     }
     Some(hi)
+}
+
+/// The next point of the bracketed Newton search, from x (the guard's value f and slope df
+/// there) in the bracket (lo, hi) that x has just narrowed: the Newton step x − f/df (the
+/// midpoint where the slope is zero); when that moves less than half of [`TIME_TOL_S`], a
+/// step of [`TIME_TOL_S`] across the root instead (down where f > 0, up otherwise), so the
+/// bracket closes; and the midpoint wherever the point is not strictly inside the bracket.
+fn next_point(x: f64, f: f64, df: f64, lo: f64, hi: f64) -> f64 {
+    let mut next = if df != 0.0 {
+        x - f / df
+    } else {
+        0.5 * (lo + hi)
+    };
+    if (next - x).abs() < 0.5 * TIME_TOL_S {
+        next = if f > 0.0 {
+            x - TIME_TOL_S
+        } else {
+            x + TIME_TOL_S
+        };
+    }
+    if !(next > lo && next < hi) {
+        next = 0.5 * (lo + hi);
+    }
+    next
 }
 
 /// The guards leaving `contact` under `law`.
@@ -382,135 +390,4 @@ fn guard_list(
 }
 
 #[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
-    use super::*;
-    use crate::model::{Model, Winding};
-
-    /// Every linear part of every guard, in each mode of both laws, with the winding (so the
-    /// current is a state): its value is c·x + k and its rate the derivative of that value
-    /// along the mode's dynamics, c·(A·x + B·u), with every component of the state counting
-    /// (the current drives the motor speed, so it enters the rate of the clamped law's force).
-    #[test]
-    fn guard_values_and_rates_follow_the_mode_dynamics() {
-        let x = Vec5::new(0.003, -1.2, 0.7, -0.4, 1.5);
-        let u = Vec3::new(0.8, -0.3, 1.0);
-        let close = |got: f64, want: f64| (got - want).abs() <= 1e-12 * (1.0 + want.abs());
-        let mut parts = 0;
-        for law in [BacklashModel::DeadZone, BacklashModel::Clamped] {
-            let model = model(law);
-            for contact in Contact::ALL {
-                let (a, b) = model.matrices(contact);
-                let dx = a * x + b * u;
-                for guard in guard_list(contact, law, &model.shaft, &a, &b)
-                    .iter()
-                    .flatten()
-                {
-                    for l in guard.lins() {
-                        let c = Vec5::from(l.c);
-                        let (value, rate) = (c.dot(&x) + l.k, c.dot(&dx));
-                        assert!(close(l.value(&x), value), "{law:?} {contact:?} {c:?}");
-                        assert!(close(l.rate(&x, &u), rate), "{law:?} {contact:?} {c:?}");
-                        parts += 1;
-                    }
-                }
-            }
-        }
-        // Dead zone: 2 + 1 + 1 parts; clamped: 4 + 1 + 1.
-        assert_eq!(parts, 10);
-    }
-
-    /// The test machine, with the winding (so the current is a state), under `law`.
-    fn model(law: BacklashModel) -> Model {
-        Model {
-            motor_inertia_s: 0.2,
-            load_inertia_s: 0.5,
-            motor_viscous_pu: 0.01,
-            load_viscous_pu: 0.02,
-            base_speed_rad_s: 300.0,
-            shaft: Shaft {
-                k: 40.0,
-                d: 0.3,
-                g: 0.004,
-            },
-            law,
-            winding: Some(Winding {
-                r_pu: 0.05,
-                l_pu_s: 0.002,
-            }),
-            load_locked: false,
-        }
-    }
-
-    /// The guard's value at `x`: the smallest of its parts.
-    fn value(g: &Guard, x: &Vec5) -> f64 {
-        g.lins()
-            .iter()
-            .map(|l| l.value(x))
-            .fold(f64::INFINITY, f64::min)
-    }
-
-    /// From inside the gap, the motor 0.5 pu faster than the load and the twist 1 mrad from
-    /// the driving edge: under both laws the earliest crossing of the free mode's guards is
-    /// the driving edge's, and the time found is the first at which that guard is positive,
-    /// to within 1e-12 s (it is positive there, not positive 1e-12 s before, and nowhere
-    /// positive on a fine grid before that). Heading away from both edges (the speeds
-    /// equal), nothing is crossed within the step.
-    #[test]
-    fn first_crossing_is_the_earliest_time_a_guard_turns_positive() {
-        let u = Vec3::new(0.5, 0.0, 1.0);
-        let h = 2e-3;
-        for law in [BacklashModel::DeadZone, BacklashModel::Clamped] {
-            let m = model(law);
-            let (a, b) = m.matrices(Contact::Free);
-            let guards = Guards::new(Contact::Free, law, &m.shaft, &a, &b);
-            let x0 = Vec5::new(0.003, 0.0, 1.0, 0.5, 0.2);
-            let taylor = Taylor::new(&a, &b, &x0, &u, h);
-            let (t, target) = guards.first_crossing(&taylor, h).expect("a crossing");
-            assert_eq!(target, Contact::Driving, "{law:?}");
-            assert!(t > 0.0 && t <= h, "{law:?}: {t}");
-            let driving = guards.list[0].as_ref().unwrap();
-            assert!(value(driving, &taylor.state(t)) > 0.0, "{law:?}: {t}");
-            assert!(
-                value(driving, &taylor.state(t - 1e-12)) <= 0.0,
-                "{law:?}: {t}"
-            );
-            for j in 0..1000 {
-                let tau = (t - 1e-12) * f64::from(j) / 1000.0;
-                for g in guards.list.iter().flatten() {
-                    assert!(
-                        value(g, &taylor.state(tau)) <= 0.0,
-                        "{law:?}: {tau} before {t}"
-                    );
-                }
-            }
-            // A twist of 1 mrad at 0.5 pu·300 rad/s is crossed in about 6.7 µs.
-            assert!((t - 0.001 / 150.0).abs() < 1e-6, "{law:?}: {t}");
-            let still = Vec5::new(0.0, 0.0, 1.0, 1.0, 0.0);
-            let taylor = Taylor::new(&a, &b, &still, &Vec3::zeros(), h);
-            assert_eq!(guards.first_crossing(&taylor, h), None, "{law:?}");
-        }
-    }
-
-    /// The tangent-line bound of an interior maximum: the two end tangents meet at
-    /// t = (l1 − l0 − d1·h)/(d0 − d1), clamped to [0, h], at height l0 + d0·t, which must
-    /// exceed −½·min(|l0|, |l1|) for the step to be searched.
-    #[test]
-    fn peak_reaches_zero_takes_the_tangents_meeting_point_with_its_margin() {
-        // Tangents meet at t = 0.5, height −1 + 4·0.5 = 1: above the margin.
-        assert!(peak_reaches_zero(-1.0, -1.0, 4.0, -4.0, 1.0));
-        // Height −1 + 0.5·0.5 = −0.75, below −0.5.
-        assert!(!peak_reaches_zero(-1.0, -1.0, 0.5, -0.5, 1.0));
-        // Height −1 + 1.5·0.5 = −0.25, above −0.5 though below zero.
-        assert!(peak_reaches_zero(-1.0, -1.0, 1.5, -1.5, 1.0));
-        // Exactly at the margin: −1 + 1·0.5 = −0.5 is not above it.
-        assert!(!peak_reaches_zero(-1.0, -1.0, 1.0, -1.0, 1.0));
-        // Unequal ends: t = (−2 + 1 + 1)/(1 + 1) = 0, height −1: the margin is ½·min(1, 2).
-        assert!(!peak_reaches_zero(-1.0, -2.0, 1.0, -1.0, 1.0));
-        // The step's length enters the meeting point: t = (0 + 3·h)/(1 + 3), so h = 0.5
-        // gives t = 0.375 and the height −0.625, not above; h = 1 gives t = 0.75 and
-        // −0.25, above.
-        assert!(!peak_reaches_zero(-1.0, -1.0, 1.0, -3.0, 0.5));
-        assert!(peak_reaches_zero(-1.0, -1.0, 1.0, -3.0, 1.0));
-    }
-}
+mod tests;

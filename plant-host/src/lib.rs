@@ -32,15 +32,15 @@ mod two_inertia;
 mod validate;
 
 pub use config::{
-    range_of, Allowed, BacklashModel, ElectricsConfig, KeyRange, LostMotionConfig, MechanicsConfig,
-    MechanicsDerived, PlantConfig, Reading, SensorsConfig, RANGES,
+    Allowed, BacklashModel, ElectricsConfig, KeyRange, LostMotionConfig, MechanicsConfig,
+    MechanicsDerived, PlantConfig, RANGES, Reading, SensorsConfig, range_of,
 };
 pub use error::{ConfigError, PlantError};
-pub use load::{for_each_load_piece, LoadTorque, TimeSeries, SMOOTH_LOAD_STEP_S};
+pub use load::{LoadTorque, SMOOTH_LOAD_STEP_S, TimeSeries, for_each_load_piece};
 pub use model::{Contact, Winding};
 pub use replay::{
-    parse_torque_csv, replay, simulate, write_atomically, ReplaySummary, StateRow, TorqueRow,
-    COLUMN_RANGES, MAX_SPAN_S, REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER,
+    COLUMN_RANGES, MAX_SPAN_S, REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER, ReplaySummary, StateRow,
+    TorqueRow, parse_torque_csv, replay, simulate, write_atomically,
 };
 pub use two_inertia::{FixedStep, TwoInertiaPlant};
 pub use validate::MAX_RATE_PER_S;

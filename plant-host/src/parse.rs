@@ -3,7 +3,7 @@
 //! the range table ([`RANGES`]) turns it into a [`ConfigError`] that names the key and what
 //! it allows. Then [`PlantConfig::validate`] checks the values.
 
-use crate::config::{range_of, Allowed, PlantConfig, RANGES};
+use crate::config::{Allowed, PlantConfig, RANGES, range_of};
 use crate::error::{ConfigError, PlantError};
 use serde_path_to_error::Segment;
 use std::path::Path;

@@ -14,7 +14,7 @@
 use crate::config::BacklashModel;
 use crate::discrete::MapCache;
 use crate::events::{Guards, Taylor};
-use crate::model::{row_sum_norm, Contact, Model, Shaft, Vec3, Vec5};
+use crate::model::{Contact, Model, Shaft, Vec3, Vec5, row_sum_norm};
 
 /// Mode changes allowed inside one step before the rest is stepped without guards
 /// (protects against chattering at a grazing contact).

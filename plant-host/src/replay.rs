@@ -185,7 +185,7 @@ pub fn parse_torque_csv(text: &str, path: &Path) -> Result<Vec<TorqueRow>, Plant
             return Err(err(
                 0,
                 format!("empty file, expected header `{REPLAY_INPUT_HEADER}` and rows"),
-            ))
+            ));
         }
     }
     let mut rows = Vec::new();

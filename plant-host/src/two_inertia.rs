@@ -10,7 +10,7 @@
 
 use crate::config::{MechanicsDerived, PlantConfig};
 use crate::error::PlantError;
-use crate::load::{for_each_load_piece, LoadTorque};
+use crate::load::{LoadTorque, for_each_load_piece};
 use crate::model::{Contact, Model, Vec3, Vec5, Winding};
 use crate::piecewise::{Piecewise, Split};
 use crate::sensors::Sensors;

@@ -2,7 +2,7 @@
 //! against [`RANGES`], the two cross-key rules of the sensors, and the speed of the
 //! dynamics the integrator must follow.
 
-use crate::config::{range_of, Allowed, KeyRange, PlantConfig, Reading, RANGES};
+use crate::config::{Allowed, KeyRange, PlantConfig, RANGES, Reading, range_of};
 use crate::error::ConfigError;
 use crate::model::{Model, Winding};
 

@@ -1,7 +1,7 @@
 //! `FilterConfig` from `{ kind = "none" }`, `{ kind = "first_order", corner_hz = .. }` or
 //! `{ kind = "second_order", corner_hz = .., q = .. }` (`q` optional), keys in any order;
 //! a key the kind does not have is an unknown-field error. No buffering, no alloc.
-use super::{defaults, FilterConfig};
+use super::{FilterConfig, defaults};
 use core::fmt;
 use serde::de::{self, MapAccess, Visitor};
 

@@ -1,8 +1,8 @@
 //! The acceleration-feedback step of a tick: measured (differentiation) or closed form
 //! through the observer's model ([`crate::accel_feedback`]).
 
-use super::coefficients::AfbStep;
 use super::Controller;
+use super::coefficients::AfbStep;
 use crate::per_unit::{Pu, PuPerS};
 
 impl Controller {

@@ -10,7 +10,7 @@ use crate::error::ConfigError;
 use crate::filter::LowPass;
 use crate::notch::Notch;
 use crate::observer::Observer;
-use crate::per_unit::{counter_shift, quantize, Coef, CountsErr, Gain, PosGain, Pu, TickGain};
+use crate::per_unit::{Coef, CountsErr, Gain, PosGain, Pu, TickGain, counter_shift, quantize};
 use crate::pi::PiCoefficients;
 use crate::protection::Protection;
 

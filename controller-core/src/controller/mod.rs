@@ -42,7 +42,7 @@ mod tests;
 pub use io::{Blocks, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs};
 
 use crate::config::{DriveConfig, Estimator, ObserverTorque};
-use crate::design::{design, Gains};
+use crate::design::{Gains, design};
 use crate::differentiator::DifferentiatorState;
 use crate::error::ConfigError;
 use crate::excitation::{Excitation, ExcitationState, Injection};
@@ -51,7 +51,7 @@ use crate::filter::LowPassState;
 use crate::notch::NotchState;
 use crate::observer::ObserverState;
 use crate::per_unit::{
-    count_diff_by, count_signed, mul_bits, mul_gain, sat_i32, sat_shr, CountsErr, Pu, PuPerS,
+    CountsErr, Pu, PuPerS, count_diff_by, count_signed, mul_bits, mul_gain, sat_i32, sat_shr,
 };
 use crate::pi::PiState;
 use crate::protection::ProtectionState;

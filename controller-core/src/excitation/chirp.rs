@@ -1,7 +1,7 @@
 //! The logarithmic chirp: its design (start increment and growth factor from the band and
 //! the sweep time) and its tick (phase accumulator and the Q1.30 sine).
 
-use super::{check, ExcitationParams, ExcitationState, Kind, MAX_DURATION_S};
+use super::{ExcitationParams, ExcitationState, Kind, MAX_DURATION_S, check};
 use crate::error::ConfigError;
 
 /// Design a chirp from `start_hz` to `end_hz` over `duration_s` at the tick rate `rate_hz`.
@@ -79,11 +79,7 @@ fn sine_q30(phase: u32) -> i32 {
     acc = C1 + ((acc * x2) >> 31);
     let y = (acc * x) >> 31; // Q2.30
     let y = y.min(1 << 30);
-    if quadrant >= 2 {
-        -(y as i32)
-    } else {
-        y as i32
-    }
+    if quadrant >= 2 { -(y as i32) } else { y as i32 }
 }
 
 /// Round an f64 to Q2.30 bits (compile time).
@@ -106,7 +102,7 @@ const C7: i64 = q30(-H * H * H * H * H * H * H / 5040.0);
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{ok, NAMES};
+    use super::super::tests::{NAMES, ok};
     use super::super::*;
     use super::*;
 

@@ -19,7 +19,7 @@
 //! Q1.30 waveform, rounded, so |output| ≤ |amplitude|.
 
 use crate::error::ConfigError;
-use crate::per_unit::{sat_shr, Pu};
+use crate::per_unit::{Pu, sat_shr};
 
 mod chirp;
 mod prbs;

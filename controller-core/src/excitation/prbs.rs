@@ -1,7 +1,7 @@
 //! The maximal-length PRBS: its design (LFSR taps, mask and length) and its tick (one
 //! Fibonacci step every `hold` ticks).
 
-use super::{check, ExcitationParams, ExcitationState, Kind};
+use super::{ExcitationParams, ExcitationState, Kind, check};
 use crate::error::ConfigError;
 
 /// Primitive polynomials x^n + Σ x^e + 1 for n = 7..=20, by their middle exponents e
@@ -93,7 +93,7 @@ pub(super) fn step(s: &mut ExcitationState, taps: u32, mask: u32, hold: u16) -> 
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{ok, NAMES};
+    use super::super::tests::{NAMES, ok};
     use super::super::*;
 
     /// Every tap set is maximal: the register returns to its seed after exactly 2^n − 1

@@ -17,7 +17,7 @@ use crate::config::DriveConfig;
 use crate::controller::Setpoint;
 use crate::design::Gains;
 use crate::error::ConfigError;
-use crate::per_unit::{counts_per_pu_s, mul_bits, sat_shr, Counts, Gain, Pu, TickGain};
+use crate::per_unit::{Counts, Gain, Pu, TickGain, counts_per_pu_s, mul_bits, sat_shr};
 
 mod plan;
 use plan::{Planner, Settings};

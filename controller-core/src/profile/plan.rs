@@ -2,7 +2,7 @@
 //! ([`Settings::validate`]), then the constant-jerk segments planned from their exact f64
 //! start states and quantized to Q32.32 ([`Planner::plan`]).
 
-use super::{ProfileConfig, ProfileKind, Segment, MAX_SEGMENTS, Q32};
+use super::{MAX_SEGMENTS, ProfileConfig, ProfileKind, Q32, Segment};
 use crate::error::ConfigError;
 
 /// Split an f64 position \[counts\] into whole counts and a Q0.32 fraction.

@@ -19,7 +19,7 @@ use crate::plant_loop;
 use common::table1_plant;
 use controller_core::{AfbMode, Controller, DriveConfig, FilterConfig, ObserverTorque};
 use plant_host::PlantConfig;
-use plant_loop::{run_scenario, RunSummary, Scenario};
+use plant_loop::{RunSummary, Scenario, run_scenario};
 
 fn run(cfg: &DriveConfig, plant: &PlantConfig, sc: &Scenario) -> RunSummary {
     let mut ctl = Controller::new(cfg).unwrap();
@@ -79,7 +79,9 @@ fn ka_sweep_through_the_table1_machine() {
     off.accel_feedback.mode = AfbMode::Off;
     let off6 = run(&off, &plant, &Scenario::fig6(2.5));
     let off4 = run(&off, &plant, &Scenario::fig4());
-    println!("| Ka/J_total | fig6 stable | speed dip after 50 % step [pu] | fig6 ripple [pu] | fig4 stable | fig4 ripple [pu] |");
+    println!(
+        "| Ka/J_total | fig6 stable | speed dip after 50 % step [pu] | fig6 ripple [pu] | fig4 stable | fig4 ripple [pu] |"
+    );
     println!("|---|---|---|---|---|---|");
     println!(
         "| off | {} | {:.4} | {:.3} | {} | {:.3} |",

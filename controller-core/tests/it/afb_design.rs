@@ -171,7 +171,10 @@ fn high_resolution_encoder_and_the_acceleration_loop_limit() {
         let r4 = plant_loop::run_scenario(&mut ctl, &cfg, &plant, &plant_loop::Scenario::fig4());
         println!(
             "1e6 CPR vel={vel:?} afb={afb:?} {fc} Hz {rate:?}: fig6 stable={} ripple={:.3} | fig4 stable={} ripple={:.3}",
-            r6.stable(), r6.torque_ripple_rms_pu, r4.stable(), r4.torque_ripple_rms_pu
+            r6.stable(),
+            r6.torque_ripple_rms_pu,
+            r4.stable(),
+            r4.torque_ripple_rms_pu
         );
         r6.stable() && r4.stable()
     };

@@ -8,7 +8,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use crate::common;
-use controller_core::{design, AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig};
+use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, design};
 use loop_model::{Coefficients, LoopModel};
 use plant_host::analysis::Gears;
 
@@ -92,7 +92,9 @@ fn default_design_and_its_ka_neighbours_are_stable() {
 fn closed_form_ka_limits_through_the_plant() {
     let base = common::table1();
     println!("Observer-fed AFB, closed form, largest stable Ka/J_total (1000 = the search's end):");
-    println!("| filter corner [Hz] | (2 − α)/α·Jm/J_total | speed mode: apart | engaged | position loop: apart | engaged |");
+    println!(
+        "| filter corner [Hz] | (2 − α)/α·Jm/J_total | speed mode: apart | engaged | position loop: apart | engaged |"
+    );
     println!("|---|---|---|---|---|---|");
     for fc in [25.0f32, 50.0, 100.0, 200.0, 400.0] {
         let mut c = base;
@@ -103,11 +105,7 @@ fn closed_form_ka_limits_through_the_plant() {
             let l = bisect(0.01f64.ln(), 1000f64.ln(), |lf| {
                 model_with(&c, lf.exp(), gears, position_loop).spectral_radius() < 1.0
             });
-            if l == 0.0 {
-                0.0
-            } else {
-                l.exp()
-            }
+            if l == 0.0 { 0.0 } else { l.exp() }
         };
         let speed = [Gears::Apart, Gears::Engaged].map(|g| limit(g, false));
         let pos = [Gears::Apart, Gears::Engaged].map(|g| limit(g, true));
@@ -137,7 +135,9 @@ fn closed_form_ka_limits_through_the_plant() {
 #[test]
 fn differentiated_acceleration_corner_limits() {
     let base = common::table1();
-    println!("Differentiated velocity and acceleration, largest stable first-order corner [Hz] (900 = the search's end):");
+    println!(
+        "Differentiated velocity and acceleration, largest stable first-order corner [Hz] (900 = the search's end):"
+    );
     println!("| Ka/J_total | AFB at 4 kHz, apart | engaged | AFB at 2 kHz, apart | engaged |");
     println!("|---|---|---|---|---|");
     let diff_limit = |frac: f32, rate: AfbRate, gears: Gears| {

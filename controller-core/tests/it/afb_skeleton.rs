@@ -25,7 +25,7 @@
 )]
 
 use crate::common;
-use controller_core::{design, AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig};
+use controller_core::{AfbMode, AfbRate, DriveConfig, Estimator, FilterConfig, design};
 
 const N: usize = 17;
 type Mat = Vec<Vec<f64>>;
@@ -425,11 +425,7 @@ fn ka_limit(
         m.ka = jt * f64::from(lf.exp());
         spectral_radius(&m.period_matrix()) < 1.0
     });
-    if l == 0.0 {
-        0.0
-    } else {
-        l.exp()
-    }
+    if l == 0.0 { 0.0 } else { l.exp() }
 }
 
 const JM: f64 = 0.117;
@@ -510,8 +506,12 @@ fn the_closed_form_has_no_inner_loop_limit() {
 #[test]
 fn the_closed_form_allows_at_least_the_one_tick_late_ka() {
     let base = common::table1();
-    println!("Observer-fed AFB (error form, 4 kHz, observer 75 Hz, PI sized for J_total), largest stable Ka/J_total (1000 = the search's end):");
-    println!("| filter corner [Hz] | one tick late: separated (Jm) | rigid J_total | two-mass | closed form: separated (Jm) | rigid J_total | two-mass |");
+    println!(
+        "Observer-fed AFB (error form, 4 kHz, observer 75 Hz, PI sized for J_total), largest stable Ka/J_total (1000 = the search's end):"
+    );
+    println!(
+        "| filter corner [Hz] | one tick late: separated (Jm) | rigid J_total | two-mass | closed form: separated (Jm) | rigid J_total | two-mass |"
+    );
     println!("|---|---|---|---|---|---|---|");
     for fc in [25.0f32, 50.0, 100.0, 200.0, 400.0] {
         let lim = |p, st| ka_limit(&base, fc, p, st, Actuator::Drive, 1000.0);
@@ -547,7 +547,9 @@ fn the_closed_form_allows_at_least_the_one_tick_late_ka() {
 #[test]
 fn differentiated_acceleration_corner_limits() {
     let base = common::table1();
-    println!("Differentiated velocity and acceleration, largest stable first-order corner [Hz] (900 = the search's end):");
+    println!(
+        "Differentiated velocity and acceleration, largest stable first-order corner [Hz] (900 = the search's end):"
+    );
     println!(
         "| Ka/J_total | AFB at 4 kHz, separated | engaged | AFB at 2 kHz, separated | engaged |"
     );

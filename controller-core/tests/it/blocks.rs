@@ -8,12 +8,12 @@
 
 use crate::common;
 use controller_core::differentiator::{Differentiator, DifferentiatorState};
-use controller_core::filter::{design_low_pass, LowPass, LowPassDesign, LowPassState};
+use controller_core::filter::{LowPass, LowPassDesign, LowPassState, design_low_pass};
 use controller_core::observer::{Observer, ObserverState};
 use controller_core::per_unit::{Coef, Gain, Pu, TickGain};
 use controller_core::pi::{PiCoefficients, PiState};
 use controller_core::ranges::{AFB_FILTER_CORNER_HZ as AFB_CORNER, AFB_FILTER_Q as AFB_Q};
-use controller_core::{design, DriveConfig, FilterConfig, Profile, ProfileConfig, ProfileKind};
+use controller_core::{DriveConfig, FilterConfig, Profile, ProfileConfig, ProfileKind, design};
 
 /// Deterministic pseudo-random numbers in [−1, 1).
 struct Lcg(u64);
@@ -333,7 +333,9 @@ fn observer_matches_f64_reference_and_tracks_a_rigid_body() {
     println!("observer: worst |v − v_f64| = {worst_v:e} pu, |a − a_f64| = {worst_a:e} pu/s");
     let v_rms = (v_sq / n).sqrt();
     let load_mean = load_sum / n;
-    println!("observer vs rigid body: velocity RMS error {v_rms:e} pu, mean load {load_mean} pu (true {load})");
+    println!(
+        "observer vs rigid body: velocity RMS error {v_rms:e} pu, mean load {load_mean} pu (true {load})"
+    );
     assert!(v_rms < 0.005, "{v_rms}");
     assert!((load_mean - load).abs() < 0.01, "{load_mean}");
     assert!(worst_v < 2e-4, "{worst_v}");

@@ -26,7 +26,7 @@
 use crate::common;
 use controller_core::observer::{Observer, ObserverState};
 use controller_core::per_unit::{Coef, Gain, TickGain};
-use controller_core::{design, DriveConfig, Pu};
+use controller_core::{DriveConfig, Pu, design};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct C(f64, f64);
@@ -205,7 +205,9 @@ fn observer_acceleration_follows_its_transfer_function() {
     let wo = std::f64::consts::TAU * f64::from(cfg.observer.bandwidth_hz);
     let l = g.observer_l.map(f64::from);
     println!("Table 1 observer, 75 Hz (ω_o = {wo:.0} rad/s), 4 kHz, 4096 CPR, u = 0:");
-    println!("| ω [rad/s] | measured â/a | phase [°] | discrete TF | phase [°] | continuous G·e^(−sTs/2) | phase [°] | u + d form: d/a | G_ud = ω_o³/(s+ω_o)³ |");
+    println!(
+        "| ω [rad/s] | measured â/a | phase [°] | discrete TF | phase [°] | continuous G·e^(−sTs/2) | phase [°] | u + d form: d/a | G_ud = ω_o³/(s+ω_o)³ |"
+    );
     println!("|---|---|---|---|---|---|---|---|---|");
     let freqs = [20.0f64, 40.0, 100.0, 250.0, 471.0, 1000.0, 2000.0];
     for w in freqs {

@@ -10,8 +10,8 @@
 use crate::common;
 use controller_core::filter::LowPassDesign;
 use controller_core::{
-    design, AfbMode, Controller, CurrentInputs, DriveConfig, FilterConfig, Gains, PiInertia, Pu,
-    Setpoint, VelocityInputs,
+    AfbMode, Controller, CurrentInputs, DriveConfig, FilterConfig, Gains, PiInertia, Pu, Setpoint,
+    VelocityInputs, design,
 };
 
 fn cfg(pi: PiInertia, mode: AfbMode, frac: f32) -> DriveConfig {

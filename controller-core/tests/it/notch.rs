@@ -8,8 +8,8 @@ use crate::common;
 use controller_core::excitation::{ExcitationConfig, ExcitationParams, Injection, Waveform};
 use controller_core::notch::NotchDesign;
 use controller_core::{
-    design, AfbMode, Controller, CurrentInputs, DriveConfig, Estimator, NotchConfig, Pu,
-    VelocityInputs,
+    AfbMode, Controller, CurrentInputs, DriveConfig, Estimator, NotchConfig, Pu, VelocityInputs,
+    design,
 };
 
 const NAMES: ExcitationParams = ExcitationParams {
@@ -240,7 +240,9 @@ fn the_notch_table_in_toml() {
     // It survives a round trip, and a drive without one writes no table.
     let text = toml::to_string(&cfg).unwrap();
     assert_eq!(toml::from_str::<DriveConfig>(&text).unwrap(), cfg);
-    assert!(!toml::to_string(&common::table1())
-        .unwrap()
-        .contains("notch"));
+    assert!(
+        !toml::to_string(&common::table1())
+            .unwrap()
+            .contains("notch")
+    );
 }

@@ -10,7 +10,7 @@
 
 use crate::common;
 use controller_core::differentiator::{Differentiator, DifferentiatorState};
-use controller_core::per_unit::{checked_q, CountsErr, Gain, Pu, TickGain};
+use controller_core::per_unit::{CountsErr, Gain, Pu, TickGain, checked_q};
 use controller_core::pi::{PiCoefficients, PiState};
 use controller_core::{
     AfbMode, Controller, CurrentInputs, DriveConfig, Estimator, Fault, FilterConfig, Setpoint,

@@ -11,8 +11,8 @@
 use crate::common;
 use controller_core::per_unit::count_diff;
 use controller_core::{
-    design, AfbMode, AfbRate, Controller, Counts, CurrentInputs, DriveConfig, Estimator,
-    FilterConfig, Pu, Setpoint, VelocityInputs,
+    AfbMode, AfbRate, Controller, Counts, CurrentInputs, DriveConfig, Estimator, FilterConfig, Pu,
+    Setpoint, VelocityInputs, design,
 };
 use proptest::prelude::*;
 

@@ -13,8 +13,8 @@
 use crate::common;
 use controller_core::observer::ObserverState;
 use controller_core::{
-    design, AfbMode, AfbRate, Controller, Counts, CurrentInputs, DriveConfig, Estimator,
-    FilterConfig, ObserverInertia, ObserverTorque, Pu, Setpoint, VelocityInputs,
+    AfbMode, AfbRate, Controller, Counts, CurrentInputs, DriveConfig, Estimator, FilterConfig,
+    ObserverInertia, ObserverTorque, Pu, Setpoint, VelocityInputs, design,
 };
 
 /// A velocity tick at `raw` with the position setpoint on it (no following error) and the

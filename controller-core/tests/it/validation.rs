@@ -8,7 +8,7 @@
 
 use crate::common;
 use controller_core::{
-    design, ConfigError, Controller, DriveConfig, FilterConfig, Profile, ProfileConfig, ProfileKind,
+    ConfigError, Controller, DriveConfig, FilterConfig, Profile, ProfileConfig, ProfileKind, design,
 };
 
 fn expect_err(mutate: impl Fn(&mut DriveConfig), param: &str) -> ConfigError {

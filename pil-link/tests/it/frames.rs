@@ -10,7 +10,7 @@
 use crate::common;
 
 use pil_link::{
-    Decoder, Frame, FrameKind, LinkError, SequenceCheck, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION,
+    Decoder, Frame, FrameKind, LinkError, MAX_FRAME, MAX_PAYLOAD, PROTOCOL_VERSION, SequenceCheck,
 };
 use proptest::prelude::*;
 
@@ -244,7 +244,7 @@ mod payloads {
     };
     use pil_link::tick::{Applied, Commands, Sensors};
     use pil_link::wire::Writer;
-    use pil_link::{settings, LinkError, MAX_PAYLOAD};
+    use pil_link::{LinkError, MAX_PAYLOAD, settings};
     use proptest::prelude::*;
 
     fn fault(k: u8) -> Option<Fault> {

@@ -13,7 +13,7 @@ use crate::common;
 
 use controller_core::excitation::{ExcitationConfig, Injection, Waveform};
 use pil_link::wire::Writer;
-use pil_link::{run_config, settings, FrameKind, LinkError};
+use pil_link::{FrameKind, LinkError, run_config, settings};
 use proptest::prelude::*;
 
 fn payload(e: Option<&ExcitationConfig>) -> Vec<u8> {

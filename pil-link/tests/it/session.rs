@@ -241,13 +241,17 @@ fn dropped_reply_is_a_harness_timeout() {
 
 #[test]
 fn fault_plan_parsing_names_the_problem() {
-    assert!("bogus@1"
-        .parse::<FaultPlan>()
-        .unwrap_err()
-        .contains("bogus"));
-    assert!("delay@1"
-        .parse::<FaultPlan>()
-        .unwrap_err()
-        .contains("needs"));
+    assert!(
+        "bogus@1"
+            .parse::<FaultPlan>()
+            .unwrap_err()
+            .contains("bogus")
+    );
+    assert!(
+        "delay@1"
+            .parse::<FaultPlan>()
+            .unwrap_err()
+            .contains("needs")
+    );
     assert!("drop@x".parse::<FaultPlan>().unwrap_err().contains("TICK"));
 }

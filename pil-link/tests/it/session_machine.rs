@@ -10,8 +10,8 @@
 use pil_link::session::{ABANDON_GRACE_MS, HELLO_WAIT_MS};
 use pil_link::wire::Writer;
 use pil_link::{
-    FaultCode, FaultReport, FirmwareSession, Frame, FrameKind, Hello, SafeOutputs, SessionState,
-    Target, MAX_FRAME, WATCHDOG_MS_RANGE,
+    FaultCode, FaultReport, FirmwareSession, Frame, FrameKind, Hello, MAX_FRAME, SafeOutputs,
+    SessionState, Target, WATCHDOG_MS_RANGE,
 };
 
 /// Stand-in target: counts calls, refuses an empty config, outputs 5 until made safe.

@@ -11,9 +11,9 @@ mod sampled;
 mod stiffness;
 
 pub use engaged::{EngagedPlant, Modes, PlantResponse};
-pub use fit::{fit_two_inertia, FitError, FitResult, TwoInertiaFit};
-pub use frf::{closed_loop_response, h1, FrfError, MeasuredResponse};
-pub use sampled::{continuous, state, Gears, SampledPlant};
+pub use fit::{FitError, FitResult, TwoInertiaFit, fit_two_inertia};
+pub use frf::{FrfError, MeasuredResponse, closed_loop_response, h1};
+pub use sampled::{Gears, SampledPlant, continuous, state};
 pub use stiffness::{PiStiffness, StiffnessPoint};
 
 /// `n` frequencies log-spaced from `lo` to `hi` (rad/s), both included.

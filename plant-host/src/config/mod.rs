@@ -8,7 +8,7 @@
 mod ranges;
 
 pub(crate) use ranges::MAX_COUNTS_PER_REV;
-pub use ranges::{range_of, Allowed, KeyRange, Reading, RANGES};
+pub use ranges::{Allowed, KeyRange, RANGES, Reading, range_of};
 
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;

@@ -1,7 +1,7 @@
 //! The guard test in short form: the dead zone's guards read the twist and the two speeds
 //! only, so on finite states they are evaluated from those three components.
 
-use super::{peak_reaches_zero, Guard, Linear};
+use super::{Guard, Linear, peak_reaches_zero};
 use crate::model::Vec5;
 
 /// The dead zone's guards in the form their coefficients take: l(x) = c₀·δ + k, l̇ = a₂·ωm +

@@ -13,7 +13,7 @@ use crate::common;
 
 use common::config_path;
 use common::{RefParams, Reference};
-use plant_host::{replay, BacklashModel, PlantConfig, TwoInertiaPlant};
+use plant_host::{BacklashModel, PlantConfig, TwoInertiaPlant, replay};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
 
@@ -225,6 +225,8 @@ fn stepping_over_the_edges_would_fail_the_bound() {
             .max((fine.x[1] - naive.x[1]).abs());
         torque = torque.max((fine.shaft_torque() - naive.shaft_torque()).abs());
     }
-    println!("RK4 62.5 µs without edge location: max position error {pos:.2e} rad, shaft torque {torque:.2e} pu");
+    println!(
+        "RK4 62.5 µs without edge location: max position error {pos:.2e} rad, shaft torque {torque:.2e} pu"
+    );
     assert!(torque > 1e-4, "{torque}");
 }

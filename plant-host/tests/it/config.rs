@@ -11,8 +11,8 @@
 use crate::common;
 
 use plant_host::{
-    replay, Allowed, BacklashModel, ConfigError, ElectricsConfig, PlantConfig, PlantError, Reading,
-    SensorsConfig, RANGES,
+    Allowed, BacklashModel, ConfigError, ElectricsConfig, PlantConfig, PlantError, RANGES, Reading,
+    SensorsConfig, replay,
 };
 use std::path::PathBuf;
 use toml::{Table, Value};

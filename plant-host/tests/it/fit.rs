@@ -5,7 +5,7 @@
 use crate::common;
 
 use nalgebra::Complex;
-use plant_host::analysis::{fit_two_inertia, EngagedPlant, MeasuredResponse, TwoInertiaFit};
+use plant_host::analysis::{EngagedPlant, MeasuredResponse, TwoInertiaFit, fit_two_inertia};
 use std::f64::consts::PI;
 
 /// The closed form of the fit is the engaged plant's state-space response.

@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use plant_host::{parse_torque_csv, simulate, COLUMN_RANGES, MAX_SPAN_S};
+use plant_host::{COLUMN_RANGES, MAX_SPAN_S, parse_torque_csv, simulate};
 use std::path::Path;
 
 fn csv(rows: &[&str]) -> String {

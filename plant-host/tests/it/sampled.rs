@@ -4,8 +4,8 @@
 use crate::common;
 
 use nalgebra::DVector;
-use plant_host::analysis::{continuous, state, Gears, SampledPlant};
 use plant_host::TwoInertiaPlant;
+use plant_host::analysis::{Gears, SampledPlant, continuous, state};
 
 /// With no lost motion the sampled map is the simulated drive, tick for tick.
 #[test]
