@@ -181,3 +181,26 @@ pub(crate) fn row_sum_norm(a: &Mat5) -> f64 {
         .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
         .fold(0.0, f64::max)
 }
+
+/// The unit tests' machine, with the winding (so the current is a state), under `law`.
+#[cfg(test)]
+pub(crate) fn test_model(law: crate::config::BacklashModel) -> Model {
+    Model {
+        motor_inertia_s: 0.2,
+        load_inertia_s: 0.5,
+        motor_viscous_pu: 0.01,
+        load_viscous_pu: 0.02,
+        base_speed_rad_s: 300.0,
+        shaft: Shaft {
+            k: 40.0,
+            d: 0.3,
+            g: 0.004,
+        },
+        law,
+        winding: Some(Winding {
+            r_pu: 0.05,
+            l_pu_s: 0.002,
+        }),
+        load_locked: false,
+    }
+}

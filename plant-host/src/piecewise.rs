@@ -282,3 +282,87 @@ impl Piecewise {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+    use super::*;
+    use crate::model::test_model;
+
+    /// A step is cut into the fewest equal sub-steps no longer than the longest one; a step
+    /// that is not positive has none.
+    #[test]
+    fn a_step_is_cut_into_the_fewest_equal_pieces_within_the_longest_sub_step() {
+        let p = Piecewise::new(&test_model(BacklashModel::DeadZone));
+        let h = p.max_step_s();
+        assert!(h > 0.0 && h <= 250e-6, "{h}");
+        assert_eq!(p.pieces(0.5 * h), (1, 0.5 * h));
+        assert_eq!(p.pieces(h), (1, h));
+        assert_eq!(p.pieces(3.5 * h), (4, 3.5 * h / 4.0));
+        assert_eq!(p.pieces(0.0), (0, 0.0));
+        assert_eq!(p.pieces(-h), (0, 0.0));
+    }
+
+    /// The contact set with a state: beyond an edge the gears engage (the dead zone), and
+    /// under the clamped law only while the contact force pushes them together,
+    /// K·(δ ∓ g) + D·(ωm − ωl) of the edge's sign; inside the gap, and exactly on an edge,
+    /// they are apart. On a grid of twists and relative speeds around both edges.
+    #[test]
+    fn the_contact_follows_the_twist_and_under_the_clamp_the_force() {
+        for law in [BacklashModel::DeadZone, BacklashModel::Clamped] {
+            let m = test_model(law);
+            let Shaft { k, d, g } = m.shaft;
+            let mut p = Piecewise::new(&m);
+            let mut seen = [0; 3];
+            for i in -12..=12 {
+                let delta = g * f64::from(i) / 4.0;
+                for j in -8..=8 {
+                    let rel = 0.1 * f64::from(j);
+                    let x = Vec5::new(delta, 0.7, 0.3 + rel, 0.3, 0.1);
+                    p.set_state(x);
+                    assert_eq!(p.twist_rad(), delta);
+                    assert_eq!(*p.state(), x);
+                    let rel = x.z - x.w;
+                    let force_driving = k * (delta - g) + d * rel;
+                    let force_braking = k * (delta + g) + d * rel;
+                    let clamped = law == BacklashModel::Clamped;
+                    let want = if delta > g && !(clamped && force_driving <= 0.0) {
+                        Contact::Driving
+                    } else if delta < -g && !(clamped && force_braking >= 0.0) {
+                        Contact::Braking
+                    } else {
+                        Contact::Free
+                    };
+                    assert_eq!(p.contact(), want, "{law:?} δ = {delta}, ωm − ωl = {rel}");
+                    seen[want.index()] += 1;
+                }
+            }
+            // Every mode is met, and the clamp releases some states beyond each edge.
+            assert!(seen.iter().all(|&n| n > 0), "{law:?} {seen:?}");
+        }
+    }
+
+    /// The cost counter: no search while the gears stay apart in the middle of the gap; a
+    /// search for each suspect step of a run that crosses an edge, at least one per mode
+    /// change.
+    #[test]
+    fn crossing_searches_count_the_redone_steps() {
+        let m = test_model(BacklashModel::DeadZone);
+        let u = Vec3::new(0.0, 0.0, 1.0);
+        let mut p = Piecewise::new(&m);
+        p.set_state(Vec5::new(0.0, 0.0, 0.0, 0.0, 0.0));
+        p.advance(1e-3, &u);
+        assert_eq!((p.crossing_searches(), p.mode_changes()), (0, 0));
+        // The motor 0.1 pu faster than the load, 1 mrad from the driving edge: it is
+        // reached within 34 µs and the gears engage.
+        p.set_state(Vec5::new(0.003, 0.0, 0.1, 0.0, 0.0));
+        p.advance(1e-3, &u);
+        assert!(p.mode_changes() >= 1, "{}", p.mode_changes());
+        assert!(
+            p.crossing_searches() >= p.mode_changes(),
+            "{} {}",
+            p.crossing_searches(),
+            p.mode_changes()
+        );
+    }
+}

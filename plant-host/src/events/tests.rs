@@ -2,7 +2,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 use super::*;
-use crate::model::{Model, Winding};
+use crate::model::test_model as model;
 
 /// Every linear part of every guard, in each mode of both laws, with the winding (so the
 /// current is a state): its value is c·x + k and its rate the derivative of that value
@@ -35,28 +35,6 @@ fn guard_values_and_rates_follow_the_mode_dynamics() {
     }
     // Dead zone: 2 + 1 + 1 parts; clamped: 4 + 1 + 1.
     assert_eq!(parts, 10);
-}
-
-/// The test machine, with the winding (so the current is a state), under `law`.
-fn model(law: BacklashModel) -> Model {
-    Model {
-        motor_inertia_s: 0.2,
-        load_inertia_s: 0.5,
-        motor_viscous_pu: 0.01,
-        load_viscous_pu: 0.02,
-        base_speed_rad_s: 300.0,
-        shaft: Shaft {
-            k: 40.0,
-            d: 0.3,
-            g: 0.004,
-        },
-        law,
-        winding: Some(Winding {
-            r_pu: 0.05,
-            l_pu_s: 0.002,
-        }),
-        load_locked: false,
-    }
 }
 
 /// The guard's value at `x`: the smallest of its parts.

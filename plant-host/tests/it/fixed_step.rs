@@ -34,6 +34,9 @@ fn same_run(clamped: bool, voltage: bool) {
     let (mut fixed, mut plain) = (new(&cfg), new(&cfg));
     let lengths = [180e-6, 70e-6, 3.0 * fixed.max_substep_s() + 1e-7, 0.0];
     let steps = lengths.map(|h| fixed.fixed_step(h).unwrap());
+    for (step, h) in steps.iter().zip(lengths) {
+        assert_eq!(step.dt_s(), h);
+    }
     let mut s: u64 = 0x2545_F491_4F6C_DD1D;
     let mut next = || {
         s ^= s << 13;
@@ -63,7 +66,17 @@ fn same_run(clamped: bool, voltage: bool) {
         crossings_seen = fixed.mode_changes();
     }
     assert!(crossings_seen > 100, "{crossings_seen} crossings");
+    // Every mode change was found by a search (a suspect step redone), and both plants
+    // redid the same steps.
+    assert!(fixed.crossing_searches() >= crossings_seen);
     assert_eq!(fixed.crossing_searches(), plain.crossing_searches());
+    // The twist is the motor angle less the load angle.
+    let twist = fixed.motor_pos_rad() - fixed.load_pos_rad();
+    assert!(
+        (fixed.twist_rad() - twist).abs() < 1e-12,
+        "{}",
+        fixed.twist_rad()
+    );
 }
 
 #[test]
