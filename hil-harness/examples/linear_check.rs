@@ -2,8 +2,8 @@
 use hil_harness::experiments::linear::check::check_grid;
 use hil_harness::experiments::sweep::{default_observer_hz, designs};
 
-fn main() -> hil_harness::Result<()> {
-    let grid = hil_harness::config::sweep_grid()?;
+fn main() -> sim_engine::Result<()> {
+    let grid = sim_engine::config::sweep_grid()?;
     let designs: Vec<_> = designs(&grid, default_observer_hz())
         .into_iter()
         .step_by(6)

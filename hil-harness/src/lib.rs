@@ -7,22 +7,12 @@
 //! through the PIL link), on a [`config::RunConfig`] from [`config::resolve`].
 
 pub mod cli;
-pub mod commands;
-pub mod config;
-pub mod engine;
-pub mod error;
 pub mod experiments;
 pub mod flash;
-pub mod output;
 pub mod pil;
-pub mod plot;
-pub mod progress;
-pub mod replay;
 pub mod report;
 
-pub use config::{resolve, RunConfig};
-pub use engine::runner::{run_scenario, run_with_backend, ControlBackend, RunOutput};
-pub use error::{HarnessError, Result};
+use sim_engine::Result;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -62,7 +52,7 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
     use cli::Command;
     use experiments::{commission, identify, linear, sec2, stiffness, sweep, tune};
     match command {
-        Command::Run(a) => commands::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
+        Command::Run(a) => sim_engine::run::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
         Command::Linear(a) => {
             linear::analyze::linear(&a.scenario, a.config.as_deref(), &a.set, &a.out)
         }
@@ -101,10 +91,10 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             config,
             torque,
             out,
-        } => replay::replay(&config, &torque, &out),
+        } => sim_engine::replay::replay(&config, &torque, &out),
         Command::Pil(args) => pil::pil_command(&args),
         Command::Schema { grids, out } => {
-            use config::schema::{write_schema, SchemaOf};
+            use sim_engine::config::schema::{write_schema, SchemaOf};
             let of = if grids {
                 SchemaOf::Grids
             } else {

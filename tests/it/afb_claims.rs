@@ -8,7 +8,7 @@
     clippy::panic
 )]
 
-use hil_harness::{resolve, run_scenario};
+use sim_engine::{resolve, run_scenario};
 
 fn shaft_ripple(scenario: &str) -> f64 {
     let cfg = resolve(scenario, None, &[]).expect("scenario resolves");

@@ -10,9 +10,9 @@
 )]
 
 use controller_core::Gains;
-use hil_harness::config::borrow_gains;
-use hil_harness::engine::runner::{controller, regulator_gains, same_regulator_gains};
-use hil_harness::{resolve, RunConfig};
+use sim_engine::config::borrow_gains;
+use sim_engine::engine::runner::{controller, regulator_gains, same_regulator_gains};
+use sim_engine::{resolve, RunConfig};
 
 fn bits(g: &Gains) -> [u32; 7] {
     [
@@ -51,7 +51,7 @@ fn every_no_afb_scenario_runs_at_the_gains_of_its_afb_run() {
     let mut pairs = 0;
     for inertia in ["total", "total_plus_afb"] {
         let sets = vec![format!("drive.velocity_pi_inertia={inertia}")];
-        for name in hil_harness::config::known_scenarios() {
+        for name in sim_engine::config::known_scenarios() {
             let off = resolve(&name, None, &sets).unwrap();
             let Some(of) = off.gains_of.clone() else {
                 continue;

@@ -2,7 +2,7 @@
 //! link settings, each checked against the range the protocol and the firmware accept.
 
 use crate::cli::ScenarioArgs;
-use crate::error::{HarnessError, Result};
+use sim_engine::error::{HarnessError, Result};
 use std::path::{Path, PathBuf};
 
 /// The harness's reply deadlines it accepts, in ms.

@@ -1,10 +1,10 @@
 //! The firmware in QEMU as a [`ControlBackend`], and a recorder of any backend's ticks.
 
-use crate::engine::runner::ControlBackend;
 use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
 use pil_link::host::{HostError, HostLink};
 use pil_link::tick::{Commands, Sensors};
 use pil_link::wire::Writer;
+use sim_engine::engine::runner::ControlBackend;
 use std::os::unix::net::UnixStream;
 
 /// Every controller input and output of a run, in tick order (raw fixed-point values).
@@ -109,7 +109,7 @@ impl ControlBackend for PilBackend {
     }
 
     fn excitation_pu(&self) -> f64 {
-        crate::engine::plant::f(controller_core::Pu::from_bits(self.excitation_bits))
+        sim_engine::engine::plant::f(controller_core::Pu::from_bits(self.excitation_bits))
     }
 
     fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {

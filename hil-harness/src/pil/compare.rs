@@ -2,10 +2,10 @@
 //! controller output and every trace value bit for bit.
 
 use super::backend::TickLog;
-use crate::engine::runner::RunOutput;
 use controller_core::words::{CURRENT_FIELDS, VELOCITY_FIELDS};
 use controller_core::{CurrentOutputs, VelocityOutputs};
 use serde::{Deserialize, Serialize};
+use sim_engine::engine::runner::RunOutput;
 use std::collections::BTreeMap;
 
 /// The PIL run against the host run, bit for bit.

@@ -12,8 +12,8 @@
 //! build of another feature set, which replaces cargo's `release/pil`, never changes an
 //! image a caller is running.
 
-use crate::error::{HarnessError, Result};
 use fw_runner::provision;
+use sim_engine::error::{HarnessError, Result};
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};

@@ -38,7 +38,7 @@ pub use image::{build_pil_image, build_pil_image_with, firmware_target_dir, with
 pub use section::{report_section, report_section_or_hint, run_for_report, PilSection};
 pub use session::{run_pil, with_firmware, FirmwareFault, LinkFault, LinkReport, PilOutcome};
 
-use crate::error::{HarnessError, Result};
+use sim_engine::error::{HarnessError, Result};
 
 fn firmware_view(f: &LinkFault) -> String {
     f.firmware.as_ref().map_or_else(
@@ -110,12 +110,12 @@ mod tests {
     use super::backend::TickLog;
     use super::compare::compare;
     use super::session::cut_at;
-    use crate::config::resolve;
-    use crate::engine::metrics::compute;
-    use crate::engine::runner::RunOutput;
-    use crate::engine::trace::{Trace, TraceRow};
     use controller_core::Pu;
     use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
+    use sim_engine::config::resolve;
+    use sim_engine::engine::metrics::compute;
+    use sim_engine::engine::runner::RunOutput;
+    use sim_engine::engine::trace::{Trace, TraceRow};
 
     fn log(n: usize) -> TickLog {
         let mut l = TickLog::default();

@@ -5,8 +5,8 @@
 use super::compare::Comparison;
 use super::session::LinkReport;
 use super::{pil_command, PilArgs};
-use crate::error::{HarnessError, Result};
 use serde::de::DeserializeOwned;
+use sim_engine::error::{HarnessError, Result};
 use std::path::Path;
 
 /// A PIL run's comparison and link statistics.

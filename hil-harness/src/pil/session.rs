@@ -6,12 +6,6 @@ use super::backend::{PilBackend, Recorder, TickLog};
 use super::compare::{compare, Comparison};
 use super::image::build_pil_image;
 use super::PilArgs;
-use crate::commands::write_run;
-use crate::config::{resolve, RunConfig};
-use crate::engine::metrics::compute;
-use crate::engine::runner::{run_with_backend, RunOutput};
-use crate::error::{HarnessError, Result};
-use crate::output::Staging;
 use controller_core::excitation::ExcitationConfig;
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
@@ -20,6 +14,12 @@ use pil_link::qemu::{Qemu, QemuOptions};
 use pil_link::wire::Writer;
 use pil_link::{FaultReport, HelloAck};
 use serde::{Deserialize, Serialize};
+use sim_engine::config::{resolve, RunConfig};
+use sim_engine::engine::metrics::compute;
+use sim_engine::engine::runner::{run_with_backend, RunOutput};
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
+use sim_engine::run::write_run;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -128,7 +128,7 @@ fn resolve_for_firmware(args: &PilArgs) -> Result<RunConfig> {
 /// Whether the firmware, designing its gains from the drive settings, runs `cfg`'s gains:
 /// checked for a comparison run (`borrowed`) or always (`with_firmware`).
 fn own_design(cfg: &RunConfig, check: bool) -> Result<()> {
-    let gains = crate::engine::runner::regulator_gains(cfg)?;
+    let gains = sim_engine::engine::runner::regulator_gains(cfg)?;
     if check && Ok(gains) != controller_core::design(&cfg.drive) {
         return Err(HarnessError::config(
             "scenario.comparison.gains_of",
@@ -321,7 +321,7 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         // The oscillation rule's step 5: a limit cycle is rerun with the encoder
         // interpolated, on the host build of controller-core (the firmware image counts the
         // encoder of the run); a run cut at a link fault keeps its verdict unconfirmed.
-        crate::engine::runner::confirm_limit_cycle(&cfg, &mut run);
+        sim_engine::engine::runner::confirm_limit_cycle(&cfg, &mut run);
     }
     write_files(
         &staging,
@@ -388,7 +388,7 @@ pub fn with_firmware<T>(
 /// The same scenario on the host build of controller-core, compared bit for bit.
 fn compare_with_host(cfg: &RunConfig, pil: &TickLog, pil_run: &RunOutput) -> Result<Comparison> {
     let mut host = Recorder {
-        inner: crate::engine::runner::controller(cfg)?,
+        inner: sim_engine::engine::runner::controller(cfg)?,
         log: TickLog::default(),
     };
     let host_run = run_with_backend(cfg, &mut host)?;

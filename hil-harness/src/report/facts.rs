@@ -1,7 +1,7 @@
 //! The facts of a run that a heading or a plot title states, formatted from its typed
 //! configuration, so that no title types a scenario's numbers itself.
 
-use crate::config::RunConfig;
+use sim_engine::config::RunConfig;
 
 /// The first load step of the scenario that is not zero \[pu\] (0 when there is none).
 pub fn load_step_pu(cfg: &RunConfig) -> f64 {

@@ -5,9 +5,9 @@ use super::facts::fill;
 use super::runs::gains_line;
 use super::section::{change, verdict, Section};
 use super::{get, Runs, SLIGHT_OVERSHOOT_PU};
-use crate::commands::fmt_opt;
-use crate::engine::metrics::Metrics;
-use crate::error::Result;
+use sim_engine::engine::metrics::Metrics;
+use sim_engine::error::Result;
+use sim_engine::run::fmt_opt;
 
 /// Fig. 4: the gears separate and the twist is visible in counts.
 pub fn fig4(runs: &Runs) -> Result<Section> {

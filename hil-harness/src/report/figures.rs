@@ -2,9 +2,9 @@
 
 use super::facts::fill;
 use super::{get, Runs};
-use crate::engine::trace::TraceRow;
-use crate::error::Result;
-use crate::plot::{save, Figure, Panel, Series};
+use sim_engine::engine::trace::TraceRow;
+use sim_engine::error::Result;
+use sim_engine::plot::{save, Figure, Panel, Series};
 use std::path::Path;
 
 /// One panel: a signal of several runs, each with its legend label. The title and the

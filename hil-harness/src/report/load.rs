@@ -4,9 +4,9 @@ use super::facts::{fill, load_step_pu};
 use super::runs::gains_line;
 use super::section::{change, pct, verdict, Section};
 use super::{get, Runs, DYNO_REDUCTION};
-use crate::commands::fmt_opt;
-use crate::engine::runner::RunOutput;
-use crate::error::Result;
+use sim_engine::engine::runner::RunOutput;
+use sim_engine::error::Result;
+use sim_engine::run::fmt_opt;
 
 /// Fig. 9/10: the dyno accelerates with 150 % load, torque saturated.
 pub fn dyno(runs: &Runs) -> Result<Section> {

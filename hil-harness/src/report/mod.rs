@@ -22,15 +22,15 @@ pub mod stiffness;
 pub mod sweep;
 pub mod tune;
 
-use crate::commands::write_run;
-use crate::config::{resolve, RunConfig};
-use crate::engine::runner::{run_scenario, RunOutput};
-use crate::error::{HarnessError, Result};
 use crate::experiments::tune::machines::{tune_into, Bandwidth, MachineTune, MACHINES};
 use crate::experiments::tune::Constraints;
-use crate::output::Staging;
 use rayon::prelude::*;
 use section::Section;
+use sim_engine::config::{resolve, RunConfig};
+use sim_engine::engine::runner::{run_scenario, RunOutput};
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
+use sim_engine::run::write_run;
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
@@ -102,7 +102,7 @@ fn get<'a>(runs: &'a Runs, name: &str) -> Result<&'a (RunConfig, RunOutput)> {
 
 /// Runs the scenarios in parallel with a progress bar.
 pub fn run_all(names: &[&str]) -> Result<Runs> {
-    let pb = crate::progress::bar(names.len() as u64, "scenarios");
+    let pb = sim_engine::progress::bar(names.len() as u64, "scenarios");
     let results: Result<Vec<(String, (RunConfig, RunOutput))>> = names
         .par_iter()
         .map(|name| {

@@ -2,17 +2,17 @@
 
 use super::section::Section;
 use super::{get, Runs, COMPARISONS, SCENARIOS};
-use crate::commands::fmt_opt;
-use crate::engine::runner::RunOutput;
-use crate::error::Result;
+use sim_engine::engine::runner::RunOutput;
+use sim_engine::error::Result;
+use sim_engine::run::fmt_opt;
 use std::fmt::Write as _;
 
 /// The gains a comparison runs at, in words, and whether they are bit-identical.
 pub fn gains_line(runs: &Runs, afb: &str, off: &str) -> Result<String> {
     let (ca, _) = get(runs, afb)?;
     let (co, _) = get(runs, off)?;
-    let ga = crate::engine::runner::regulator_gains(ca)?;
-    let go = crate::engine::runner::regulator_gains(co)?;
+    let ga = sim_engine::engine::runner::regulator_gains(ca)?;
+    let go = sim_engine::engine::runner::regulator_gains(co)?;
     Ok(format!(
         "`{off}` runs at the regulator gains of {} (Kp = {:.4}, Ki = {:.4}, Kpp = {:.4}; \
          bit-identical to `{afb}`'s: {}); `{afb}` adds Ka = {:.4} s",
@@ -23,7 +23,7 @@ pub fn gains_line(runs: &Runs, afb: &str, off: &str) -> Result<String> {
         go.kp_vel,
         go.ki_vel,
         go.kpp,
-        if crate::engine::runner::same_regulator_gains(&ga, &go) {
+        if sim_engine::engine::runner::same_regulator_gains(&ga, &go) {
             "yes"
         } else {
             "**no**"
@@ -79,7 +79,7 @@ pub fn all_runs(runs: &Runs) -> Result<Section> {
     );
     for name in SCENARIOS {
         let (c, o) = get(runs, name)?;
-        let g = crate::engine::runner::regulator_gains(c)?;
+        let g = sim_engine::engine::runner::regulator_gains(c)?;
         let gains_of = c
             .gains_of
             .as_ref()

@@ -7,11 +7,11 @@
 
 use super::section::Section;
 use super::{get, Runs};
-use crate::config::RunConfig;
-use crate::engine::metrics::ripple_in;
-use crate::engine::runner::RunOutput;
-use crate::engine::trace::TraceRow;
-use crate::error::Result;
+use sim_engine::config::RunConfig;
+use sim_engine::engine::metrics::ripple_in;
+use sim_engine::engine::runner::RunOutput;
+use sim_engine::engine::trace::TraceRow;
+use sim_engine::error::Result;
 use std::fmt::Write as _;
 
 /// The saturated scenarios this section looks at.

@@ -5,11 +5,11 @@ use super::facts::{fill, stable_window};
 use super::runs::gains_line;
 use super::section::{verdict, Section};
 use super::{get, Runs, HIGHLY_OSCILLATORY_PU};
-use crate::commands::fmt_opt;
-use crate::error::Result;
 use crate::experiments::sec2::{
     at, summarize, summary_text, table, MapPoint, ENCODER_INTERPOLATIONS,
 };
+use sim_engine::error::Result;
+use sim_engine::run::fmt_opt;
 use std::fmt::Write as _;
 
 /// Sec. II with the drive's own estimator (fig6 without AFB).

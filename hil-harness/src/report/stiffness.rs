@@ -2,8 +2,8 @@
 
 use super::section::{pct, Section};
 use super::{STIFFNESS_HIGH_MIN, STIFFNESS_LOW_BAND, STIFFNESS_MODEL_TOLERANCE};
-use crate::error::Result;
 use crate::experiments::stiffness::StiffnessPoint;
+use sim_engine::error::Result;
 
 /// Stiffness ratios (with AFB / without) at each frequency; `None` where the AFB run was
 /// unstable.
@@ -123,7 +123,7 @@ pub fn section(stiff: &[StiffnessPoint]) -> Result<Section> {
         (false, true) => "**partly agrees**",
         _ => "**does not agree**",
     };
-    let g0 = crate::engine::runner::regulator_gains(&cfg)?;
+    let g0 = sim_engine::engine::runner::regulator_gains(&cfg)?;
     let afb = &cfg.drive.accel_feedback;
     let model_dev = f
         .model_dev

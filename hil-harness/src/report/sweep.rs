@@ -2,9 +2,9 @@
 
 use super::section::Section;
 use super::{SWEEP_NO_AFB_MAX_RAD_S, SWEEP_RATIO_MIN};
-use crate::error::Result;
 use crate::experiments::sweep::limits::{limit, moved, Limit};
 use crate::experiments::sweep::{SweepPoint, SweepResult};
+use sim_engine::error::Result;
 use std::fmt::Write as _;
 
 /// A point's oscillation verdict: `limit_cycle at 178.2 Hz, ±0.512 pu`.
@@ -109,8 +109,8 @@ pub fn section(points: &[SweepPoint], sweep: &[SweepResult]) -> Result<Section> 
     }
     let pp = sweep.iter().find(|s| s.plant == "printing-press");
     let sweep_verdict = bandwidth_verdict(pp.map(|s| (s.without_afb_rad_s, s.with_afb_rad_s)));
-    let press = crate::config::resolve("sweep", Some("printing-press"), &[])?;
-    let grid = crate::config::sweep_grid()?;
+    let press = sim_engine::config::resolve("sweep", Some("printing-press"), &[])?;
+    let grid = sim_engine::config::sweep_grid()?;
     let (mech, cpr) = (&press.plant.mechanics, press.plant.counts_per_rev());
     Ok(Section::claim(
         "Sec. III-D: largest stable velocity bandwidth, printing-press stand (and Table 1)",

@@ -3,12 +3,12 @@
 
 use super::section::Section;
 use super::{SWEEP_NO_AFB_MAX_RAD_S, SWEEP_RATIO_MIN};
-use crate::error::Result;
 use crate::experiments::sweep::grid::word;
 use crate::experiments::tune::machines::{Bandwidth, MachineTune, LOOP_SCENARIO};
 use crate::experiments::tune::pair::{LoopRun, CRITERION};
 use crate::experiments::tune::{Constraints, Judged};
 use controller_core::{AfbMode, FilterConfig};
+use sim_engine::error::Result;
 use std::fmt::Write as _;
 
 fn filter_text(f: FilterConfig) -> String {
@@ -323,7 +323,7 @@ mod tests {
             bandwidth_rad_s: bw,
             afb: format!("label {bw}"),
             stable,
-            oscillation: crate::engine::metrics::OscillationKind::Quantization,
+            oscillation: sim_engine::engine::metrics::OscillationKind::Quantization,
             oscillation_freq_hz: 266.7,
             oscillation_amplitude_pu: 0.05,
             stable_by_speed: stable,

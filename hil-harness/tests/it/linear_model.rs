@@ -240,7 +240,7 @@ fn predicted_stiffness_matches_the_measured() {
 fn predicted_quantization_noise_matches_the_measured_chatter() {
     use controller_core::{AfbMode, Estimator};
     use hil_harness::experiments::sweep::{default_observer_hz, designs, point_config, AfbDesign};
-    let grid = hil_harness::config::sweep_grid().unwrap();
+    let grid = sim_engine::config::sweep_grid().unwrap();
     let afb = designs(&grid, default_observer_hz())
         .into_iter()
         .find(|d| {
@@ -252,7 +252,7 @@ fn predicted_quantization_noise_matches_the_measured_chatter() {
             let cfg = point_config("dyno", &design, bw, &[]).unwrap();
             let model = hil_harness::experiments::linear::for_run(&cfg, Gears::Engaged).unwrap();
             let predicted = model.quantization_torque_rms();
-            let out = hil_harness::run_scenario(&cfg).unwrap();
+            let out = sim_engine::run_scenario(&cfg).unwrap();
             let window: Vec<f64> = out
                 .trace
                 .rows
@@ -286,11 +286,11 @@ fn predicted_quantization_noise_matches_the_measured_chatter() {
 #[test]
 fn fig6_linear_analysis() {
     let with = hil_harness::experiments::linear::analyze::analyze(
-        &hil_harness::resolve("fig6", None, &[]).unwrap(),
+        &sim_engine::resolve("fig6", None, &[]).unwrap(),
     )
     .unwrap();
     let without = hil_harness::experiments::linear::analyze::analyze(
-        &hil_harness::resolve("fig6-no-afb", None, &[]).unwrap(),
+        &sim_engine::resolve("fig6-no-afb", None, &[]).unwrap(),
     )
     .unwrap();
     for a in [&with, &without] {

@@ -28,13 +28,13 @@ mod no_design;
 pub mod notch;
 mod write;
 
-use crate::config::{config_path, overrides, read_table, resolve, RunConfig};
-use crate::error::{HarnessError, Result};
 use crate::experiments::identify::{self, lost_motion::identified_mechanics};
 use crate::experiments::tune::{self, Constraints, Tuned};
-use crate::output::Staging;
 use controller_core::NotchConfig;
 use notch::Decision;
+use sim_engine::config::{config_path, overrides, read_table, resolve, RunConfig};
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
 use std::path::Path;
 use toml::{Table, Value};
 
@@ -159,7 +159,7 @@ pub fn commission(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
-    let grid = crate::config::tune_grid()?;
+    let grid = sim_engine::config::tune_grid()?;
     let bws = tune::bandwidths(&grid, target_bandwidth)?;
     let staging = Staging::new(out)?;
     let (base, ident, doc, identified) = identify_into(&staging, config, sets)?;

@@ -1,6 +1,6 @@
 //! When no design meets the constraints: `commission.md` holds the identification's place
 //! (`identify/`, `identified.toml`), the designs that came closest and how far each misses
-//! each constraint, and the command exits with [`crate::error::NO_DESIGN_EXIT_CODE`].
+//! each constraint, and the command exits with [`sim_engine::error::NO_DESIGN_EXIT_CODE`].
 
 use crate::experiments::tune::{Constraints, Judged};
 use std::fmt::Write as _;

@@ -22,14 +22,14 @@
 //! which keeps the machine's own damping (`tune` judges the poles in the notch's band
 //! against that, [`crate::experiments::tune::notch_band`]).
 
-use crate::config::RunConfig;
-use crate::engine::runner::regulator_gains;
-use crate::error::Result;
 use crate::experiments::linear::for_gains;
 use crate::experiments::tune::{Constraints, Judged};
 use controller_core::NotchConfig;
 use plant_host::analysis::Gears;
 use serde::Serialize;
+use sim_engine::config::RunConfig;
+use sim_engine::engine::runner::regulator_gains;
+use sim_engine::error::Result;
 
 /// How far (a fraction of f_r) the least-damped mode may lie from the identified
 /// resonance and still be it. The loop that excites a resonance also moves it (its gain

@@ -1,11 +1,11 @@
 //! `commission.md` and `commission.json`.
 
 use super::Commissioning;
-use crate::config::RunConfig;
-use crate::error::{HarnessError, Result};
 use crate::experiments::identify::{write::estimates, Identification};
 use crate::experiments::tune::Tuned;
-use crate::output::Staging;
+use sim_engine::config::RunConfig;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
 use std::fmt::Write as _;
 
 /// The simulated machine's own value of an identified `[plant]` key (a real machine has

@@ -18,11 +18,11 @@
 
 use super::measure::{record, reversal_load, rig_run, Record};
 use super::spec::IdentifySpec;
-use crate::config::RunConfig;
-use crate::engine::runner::controller;
-use crate::error::Result;
 use plant_host::analysis::TwoInertiaFit;
 use plant_host::{LostMotionConfig, MechanicsConfig};
+use sim_engine::config::RunConfig;
+use sim_engine::engine::runner::controller;
+use sim_engine::error::Result;
 
 /// The fitted lost motion.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -15,11 +15,11 @@
 //!   torque reference shows the flight and the impact ([`super::lost_motion`]).
 
 use super::spec::IdentifySpec;
-use crate::config::scenario::{LoadStep, MetricSpec, ProfileSpec, ScenarioSpec};
-use crate::config::RunConfig;
-use crate::engine::runner::{controller, run_recorded, ControlBackend, TickRecord};
-use crate::error::{HarnessError, Result};
 use controller_core::excitation::{ExcitationConfig, ExcitationParams, Injection, Waveform};
+use sim_engine::config::scenario::{LoadStep, MetricSpec, ProfileSpec, ScenarioSpec};
+use sim_engine::config::RunConfig;
+use sim_engine::engine::runner::{controller, run_recorded, ControlBackend, TickRecord};
+use sim_engine::error::{HarnessError, Result};
 use std::collections::BTreeMap;
 
 /// The paths an excitation error names.

@@ -24,12 +24,12 @@ pub mod measure;
 pub mod spec;
 pub mod write;
 
-use crate::config::{config_path, machine, overrides, read_table, RunConfig};
-use crate::error::{HarnessError, Result};
-use crate::output::Staging;
 use controller_core::AfbMode;
 use lost_motion::{fit_lost_motion, LostMotionFit};
 use plant_host::analysis::{closed_loop_response, fit_two_inertia, FitResult, MeasuredResponse};
+use sim_engine::config::{config_path, machine, overrides, read_table, RunConfig};
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
 use spec::IdentifySpec;
 use std::path::Path;
 

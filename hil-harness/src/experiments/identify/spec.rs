@@ -2,9 +2,9 @@
 //! optional (the defaults below); `--set identify.KEY=VALUE` overrides one. Nothing here
 //! describes the machine: these are the test rig's and the excitation's settings.
 
-use crate::config::typed::typed;
-use crate::error::{HarnessError, Result};
 use serde::{Deserialize, Serialize};
+use sim_engine::config::typed::typed;
+use sim_engine::error::{HarnessError, Result};
 use toml::{Table, Value};
 
 /// The identification settings.

@@ -5,11 +5,11 @@
 use super::lost_motion::identified_mechanics;
 use super::spec::IdentifySpec;
 use super::Identification;
-use crate::config::RunConfig;
-use crate::error::{HarnessError, Result};
-use crate::plot::{save, Figure, Legend, Panel, Series};
 use plant_host::MechanicsConfig;
 use serde::Serialize;
+use sim_engine::config::RunConfig;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::plot::{save, Figure, Legend, Panel, Series};
 use std::fmt::Write as _;
 use std::path::Path;
 

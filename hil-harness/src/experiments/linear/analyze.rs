@@ -4,12 +4,12 @@
 //! stiffness over frequency, and the torque noise from encoder quantization.
 
 use super::{for_run, Break, Margins};
-use crate::config::{resolve, RunConfig};
-use crate::error::{HarnessError, Result};
-use crate::output::Staging;
 use controller_core::AfbMode;
 use plant_host::analysis::Gears;
 use serde::Serialize;
+use sim_engine::config::{resolve, RunConfig};
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
 use std::fmt::Write as _;
 use std::path::Path;
 

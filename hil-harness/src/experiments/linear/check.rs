@@ -8,13 +8,13 @@
 //! the sweep judges it.
 
 use super::for_run;
-use crate::engine::metrics::Oscillation;
-use crate::engine::runner::run_scenario;
-use crate::error::Result;
 use crate::experiments::sweep::{point_config, AfbDesign};
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;
+use sim_engine::engine::metrics::Oscillation;
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::Result;
 
 /// One grid point, predicted and measured.
 #[derive(Debug, Clone, Serialize)]

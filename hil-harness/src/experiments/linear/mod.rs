@@ -9,23 +9,24 @@ pub mod check;
 pub use loop_model::{hessenberg, margins, mirror, model, notch};
 pub use loop_model::{margins_of, Break, Coefficients, LoopModel, Margins};
 
-use crate::config::RunConfig;
-use crate::error::Result;
 use controller_core::Gains;
 use plant_host::analysis::Gears;
+use sim_engine::config::RunConfig;
+use sim_engine::error::Result;
 
 /// The model of a run: its controller's coefficients (the gains it runs with, see
-/// [`crate::engine::runner::regulator_gains`]) and its plant, with the gears `gears`.
+/// [`sim_engine::engine::runner::regulator_gains`]) and its plant, with the gears `gears`.
 pub fn for_run(cfg: &RunConfig, gears: Gears) -> Result<LoopModel> {
-    let gains = crate::engine::runner::regulator_gains(cfg)?;
+    let gains = sim_engine::engine::runner::regulator_gains(cfg)?;
     for_gains(cfg, &gains, gears)
 }
 
 /// The model of a run whose controller runs with `gains` (designed once by the caller,
-/// [`crate::engine::runner::regulator_gains`] of `cfg`), with the gears `gears`. Fails
+/// [`sim_engine::engine::runner::regulator_gains`] of `cfg`), with the gears `gears`. Fails
 /// only where the controller would refuse the gains (a notch that does not quantize).
 pub fn for_gains(cfg: &RunConfig, gains: &Gains, gears: Gears) -> Result<LoopModel> {
-    let coef = Coefficients::new(&cfg.drive, gains).map_err(crate::engine::runner::drive_error)?;
+    let coef =
+        Coefficients::new(&cfg.drive, gains).map_err(sim_engine::engine::runner::drive_error)?;
     Ok(LoopModel::new(
         coef,
         &cfg.plant,

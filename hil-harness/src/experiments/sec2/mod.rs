@@ -7,18 +7,18 @@
 //! [`VELOCITY_CORNERS_HZ`]) and differentiated acceleration for the AFB path (first-order
 //! filter at each corner of [`AFB_CORNERS_HZ`]), the drive's default AFB gain and form.
 //! At each velocity corner the loop runs without AFB at the regulator gains of the AFB
-//! design (bit for bit, [`crate::config::borrow_gains`]); with AFB off the AFB filter is
+//! design (bit for bit, [`sim_engine::config::borrow_gains`]); with AFB off the AFB filter is
 //! not used, so one run without AFB per velocity corner covers every AFB corner. "Stable"
 //! is fig6's `stable` metric. Every cell is reported; no point is picked from the map.
 
-use crate::config::{borrow_gains, resolve, RunConfig};
-use crate::engine::metrics::OscillationKind;
-use crate::engine::runner::run_scenario;
-use crate::error::{HarnessError, Result};
-use crate::plot::{save, Figure, Legend, Panel, Series};
 use controller_core::{AfbMode, Estimator, FilterConfig};
 use rayon::prelude::*;
 use serde::Serialize;
+use sim_engine::config::{borrow_gains, resolve, RunConfig};
+use sim_engine::engine::metrics::OscillationKind;
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::plot::{save, Figure, Legend, Panel, Series};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -148,7 +148,7 @@ fn run_cell(
         (Ok(b), None) => no_afb_config(b, velocity_corner_hz),
     };
     let run = cfg.and_then(|c| {
-        let g = crate::engine::runner::regulator_gains(&c)?;
+        let g = sim_engine::engine::runner::regulator_gains(&c)?;
         run_scenario(&c).map(|o| (g, o))
     });
     match run {
@@ -187,7 +187,7 @@ pub fn map_points() -> Vec<MapPoint> {
         .iter()
         .map(|n| (*n, base_config(*n)))
         .collect();
-    let pb = crate::progress::bar(jobs.len() as u64, "sec2 map");
+    let pb = sim_engine::progress::bar(jobs.len() as u64, "sec2 map");
     let points = jobs
         .par_iter()
         .map(|(n, fv, fa)| {
@@ -315,7 +315,7 @@ pub fn map_into(dir: &Path) -> Result<Vec<MapPoint>> {
 /// `hil-harness sec2-map`.
 pub fn sec2(out: &Path) -> Result<String> {
     let cpr = resolve(SCENARIO, None, &[])?.plant.mechanics.encoder_cpr;
-    crate::output::staged(out, |dir| {
+    sim_engine::output::staged(out, |dir| {
         let points = map_into(dir)?;
         let mut text = String::new();
         for n in ENCODER_INTERPOLATIONS {
@@ -384,8 +384,8 @@ mod tests {
     /// the same map's run at that encoder, bit for bit.
     #[test]
     fn the_confirming_rerun_of_a_run_without_afb_has_the_finer_encoders_gains() {
-        use crate::engine::metrics::oscillation::CONFIRM_INTERPOLATION;
-        use crate::engine::runner::{finer_encoder, regulator_gains, same_regulator_gains};
+        use sim_engine::engine::metrics::oscillation::CONFIRM_INTERPOLATION;
+        use sim_engine::engine::runner::{finer_encoder, regulator_gains, same_regulator_gains};
         let coarse = no_afb_config(&base_config(1).unwrap(), 100.0).unwrap();
         let fine = finer_encoder(&coarse).unwrap();
         let direct = no_afb_config(&base_config(CONFIRM_INTERPOLATION).unwrap(), 100.0).unwrap();
@@ -406,14 +406,14 @@ mod tests {
             let base = base_config(n).unwrap();
             assert_eq!(base.drive.encoder_cpr, base.plant.counts_per_rev());
             let off = no_afb_config(&base, fv).unwrap();
-            let g_off = crate::engine::runner::regulator_gains(&off).unwrap();
+            let g_off = sim_engine::engine::runner::regulator_gains(&off).unwrap();
             assert_eq!(g_off.ka, 0.0);
             for fa in AFB_CORNERS_HZ {
                 let on = afb_config(&base, fv, fa);
-                let g_on = crate::engine::runner::regulator_gains(&on).unwrap();
+                let g_on = sim_engine::engine::runner::regulator_gains(&on).unwrap();
                 assert!(g_on.ka > 0.0);
                 assert!(
-                    crate::engine::runner::same_regulator_gains(&g_off, &g_on),
+                    sim_engine::engine::runner::same_regulator_gains(&g_off, &g_on),
                     "{fv} Hz / {fa} Hz"
                 );
             }

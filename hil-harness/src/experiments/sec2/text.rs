@@ -1,7 +1,7 @@
 //! The map as text: its Markdown table and what it shows, counted from its points.
 
 use super::{summarize, MapPoint, MapSummary, AFB_CORNERS_HZ, VELOCITY_CORNERS_HZ};
-use crate::engine::metrics::OscillationKind;
+use sim_engine::engine::metrics::OscillationKind;
 use std::fmt::Write as _;
 
 fn cell(p: Option<&MapPoint>) -> String {

@@ -6,13 +6,13 @@
 //! not applied; `--set` is, after the file). "AFB on" is the file's drive; a file with
 //! acceleration feedback off gets the drive's default design
 //! (`controller_core::config::defaults::ACCEL_FEEDBACK`). "AFB off" is the same drive at
-//! the AFB design's regulator gains ([`crate::config::borrow_gains`]).
+//! the AFB design's regulator gains ([`sim_engine::config::borrow_gains`]).
 
 use super::{measure_on, StiffnessPoint, FREQS_RAD_S};
-use crate::config::{resolve_on_machine, RunConfig};
-use crate::error::{HarnessError, Result};
 use controller_core::{AfbMode, Estimator};
 use rayon::prelude::*;
+use sim_engine::config::{resolve_on_machine, RunConfig};
+use sim_engine::error::{HarnessError, Result};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -72,7 +72,7 @@ pub fn machine_into(dir: &Path, config: &str, sets: &[String]) -> Result<String>
 
 /// `hil-harness stiffness --config FILE`.
 pub fn stiffness_machine(out: &Path, config: &str, sets: &[String]) -> Result<String> {
-    crate::output::staged(out, |dir| machine_into(dir, config, sets))
+    sim_engine::output::staged(out, |dir| machine_into(dir, config, sets))
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@
 //! |τ_L/θ| = ω·|T̂_L|/|Ω̂_l| (θ in pu·s, the integral of pu speed).
 //!
 //! The run without AFB uses the regulator gains of the default AFB design bit for bit
-//! ([`crate::config::borrow_gains`]): the comparison is AFB on against AFB off at the same
+//! ([`sim_engine::config::borrow_gains`]): the comparison is AFB on against AFB off at the same
 //! Kp and Ki.
 //!
 //! Analytic: Eq. 1, |J·s² + Kp·s + Ki| at s = jω with J = J_total and the gains the run
@@ -20,15 +20,15 @@
 
 pub mod machine;
 
-use crate::config::{borrow_gains, resolve, RunConfig};
-use crate::engine::runner::run_scenario;
-use crate::engine::trace::Trace;
-use crate::error::{HarnessError, Result};
-use crate::plot::{save, Figure, Legend, Panel, Series};
 use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig};
 use num_complex::Complex64;
 use rayon::prelude::*;
 use serde::Serialize;
+use sim_engine::config::{borrow_gains, resolve, RunConfig};
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::engine::trace::Trace;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::plot::{save, Figure, Legend, Panel, Series};
 use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -99,11 +99,11 @@ pub fn estimator_response(d: &DriveConfig, w: f64) -> Complex64 {
 }
 
 /// Eq. 1 at ω for the run `cfg` (with AFB's J + Ka·F(jω)·G(jω) if it is on), with the
-/// gains the run uses ([`crate::engine::runner::regulator_gains`]).
+/// gains the run uses ([`sim_engine::engine::runner::regulator_gains`]).
 pub fn analytic(cfg: &RunConfig, w: f64) -> f64 {
     let d = &cfg.drive;
     let j = f64::from(d.total_inertia_s());
-    let Ok(g) = crate::engine::runner::regulator_gains(cfg) else {
+    let Ok(g) = sim_engine::engine::runner::regulator_gains(cfg) else {
         return f64::NAN;
     };
     let (kp, ki) = (f64::from(g.kp_vel), f64::from(g.ki_vel));
@@ -151,12 +151,12 @@ pub fn source_name(source: Option<Estimator>) -> &'static str {
 /// Fundamental phasor (re, im) of `f(row)` at ω over the rows in [t0, t1).
 fn phasor(
     trace: &Trace,
-    f: impl Fn(&crate::engine::trace::TraceRow) -> f64,
+    f: impl Fn(&sim_engine::engine::trace::TraceRow) -> f64,
     w: f64,
     t0: f64,
     t1: f64,
 ) -> (f64, f64) {
-    let rows: Vec<&crate::engine::trace::TraceRow> = trace
+    let rows: Vec<&sim_engine::engine::trace::TraceRow> = trace
         .rows
         .iter()
         .filter(|r| r.t_s >= t0 && r.t_s < t1)
@@ -233,7 +233,7 @@ pub fn measure_all(freqs: &[f64]) -> Result<Vec<StiffnessPoint>> {
         .iter()
         .flat_map(|a| freqs.iter().map(move |w| (*a, *w)))
         .collect();
-    let pb = crate::progress::bar(jobs.len() as u64, "stiffness");
+    let pb = sim_engine::progress::bar(jobs.len() as u64, "stiffness");
     let points: Result<Vec<StiffnessPoint>> = jobs
         .par_iter()
         .map(|(a, w)| {
@@ -343,13 +343,13 @@ pub fn stiffness_into(dir: &Path) -> Result<(Vec<StiffnessPoint>, String)> {
     let points = measure_all(&FREQS_RAD_S)?;
     let path = dir.join("stiffness.csv");
     let mut w =
-        csv::Writer::from_path(&path).map_err(|e| crate::error::HarnessError::io(&path, e))?;
+        csv::Writer::from_path(&path).map_err(|e| sim_engine::error::HarnessError::io(&path, e))?;
     for p in &points {
         w.serialize(p)
-            .map_err(|e| crate::error::HarnessError::io(&path, e))?;
+            .map_err(|e| sim_engine::error::HarnessError::io(&path, e))?;
     }
     w.flush()
-        .map_err(|e| crate::error::HarnessError::io(&path, e))?;
+        .map_err(|e| sim_engine::error::HarnessError::io(&path, e))?;
     save(&figure(&points), &dir.join("stiffness"))?;
     let mut text = String::new();
     for w in FREQS_RAD_S {
@@ -379,7 +379,7 @@ pub fn stiffness_into(dir: &Path) -> Result<(Vec<StiffnessPoint>, String)> {
 
 /// `hil-harness stiffness`.
 pub fn stiffness(out: &Path) -> Result<String> {
-    crate::output::staged(out, |dir| stiffness_into(dir).map(|(_, text)| text))
+    sim_engine::output::staged(out, |dir| stiffness_into(dir).map(|(_, text)| text))
 }
 
 #[cfg(test)]

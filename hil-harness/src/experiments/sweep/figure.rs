@@ -1,7 +1,7 @@
 //! The sweep figure.
 
 use super::{SweepPoint, SweepResult, QUIET_TORQUE_PU};
-use crate::plot::{Figure, Legend, Panel, Series};
+use sim_engine::plot::{Figure, Legend, Panel, Series};
 
 /// The sweep figure: per plant, the torque chatter (unloaded, at speed) against
 /// bandwidth without AFB and with the best quiet design, stable and unstable points apart,

@@ -1,8 +1,8 @@
 //! The sweep's designs: acceleration-feedback designs as typed drive settings, made from
-//! the sweep's grid (`[sweep]` of `configs/grids.toml`, [`crate::config::grids`]).
+//! the sweep's grid (`[sweep]` of `configs/grids.toml`, [`sim_engine::config::grids`]).
 
-use crate::config::Grid;
 use controller_core::{AfbMode, DriveConfig, Estimator, FilterConfig};
+use sim_engine::config::Grid;
 
 /// One acceleration-feedback design: the `[drive.accel_feedback]` settings it changes, and
 /// the observer bandwidth.

@@ -92,8 +92,8 @@ pub fn moved(points: &[SweepPoint]) -> Vec<&SweepPoint> {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::engine::metrics::OscillationKind;
     use crate::experiments::sweep::AfbDesign;
+    use sim_engine::engine::metrics::OscillationKind;
 
     fn point(bw: f64, stable: bool, by_speed: bool) -> SweepPoint {
         let mut p = SweepPoint::new("p", &AfbDesign::OFF, bw);

@@ -11,15 +11,15 @@ pub mod limits;
 
 pub use grid::{designs, without_afb_of, AfbDesign};
 
-use crate::config::{borrow_gains, resolve, RunConfig};
-use crate::engine::metrics::OscillationKind;
-use crate::engine::runner::run_scenario;
-use crate::error::{HarnessError, Result};
-use crate::plot::save;
 use controller_core::AfbMode;
 use grid::{filter_parts, word};
 use rayon::prelude::*;
 use serde::Serialize;
+use sim_engine::config::{borrow_gains, resolve, RunConfig};
+use sim_engine::engine::metrics::OscillationKind;
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::plot::save;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -248,7 +248,7 @@ pub fn sweep_points(
         .map(|p| (*p, probe_config(p, base_sets)))
         .collect();
     let base_of = |plant: &str| bases.iter().find(|(p, _)| *p == plant).map(|(_, b)| b);
-    let pb = crate::progress::bar(jobs.len() as u64, "sweep");
+    let pb = sim_engine::progress::bar(jobs.len() as u64, "sweep");
     let points: Vec<SweepPoint> = jobs
         .par_iter()
         .map(|(p, d, b)| {
@@ -320,7 +320,7 @@ fn write_csv(points: &[SweepPoint], path: &Path) -> Result<()> {
 /// `hil-harness sweep` into a staging directory; returns the points, the results and a
 /// text summary.
 pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepPoint>, Vec<SweepResult>, String)> {
-    let grid = crate::config::sweep_grid()?;
+    let grid = sim_engine::config::sweep_grid()?;
     let designs = designs(&grid, default_observer_hz());
     let points = sweep_points(&PLANTS, &grid.bandwidths_rad_s, &designs, &[]);
     let results = results(&points, &PLANTS, &designs);
@@ -363,7 +363,7 @@ pub fn sweep_into(dir: &Path) -> Result<(Vec<SweepPoint>, Vec<SweepResult>, Stri
 
 /// `hil-harness sweep`.
 pub fn sweep(out: &Path) -> Result<String> {
-    crate::output::staged(out, |dir| sweep_into(dir).map(|(_, _, text)| text))
+    sim_engine::output::staged(out, |dir| sweep_into(dir).map(|(_, _, text)| text))
 }
 
 #[cfg(test)]
@@ -396,7 +396,7 @@ mod tests {
 
     #[test]
     fn the_run_without_afb_has_the_gains_of_every_design() {
-        let grid = crate::config::sweep_grid().unwrap();
+        let grid = sim_engine::config::sweep_grid().unwrap();
         for plant in PLANTS {
             for bw in [10.0, 94.25] {
                 for d in designs(&grid, default_observer_hz())
@@ -406,14 +406,14 @@ mod tests {
                     let off =
                         point_config(plant, &without_afb_of(d, default_observer_hz()), bw, &[])
                             .unwrap();
-                    let g_off = crate::engine::runner::regulator_gains(&off).unwrap();
+                    let g_off = sim_engine::engine::runner::regulator_gains(&off).unwrap();
                     assert_eq!(g_off.ka, 0.0);
                     let Ok(on) = point_config(plant, d, bw, &[]) else {
                         continue; // rejected by the configuration checks (see sweep.csv)
                     };
-                    let g = crate::engine::runner::regulator_gains(&on).unwrap();
+                    let g = sim_engine::engine::runner::regulator_gains(&on).unwrap();
                     assert!(
-                        crate::engine::runner::same_regulator_gains(&g_off, &g),
+                        sim_engine::engine::runner::same_regulator_gains(&g_off, &g),
                         "{plant} {bw} rad/s {}:\n{g_off:?}\n{g:?}",
                         d.label()
                     );
@@ -425,7 +425,7 @@ mod tests {
     #[test]
     fn the_design_grid_holds_off_and_every_combination() {
         let hz = default_observer_hz();
-        let grid = crate::config::sweep_grid().unwrap();
+        let grid = sim_engine::config::sweep_grid().unwrap();
         let d = designs(&grid, hz);
         let offs = d.iter().filter(|x| x.mode == AfbMode::Off).count();
         let observers = grid.observer_hz.len();

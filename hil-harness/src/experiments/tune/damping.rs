@@ -12,12 +12,12 @@
 //! it. The load speed is fitted rather than the motor speed, because the shaft filters the
 //! quantization chatter out of it; the poles are the same.
 
-use crate::config::RunConfig;
-use crate::engine::runner::run_scenario;
-use crate::error::{HarnessError, Result};
 use crate::experiments::linear::LoopModel;
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
+use sim_engine::config::RunConfig;
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::{HarnessError, Result};
 
 /// Load torque held under the steps \[pu\]: keeps the gears pressed together, also in the
 /// shaft torque's undershoot after a step down.
@@ -107,11 +107,11 @@ pub fn step_config(fig6: &RunConfig) -> RunConfig {
     let mut cfg = fig6.clone();
     let ramp_end = cfg.scenario.profile.ramp_end_s();
     let step_t = ramp_end + STEP_DELAY_S;
-    let mut load = vec![crate::config::scenario::LoadStep {
+    let mut load = vec![sim_engine::config::scenario::LoadStep {
         t_s: ramp_end - PRELOAD_LEAD_S,
         torque_pu: PRELOAD_PU,
     }];
-    load.extend((0..STEPS).map(|k| crate::config::scenario::LoadStep {
+    load.extend((0..STEPS).map(|k| sim_engine::config::scenario::LoadStep {
         t_s: step_t + k as f64 * RECORD_S,
         torque_pu: PRELOAD_PU + if k % 2 == 0 { STEP_PU } else { 0.0 },
     }));

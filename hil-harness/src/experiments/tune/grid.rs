@@ -1,11 +1,11 @@
 //! `tune`'s candidates as typed drive settings (a velocity bandwidth and the sweep's
 //! [`AfbDesign`]), made from `tune`'s grid (`[tune]` of `configs/grids.toml`,
-//! [`crate::config::grids`]).
+//! [`sim_engine::config::grids`]).
 
-use crate::config::Grid;
 use crate::experiments::sweep::AfbDesign;
 use controller_core::{AfbMode, DriveConfig, Estimator, PiInertia};
 use serde::Serialize;
+use sim_engine::config::Grid;
 
 /// One candidate: a velocity bandwidth and an acceleration-feedback design (the sweep's
 /// [`AfbDesign`], observer bandwidth included).

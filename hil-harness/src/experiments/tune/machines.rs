@@ -5,10 +5,10 @@
 
 use super::pair::{self, LoopRun, Pair};
 use super::{write_design, Constraints, Judged};
-use crate::config::resolve;
-use crate::error::{HarnessError, Result};
 use rayon::prelude::*;
 use serde::Serialize;
+use sim_engine::config::resolve;
+use sim_engine::error::{HarnessError, Result};
 use std::path::Path;
 use std::time::Instant;
 

@@ -35,15 +35,15 @@ pub mod summary;
 
 pub use grid::{candidates, without_afb, Candidate};
 
-use crate::config::{resolve, Grid, RunConfig};
-use crate::engine::runner::regulator_gains;
-use crate::engine::runner::run_scenario;
-use crate::error::{HarnessError, Result};
 use crate::experiments::linear::{for_gains, Break, LoopModel};
-use crate::output::Staging;
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;
+use sim_engine::config::{resolve, Grid, RunConfig};
+use sim_engine::engine::runner::regulator_gains;
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
 use std::path::Path;
 
 /// The constraints of a design.
@@ -173,7 +173,7 @@ pub struct Verification {
     /// Its `stable` metric.
     pub stable: bool,
     /// Its oscillation verdict (`summary.json`'s `oscillation.kind`).
-    pub oscillation: crate::engine::metrics::OscillationKind,
+    pub oscillation: sim_engine::engine::metrics::OscillationKind,
     /// Its spectral peak \[Hz\].
     pub oscillation_freq_hz: f64,
     /// Whether the controller faulted.
@@ -267,7 +267,7 @@ fn has_lost_motion(cfg: &RunConfig) -> bool {
 /// docs, step 1); a candidate the model cannot be built for is left out.
 pub fn judge_grid(config: &str, grid: &[Candidate], k: &Constraints) -> Result<Vec<Judged>> {
     let fig6 = resolve(VERIFY[0], Some(config), &[])?;
-    let pb = crate::progress::bar(grid.len() as u64, "tune");
+    let pb = sim_engine::progress::bar(grid.len() as u64, "tune");
     let judged = grid
         .par_iter()
         .filter_map(|c| {
@@ -356,7 +356,7 @@ pub fn design(
     target_bandwidth: Option<f64>,
     constraints: &Constraints,
 ) -> Result<Tuned> {
-    let grid = crate::config::tune_grid()?;
+    let grid = sim_engine::config::tune_grid()?;
     let bws = bandwidths(&grid, target_bandwidth)?;
     // judge_grid resolves the config first, so a bad one is reported before the search.
     let judged = judge_grid(config, &candidates(&grid, &bws), constraints)?;

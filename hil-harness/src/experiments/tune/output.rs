@@ -5,8 +5,8 @@
 
 use super::damping::StepFit;
 use super::TuneResult;
-use crate::error::{HarnessError, Result};
 use controller_core::DriveConfig;
+use sim_engine::error::{HarnessError, Result};
 use std::fmt::Write as _;
 use std::path::Path;
 use toml::{Table, Value};
@@ -92,7 +92,7 @@ pub fn merged_config(
     base: &DriveConfig,
     tuned: &DriveConfig,
 ) -> Result<String> {
-    let mut doc = crate::config::read_table(config_path)?;
+    let mut doc = sim_engine::config::read_table(config_path)?;
     let keys = changed(&drive_table(base)?, &drive_table(tuned)?);
     let drive = doc
         .entry("drive")

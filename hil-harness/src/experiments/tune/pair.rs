@@ -10,11 +10,11 @@
 use super::bandwidths;
 use super::{candidates, design, design_from, search, without_afb, Candidate, Constraints};
 use super::{Judged, Tuned};
-use crate::config::{Grid, RunConfig};
-use crate::engine::metrics::OscillationKind;
-use crate::engine::runner::run_scenario;
-use crate::error::Result;
 use serde::Serialize;
+use sim_engine::config::{Grid, RunConfig};
+use sim_engine::engine::metrics::OscillationKind;
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::Result;
 
 /// The two designs of one machine.
 #[derive(Debug, Clone)]
@@ -58,7 +58,7 @@ pub fn design_both_from(
     target_bandwidth: Option<f64>,
     constraints: &Constraints,
 ) -> Result<Pair> {
-    let grid = crate::config::tune_grid()?;
+    let grid = sim_engine::config::tune_grid()?;
     let bws = bandwidths(&grid, target_bandwidth)?;
     let with = match judged {
         Some(j) => design_from(config, j, constraints)?,
@@ -66,8 +66,8 @@ pub fn design_both_from(
     };
     let no_afb = without_afb(&candidates(&grid, &no_afb_bandwidths(&grid, &bws)));
     let result = search(config, &no_afb, constraints).map_err(|e| match e {
-        crate::error::HarnessError::NoDesign(m) => {
-            crate::error::HarnessError::NoDesign(format!("{config} without AFB: {m}"))
+        sim_engine::error::HarnessError::NoDesign(m) => {
+            sim_engine::error::HarnessError::NoDesign(format!("{config} without AFB: {m}"))
         }
         other => other,
     })?;
@@ -232,7 +232,7 @@ mod tests {
 
     #[test]
     fn no_afb_bandwidths_are_the_target_and_the_grid_below_it() {
-        let grid = crate::config::tune_grid().unwrap();
+        let grid = sim_engine::config::tune_grid().unwrap();
         let all = &grid.bandwidths_rad_s;
         let top = all[3];
         let v = no_afb_bandwidths(&grid, &[top]);

@@ -148,7 +148,7 @@ impl DelayLine {
 }
 
 /// A drive setting's error as the harness's, naming `drive.KEY`.
-pub(crate) fn drive_error(e: controller_core::ConfigError) -> HarnessError {
+pub fn drive_error(e: controller_core::ConfigError) -> HarnessError {
     HarnessError::config(format!("drive.{}", e.param()), e.to_string())
 }
 
@@ -219,7 +219,7 @@ pub fn confirm_limit_cycle(cfg: &RunConfig, out: &mut RunOutput) {
 /// `cfg` with its encoder interpolated [`CONFIRM_INTERPOLATION`] times more (the drive
 /// counting the finer counts, and so the AFB drive a comparison run borrows its gains
 /// from); `None` if the counts would not fit the drive's range.
-pub(crate) fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
+pub fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
     let mut fine = cfg.clone();
     let s = &mut fine.plant.sensors;
     s.encoder_interpolation = s.encoder_interpolation.checked_mul(CONFIRM_INTERPOLATION)?;
