@@ -6,7 +6,7 @@
 //! naming its key before anything is built. Without probe-rs, or without a probe, the command
 //! fails with probe-rs's own message and the exact command to run once a probe is there.
 
-use crate::pil::image::build_board_image;
+use pil_host::image::build_board_image;
 use sim_engine::config::config_path;
 use sim_engine::error::{HarnessError, Result};
 use std::path::{Path, PathBuf};

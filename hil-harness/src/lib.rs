@@ -92,7 +92,7 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             torque,
             out,
         } => sim_engine::replay::replay(&config, &torque, &out),
-        Command::Pil(args) => pil::pil_command(&args),
+        Command::Pil(args) => pil_host::pil_command(&args.to_run()),
         Command::Schema { grids, out } => {
             use sim_engine::config::schema::{write_schema, SchemaOf};
             let of = if grids {

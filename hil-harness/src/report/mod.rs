@@ -7,13 +7,14 @@
 //! Each section is a function of typed results ([`section::Section`]), one file per group
 //! of figures: [`fig6`] (Fig. 4, 6, 7), [`sec2`] (Sec. II), [`load`] (Fig. 9-13),
 //! [`sweep`] and [`tune`] (Sec. III-D), [`stiffness`] (Fig. 2, Eq. 1), [`runs`] (gains, all runs, speed);
-//! [`figures`] draws the comparison plots.
+//! [`figures`] draws the comparison plots; [`pil`] the processor-in-the-loop section.
 
 pub mod claims;
 pub mod facts;
 pub mod fig6;
 pub mod figures;
 pub mod load;
+pub mod pil;
 pub mod runs;
 pub mod saturation;
 pub mod sec2;
@@ -248,7 +249,7 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
 pub fn reproduce(out: &Path) -> Result<String> {
     // The PIL run needs QEMU and the ARM image, so `reproduce` does not start it; a run
     // left by `hil-harness pil --scenario fig6 --out out/pil-fig6` is reported, else a hint.
-    let pil = crate::pil::report_section_or_hint(&out.join("pil-fig6"));
+    let pil = pil::report_section_or_hint(&out.join("pil-fig6"));
     let staging = Staging::keeping_others(out)?;
     let text = reproduce_into(staging.dir(), &pil)?;
     staging.commit()?;

@@ -142,7 +142,7 @@ pub const FREQUENCY_RESPONSE: &str = "frequency-response measurement";
 /// The frequency-response run's configuration (the rig holding zero speed under the preload
 /// for the PRBS's length) and its excitation: what [`frequency_response_run`] records with
 /// the host controller, and what a run through the firmware sends it
-/// (`crate::pil::with_firmware`).
+/// (`pil_host::with_firmware`).
 pub fn frequency_response_setup(
     base: &RunConfig,
     spec: &IdentifySpec,

@@ -1,57 +1,56 @@
-//! `hil-harness pil` arguments: the scenario (as for `run`) plus the firmware, QEMU and
-//! link settings, each checked against the range the protocol and the firmware accept.
+//! One PIL run: the scenario (as for `run`) plus the firmware, QEMU and link settings, each
+//! checked against the range the protocol and the firmware accept.
 
-use crate::cli::ScenarioArgs;
 use sim_engine::error::{HarnessError, Result};
+use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 
 /// The harness's reply deadlines it accepts, in ms.
-pub const REPLY_TIMEOUT_MS: std::ops::RangeInclusive<u64> = 1..=60_000;
+pub const REPLY_TIMEOUT_MS: RangeInclusive<u64> = 1..=60_000;
+/// The firmware link watchdog of a run that sets none, in ms.
+pub const DEFAULT_WATCHDOG_MS: u32 = 1000;
+/// The harness's reply deadline of a run that sets none, in ms.
+pub const DEFAULT_REPLY_TIMEOUT_MS: u64 = 5000;
 
-/// `hil-harness pil` arguments.
-#[derive(Clone, Debug, clap::Args)]
-pub struct PilArgs {
-    /// The scenario, its config, overrides and output directory, as for `run`.
-    #[command(flatten)]
-    pub run: ScenarioArgs,
-    /// Firmware ELF to run; default: build the `pil` image with cargo
-    /// (`cargo build -p firmware --release --target thumbv7em-none-eabihf --bin pil`).
-    #[arg(long)]
+/// What one PIL run runs, and how.
+#[derive(Clone, Debug)]
+pub struct PilRun {
+    /// Scenario name (a file under `configs/scenarios/`).
+    pub scenario: String,
+    /// Configuration (path, or name under `configs/`); `None`: the scenario's.
+    pub config: Option<String>,
+    /// `section.key=value` overrides.
+    pub set: Vec<String>,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Firmware ELF to run; `None`: the `pil` image, built with cargo
+    /// ([`crate::image::build_pil_image`]).
     pub elf: Option<PathBuf>,
     /// QEMU binary.
-    #[arg(long, default_value = "qemu-system-arm")]
     pub qemu: PathBuf,
-    /// Inject a link fault, `KIND@TICK[:ARG]` with KIND one of drop, corrupt, delay (ARG =
-    /// ms), skip-seq, corrupt-reply, drop-reply; TICK counts sensor frames from 0.
-    #[arg(long, value_name = "KIND@TICK[:ARG]")]
+    /// A link fault to inject, `KIND@TICK[:ARG]` (see `pil_link::host::FaultPlan`).
     pub inject: Option<String>,
-    /// Firmware link watchdog: no frame for this long latches its safe state (ms, 1 to
-    /// 1000: the firmware refuses others).
-    #[arg(long, default_value_t = 1000)]
+    /// Firmware link watchdog, in ms (within `pil_link::WATCHDOG_MS_RANGE`).
     pub watchdog_ms: u32,
-    /// Harness deadline for each reply (ms, 1 to 60000).
-    #[arg(long, default_value_t = 5000)]
+    /// Harness deadline for each reply, in ms (within [`REPLY_TIMEOUT_MS`]).
     pub reply_timeout_ms: u64,
     /// Skip the bit-for-bit comparison with the host run.
-    #[arg(long)]
     pub no_compare: bool,
 }
 
-impl PilArgs {
-    /// Arguments for `scenario` into `out` with every default.
+impl PilRun {
+    /// `scenario` into `out` with every default.
     pub fn new(scenario: &str, out: &Path) -> Self {
         Self {
-            run: ScenarioArgs {
-                scenario: scenario.to_string(),
-                config: None,
-                set: Vec::new(),
-                out: out.to_path_buf(),
-            },
+            scenario: scenario.to_string(),
+            config: None,
+            set: Vec::new(),
+            out: out.to_path_buf(),
             elf: None,
-            qemu: PathBuf::from("qemu-system-arm"),
+            qemu: PathBuf::from(fw_runner::provision::QEMU_BINARY),
             inject: None,
-            watchdog_ms: 1000,
-            reply_timeout_ms: 5000,
+            watchdog_ms: DEFAULT_WATCHDOG_MS,
+            reply_timeout_ms: DEFAULT_REPLY_TIMEOUT_MS,
             no_compare: false,
         }
     }

@@ -2,12 +2,13 @@
 //! firmware binary running in QEMU (mps2-an386, Cortex-M4F), one `pil-link` frame exchange
 //! per controller tick in lock step, so QEMU's speed does not matter.
 //!
-//! * [`args`]: the command's arguments and their ranges;
+//! * [`settings`]: one run's scenario and its firmware, QEMU and link settings, with their
+//!   ranges;
 //! * [`backend`]: the firmware as a control backend, and a tick recorder;
 //! * [`session`]: QEMU, the link, the run, the fault handling and the files;
 //! * [`image`]: building the firmware's `pil` image;
 //! * [`compare`]: the bit-for-bit comparison with the host run;
-//! * [`section`]: the REPORT.md section, from the typed results.
+//! * [`comparison_markdown`]: its Markdown (`pil-comparison.md`), from the typed results.
 //!
 //! Files in `--out` DIR: `trace.csv`, `summary.json`, `trace.svg/png` (as `run`), plus
 //! `pil.json` (link statistics, fault), `pil-comparison.json` and `pil-comparison.md` (the
@@ -24,19 +25,17 @@
 //! driving the firmware at that tick, waits for the firmware to show its latched safe state,
 //! writes the trace up to the fault and returns an error naming both sides' view.
 
-pub mod args;
 pub mod backend;
 pub mod compare;
 pub mod image;
-pub mod section;
 pub mod session;
+pub mod settings;
 
-pub use args::{PilArgs, REPLY_TIMEOUT_MS};
 pub use backend::{PilBackend, Recorder, TickLog};
 pub use compare::{compare, Comparison, Mismatch};
 pub use image::{build_pil_image, build_pil_image_with, firmware_target_dir, with_all_images};
-pub use section::{report_section, report_section_or_hint, run_for_report, PilSection};
 pub use session::{run_pil, with_firmware, FirmwareFault, LinkFault, LinkReport, PilOutcome};
+pub use settings::{PilRun, DEFAULT_REPLY_TIMEOUT_MS, DEFAULT_WATCHDOG_MS, REPLY_TIMEOUT_MS};
 
 use sim_engine::error::{HarnessError, Result};
 
@@ -64,7 +63,7 @@ fn firmware_view(f: &LinkFault) -> String {
 
 /// `hil-harness pil`: runs, writes DIR, returns the line to print; a link fault is an error
 /// (after the trace up to it has been written).
-pub fn pil_command(args: &PilArgs) -> Result<String> {
+pub fn pil_command(args: &PilRun) -> Result<String> {
     let o = run_pil(args)?;
     if let Some(f) = &o.link.fault {
         return Err(HarnessError::Backend(format!(
@@ -102,6 +101,56 @@ pub fn pil_command(args: &PilArgs) -> Result<String> {
         Some(c) if !c.bit_identical => Err(HarnessError::Backend(message)),
         _ => Ok(message),
     }
+}
+
+/// The Markdown of a run's comparison with its link statistics: `pil-comparison.md`, and
+/// the section REPORT.md gives a PIL run.
+pub fn comparison_markdown(c: &Comparison, l: &LinkReport) -> String {
+    let scenario = &c.scenario;
+    let verdict = if c.bit_identical {
+        "**bit-identical**: the firmware binary on the Cortex-M4F controls the simulated \
+         machine exactly as the host build of controller-core does"
+    } else {
+        "**NOT bit-identical**"
+    };
+    let mut text = format!(
+        "## Processor in the loop: `{scenario}` through the firmware in QEMU\n\n\
+         Command: `cargo run --release -- pil --scenario {scenario} --out DIR`.\n\
+         The firmware's `pil` image (version {}) runs in QEMU mps2-an386 \
+         (Cortex-M4F); every controller tick the harness sends the sampled encoder count \
+         and current (or the velocity setpoint) in a CRC-32 framed `pil-link` frame over \
+         UART0, the firmware pends its TIMER0/TIMER1 interrupt, whose handler runs the \
+         drive's interrupt body, and returns the commands; the harness then advances the \
+         plant. Lock step, so QEMU's speed does not matter.\n\n\
+         | quantity | value |\n|---|---|\n\
+         | current ticks compared | {} |\n\
+         | velocity ticks compared | {} |\n\
+         | output values compared (raw fixed-point bits) | {} |\n\
+         | mismatches | {} |\n\
+         | controller inputs identical | {} |\n\
+         | trace (plant states included) identical | {} |\n\
+         | link frames | {} |\n\
+         | mean wall time per frame (QEMU round trip + plant step) | {:.0} µs |\n\
+         | wall time of the closed loop | {:.1} s |\n\n\
+         Verdict: {verdict}.\n",
+        l.firmware_version,
+        c.current_ticks,
+        c.velocity_ticks,
+        c.values_compared,
+        c.mismatches,
+        c.inputs_identical,
+        c.trace_identical,
+        l.frames,
+        l.round_trip_us,
+        l.wall_time_s,
+    );
+    if let Some(m) = &c.first_mismatch {
+        text.push_str(&format!(
+            "\nFirst mismatch: {} tick {}, `{}`: host bits {}, firmware bits {}\n",
+            m.tick_loop, m.index, m.field, m.host_bits, m.pil_bits
+        ));
+    }
+    text
 }
 
 #[cfg(test)]

@@ -2,10 +2,10 @@
 //! link, the scenario run in lock step, and on a link fault the firmware's latched safe
 //! state read back; then the files of the run directory.
 
-use super::backend::{PilBackend, Recorder, TickLog};
-use super::compare::{compare, Comparison};
-use super::image::build_pil_image;
-use super::PilArgs;
+use crate::backend::{PilBackend, Recorder, TickLog};
+use crate::compare::{compare, Comparison};
+use crate::image::build_pil_image;
+use crate::settings::PilRun;
 use controller_core::excitation::ExcitationConfig;
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
@@ -116,9 +116,8 @@ pub struct PilOutcome {
 /// The scenario as the firmware can run it. The link carries drive settings, not gains:
 /// the firmware designs its own, so a comparison run whose borrowed gains differ from its
 /// own design cannot run there.
-fn resolve_for_firmware(args: &PilArgs) -> Result<RunConfig> {
-    let run = &args.run;
-    let cfg = resolve(&run.scenario, run.config.as_deref(), &run.set)?;
+fn resolve_for_firmware(args: &PilRun) -> Result<RunConfig> {
+    let cfg = resolve(&args.scenario, args.config.as_deref(), &args.set)?;
     // One design for a run of its own gains (the firmware designs the same from the same
     // settings); a comparison run is checked against its own design as well.
     own_design(&cfg, cfg.gains_of.is_some())?;
@@ -151,7 +150,7 @@ struct Session {
 
 impl Session {
     fn open(
-        args: &PilArgs,
+        args: &PilRun,
         cfg: &RunConfig,
         excitation: Option<&ExcitationConfig>,
         elf: &Path,
@@ -195,7 +194,7 @@ fn qemu_error(qemu: &Qemu, stage: &str, e: HostError) -> HarnessError {
 fn settle(
     backend: &mut PilBackend,
     qemu: &Qemu,
-    args: &PilArgs,
+    args: &PilRun,
     cfg: &RunConfig,
     run: &mut RunOutput,
 ) -> Result<Option<LinkFault>> {
@@ -225,7 +224,7 @@ fn settle(
 
 fn link_report(
     ack: &HelloAck,
-    args: &PilArgs,
+    args: &PilRun,
     frames: u64,
     wall_time_s: f64,
     qemu_exit_code: Option<i32>,
@@ -251,7 +250,7 @@ fn link_report(
 
 /// The fault to inject, the firmware image (built if not given) and QEMU (installed if it
 /// is the default binary and missing).
-fn prepare(args: &PilArgs) -> Result<(Option<FaultPlan>, PathBuf)> {
+fn prepare(args: &PilRun) -> Result<(Option<FaultPlan>, PathBuf)> {
     let plan: Option<FaultPlan> = args
         .inject
         .as_deref()
@@ -270,11 +269,11 @@ fn prepare(args: &PilArgs) -> Result<(Option<FaultPlan>, PathBuf)> {
 
 /// Runs a scenario through the firmware in QEMU and writes its files (see the module docs).
 /// A link fault is not an `Err` here: it is in `link.fault`, with the trace cut before it.
-pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
+pub fn run_pil(args: &PilRun) -> Result<PilOutcome> {
     args.check()?;
     let cfg = resolve_for_firmware(args)?;
     // The output directory is checked before the image is built and QEMU provisioned.
-    let staging = Staging::new(&args.run.out)?;
+    let staging = Staging::new(&args.out)?;
     let (plan, elf) = prepare(args)?;
     let log_path = staging.path("firmware.defmt")?;
     let Session {
@@ -339,17 +338,17 @@ pub fn run_pil(args: &PilArgs) -> Result<PilOutcome> {
         cfg,
         link,
         comparison,
-        out: args.run.out.clone(),
+        out: args.out.clone(),
     })
 }
 
 /// Runs `f` with the firmware in QEMU as its control backend, configured with `cfg`'s drive
 /// settings and `excitation`, if any: how a run that drives its backend itself (the
 /// identification's records, `experiments::identify::measure::record`) goes through the
-/// firmware. The firmware's defmt log goes to `firmware.defmt` in `args.run.out`; `args`'
+/// firmware. The firmware's defmt log goes to `firmware.defmt` in `args.out`; `args`'
 /// scenario is not used. A link fault, seen by either side, is an error.
 pub fn with_firmware<T>(
-    args: &PilArgs,
+    args: &PilRun,
     cfg: &RunConfig,
     excitation: Option<&ExcitationConfig>,
     f: impl FnOnce(&mut PilBackend) -> Result<T>,
@@ -357,7 +356,7 @@ pub fn with_firmware<T>(
     args.check()?;
     own_design(cfg, true)?;
     let (plan, elf) = prepare(args)?;
-    std::fs::create_dir_all(&args.run.out).map_err(|e| HarnessError::io(&args.run.out, e))?;
+    std::fs::create_dir_all(&args.out).map_err(|e| HarnessError::io(&args.out, e))?;
     let Session {
         mut qemu, mut link, ..
     } = Session::open(
@@ -365,7 +364,7 @@ pub fn with_firmware<T>(
         cfg,
         excitation,
         &elf,
-        &args.run.out.join("firmware.defmt"),
+        &args.out.join("firmware.defmt"),
     )?;
     if let Some(p) = plan {
         link.inject(p);
@@ -408,11 +407,7 @@ fn write_files(
     write_json(staging, "pil.json", link)?;
     if let Some(c) = comparison {
         write_json(staging, "pil-comparison.json", c)?;
-        let section = super::section::PilSection {
-            comparison: c.clone(),
-            link: link.clone(),
-        };
-        staging.write("pil-comparison.md", &section.markdown())?;
+        staging.write("pil-comparison.md", &crate::comparison_markdown(c, link))?;
     }
     decode_log(elf, log_path, staging)
 }
