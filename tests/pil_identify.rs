@@ -13,11 +13,11 @@
 )]
 
 use controller_core::excitation::Waveform;
-use hil_harness::experiments::identify::measure::{
+use machine_workflows::identify::measure::{
     excited_controller, frequency_response_setup, frequency_response_tail, record, Record,
     FREQUENCY_RESPONSE,
 };
-use hil_harness::experiments::identify::{fit_response, load};
+use machine_workflows::identify::{fit_response, load};
 use pil_host::{build_pil_image, with_firmware, PilRun, Recorder, TickLog};
 
 /// The `identify` settings of the shortened run.

@@ -7,10 +7,9 @@
 //! through the PIL link), on a [`config::RunConfig`] from [`config::resolve`].
 
 pub mod cli;
-pub mod experiments;
-pub mod flash;
 pub mod pil;
 pub mod report;
+pub mod sec2;
 
 use sim_engine::Result;
 
@@ -50,7 +49,7 @@ pub fn main_with_default(default_command: &str) -> ExitCode {
 /// Runs one parsed command; returns the text to print.
 pub fn dispatch(command: cli::Command) -> Result<String> {
     use cli::Command;
-    use experiments::{commission, identify, linear, sec2, stiffness, sweep, tune};
+    use machine_workflows::{commission, identify, linear, stiffness, sweep, tune};
     match command {
         Command::Run(a) => sim_engine::run::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
         Command::Linear(a) => {
@@ -102,6 +101,8 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             };
             write_schema(of, &out.unwrap_or_else(|| of.default_out().into()))
         }
-        Command::Flash { config, build_only } => flash::flash(&config, build_only),
+        Command::Flash { config, build_only } => {
+            machine_workflows::flash::flash(&config, build_only)
+        }
     }
 }

@@ -135,7 +135,7 @@ fn stiff_dyno_loop_is_stable_and_carries_the_shock() {
 /// well below the coupling resonance).
 #[test]
 fn measured_stiffness_matches_eq1_below_the_resonance() {
-    let pts = hil_harness::experiments::stiffness::measure_all(&[1.0, 4.0]).unwrap();
+    let pts = machine_workflows::stiffness::measure_all(&[1.0, 4.0]).unwrap();
     for p in pts.iter().filter(|p| p.source == "none") {
         let rel = p.measured / p.analytic;
         assert!((rel - 1.0).abs() < 0.05, "{p:?}");

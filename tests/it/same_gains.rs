@@ -97,12 +97,12 @@ fn borrowed_gains_are_not_the_drives_own_design() {
 /// The stiffness measurement without AFB uses the default AFB design's gains.
 #[test]
 fn stiffness_without_afb_runs_at_the_afb_designs_gains() {
-    let off = hil_harness::experiments::stiffness::stiffness_config(None, &[]).unwrap();
+    let off = machine_workflows::stiffness::stiffness_config(None, &[]).unwrap();
     for source in [
         Some(controller_core::Estimator::Observer),
         Some(controller_core::Estimator::Differentiation),
     ] {
-        let afb = hil_harness::experiments::stiffness::stiffness_config(source, &[]).unwrap();
+        let afb = machine_workflows::stiffness::stiffness_config(source, &[]).unwrap();
         check_pair(&afb, &off, &[]);
     }
 }

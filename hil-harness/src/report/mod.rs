@@ -23,8 +23,8 @@ pub mod stiffness;
 pub mod sweep;
 pub mod tune;
 
-use crate::experiments::tune::machines::{tune_into, Bandwidth, MachineTune, MACHINES};
-use crate::experiments::tune::Constraints;
+use machine_workflows::tune::machines::{tune_into, Bandwidth, MachineTune, MACHINES};
+use machine_workflows::tune::Constraints;
 use rayon::prelude::*;
 use section::Section;
 use sim_engine::config::{resolve, RunConfig};
@@ -121,10 +121,10 @@ pub fn run_all(names: &[&str]) -> Result<Runs> {
 /// map, the tuned machines.
 struct Results {
     runs: Runs,
-    sweep: Vec<crate::experiments::sweep::SweepResult>,
-    sweep_points: Vec<crate::experiments::sweep::SweepPoint>,
-    stiffness: Vec<crate::experiments::stiffness::StiffnessPoint>,
-    sec2: Vec<crate::experiments::sec2::MapPoint>,
+    sweep: Vec<machine_workflows::sweep::SweepResult>,
+    sweep_points: Vec<machine_workflows::sweep::SweepPoint>,
+    stiffness: Vec<machine_workflows::stiffness::StiffnessPoint>,
+    sec2: Vec<crate::sec2::MapPoint>,
     tunes: Vec<MachineTune>,
 }
 
@@ -194,10 +194,10 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
         write_run(&dir.join(name), cfg, out)?;
     }
     let (sweep_points, sweep, sweep_text) =
-        crate::experiments::sweep::sweep_into(&subdir(dir, "sweep")?)?;
+        machine_workflows::sweep::sweep_into(&subdir(dir, "sweep")?)?;
     let (stiffness, stiff_text) =
-        crate::experiments::stiffness::stiffness_into(&subdir(dir, "stiffness")?)?;
-    let sec2 = crate::experiments::sec2::map_into(&subdir(dir, "sec2")?)?;
+        machine_workflows::stiffness::stiffness_into(&subdir(dir, "stiffness")?)?;
+    let sec2 = crate::sec2::map_into(&subdir(dir, "sec2")?)?;
     let tunes = tune_into(
         &subdir(dir, "tune")?,
         &MACHINES,
@@ -227,15 +227,12 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
     report.push_str(pil);
     let path = dir.join("REPORT.md");
     std::fs::write(&path, report).map_err(|e| HarnessError::io(&path, e))?;
-    let sec2_text: Vec<String> = crate::experiments::sec2::ENCODER_INTERPOLATIONS
+    let sec2_text: Vec<String> = crate::sec2::ENCODER_INTERPOLATIONS
         .iter()
         .map(|n| {
             format!(
                 "Sec. II map, encoder x{n}: {}",
-                crate::experiments::sec2::summary_text(&crate::experiments::sec2::at(
-                    &results.sec2,
-                    *n
-                ))
+                crate::sec2::summary_text(&crate::sec2::at(&results.sec2, *n))
             )
         })
         .collect();

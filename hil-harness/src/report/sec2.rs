@@ -5,9 +5,7 @@ use super::facts::{fill, stable_window};
 use super::runs::gains_line;
 use super::section::{verdict, Section};
 use super::{get, Runs, HIGHLY_OSCILLATORY_PU};
-use crate::experiments::sec2::{
-    at, summarize, summary_text, table, MapPoint, ENCODER_INTERPOLATIONS,
-};
+use crate::sec2::{at, summarize, summary_text, table, MapPoint, ENCODER_INTERPOLATIONS};
 use sim_engine::error::Result;
 use sim_engine::run::fmt_opt;
 use std::fmt::Write as _;
@@ -81,7 +79,7 @@ pub fn differentiation(runs: &Runs, map: &[MapPoint]) -> Result<Section> {
          its limit. Every cell is in `sec2/sec2.csv`. The criterion was fixed for the Table 1 map \
          before it ran; the interpolated map was added after the first map had been seen, and \
          is judged by the same criterion.\n",
-        crate::experiments::sec2::SCENARIO,
+        crate::sec2::SCENARIO,
         ENCODER_INTERPOLATIONS,
         stable_window(c)
     );

@@ -2,7 +2,7 @@
 
 use super::section::{pct, Section};
 use super::{STIFFNESS_HIGH_MIN, STIFFNESS_LOW_BAND, STIFFNESS_MODEL_TOLERANCE};
-use crate::experiments::stiffness::StiffnessPoint;
+use machine_workflows::stiffness::StiffnessPoint;
 use sim_engine::error::Result;
 
 /// Stiffness ratios (with AFB / without) at each frequency; `None` where the AFB run was
@@ -111,7 +111,7 @@ fn holds(ok: bool) -> &'static str {
 
 /// The stiffness section, from the measured points and the stiffness scenario's config.
 pub fn section(stiff: &[StiffnessPoint]) -> Result<Section> {
-    let cfg = crate::experiments::stiffness::stiffness_config(
+    let cfg = machine_workflows::stiffness::stiffness_config(
         Some(controller_core::Estimator::Observer),
         &[],
     )?;

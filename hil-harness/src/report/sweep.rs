@@ -2,8 +2,8 @@
 
 use super::section::Section;
 use super::{SWEEP_NO_AFB_MAX_RAD_S, SWEEP_RATIO_MIN};
-use crate::experiments::sweep::limits::{limit, moved, Limit};
-use crate::experiments::sweep::{SweepPoint, SweepResult};
+use machine_workflows::sweep::limits::{limit, moved, Limit};
+use machine_workflows::sweep::{SweepPoint, SweepResult};
 use sim_engine::error::Result;
 use std::fmt::Write as _;
 
@@ -101,7 +101,7 @@ pub fn section(points: &[SweepPoint], sweep: &[SweepResult]) -> Result<Section> 
             s.without_afb_rad_s,
             s.with_afb_rad_s,
             s.best_design,
-            crate::experiments::sweep::QUIET_TORQUE_PU,
+            machine_workflows::sweep::QUIET_TORQUE_PU,
             s.quiet_without_afb_rad_s,
             s.quiet_with_afb_rad_s,
             s.best_quiet_design
@@ -138,7 +138,7 @@ pub fn section(points: &[SweepPoint], sweep: &[SweepResult]) -> Result<Section> 
             mech.backlash_deg / 360.0 * f64::from(cpr),
             mech.motor_inertia_s,
             mech.load_inertia_s,
-            decided(points, &crate::experiments::sweep::PLANTS)
+            decided(points, &machine_workflows::sweep::PLANTS)
         ),
         format!(
             "{sweep_verdict} (criteria: on the printing press the best AFB design reaches at \

@@ -3,11 +3,11 @@
 
 use super::section::Section;
 use super::{SWEEP_NO_AFB_MAX_RAD_S, SWEEP_RATIO_MIN};
-use crate::experiments::sweep::grid::word;
-use crate::experiments::tune::machines::{Bandwidth, MachineTune, LOOP_SCENARIO};
-use crate::experiments::tune::pair::{LoopRun, CRITERION};
-use crate::experiments::tune::{Constraints, Judged};
 use controller_core::{AfbMode, FilterConfig};
+use machine_workflows::sweep::grid::word;
+use machine_workflows::tune::machines::{Bandwidth, MachineTune, LOOP_SCENARIO};
+use machine_workflows::tune::pair::{LoopRun, CRITERION};
+use machine_workflows::tune::{Constraints, Judged};
 use sim_engine::error::Result;
 use std::fmt::Write as _;
 
@@ -297,10 +297,10 @@ pub fn console_line(t: &MachineTune) -> String {
 #[allow(clippy::unwrap_used, clippy::indexing_slicing)]
 mod tests {
     use super::*;
-    use crate::experiments::sweep::AfbDesign;
-    use crate::experiments::tune::pair::afb_passes;
-    use crate::experiments::tune::Candidate;
     use controller_core::Estimator;
+    use machine_workflows::sweep::AfbDesign;
+    use machine_workflows::tune::pair::afb_passes;
+    use machine_workflows::tune::Candidate;
 
     fn judged(bandwidth_rad_s: f64, afb: AfbDesign) -> Judged {
         Judged {

@@ -6,8 +6,8 @@
 
 use crate::common;
 
-use hil_harness::experiments::commission::commission;
-use hil_harness::experiments::tune::Constraints;
+use machine_workflows::commission::commission;
+use machine_workflows::tune::Constraints;
 
 /// Table 1's file with another machine: a heavier motor, a lighter load, a stiffer shaft
 /// with less lost motion, an 8192-count encoder.

@@ -4,7 +4,7 @@
 //! them.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::experiments::linear::Break;
+use machine_workflows::linear::Break;
 use sim_engine::engine::trace::TraceRow;
 use sim_engine::RunConfig;
 
@@ -165,8 +165,7 @@ fn notch_errors_name_the_key_and_the_range() {
 /// linear model of `cfg` with the gears engaged.
 fn loop_gain(cfg: &RunConfig, hz: f64) -> num_complex::Complex<f64> {
     let model =
-        hil_harness::experiments::linear::for_run(cfg, plant_host::analysis::Gears::Engaged)
-            .unwrap();
+        machine_workflows::linear::for_run(cfg, plant_host::analysis::Gears::Engaged).unwrap();
     model.loop_gain(Break::VelocityRegulator, &[hz])[0]
 }
 
@@ -204,9 +203,8 @@ fn the_linear_model_has_the_notch_in_the_torque_path() {
         }
     }
     let a =
-        hil_harness::experiments::linear::analyze::analyze(&notch("drive.velocity_rate_hz=2000"))
-            .unwrap();
-    let b = hil_harness::experiments::linear::analyze::analyze(&resolve(&[])).unwrap();
+        machine_workflows::linear::analyze::analyze(&notch("drive.velocity_rate_hz=2000")).unwrap();
+    let b = machine_workflows::linear::analyze::analyze(&resolve(&[])).unwrap();
     eprintln!(
         "engaged spectral radius {:.5} with the notch, {:.5} without; smallest damping {:.4}, {:.4}",
         a.engaged.spectral_radius,

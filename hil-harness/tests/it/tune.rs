@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use hil_harness::experiments::tune::{candidates, search, without_afb, Candidate, Constraints};
+use machine_workflows::tune::{candidates, search, without_afb, Candidate, Constraints};
 
 /// Table 1's file with another machine: heavier, softer, more lost motion, a finer encoder.
 fn other_machine(dir: &std::path::Path) -> String {
@@ -60,13 +60,9 @@ fn tune_on_a_machine_it_was_not_written_for() {
 fn a_step_response_without_an_oscillatory_mode_is_reported_not_an_error() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("press");
-    let line = hil_harness::experiments::tune::tune(
-        "printing-press",
-        Some(30.0),
-        &Constraints::default(),
-        &out,
-    )
-    .unwrap();
+    let line =
+        machine_workflows::tune::tune("printing-press", Some(30.0), &Constraints::default(), &out)
+            .unwrap();
     eprintln!("{line}");
     assert!(line.contains("no decaying oscillatory mode"), "{line}");
     let md = std::fs::read_to_string(out.join("tune.md")).unwrap();

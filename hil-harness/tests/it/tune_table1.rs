@@ -4,8 +4,8 @@
 //! (gears engaged throughout, torque below its limit) against the model's smallest damping.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::experiments::linear::for_gains;
-use hil_harness::experiments::tune::{damping, tune, Constraints, DAMPING_TOLERANCE};
+use machine_workflows::linear::for_gains;
+use machine_workflows::tune::{damping, tune, Constraints, DAMPING_TOLERANCE};
 use plant_host::analysis::Gears;
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -1,8 +1,8 @@
 //! `tune`'s figures: the velocity loop's open-loop Bode plot with its margins marked, and
 //! the closed-loop poles in the z-plane with the gears engaged and apart.
 
-use crate::experiments::linear::margins::unwrap_phases;
-use crate::experiments::linear::{Break, LoopModel};
+use crate::linear::margins::unwrap_phases;
+use crate::linear::{Break, LoopModel};
 use sim_engine::error::Result;
 use sim_engine::plot::{save, save_sized, Figure, Legend, Panel, Series};
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! (`identify/`, `identified.toml`), the designs that came closest and how far each misses
 //! each constraint, and the command exits with [`sim_engine::error::NO_DESIGN_EXIT_CODE`].
 
-use crate::experiments::tune::{Constraints, Judged};
+use crate::tune::{Constraints, Judged};
 use std::fmt::Write as _;
 
 /// How far `j` misses each constraint of `k`: (constraint, have, need), relative shortfall.
@@ -85,13 +85,13 @@ pub(super) fn markdown(config: &str, judged: &[Judged], k: &Constraints, reason:
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
-    use crate::experiments::tune::Candidate;
+    use crate::tune::Candidate;
 
     fn judged(damping: f64, pm: f64, noise: f64) -> Judged {
         Judged {
             candidate: Candidate {
                 bandwidth_rad_s: 30.0,
-                afb: crate::experiments::sweep::AfbDesign::OFF,
+                afb: crate::sweep::AfbDesign::OFF,
             },
             damping: [damping, 0.5],
             notch_band_damping: None,

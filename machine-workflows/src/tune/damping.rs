@@ -12,7 +12,7 @@
 //! it. The load speed is fitted rather than the motor speed, because the shaft filters the
 //! quantization chatter out of it; the poles are the same.
 
-use crate::experiments::linear::LoopModel;
+use crate::linear::LoopModel;
 use nalgebra::{Complex, DMatrix, DVector};
 use serde::Serialize;
 use sim_engine::config::RunConfig;

@@ -1,8 +1,8 @@
 //! `commission.md` and `commission.json`.
 
 use super::Commissioning;
-use crate::experiments::identify::{write::estimates, Identification};
-use crate::experiments::tune::Tuned;
+use crate::identify::{write::estimates, Identification};
+use crate::tune::Tuned;
 use sim_engine::config::RunConfig;
 use sim_engine::error::{HarnessError, Result};
 use sim_engine::output::Staging;
@@ -54,7 +54,7 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
         d.notch_band_damping.map_or_else(String::new, |b| format!(
             " outside the notch's band and {b:.4} inside it (the resonance left to the \
              machine: at least {:.0} % of its own damping)",
-            100.0 * crate::experiments::tune::NOTCH_BAND_DAMPING_SHARE
+            100.0 * crate::tune::NOTCH_BAND_DAMPING_SHARE
         )),
         d.margins[0],
         d.margins[1],
@@ -77,7 +77,7 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
         md,
         "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).\n\n{}",
         if c.passed { "Passed" } else { "Failed" },
-        crate::experiments::tune::pair::CRITERION,
+        crate::tune::pair::CRITERION,
         super::NOTCH_CRITERION,
         if c.passed {
             "The drive to flash is `tune/drive.toml` (`cargo run --release -- flash \

@@ -2,7 +2,7 @@
 //! [`AfbDesign`]), made from `tune`'s grid (`[tune]` of `configs/grids.toml`,
 //! [`sim_engine::config::grids`]).
 
-use crate::experiments::sweep::AfbDesign;
+use crate::sweep::AfbDesign;
 use controller_core::{AfbMode, DriveConfig, Estimator, PiInertia};
 use serde::Serialize;
 use sim_engine::config::Grid;

@@ -92,7 +92,7 @@ pub fn moved(points: &[SweepPoint]) -> Vec<&SweepPoint> {
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::experiments::sweep::AfbDesign;
+    use crate::sweep::AfbDesign;
     use sim_engine::engine::metrics::OscillationKind;
 
     fn point(bw: f64, stable: bool, by_speed: bool) -> SweepPoint {

@@ -8,7 +8,7 @@
 //! the sweep judges it.
 
 use super::for_run;
-use crate::experiments::sweep::{point_config, AfbDesign};
+use crate::sweep::{point_config, AfbDesign};
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;

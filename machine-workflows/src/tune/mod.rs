@@ -1,6 +1,6 @@
 //! `hil-harness tune`: design the acceleration feedback, the estimator and (with
 //! `--max-bandwidth`) the velocity bandwidth of a machine from its config, on the linear
-//! model of the whole loop ([`crate::experiments::linear`]), then prove the design in the nonlinear loop.
+//! model of the whole loop ([`crate::linear`]), then prove the design in the nonlinear loop.
 //!
 //! 1. Every candidate of the grid (`[tune]` of `configs/grids.toml`: form, Ka, filter,
 //!    acceleration source, observer bandwidth, and the velocity bandwidth when asked for
@@ -35,7 +35,7 @@ pub mod summary;
 
 pub use grid::{candidates, without_afb, Candidate};
 
-use crate::experiments::linear::{for_gains, Break, LoopModel};
+use crate::linear::{for_gains, Break, LoopModel};
 use plant_host::analysis::Gears;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -183,7 +183,7 @@ pub struct Verification {
     /// Motor-torque chatter in the stability window \[pu\].
     pub limit_cycle_torque_pu: f64,
     /// Whether the run passes: stable, no fault, and on the sweep probe also quiet
-    /// (chatter below [`crate::experiments::sweep::QUIET_TORQUE_PU`], the sweep's own test).
+    /// (chatter below [`crate::sweep::QUIET_TORQUE_PU`], the sweep's own test).
     pub passed: bool,
 }
 
@@ -211,8 +211,7 @@ fn verify(bases: &[RunConfig], c: &Candidate) -> Result<Vec<Verification>> {
                 cfg.drive.position_bandwidth_rad_s = 0.0;
             }
             let m = run_scenario(&cfg)?.metrics;
-            let quiet = *s != "sweep"
-                || m.limit_cycle_torque_pu < crate::experiments::sweep::QUIET_TORQUE_PU;
+            let quiet = *s != "sweep" || m.limit_cycle_torque_pu < crate::sweep::QUIET_TORQUE_PU;
             Ok(Verification {
                 scenario: s,
                 stable: m.stable,

@@ -28,8 +28,8 @@ mod no_design;
 pub mod notch;
 mod write;
 
-use crate::experiments::identify::{self, lost_motion::identified_mechanics};
-use crate::experiments::tune::{self, Constraints, Tuned};
+use crate::identify::{self, lost_motion::identified_mechanics};
+use crate::tune::{self, Constraints, Tuned};
 use controller_core::NotchConfig;
 use notch::Decision;
 use sim_engine::config::{config_path, overrides, read_table, resolve, RunConfig};
@@ -39,7 +39,7 @@ use std::path::Path;
 use toml::{Table, Value};
 
 /// The verification of one drive on the machine itself.
-pub use crate::experiments::tune::pair::LoopRun as OnMachine;
+pub use crate::tune::pair::LoopRun as OnMachine;
 
 /// The second criterion with a notch placed, fixed before any run.
 pub const NOTCH_CRITERION: &str =

@@ -2,7 +2,7 @@
 //! cannot damp, and if so the notch placed on it.
 //!
 //! The rule, judged on the linear model of the identified machine (`tune`'s grid at the
-//! bandwidths asked for, [`crate::experiments::tune::judge_grid`]):
+//! bandwidths asked for, [`crate::tune::judge_grid`]):
 //!
 //! 1. No candidate meets the constraints. (If one does, the loop damps every mode by the
 //!    constraints' floor and nothing changes.)
@@ -20,10 +20,10 @@
 //! The notch is then centred on f_r, [`WIDTH_SHARE`]·f_r wide (−3 dB) and [`DEPTH_DB`]
 //! deep, and the drive is tuned again with it: the loop gives up acting at the resonance,
 //! which keeps the machine's own damping (`tune` judges the poles in the notch's band
-//! against that, [`crate::experiments::tune::notch_band`]).
+//! against that, [`crate::tune::notch_band`]).
 
-use crate::experiments::linear::for_gains;
-use crate::experiments::tune::{Constraints, Judged};
+use crate::linear::for_gains;
+use crate::tune::{Constraints, Judged};
 use controller_core::NotchConfig;
 use plant_host::analysis::Gears;
 use serde::Serialize;
