@@ -93,7 +93,7 @@ fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
         assert!(log.contains(line), "firmware.log lacks {line:?}:\n{log}");
     }
     assert!(!log.contains("damaged frame"), "{log}");
-    let section = hil_harness::report::pil::report_section(dir.path()).unwrap();
+    let section = paper_repro::report::pil::report_section(dir.path()).unwrap();
     assert!(section.contains("| mismatches | 0 |"), "{section}");
 }
 

@@ -8,8 +8,6 @@
 
 pub mod cli;
 pub mod pil;
-pub mod report;
-pub mod sec2;
 
 use sim_engine::Result;
 
@@ -84,8 +82,8 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             Some(c) => stiffness::machine::stiffness_machine(&out, &c, &set),
             None => stiffness::stiffness(&out),
         },
-        Command::Sec2Map { out } => sec2::sec2(&out),
-        Command::Reproduce { out } => report::reproduce(&out),
+        Command::Sec2Map { out } => paper_repro::sec2::sec2(&out),
+        Command::Reproduce { out } => paper_repro::report::reproduce(&out),
         Command::Replay {
             config,
             torque,

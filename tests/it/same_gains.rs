@@ -62,10 +62,10 @@ fn every_no_afb_scenario_runs_at_the_gains_of_its_afb_run() {
         }
     }
     assert!(
-        pairs >= 2 * hil_harness::report::COMPARISONS.len(),
+        pairs >= 2 * paper_repro::report::COMPARISONS.len(),
         "{pairs}"
     );
-    for (afb, off) in hil_harness::report::COMPARISONS {
+    for (afb, off) in paper_repro::report::COMPARISONS {
         let cfg = resolve(off, None, &[]).unwrap();
         assert_eq!(
             cfg.gains_of.map(|g| g.source).as_deref(),

@@ -4,10 +4,10 @@
 //! figures are the runs' figures.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::report::tune::section;
 use machine_workflows::tune::machines::{tune_into, Bandwidth};
 use machine_workflows::tune::pair::afb_passes;
 use machine_workflows::tune::Constraints;
+use paper_repro::report::tune::section;
 use std::time::Instant;
 
 #[test]
