@@ -1,17 +1,13 @@
-//! hil-harness: wires controller-core to plant-host with the real timing (current tick
-//! every 250 µs, velocity tick every 500 µs, computational delay, zero-order hold) and
-//! turns the paper's figures and claims into runs, plots and a report.
-//!
-//! Library entry points: [`engine::runner::run_scenario`] (host controller) and
-//! [`engine::runner::run_with_backend`] with any [`engine::runner::ControlBackend`] (e.g. the firmware
-//! through the PIL link), on a [`config::RunConfig`] from [`config::resolve`].
+//! hil-harness: stiffdrive's command line. [`cli`] parses it and [`dispatch`] hands each
+//! command to the crate that does it: `run`, `replay` and `schema` to `sim-engine`, `pil` to
+//! `pil-host`, `linear`, `tune`, `identify`, `commission`, `sweep`, `stiffness` and `flash`
+//! to `machine-workflows`, `reproduce` and `sec2-map` to `paper-repro`.
 
 pub mod cli;
 pub mod pil;
 
-use sim_engine::Result;
-
 use clap::Parser;
+use sim_engine::Result;
 use std::process::ExitCode;
 
 /// Entry point of the one command-line binary, the root `stiffdrive` (`cargo run --release

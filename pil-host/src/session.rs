@@ -344,7 +344,7 @@ pub fn run_pil(args: &PilRun) -> Result<PilOutcome> {
 
 /// Runs `f` with the firmware in QEMU as its control backend, configured with `cfg`'s drive
 /// settings and `excitation`, if any: how a run that drives its backend itself (the
-/// identification's records, `experiments::identify::measure::record`) goes through the
+/// identification's records, `machine_workflows::identify::measure::record`) goes through the
 /// firmware. The firmware's defmt log goes to `firmware.defmt` in `args.out`; `args`'
 /// scenario is not used. A link fault, seen by either side, is an error.
 pub fn with_firmware<T>(

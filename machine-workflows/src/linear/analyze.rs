@@ -135,7 +135,7 @@ pub fn markdown(a: &Analysis) -> String {
         s,
         "# Linear model of `{}` ({})\n\nVelocity bandwidth {:.2} rad/s, acceleration feedback {}. \
          The model is the controller's ticks with their quantized coefficients around the \
-         exactly sampled plant, without clamps or rounding (`hil-harness/src/linear`).\n",
+         exactly sampled plant, without clamps or rounding (`machine-workflows/src/linear`).\n",
         a.scenario,
         a.config,
         a.velocity_bandwidth_rad_s,

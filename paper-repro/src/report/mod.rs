@@ -139,8 +139,8 @@ const PREAMBLE: &str = "# stiffdrive: reproduction of \"Reducing the Effect of L
     (`hil-harness reproduce`). Every number below comes from the runs in this directory or from \
     the configuration files: the scenario files are in `configs/scenarios/`, each run's \
     `trace.csv` and `summary.json` are in the folder of its name. Metric definitions: \
-    `hil-harness/README.md`. Verdicts use the fixed criteria stated in each section (constants \
-    in `hil-harness/src/report/mod.rs`); no run is tuned to match the paper. Every comparison \
+    `sim-engine/README.md`. Verdicts use the fixed criteria stated in each section (constants \
+    in `paper-repro/src/report/mod.rs`); no run is tuned to match the paper. Every comparison \
     without acceleration feedback runs at the regulator gains of its AFB run, bit for bit \
     (table below).\n";
 

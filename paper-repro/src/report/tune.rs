@@ -237,7 +237,7 @@ pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
              agree). {} Beside the \
              criterion: the speed droop at the load step is lower with AFB on {droop_lower} of {} \
              machines. The ripple is the shaft torque's content above about 5 Hz from 0.1 s \
-             after the step to the end of the run (`hil-harness/README.md`): the ringing the \
+             after the step to the end of the run (`sim-engine/README.md`): the ringing the \
              step excites and the chatter that stays.",
             bandwidths(tunes),
             tunes.len(),

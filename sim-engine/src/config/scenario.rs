@@ -181,7 +181,7 @@ pub struct SineLoad {
 }
 
 /// Metric windows and thresholds; absent values take the defaults documented in
-/// `hil-harness/README.md`.
+/// `sim-engine/README.md`.
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MetricSpec {

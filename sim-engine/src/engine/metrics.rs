@@ -1,4 +1,4 @@
-//! Metrics computed from a trace. Each definition here is repeated in `hil-harness/README.md`; the
+//! Metrics computed from a trace. Each definition here is repeated in `sim-engine/README.md`; the
 //! windows come from the scenario's `[scenario.metrics]` table.
 
 pub mod oscillation;
