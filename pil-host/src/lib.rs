@@ -7,7 +7,7 @@
 //! * [`backend`]: the firmware as a control backend, and a tick recorder;
 //! * [`session`]: QEMU, the link, the run, the fault handling and the files;
 //! * [`image`]: building the firmware's `pil` image;
-//! * [`compare`]: the bit-for-bit comparison with the host run;
+//! * [`compare`](mod@compare): the bit-for-bit comparison with the host run;
 //! * [`comparison_markdown`]: its Markdown (`pil-comparison.md`), from the typed results.
 //!
 //! Files in `--out` DIR: `trace.csv`, `summary.json`, `trace.svg/png` (as `run`), plus

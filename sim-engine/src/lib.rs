@@ -12,7 +12,7 @@
 //!
 //! Entry points: [`engine::runner::run_scenario`] (host controller) and
 //! [`engine::runner::run_with_backend`] with any [`engine::runner::ControlBackend`] (e.g. the
-//! firmware through the PIL link), on a [`config::RunConfig`] from [`config::resolve`].
+//! firmware through the PIL link), on a [`config::RunConfig`] from [`config::resolve()`].
 
 pub mod config;
 pub mod engine;
