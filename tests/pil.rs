@@ -18,7 +18,7 @@
     clippy::panic
 )]
 
-use hil_harness::pil::{build_pil_image, build_pil_image_with, pil_command, run_pil, PilArgs};
+use pil_host::{build_pil_image, build_pil_image_with, pil_command, run_pil, PilRun};
 use pil_link::host::{HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
 use pil_link::FaultCode;
@@ -54,7 +54,7 @@ fn csv_rows(dir: &std::path::Path) -> usize {
 fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
     let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
-    let mut args = PilArgs::new("fig6", dir.path());
+    let mut args = PilRun::new("fig6", dir.path());
     args.elf = Some(elf());
     let o = run_pil(&args).unwrap();
     assert!(o.link.fault.is_none(), "link fault: {:?}", o.link.fault);
@@ -93,7 +93,7 @@ fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
         assert!(log.contains(line), "firmware.log lacks {line:?}:\n{log}");
     }
     assert!(!log.contains("damaged frame"), "{log}");
-    let section = hil_harness::pil::report_section(dir.path()).unwrap();
+    let section = paper_repro::report::pil::report_section(dir.path()).unwrap();
     assert!(section.contains("| mismatches | 0 |"), "{section}");
 }
 
@@ -168,7 +168,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
     ];
     for case in cases {
         let dir = tempfile::tempdir().unwrap();
-        let mut args = PilArgs::new("fig6", dir.path());
+        let mut args = PilRun::new("fig6", dir.path());
         args.elf = Some(elf.clone());
         args.inject = Some(case.inject.to_string());
         args.watchdog_ms = 500;
@@ -243,7 +243,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
 fn the_command_fails_loudly_on_a_link_fault() {
     let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
-    let mut args = PilArgs::new("fig6", dir.path());
+    let mut args = PilRun::new("fig6", dir.path());
     args.elf = Some(elf());
     args.inject = Some("corrupt@40".to_string());
     let err = pil_command(&args).unwrap_err().to_string();
@@ -278,7 +278,7 @@ fn a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check() {
     // The same image with the safe-state entry sabotaged (enable stays on, controller runs).
     let bad = build_pil_image_with(&["test-unsafe-keep-outputs-on"]).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let mut args = PilArgs::new("fig6", dir.path());
+    let mut args = PilRun::new("fig6", dir.path());
     args.elf = Some(bad);
     args.inject = Some("drop@450".to_string());
     args.watchdog_ms = 500;
@@ -298,7 +298,7 @@ fn a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check() {
     assert!(fw.enable_pin, "{fw:?}");
     // And the command says so.
     let dir2 = tempfile::tempdir().unwrap();
-    args.run.out = dir2.path().to_path_buf();
+    args.out = dir2.path().to_path_buf();
     let err = pil_command(&args).unwrap_err().to_string();
     assert!(err.contains("NOT SAFE"), "{err}");
 }
@@ -329,7 +329,7 @@ fn the_firmware_refuses_an_unbounded_watchdog_with_a_protocol_fault() {
 
     // The harness refuses it before it starts anything, naming the flag and the range.
     let out = dir.path().join("out");
-    let mut args = PilArgs::new("fig6", &out);
+    let mut args = PilRun::new("fig6", &out);
     args.elf = Some(elf);
     args.watchdog_ms = u32::MAX;
     args.inject = Some("drop@100".to_string());

@@ -13,12 +13,12 @@
 )]
 
 use controller_core::excitation::Waveform;
-use hil_harness::experiments::identify::measure::{
+use machine_workflows::identify::measure::{
     excited_controller, frequency_response_setup, frequency_response_tail, record, Record,
     FREQUENCY_RESPONSE,
 };
-use hil_harness::experiments::identify::{fit_response, load};
-use hil_harness::pil::{build_pil_image, with_firmware, PilArgs, Recorder, TickLog};
+use machine_workflows::identify::{fit_response, load};
+use pil_host::{build_pil_image, with_firmware, PilRun, Recorder, TickLog};
 
 /// The `identify` settings of the shortened run.
 const SETS: [&str; 2] = ["identify.prbs_periods=1", "identify.segment_len=2048"];
@@ -55,7 +55,7 @@ fn the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for
     let host_rec = record(&cfg, &mut host, FREQUENCY_RESPONSE).unwrap();
 
     let dir = tempfile::tempdir().unwrap();
-    let mut args = PilArgs::new("identify", dir.path());
+    let mut args = PilRun::new("identify", dir.path());
     args.elf = Some(build_pil_image().unwrap());
     let (pil_rec, pil_log) = with_firmware(&args, &cfg, Some(&excitation), |fw| {
         let rec = record(&cfg, fw, FREQUENCY_RESPONSE)?;
@@ -116,7 +116,7 @@ fn the_firmware_refuses_a_bad_excitation_with_a_config_fault() {
     };
     assert!(excited_controller(&cfg, &excitation).is_err());
     let dir = tempfile::tempdir().unwrap();
-    let mut args = PilArgs::new("identify", dir.path());
+    let mut args = PilRun::new("identify", dir.path());
     args.elf = Some(build_pil_image().unwrap());
     let mut ran = false;
     let e = with_firmware(&args, &cfg, Some(&excitation), |_| {

@@ -5,7 +5,7 @@
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use hil_harness::{resolve, run_scenario};
+use sim_engine::{resolve, run_scenario};
 
 fn closed_loop(c: &mut Criterion) {
     let mut group = c.benchmark_group("closed_loop");

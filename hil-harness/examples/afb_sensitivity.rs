@@ -3,7 +3,7 @@
 //! ripple result moves with the estimator, and at what frequency the ripple is.
 //!
 //! `cargo run --release -p hil-harness --example afb_sensitivity`
-use hil_harness::{resolve, run_scenario};
+use sim_engine::{resolve, run_scenario};
 
 fn main() {
     println!("pair, observer Hz, AFB corner Hz: ripple with / without AFB (pu), change, ripple frequency with / without (Hz)");

@@ -10,7 +10,7 @@
 //! thousand of the total).
 #![allow(missing_docs)]
 
-use hil_harness::{resolve, run_scenario};
+use sim_engine::{resolve, run_scenario};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {

@@ -1,9 +1,9 @@
 //! Prints the linear model's stability prediction against the nonlinear loop on a grid.
-use hil_harness::experiments::linear::check::check_grid;
-use hil_harness::experiments::sweep::{default_observer_hz, designs};
+use machine_workflows::linear::check::check_grid;
+use machine_workflows::sweep::{default_observer_hz, designs};
 
-fn main() -> hil_harness::Result<()> {
-    let grid = hil_harness::config::sweep_grid()?;
+fn main() -> sim_engine::Result<()> {
+    let grid = sim_engine::config::sweep_grid()?;
     let designs: Vec<_> = designs(&grid, default_observer_hz())
         .into_iter()
         .step_by(6)
@@ -24,7 +24,7 @@ fn main() -> hil_harness::Result<()> {
         }
     }
     println!("{agree} of {} agree", pts.len());
-    let quiet = |p: &hil_harness::experiments::linear::check::CheckPoint| {
+    let quiet = |p: &machine_workflows::linear::check::CheckPoint| {
         p.measured && p.limit_cycle_torque_pu < 0.1
     };
     let agree_q = pts.iter().filter(|p| p.predicted == quiet(p)).count();

@@ -185,11 +185,11 @@ pub struct DesignArgs {
 impl DesignArgs {
     /// The design constraints these arguments set (the rest at their defaults).
     #[must_use]
-    pub fn constraints(&self) -> crate::experiments::tune::Constraints {
-        crate::experiments::tune::Constraints {
+    pub fn constraints(&self) -> machine_workflows::tune::Constraints {
+        machine_workflows::tune::Constraints {
             min_damping: self.min_damping,
             max_noise_pu: self.max_noise_pu,
-            ..crate::experiments::tune::Constraints::default()
+            ..machine_workflows::tune::Constraints::default()
         }
     }
 }

@@ -1,30 +1,13 @@
-//! hil-harness: wires controller-core to plant-host with the real timing (current tick
-//! every 250 µs, velocity tick every 500 µs, computational delay, zero-order hold) and
-//! turns the paper's figures and claims into runs, plots and a report.
-//!
-//! Library entry points: [`engine::runner::run_scenario`] (host controller) and
-//! [`engine::runner::run_with_backend`] with any [`engine::runner::ControlBackend`] (e.g. the firmware
-//! through the PIL link), on a [`config::RunConfig`] from [`config::resolve`].
+//! hil-harness: stiffdrive's command line. [`cli`] parses it and [`dispatch`] hands each
+//! command to the crate that does it: `run`, `replay` and `schema` to `sim-engine`, `pil` to
+//! `pil-host`, `linear`, `tune`, `identify`, `commission`, `sweep`, `stiffness` and `flash`
+//! to `machine-workflows`, `reproduce` and `sec2-map` to `paper-repro`.
 
 pub mod cli;
-pub mod commands;
-pub mod config;
-pub mod engine;
-pub mod error;
-pub mod experiments;
-pub mod flash;
-pub mod output;
 pub mod pil;
-pub mod plot;
-pub mod progress;
-pub mod replay;
-pub mod report;
-
-pub use config::{resolve, RunConfig};
-pub use engine::runner::{run_scenario, run_with_backend, ControlBackend, RunOutput};
-pub use error::{HarnessError, Result};
 
 use clap::Parser;
+use sim_engine::Result;
 use std::process::ExitCode;
 
 /// Entry point of the one command-line binary, the root `stiffdrive` (`cargo run --release
@@ -60,9 +43,9 @@ pub fn main_with_default(default_command: &str) -> ExitCode {
 /// Runs one parsed command; returns the text to print.
 pub fn dispatch(command: cli::Command) -> Result<String> {
     use cli::Command;
-    use experiments::{commission, identify, linear, sec2, stiffness, sweep, tune};
+    use machine_workflows::{commission, identify, linear, stiffness, sweep, tune};
     match command {
-        Command::Run(a) => commands::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
+        Command::Run(a) => sim_engine::run::run(&a.scenario, a.config.as_deref(), &a.set, &a.out),
         Command::Linear(a) => {
             linear::analyze::linear(&a.scenario, a.config.as_deref(), &a.set, &a.out)
         }
@@ -95,16 +78,16 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             Some(c) => stiffness::machine::stiffness_machine(&out, &c, &set),
             None => stiffness::stiffness(&out),
         },
-        Command::Sec2Map { out } => sec2::sec2(&out),
-        Command::Reproduce { out } => report::reproduce(&out),
+        Command::Sec2Map { out } => paper_repro::sec2::sec2(&out),
+        Command::Reproduce { out } => paper_repro::report::reproduce(&out),
         Command::Replay {
             config,
             torque,
             out,
-        } => replay::replay(&config, &torque, &out),
-        Command::Pil(args) => pil::pil_command(&args),
+        } => sim_engine::replay::replay(&config, &torque, &out),
+        Command::Pil(args) => pil_host::pil_command(&args.to_run()),
         Command::Schema { grids, out } => {
-            use config::schema::{write_schema, SchemaOf};
+            use sim_engine::config::schema::{write_schema, SchemaOf};
             let of = if grids {
                 SchemaOf::Grids
             } else {
@@ -112,6 +95,8 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             };
             write_schema(of, &out.unwrap_or_else(|| of.default_out().into()))
         }
-        Command::Flash { config, build_only } => flash::flash(&config, build_only),
+        Command::Flash { config, build_only } => {
+            machine_workflows::flash::flash(&config, build_only)
+        }
     }
 }

@@ -8,7 +8,7 @@
     clippy::panic
 )]
 
-use hil_harness::{resolve, run_scenario};
+use sim_engine::{resolve, run_scenario};
 
 fn shaft_ripple(scenario: &str) -> f64 {
     let cfg = resolve(scenario, None, &[]).expect("scenario resolves");
@@ -25,7 +25,7 @@ fn afb_stiffens_above_the_velocity_bandwidth_and_not_below() {
     let low = [0.3, 1.0, 2.0];
     let high = [20.0, 40.0, 100.0];
     let freqs: Vec<f64> = low.iter().chain(high.iter()).copied().collect();
-    let pts = hil_harness::experiments::stiffness::measure_all(&freqs).unwrap();
+    let pts = machine_workflows::stiffness::measure_all(&freqs).unwrap();
     let ratio = |w: f64| {
         let get = |source: &str| {
             pts.iter()

@@ -251,7 +251,7 @@ fn flash_refuses_a_bad_drive_before_building() {
 /// `summary.json`'s load-step figures are the trace's: the peak shaft torque is the largest
 /// |shaft_torque_pu| from the step on, and the peak droop the largest |e − e₀| there, with
 /// e = command − motor speed and e₀ its mean over the two velocity-bandwidth half periods
-/// before the step (the definition in `hil-harness/src/engine/metrics/response.rs`).
+/// before the step (the definition in `sim-engine/src/engine/metrics/response.rs`).
 #[test]
 fn the_summarys_peak_droop_and_peak_shaft_torque_are_the_traces() {
     let tmp = tempfile::tempdir().unwrap();

@@ -8,7 +8,7 @@
     clippy::panic
 )]
 
-use hil_harness::{resolve, run_scenario, RunOutput};
+use sim_engine::{resolve, run_scenario, RunOutput};
 
 fn run(scenario: &str, sets: &[&str]) -> RunOutput {
     let sets: Vec<String> = sets.iter().map(|s| (*s).to_string()).collect();
@@ -21,7 +21,7 @@ fn mean(
     out: &RunOutput,
     t0: f64,
     t1: f64,
-    f: impl Fn(&hil_harness::engine::trace::TraceRow) -> f64,
+    f: impl Fn(&sim_engine::engine::trace::TraceRow) -> f64,
 ) -> f64 {
     let v: Vec<f64> = out
         .trace
@@ -135,7 +135,7 @@ fn stiff_dyno_loop_is_stable_and_carries_the_shock() {
 /// well below the coupling resonance).
 #[test]
 fn measured_stiffness_matches_eq1_below_the_resonance() {
-    let pts = hil_harness::experiments::stiffness::measure_all(&[1.0, 4.0]).unwrap();
+    let pts = machine_workflows::stiffness::measure_all(&[1.0, 4.0]).unwrap();
     for p in pts.iter().filter(|p| p.source == "none") {
         let rel = p.measured / p.analytic;
         assert!((rel - 1.0).abs() < 0.05, "{p:?}");
@@ -147,7 +147,7 @@ fn measured_stiffness_matches_eq1_below_the_resonance() {
 /// shortened), so a broken scenario or config is caught by `cargo test`.
 #[test]
 fn every_scenario_file_resolves_and_runs() {
-    let names = hil_harness::config::known_scenarios();
+    let names = sim_engine::config::known_scenarios();
     assert!(names.len() >= 16, "{names:?}");
     for name in names {
         let cfg = resolve(&name, None, &[]).expect("scenario resolves");

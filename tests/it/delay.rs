@@ -3,7 +3,7 @@
 //! trace of 250 µs).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use hil_harness::{resolve, run_scenario};
+use sim_engine::{resolve, run_scenario};
 
 fn voltages(delay_s: f64) -> Vec<f64> {
     let sets = vec![

@@ -52,7 +52,7 @@ fn symbol_names(elf: &[u8]) -> Vec<String> {
 #[test]
 fn firmware_images_hold_no_refcell_panic_path() {
     // The images are read while the build lock is held, so no feature build replaces one.
-    let images = hil_harness::pil::with_all_images(|release| {
+    let images = pil_host::with_all_images(|release| {
         let read = |image: &str| {
             let path = release.join(image);
             std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))

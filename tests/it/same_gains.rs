@@ -10,9 +10,9 @@
 )]
 
 use controller_core::Gains;
-use hil_harness::config::borrow_gains;
-use hil_harness::engine::runner::{controller, regulator_gains, same_regulator_gains};
-use hil_harness::{resolve, RunConfig};
+use sim_engine::config::borrow_gains;
+use sim_engine::engine::runner::{controller, regulator_gains, same_regulator_gains};
+use sim_engine::{resolve, RunConfig};
 
 fn bits(g: &Gains) -> [u32; 7] {
     [
@@ -51,7 +51,7 @@ fn every_no_afb_scenario_runs_at_the_gains_of_its_afb_run() {
     let mut pairs = 0;
     for inertia in ["total", "total_plus_afb"] {
         let sets = vec![format!("drive.velocity_pi_inertia={inertia}")];
-        for name in hil_harness::config::known_scenarios() {
+        for name in sim_engine::config::known_scenarios() {
             let off = resolve(&name, None, &sets).unwrap();
             let Some(of) = off.gains_of.clone() else {
                 continue;
@@ -62,10 +62,10 @@ fn every_no_afb_scenario_runs_at_the_gains_of_its_afb_run() {
         }
     }
     assert!(
-        pairs >= 2 * hil_harness::report::COMPARISONS.len(),
+        pairs >= 2 * paper_repro::report::COMPARISONS.len(),
         "{pairs}"
     );
-    for (afb, off) in hil_harness::report::COMPARISONS {
+    for (afb, off) in paper_repro::report::COMPARISONS {
         let cfg = resolve(off, None, &[]).unwrap();
         assert_eq!(
             cfg.gains_of.map(|g| g.source).as_deref(),
@@ -97,12 +97,12 @@ fn borrowed_gains_are_not_the_drives_own_design() {
 /// The stiffness measurement without AFB uses the default AFB design's gains.
 #[test]
 fn stiffness_without_afb_runs_at_the_afb_designs_gains() {
-    let off = hil_harness::experiments::stiffness::stiffness_config(None, &[]).unwrap();
+    let off = machine_workflows::stiffness::stiffness_config(None, &[]).unwrap();
     for source in [
         Some(controller_core::Estimator::Observer),
         Some(controller_core::Estimator::Differentiation),
     ] {
-        let afb = hil_harness::experiments::stiffness::stiffness_config(source, &[]).unwrap();
+        let afb = machine_workflows::stiffness::stiffness_config(source, &[]).unwrap();
         check_pair(&afb, &off, &[]);
     }
 }

@@ -6,8 +6,8 @@
 
 use crate::common;
 
-use hil_harness::experiments::commission::commission;
-use hil_harness::experiments::tune::Constraints;
+use machine_workflows::commission::commission;
+use machine_workflows::tune::Constraints;
 
 /// Table 1's file with another machine: a heavier motor, a lighter load, a stiffer shaft
 /// with less lost motion, an 8192-count encoder.
@@ -80,8 +80,8 @@ fn commissioning_an_unseen_machine_gives_a_stable_design_better_than_no_afb() {
     }
     // The tuned machine file runs with `run --config` as it is.
     let tuned = out.join("tune/drive.toml").display().to_string();
-    let cfg = hil_harness::resolve("fig6", Some(&tuned), &[]).unwrap();
-    assert!(hil_harness::run_scenario(&cfg).unwrap().metrics.stable);
+    let cfg = sim_engine::resolve("fig6", Some(&tuned), &[]).unwrap();
+    assert!(sim_engine::run_scenario(&cfg).unwrap().metrics.stable);
 }
 
 /// A light motor on a 12× load through a 30 Hz, 2 %-damped coupling, 16,384 noisy counts:
@@ -128,10 +128,10 @@ fn commissioning_with_no_design_keeps_the_identification_and_says_what_failed() 
     .unwrap_err();
     assert_eq!(
         err.exit_code(),
-        hil_harness::error::NO_DESIGN_EXIT_CODE,
+        sim_engine::error::NO_DESIGN_EXIT_CODE,
         "{err}"
     );
-    assert_eq!(hil_harness::error::NO_DESIGN_EXIT_CODE, 3);
+    assert_eq!(sim_engine::error::NO_DESIGN_EXIT_CODE, 3);
     let msg = err.to_string();
     assert!(msg.starts_with("no design: "), "{msg}");
     assert!(!msg.contains("bad configuration"), "{msg}");

@@ -7,8 +7,8 @@
 
 use crate::common;
 
-use hil_harness::experiments::commission::commission;
-use hil_harness::experiments::tune::Constraints;
+use machine_workflows::commission::commission;
+use machine_workflows::tune::Constraints;
 
 /// Table 1's file with another machine: motor 0.4 s, load 0.6 s, anti-resonance 180 Hz
 /// (engaged resonance 180·√2.5 ≈ 284.6 Hz), 2 % shaft damping, no lost motion.

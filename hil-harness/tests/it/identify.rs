@@ -4,9 +4,9 @@
 //! anti-resonance and resonance within 3 %, lost motion within one count or 10 %.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::config::{config_path, machine, read_table};
-use hil_harness::experiments::identify::{identify, identify_machine, load, Identification};
+use machine_workflows::identify::{identify, identify_machine, load, Identification};
 use plant_host::MechanicsConfig;
+use sim_engine::config::{config_path, machine, read_table};
 use std::f64::consts::PI;
 
 /// Noise on: 0.5 count RMS on the encoder, 0.01 pu RMS on the current.

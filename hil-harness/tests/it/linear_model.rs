@@ -5,8 +5,8 @@ use controller_core::{
     design, AfbMode, AfbRate, Controller, CurrentInputs, DriveConfig, Estimator, FilterConfig,
     ObserverTorque, Pu, Setpoint, VelocityInputs,
 };
-use hil_harness::experiments::linear::mirror::{Break, Coefficients, Inputs, State};
-use hil_harness::experiments::linear::LoopModel;
+use machine_workflows::linear::mirror::{Break, Coefficients, Inputs, State};
+use machine_workflows::linear::LoopModel;
 use plant_host::analysis::Gears;
 use plant_host::PlantConfig;
 use std::f64::consts::PI;
@@ -215,14 +215,14 @@ fn rigid_body_poles_are_the_pi_roots() {
 #[test]
 fn predicted_stiffness_matches_the_measured() {
     for source in [None, Some(controller_core::Estimator::Observer)] {
-        let cfg = hil_harness::experiments::stiffness::stiffness_config(source, &[]).unwrap();
-        let model = hil_harness::experiments::linear::for_run(&cfg, Gears::Engaged).unwrap();
+        let cfg = machine_workflows::stiffness::stiffness_config(source, &[]).unwrap();
+        let model = machine_workflows::linear::for_run(&cfg, Gears::Engaged).unwrap();
         for w in [1.0, 10.0, 40.0, 100.0, 400.0] {
             let predicted = model.stiffness(&[w / (2.0 * PI)])[0];
-            let measured = hil_harness::experiments::stiffness::measure(source, w)
+            let measured = machine_workflows::stiffness::measure(source, w)
                 .unwrap()
                 .measured;
-            let source = hil_harness::experiments::stiffness::source_name(source);
+            let source = machine_workflows::stiffness::source_name(source);
             eprintln!("{source} {w} rad/s: predicted {predicted:.3}, measured {measured:.3}");
             // 10 % would be enough for design; the model is exact for the linear loop, so 2 %.
             assert!(
@@ -239,8 +239,8 @@ fn predicted_stiffness_matches_the_measured() {
 #[test]
 fn predicted_quantization_noise_matches_the_measured_chatter() {
     use controller_core::{AfbMode, Estimator};
-    use hil_harness::experiments::sweep::{default_observer_hz, designs, point_config, AfbDesign};
-    let grid = hil_harness::config::sweep_grid().unwrap();
+    use machine_workflows::sweep::{default_observer_hz, designs, point_config, AfbDesign};
+    let grid = sim_engine::config::sweep_grid().unwrap();
     let afb = designs(&grid, default_observer_hz())
         .into_iter()
         .find(|d| {
@@ -250,9 +250,9 @@ fn predicted_quantization_noise_matches_the_measured_chatter() {
     for design in [AfbDesign::OFF, afb] {
         for bw in [30.0, 100.0, 250.0] {
             let cfg = point_config("dyno", &design, bw, &[]).unwrap();
-            let model = hil_harness::experiments::linear::for_run(&cfg, Gears::Engaged).unwrap();
+            let model = machine_workflows::linear::for_run(&cfg, Gears::Engaged).unwrap();
             let predicted = model.quantization_torque_rms();
-            let out = hil_harness::run_scenario(&cfg).unwrap();
+            let out = sim_engine::run_scenario(&cfg).unwrap();
             let window: Vec<f64> = out
                 .trace
                 .rows
@@ -285,12 +285,12 @@ fn predicted_quantization_noise_matches_the_measured_chatter() {
 /// and the default AFB raises the smallest damping with the gears engaged.
 #[test]
 fn fig6_linear_analysis() {
-    let with = hil_harness::experiments::linear::analyze::analyze(
-        &hil_harness::resolve("fig6", None, &[]).unwrap(),
+    let with = machine_workflows::linear::analyze::analyze(
+        &sim_engine::resolve("fig6", None, &[]).unwrap(),
     )
     .unwrap();
-    let without = hil_harness::experiments::linear::analyze::analyze(
-        &hil_harness::resolve("fig6-no-afb", None, &[]).unwrap(),
+    let without = machine_workflows::linear::analyze::analyze(
+        &sim_engine::resolve("fig6-no-afb", None, &[]).unwrap(),
     )
     .unwrap();
     for a in [&with, &without] {

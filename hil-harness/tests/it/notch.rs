@@ -4,9 +4,9 @@
 //! them.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::engine::trace::TraceRow;
-use hil_harness::experiments::linear::Break;
-use hil_harness::RunConfig;
+use machine_workflows::linear::Break;
+use sim_engine::engine::trace::TraceRow;
+use sim_engine::RunConfig;
 
 /// The machine: Table 1's file with equal motor and load inertia (their sum is Table 1's),
 /// a stiff shaft (anti-resonance 212 Hz, so the engaged resonance is 212·√2 ≈ 300 Hz) with
@@ -43,7 +43,7 @@ fn resonance_hz(cfg: &RunConfig) -> f64 {
 fn resolve(extra: &[String]) -> RunConfig {
     let mut sets: Vec<String> = MACHINE.iter().map(|s| s.to_string()).collect();
     sets.extend_from_slice(extra);
-    hil_harness::resolve("fig6", None, &sets).unwrap()
+    sim_engine::resolve("fig6", None, &sets).unwrap()
 }
 
 /// The largest amplitude of the shaft torque's components from `lo` to `hi` Hz (1 Hz steps)
@@ -87,7 +87,7 @@ fn a_resonance_the_pi_excites_is_damped_with_the_notch_in() {
     assert!(plain.drive.notch.is_none() && notched.drive.notch.is_some());
     let mut figures = Vec::new();
     for cfg in [&plain, &notched] {
-        let out = hil_harness::run_scenario(cfg).unwrap();
+        let out = sim_engine::run_scenario(cfg).unwrap();
         let m = &out.metrics;
         assert!(!m.faulted, "{:?}", cfg.drive.notch);
         // From the end of the ramp to the end of the run, ±20 % about the resonance.
@@ -117,7 +117,7 @@ fn a_resonance_the_pi_excites_is_damped_with_the_notch_in() {
 fn notch_errors_name_the_key_and_the_range() {
     let run = |sets: &[&str]| {
         let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-        hil_harness::resolve("fig6", None, &sets)
+        sim_engine::resolve("fig6", None, &sets)
     };
     let ok = [
         "drive.notch.centre_hz=65",
@@ -165,8 +165,7 @@ fn notch_errors_name_the_key_and_the_range() {
 /// linear model of `cfg` with the gears engaged.
 fn loop_gain(cfg: &RunConfig, hz: f64) -> num_complex::Complex<f64> {
     let model =
-        hil_harness::experiments::linear::for_run(cfg, plant_host::analysis::Gears::Engaged)
-            .unwrap();
+        machine_workflows::linear::for_run(cfg, plant_host::analysis::Gears::Engaged).unwrap();
     model.loop_gain(Break::VelocityRegulator, &[hz])[0]
 }
 
@@ -204,9 +203,8 @@ fn the_linear_model_has_the_notch_in_the_torque_path() {
         }
     }
     let a =
-        hil_harness::experiments::linear::analyze::analyze(&notch("drive.velocity_rate_hz=2000"))
-            .unwrap();
-    let b = hil_harness::experiments::linear::analyze::analyze(&resolve(&[])).unwrap();
+        machine_workflows::linear::analyze::analyze(&notch("drive.velocity_rate_hz=2000")).unwrap();
+    let b = machine_workflows::linear::analyze::analyze(&resolve(&[])).unwrap();
     eprintln!(
         "engaged spectral radius {:.5} with the notch, {:.5} without; smallest damping {:.4}, {:.4}",
         a.engaged.spectral_radius,

@@ -5,7 +5,7 @@
 
 use crate::common;
 
-use hil_harness::experiments::tune::{candidates, search, without_afb, Candidate, Constraints};
+use machine_workflows::tune::{candidates, search, without_afb, Candidate, Constraints};
 
 /// Table 1's file with another machine: heavier, softer, more lost motion, a finer encoder.
 fn other_machine(dir: &std::path::Path) -> String {
@@ -24,7 +24,7 @@ fn other_machine(dir: &std::path::Path) -> String {
 fn tune_on_a_machine_it_was_not_written_for() {
     let dir = tempfile::tempdir().unwrap();
     let config = other_machine(dir.path());
-    let grid = candidates(&hil_harness::config::tune_grid().unwrap(), &[60.0]);
+    let grid = candidates(&sim_engine::config::tune_grid().unwrap(), &[60.0]);
     let k = Constraints::default();
     let with = search(&config, &grid, &k).unwrap();
     let without = search(&config, &without_afb(&grid), &k).unwrap();
@@ -34,9 +34,9 @@ fn tune_on_a_machine_it_was_not_written_for() {
         with.design
     );
     let ripple = |c: &Candidate| {
-        let mut cfg = hil_harness::resolve("fig6", Some(&config), &[]).unwrap();
+        let mut cfg = sim_engine::resolve("fig6", Some(&config), &[]).unwrap();
         c.apply(&mut cfg.drive);
-        hil_harness::run_scenario(&cfg).unwrap().metrics
+        sim_engine::run_scenario(&cfg).unwrap().metrics
     };
     let (a, b) = (
         ripple(&with.design.candidate),
@@ -60,13 +60,9 @@ fn tune_on_a_machine_it_was_not_written_for() {
 fn a_step_response_without_an_oscillatory_mode_is_reported_not_an_error() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("press");
-    let line = hil_harness::experiments::tune::tune(
-        "printing-press",
-        Some(30.0),
-        &Constraints::default(),
-        &out,
-    )
-    .unwrap();
+    let line =
+        machine_workflows::tune::tune("printing-press", Some(30.0), &Constraints::default(), &out)
+            .unwrap();
     eprintln!("{line}");
     assert!(line.contains("no decaying oscillatory mode"), "{line}");
     let md = std::fs::read_to_string(out.join("tune.md")).unwrap();

@@ -4,10 +4,10 @@
 //! figures are the runs' figures.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::experiments::tune::machines::{tune_into, Bandwidth};
-use hil_harness::experiments::tune::pair::afb_passes;
-use hil_harness::experiments::tune::Constraints;
-use hil_harness::report::tune::section;
+use machine_workflows::tune::machines::{tune_into, Bandwidth};
+use machine_workflows::tune::pair::afb_passes;
+use machine_workflows::tune::Constraints;
+use paper_repro::report::tune::section;
 use std::time::Instant;
 
 #[test]
@@ -18,7 +18,7 @@ fn the_tune_section_is_built_from_the_dyno_runs() {
     let tunes = tune_into(dir.path(), &["dyno"], Bandwidth::FromConfig, &k).unwrap();
     eprintln!("tuned in {:.1} s", t0.elapsed().as_secs_f64());
     let t = &tunes[0];
-    let cfg = hil_harness::resolve("fig6", Some("dyno"), &[]).unwrap();
+    let cfg = sim_engine::resolve("fig6", Some("dyno"), &[]).unwrap();
     let own = f64::from(cfg.drive.velocity_bandwidth_rad_s);
     assert_eq!(t.target_bandwidth_rad_s, Some(own));
     assert_eq!(t.with.candidate.bandwidth_rad_s, own);

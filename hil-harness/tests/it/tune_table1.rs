@@ -4,8 +4,8 @@
 //! (gears engaged throughout, torque below its limit) against the model's smallest damping.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use hil_harness::experiments::linear::for_gains;
-use hil_harness::experiments::tune::{damping, tune, Constraints, DAMPING_TOLERANCE};
+use machine_workflows::linear::for_gains;
+use machine_workflows::tune::{damping, tune, Constraints, DAMPING_TOLERANCE};
 use plant_host::analysis::Gears;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -52,8 +52,8 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
 
     // `run --scenario fig6 --config DIR/drive.toml` is stable, with the tuned drive.
     let config = out.join("drive.toml").display().to_string();
-    let cfg = hil_harness::resolve("fig6", Some(&config), &[]).unwrap();
-    let m = hil_harness::run_scenario(&cfg).unwrap().metrics;
+    let cfg = sim_engine::resolve("fig6", Some(&config), &[]).unwrap();
+    let m = sim_engine::run_scenario(&cfg).unwrap().metrics;
     assert!(m.stable && !m.faulted, "{m:?}");
     assert_eq!(
         f64::from(cfg.drive.velocity_bandwidth_rad_s),
@@ -99,8 +99,8 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
         "sensors.encoder_interpolation=4".to_string(),
         "drive.faults.following_error_counts=16384".to_string(),
     ];
-    let fine = hil_harness::resolve("fig6", Some(&config), &sets).unwrap();
-    let gains = hil_harness::engine::runner::regulator_gains(&fine).unwrap();
+    let fine = sim_engine::resolve("fig6", Some(&config), &sets).unwrap();
+    let gains = sim_engine::engine::runner::regulator_gains(&fine).unwrap();
     let model = for_gains(&fine, &gains, Gears::Engaged).unwrap();
     let fit = damping::measure(&fine, &model).unwrap();
     eprintln!(

@@ -1,0 +1,266 @@
+//! `hil-harness commission --config CFG --out DIR`: from measurement to a verified design,
+//! as a drive engineer commissions a machine whose parameters nobody gave them.
+//!
+//! 1. **Identify** the machine of `CFG` in the closed loop ([`super::identify`]): the
+//!    estimator reads only the recorded signals. `DIR/identify/` gets its files.
+//! 2. **The identified machine file**, `DIR/identified.toml`: `CFG` (with `--set` applied)
+//!    with its `[plant]` table replaced by the identified one. Everything the drive knows of
+//!    the machine now comes from the measurement.
+//! 3. **Tune** on the identified file ([`super::tune`]), with AFB (`DIR/tune/`), and the
+//!    no-AFB design by the same constraints, for the comparison ([`tune::pair`]).
+//!    **The automatic notch** ([`notch`]): when no candidate meets the constraints because
+//!    the least-damped mode of the best one is the identified resonance, a notch is placed
+//!    on it, `DIR/notched.toml` is `identified.toml` with that `[drive.notch]`, and both
+//!    designs are tuned on it instead (so `tune/drive.toml` carries the notch). Otherwise
+//!    nothing changes.
+//! 4. **Verify on the machine itself**: both drives run `fig6` (a move with a load step)
+//!    against the plant of `CFG`, not the identified one. The commissioning passes by
+//!    [`tune::pair::CRITERION`] (the AFB design is stable, does not fault, and leaves less
+//!    shaft-torque ripple after the load step than the no-AFB design) and, with a notch
+//!    placed, by [`NOTCH_CRITERION`] (less ripple than the same AFB design with the notch
+//!    taken out, run too for the comparison). `DIR/commission.md` and
+//!    `DIR/commission.json` hold the figures and the notch decision with its reason; the
+//!    command fails (after writing them) when it does not pass.
+//!
+//! Everything is staged: on an error before the verification nothing is written.
+
+mod no_design;
+pub mod notch;
+mod write;
+
+use crate::identify::{self, lost_motion::identified_mechanics};
+use crate::tune::{self, Constraints, Tuned};
+use controller_core::NotchConfig;
+use notch::Decision;
+use sim_engine::config::{config_path, overrides, read_table, resolve, RunConfig};
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
+use std::path::Path;
+use toml::{Table, Value};
+
+/// The verification of one drive on the machine itself.
+pub use crate::tune::pair::LoopRun as OnMachine;
+
+/// The second criterion with a notch placed, fixed before any run.
+pub const NOTCH_CRITERION: &str =
+    "less shaft-torque ripple than the same AFB design with the notch taken out";
+
+/// What `commission` found.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Commissioning {
+    /// The machine file.
+    pub config: String,
+    /// The AFB design and the no-AFB design, verified on the machine.
+    pub runs: [OnMachine; 2],
+    /// Whether a notch was placed, where and why ([`notch`]).
+    pub notch: Decision,
+    /// With a notch placed: the AFB design with the notch taken out, on the machine.
+    pub without_notch: Option<OnMachine>,
+    /// The AFB design passed (stable, no fault, less ripple than the no-AFB design and,
+    /// with a notch placed, than itself without the notch).
+    pub passed: bool,
+}
+
+/// `CFG` with `sets` applied and its `[plant]` table replaced by the identified one.
+fn identified_doc(
+    config: &str,
+    sets: &[String],
+    base: &RunConfig,
+    ident: &identify::Identification,
+) -> Result<Table> {
+    let mut doc = read_table(&config_path(config)?)?;
+    overrides::apply_all(&mut doc, sets)?;
+    // The measurement's own settings are not part of the machine.
+    doc.remove("identify");
+    let plant = identified_mechanics(base, &ident.fit.fit, ident.lost_motion.backlash_deg);
+    let table = Value::try_from(plant)
+        .map_err(|e| HarnessError::Backend(format!("identified.toml: {e}")))?;
+    doc.insert("plant".into(), table);
+    Ok(doc)
+}
+
+/// A machine file's text: the comment line `header`, then `doc`.
+fn render(name: &str, header: &str, doc: &Table) -> Result<String> {
+    let body = toml::to_string(doc).map_err(|e| HarnessError::Backend(format!("{name}: {e}")))?;
+    Ok(format!("# `hil-harness commission`: {header}\n{body}"))
+}
+
+/// `doc` with `[drive.notch]` set to `notch`.
+fn with_notch(mut doc: Table, notch: &NotchConfig) -> Result<Table> {
+    let table =
+        Value::try_from(notch).map_err(|e| HarnessError::Backend(format!("notched.toml: {e}")))?;
+    if let Value::Table(d) = doc
+        .entry("drive")
+        .or_insert_with(|| Value::Table(Table::new()))
+    {
+        d.insert("notch".into(), table);
+    }
+    Ok(doc)
+}
+
+/// The drive of the file it was tuned on (`identified.toml`, or `notched.toml` with a notch
+/// placed) on the plant of the machine file `config` with `sets`: where the designs are
+/// verified, resolved once for all of them.
+fn verification_base(config: &str, sets: &[String], tuned_on: &str) -> Result<RunConfig> {
+    let scenario = "fig6";
+    let mut cfg = resolve(scenario, Some(tuned_on), &[])?;
+    let machine = resolve(scenario, Some(config), sets)?;
+    cfg.plant = machine.plant;
+    cfg.config_path = machine.config_path;
+    Ok(cfg)
+}
+
+/// `design`'s drive (`strip_notch`: with its notch taken out) on `base`
+/// ([`verification_base`]).
+fn on_machine(
+    base: &RunConfig,
+    label: &'static str,
+    design: &tune::Candidate,
+    strip_notch: bool,
+) -> Result<OnMachine> {
+    let mut cfg = base.clone();
+    if strip_notch {
+        cfg.drive.notch = None;
+    }
+    OnMachine::run(cfg, label, design)
+}
+
+/// Identifies the machine into the staging directory: `identify/` and `identified.toml`
+/// (steps 1 and 2); returns the identification, the file's tree and its path.
+fn identify_into(
+    staging: &Staging,
+    config: &str,
+    sets: &[String],
+) -> Result<(RunConfig, identify::Identification, Table, String)> {
+    let (base, spec) = identify::load(config, sets)?;
+    let ident = identify::identify_machine(&base, &spec)?;
+    let id_md = staging.path("identify/identify.md")?;
+    identify::write::write_all(
+        id_md.parent().unwrap_or(staging.dir()),
+        &base,
+        &spec,
+        &ident,
+    )?;
+    let doc = identified_doc(config, sets, &base, &ident)?;
+    let header = format!(
+        "{} with the [plant] table `identify` measured.",
+        base.config_path.display()
+    );
+    let text = render("identified.toml", &header, &doc)?;
+    let path = staging.write("identified.toml", &text)?;
+    Ok((base, ident, doc, path.display().to_string()))
+}
+
+/// `hil-harness commission`.
+pub fn commission(
+    config: &str,
+    sets: &[String],
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+    out: &Path,
+) -> Result<String> {
+    let grid = sim_engine::config::tune_grid()?;
+    let bws = tune::bandwidths(&grid, target_bandwidth)?;
+    let staging = Staging::new(out)?;
+    let (base, ident, doc, identified) = identify_into(&staging, config, sets)?;
+    let judged = tune::judge_grid(&identified, &tune::candidates(&grid, &bws), constraints)?;
+    let fig6 = resolve("fig6", Some(&identified), &[])?;
+    let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
+    let all_judged = judged.clone();
+    let (tuned_on, name, judged) = match &decision.notch {
+        None => (identified, "identified.toml", Some(judged)),
+        Some(n) => {
+            let header = format!(
+                "identified.toml with the notch commission placed ({}).",
+                decision.reason
+            );
+            let text = render("notched.toml", &header, &with_notch(doc, n)?)?;
+            let path = staging.write("notched.toml", &text)?;
+            (path.display().to_string(), "notched.toml", None)
+        }
+    };
+    let pair = match tune::pair::design_both_from(&tuned_on, judged, target_bandwidth, constraints)
+    {
+        Ok(p) => p,
+        Err(HarnessError::NoDesign(reason)) => {
+            // The identification stands on its own: keep it, say what failed, and exit
+            // with the no-design code.
+            let md = no_design::markdown(
+                &base.config_path.display().to_string(),
+                &all_judged,
+                constraints,
+                &reason,
+            );
+            staging.write("commission.md", &md)?;
+            staging.commit()?;
+            return Err(HarnessError::NoDesign(format!(
+                "{reason}; the identification is in {} (identify/, identified.toml), the \
+                 closest designs and what each misses in {}",
+                out.display(),
+                out.join("commission.md").display()
+            )));
+        }
+        Err(e) => return Err(e),
+    };
+    let (mut with, without) = (pair.with, pair.without.result);
+    with.result.config = name.into();
+    let tune_md = staging.path("tune/tune.md")?;
+    tune::write_design(tune_md.parent().unwrap_or(staging.dir()), &with)?;
+
+    let m = verification_base(config, sets, &tuned_on)?;
+    let design = &with.result.design.candidate;
+    let runs = [
+        on_machine(&m, "tuned with AFB", design, false)?,
+        on_machine(&m, "tuned without AFB", &without.design.candidate, false)?,
+    ];
+    let without_notch = match decision.notch {
+        Some(_) => Some(on_machine(
+            &m,
+            "tuned with AFB, notch taken out",
+            design,
+            true,
+        )?),
+        None => None,
+    };
+    let [a, b] = &runs;
+    let passed = tune::pair::afb_passes(a, b)
+        && without_notch
+            .as_ref()
+            .is_none_or(|n| a.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu);
+    let c = Commissioning {
+        config: base.config_path.display().to_string(),
+        runs,
+        notch: decision,
+        without_notch,
+        passed,
+    };
+    write::write_all(&staging, &c, &base, &ident, &with)?;
+    staging.commit()?;
+    finish(&c, &with, out)
+}
+
+/// The command's line, or its error when the commissioning did not pass.
+fn finish(c: &Commissioning, with: &Tuned, out: &Path) -> Result<String> {
+    let notch = c.notch.notch.map_or_else(
+        || "no notch".to_string(),
+        |n| format!("notch at {:.1} Hz", n.centre_hz),
+    );
+    let line = format!(
+        "commission {}: {}; {notch}; on the machine: ripple {:.4} pu with AFB ({}), {:.4} pu \
+         without ({}) -> {}",
+        c.config,
+        tune::summary_line(with, &out.join("tune")),
+        c.runs[0].shaft_torque_ripple_rms_pu,
+        c.runs[0].verdict(),
+        c.runs[1].shaft_torque_ripple_rms_pu,
+        c.runs[1].verdict(),
+        out.display()
+    );
+    if c.passed {
+        Ok(line)
+    } else {
+        Err(HarnessError::Backend(format!(
+            "{line}: the AFB design did not pass on the machine (commission.md)"
+        )))
+    }
+}

@@ -1,0 +1,149 @@
+//! `commission.md` and `commission.json`.
+
+use super::Commissioning;
+use crate::identify::{write::estimates, Identification};
+use crate::tune::Tuned;
+use sim_engine::config::RunConfig;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::output::Staging;
+use std::fmt::Write as _;
+
+/// The simulated machine's own value of an identified `[plant]` key (a real machine has
+/// none: it is shown only to judge the measurement).
+fn file_value(base: &RunConfig, name: &str) -> Option<f64> {
+    let m = &base.plant.mechanics;
+    match name {
+        "motor_inertia_s" => Some(m.motor_inertia_s),
+        "load_inertia_s" => Some(m.load_inertia_s),
+        "anti_resonance_hz" => Some(m.anti_resonance_hz),
+        "shaft_damping_ratio" => Some(m.shaft_damping_ratio),
+        "backlash_deg" => Some(m.backlash_deg),
+        _ => None,
+    }
+}
+
+fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &Tuned) -> String {
+    let mut md = format!(
+        "# Commissioning of {}\n\n## 1. Identified ([identify/identify.md](identify/identify.md))\n\n\
+         | parameter | identified | standard error | the simulated machine's file | unit |\n\
+         |---|---|---|---|---|\n",
+        c.config
+    );
+    for e in estimates(base, ident) {
+        let truth = file_value(base, e.name).map_or_else(|| "-".into(), |v| format!("{v:.6}"));
+        let _ = writeln!(
+            md,
+            "| {} | {:.6} | {:.2e} | {truth} | {} |",
+            e.name, e.value, e.std_error, e.unit
+        );
+    }
+    let d = &with.result.design;
+    let _ = write!(
+        md,
+        "\n`identified.toml` is the machine file with that `[plant]` table.\n\n{}\
+         ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
+         {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin {:.1} deg, gain \
+         margin {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the \
+         identified machine file with that drive.\n\n\
+         ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
+         | {} \n|{}\n",
+        notch_text(c),
+        d.candidate.bandwidth_rad_s,
+        d.candidate.afb.label(),
+        d.damping[0],
+        d.notch_band_damping.map_or_else(String::new, |b| format!(
+            " outside the notch's band and {b:.4} inside it (the resonance left to the \
+             machine: at least {:.0} % of its own damping)",
+            100.0 * crate::tune::NOTCH_BAND_DAMPING_SHARE
+        )),
+        d.margins[0],
+        d.margins[1],
+        d.noise_pu,
+        super::OnMachine::HEADER,
+        super::OnMachine::RULE,
+    );
+    for r in c.runs.iter().chain(&c.without_notch) {
+        let _ = writeln!(md, "|{}", r.row());
+    }
+    for line in c
+        .runs
+        .iter()
+        .chain(&c.without_notch)
+        .filter_map(super::OnMachine::moved_by_verdict)
+    {
+        let _ = writeln!(md, "\n{line}.");
+    }
+    let _ = writeln!(
+        md,
+        "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).\n\n{}",
+        if c.passed { "Passed" } else { "Failed" },
+        crate::tune::pair::CRITERION,
+        super::NOTCH_CRITERION,
+        if c.passed {
+            "The drive to flash is `tune/drive.toml` (`cargo run --release -- flash \
+             --config DIR/tune/drive.toml`)."
+        } else {
+            "`tune/drive.toml` did not pass on the machine: do not flash it."
+        }
+    );
+    md
+}
+
+/// The notch section: whether one was placed, why (the figures of the best candidate
+/// without it) and where.
+fn notch_text(c: &Commissioning) -> String {
+    let d = &c.notch;
+    let mut s = format!(
+        "## Notch\n\n{}: {}.\n",
+        if d.notch.is_some() {
+            "**A notch was placed**"
+        } else {
+            "No notch was placed"
+        },
+        d.reason
+    );
+    if let Some(t) = &d.trigger {
+        let _ = write!(
+            s,
+            "\nWithout a notch, {} of {} candidates met the constraints. The best damped \
+             ({} rad/s, {}): smallest damping {:.3} (floor {:.2}) at {:.1} Hz; phase margin \
+             {:.1} deg, gain margin {:.1} dB. Identified resonance: {:.1} Hz.\n",
+            t.feasible,
+            t.judged,
+            t.bandwidth_rad_s,
+            t.afb,
+            t.least_damped.0,
+            t.min_damping,
+            t.least_damped.1,
+            t.margins[0],
+            t.margins[1],
+            t.resonance_hz
+        );
+    }
+    if let Some(n) = &d.notch {
+        let _ = write!(
+            s,
+            "\n`[drive.notch]`: centre {:.2} Hz, width {:.2} Hz, depth {:.1} dB \
+             ([notched.toml](notched.toml); both designs below are tuned on it, and \
+             `tune/drive.toml` carries it). On the machine, the AFB design is also run with \
+             the notch taken out (last row below).\n",
+            n.centre_hz, n.width_hz, n.depth_db
+        );
+    }
+    s + "\n"
+}
+
+/// Writes `commission.md` and `commission.json` into the staging directory.
+pub fn write_all(
+    staging: &Staging,
+    c: &Commissioning,
+    base: &RunConfig,
+    ident: &Identification,
+    with: &Tuned,
+) -> Result<()> {
+    staging.write("commission.md", &markdown(c, base, ident, with))?;
+    let json = serde_json::to_string_pretty(c)
+        .map_err(|e| HarnessError::Backend(format!("commission.json: {e}")))?;
+    staging.write("commission.json", &(json + "\n"))?;
+    Ok(())
+}

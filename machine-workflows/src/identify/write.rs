@@ -1,0 +1,263 @@
+//! The files of `identify`: `plant.toml` (the `[plant]` table of a machine file),
+//! `identify.json` (each estimate with its standard error), `identify.md` and the Bode plot
+//! `bode.png|svg` (measured and fitted).
+
+use super::lost_motion::identified_mechanics;
+use super::spec::IdentifySpec;
+use super::Identification;
+use plant_host::MechanicsConfig;
+use serde::Serialize;
+use sim_engine::config::RunConfig;
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::plot::{save, Figure, Legend, Panel, Series};
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// One estimate.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Estimate {
+    /// Parameter (the `[plant]` key where there is one).
+    pub name: &'static str,
+    /// The estimate.
+    pub value: f64,
+    /// Its standard error (same unit; `null` where none is available).
+    pub std_error: f64,
+    /// Unit.
+    pub unit: &'static str,
+}
+
+/// `identify.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Report<'a> {
+    /// The machine file.
+    pub config: String,
+    /// The estimates.
+    pub estimates: Vec<Estimate>,
+    /// The fit's weighted RMS residual (about 1 when the model explains the data).
+    pub fit_weighted_rms: f64,
+    /// Frequency bins the fit used.
+    pub fit_bins: usize,
+    /// Welch segments averaged.
+    pub segments: usize,
+    /// Length of the record \[s\].
+    pub record_s: f64,
+    /// RMS torque-reference mismatch of the lost-motion fit \[pu\].
+    pub lost_motion_rms_mismatch_pu: f64,
+    /// The measurement settings.
+    pub settings: &'a IdentifySpec,
+}
+
+/// The estimates with their standard errors. The resonance's error is propagated from
+/// f_r = f_ar·√(1 + Jl/Jm), the parameters' correlations left out.
+pub fn estimates(base: &RunConfig, ident: &Identification) -> Vec<Estimate> {
+    let (f, e) = (&ident.fit.fit, &ident.fit.std_error);
+    let (jm, jl) = (f.motor_inertia_s, f.load_inertia_s);
+    let share = 0.5 * jl / (jm + jl);
+    let rel_r = ((e.anti_resonance_hz / f.anti_resonance_hz).powi(2)
+        + share.powi(2) * ((e.motor_inertia_s / jm).powi(2) + (e.load_inertia_s / jl).powi(2)))
+    .sqrt();
+    let lm = &ident.lost_motion;
+    let counts_per_deg = f64::from(base.drive.encoder_cpr) / 360.0;
+    let est = |name, value, std_error, unit| Estimate {
+        name,
+        value,
+        std_error,
+        unit,
+    };
+    vec![
+        est("motor_inertia_s", jm, e.motor_inertia_s, "s"),
+        est("load_inertia_s", jl, e.load_inertia_s, "s"),
+        est(
+            "anti_resonance_hz",
+            f.anti_resonance_hz,
+            e.anti_resonance_hz,
+            "Hz",
+        ),
+        est(
+            "resonance_hz",
+            f.resonance_hz(),
+            f.resonance_hz() * rel_r,
+            "Hz",
+        ),
+        est(
+            "shaft_damping_ratio",
+            f.shaft_damping_ratio,
+            e.shaft_damping_ratio,
+            "1",
+        ),
+        est(
+            "viscous_pu",
+            f.viscous_pu,
+            e.viscous_pu,
+            "pu torque per pu speed",
+        ),
+        est("delay_s", f.delay_s, e.delay_s, "s"),
+        est("backlash_deg", lm.backlash_deg, lm.std_error_deg, "deg"),
+        est(
+            "backlash_counts",
+            lm.backlash_deg * counts_per_deg,
+            lm.std_error_deg * counts_per_deg,
+            "counts",
+        ),
+    ]
+}
+
+/// `plant.toml`: the identified `[plant]` table.
+#[derive(Serialize)]
+struct PlantFile {
+    plant: MechanicsConfig,
+}
+
+fn plant_toml(base: &RunConfig, ident: &Identification) -> Result<String> {
+    let plant = identified_mechanics(base, &ident.fit.fit, ident.lost_motion.backlash_deg);
+    let body = toml::to_string(&PlantFile { plant })
+        .map_err(|e| HarnessError::Backend(format!("plant.toml: {e}")))?;
+    Ok(format!(
+        "# Identified by `hil-harness identify` from {} (base speed and encoder: the drive's).\n\
+         # Only Bm + Bl shows in motor-side data; it is split evenly here.\n{body}",
+        base.config_path.display()
+    ))
+}
+
+/// The Bode plot: measured |θm/Tm| and phase (bins with γ² ≥ min_coherence as markers),
+/// the fitted model as a line, and the coherence.
+fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
+    let r = &ident.response;
+    let used = |i: usize| {
+        r.coherence.get(i).is_some_and(|&g| g >= spec.min_coherence)
+            && r.freq_hz.get(i).is_some_and(|&f| f <= spec.max_freq_hz)
+    };
+    let pick = |g: &dyn Fn(usize, f64) -> f64| -> Vec<(f64, f64)> {
+        r.freq_hz
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| used(*i))
+            .map(|(i, &f)| (f, g(i, f)))
+            .collect()
+    };
+    let model = |_: usize, f: f64| ident.fit.fit.response(f, wb);
+    let meas = |i: usize, _| r.h.get(i).copied().unwrap_or_default();
+    let deg = |h: nalgebra::Complex<f64>| h.arg().to_degrees();
+    let panel = |title: &str, y: &str, series, log_y| Panel {
+        title: title.into(),
+        y_label: y.into(),
+        series,
+        log_x: true,
+        log_y,
+        legend: Legend::LowerLeft,
+    };
+    Figure {
+        x_label: "frequency (Hz)".into(),
+        panels: vec![
+            panel(
+                "motor position / motor torque: magnitude",
+                "rad per pu torque",
+                vec![
+                    Series::markers("measured", pick(&|i, f| meas(i, f).norm())),
+                    Series::line("fitted", pick(&|i, f| model(i, f).norm())),
+                ],
+                true,
+            ),
+            panel(
+                "phase",
+                "deg",
+                vec![
+                    Series::markers("measured", pick(&|i, f| deg(meas(i, f)))),
+                    Series::line("fitted", pick(&|i, f| deg(model(i, f)))),
+                ],
+                false,
+            ),
+            panel(
+                "coherence",
+                "coherence",
+                vec![Series::markers(
+                    "coherence",
+                    r.freq_hz
+                        .iter()
+                        .zip(&r.coherence)
+                        .map(|(&f, &g)| (f, g))
+                        .collect(),
+                )],
+                false,
+            ),
+        ],
+    }
+}
+
+fn markdown(
+    base: &RunConfig,
+    spec: &IdentifySpec,
+    ident: &Identification,
+    est: &[Estimate],
+) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Identification of {}\n", base.config_path.display());
+    let _ = writeln!(
+        md,
+        "Frequency response θm/Tm from a PRBS of ±{} pu on the torque reference ({} bits, \
+         {} periods, {:.1} s used after {} s settling) under a {} pu rig preload; H1 with \
+         Welch averaging over {} segments of {} samples, the excitation as the instrument. \
+         Fit over {} bins with coherence ≥ {} up to {} Hz (weighted RMS residual {:.2}). \
+         Lost motion from the reversal test (±{} pu rig torque reversed every {} s), fitted \
+         by simulating the test on the identified model ({} simulations, RMS torque \
+         mismatch {:.4} pu).\n",
+        spec.amplitude_pu,
+        spec.prbs_bits,
+        spec.prbs_periods,
+        ident.record_s,
+        spec.settle_s,
+        spec.preload_pu,
+        ident.response.segments,
+        spec.segment_len,
+        ident.fit.bins,
+        spec.min_coherence,
+        spec.max_freq_hz,
+        ident.fit.weighted_rms,
+        spec.reversal_torque_pu,
+        spec.reversal_hold_s,
+        ident.lost_motion.evaluations,
+        ident.lost_motion.rms_mismatch_pu,
+    );
+    md.push_str("| parameter | estimate | standard error | unit |\n|---|---|---|---|\n");
+    for e in est {
+        let _ = writeln!(
+            md,
+            "| {} | {:.6} | {:.2e} | {} |",
+            e.name, e.value, e.std_error, e.unit
+        );
+    }
+    md.push_str("\n![Bode plot: measured and fitted](bode.png)\n\n`plant.toml` holds the `[plant]` table; `identify.json` every estimate.\n");
+    md
+}
+
+/// Writes every file into `dir` (a staging directory).
+pub fn write_all(
+    dir: &Path,
+    base: &RunConfig,
+    spec: &IdentifySpec,
+    ident: &Identification,
+) -> Result<()> {
+    let est = estimates(base, ident);
+    let put = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|e| HarnessError::io(&path, e))
+    };
+    put("plant.toml", &plant_toml(base, ident)?)?;
+    let report = Report {
+        config: base.config_path.display().to_string(),
+        estimates: est.clone(),
+        fit_weighted_rms: ident.fit.weighted_rms,
+        fit_bins: ident.fit.bins,
+        segments: ident.response.segments,
+        record_s: ident.record_s,
+        lost_motion_rms_mismatch_pu: ident.lost_motion.rms_mismatch_pu,
+        settings: spec,
+    };
+    let json = serde_json::to_string_pretty(&report)
+        .map_err(|e| HarnessError::io(dir.join("identify.json"), e))?;
+    put("identify.json", &(json + "\n"))?;
+    put("identify.md", &markdown(base, spec, ident, &est))?;
+    let wb = f64::from(base.drive.base_speed_rpm) * std::f64::consts::TAU / 60.0;
+    save(&bode(ident, spec, wb), &dir.join("bode"))?;
+    Ok(())
+}

@@ -1,0 +1,219 @@
+//! What `tune` writes: `drive.toml`, the input machine file with the `[drive]` keys the
+//! design changed (so `run --config`, `flash --config` and the firmware build's
+//! `STIFFDRIVE_DRIVE` take it as it is), and `tune.md`, which shows the whole tuned
+//! `controller_core::DriveConfig` as its `[drive]` table.
+
+use super::damping::StepFit;
+use super::TuneResult;
+use controller_core::DriveConfig;
+use sim_engine::error::{HarnessError, Result};
+use std::fmt::Write as _;
+use std::path::Path;
+use toml::{Table, Value};
+
+fn toml_error(e: impl std::fmt::Display) -> HarnessError {
+    HarnessError::config("tune", e.to_string())
+}
+
+/// Every float of the drive is an `f32`: written in its shortest decimal form (0.1, not
+/// the f64 value of the nearest f32, 0.10000000149011612), which reads back to the same f32.
+fn shortest_f32(v: &mut Value) {
+    match v {
+        Value::Float(f) => {
+            let short = (*f as f32).to_string();
+            *f = short.parse().unwrap_or(*f);
+        }
+        Value::Table(t) => t.iter_mut().for_each(|(_, v)| shortest_f32(v)),
+        Value::Array(a) => a.iter_mut().for_each(shortest_f32),
+        _ => {}
+    }
+}
+
+/// `drive` as a TOML table, the form `[drive]` is read in.
+pub fn drive_table(drive: &DriveConfig) -> Result<Table> {
+    let mut v = Value::try_from(drive).map_err(toml_error)?;
+    shortest_f32(&mut v);
+    match v {
+        Value::Table(t) => Ok(t),
+        other => Err(toml_error(format!(
+            "the drive serialized as {}",
+            other.type_str()
+        ))),
+    }
+}
+
+/// The whole tuned `[drive]` table, as `tune.md` shows it.
+pub fn drive_toml(drive: &DriveConfig) -> Result<String> {
+    let mut doc = Table::new();
+    doc.insert("drive".into(), Value::Table(drive_table(drive)?));
+    toml::to_string(&doc).map_err(toml_error)
+}
+
+/// The keys of `tuned` whose values differ from `base`, recursing into sub-tables
+/// (`accel_feedback`, `observer`); a filter table is one value, replaced whole.
+fn changed(base: &Table, tuned: &Table) -> Table {
+    let mut out = Table::new();
+    for (k, v) in tuned {
+        match (base.get(k), v) {
+            (Some(Value::Table(b)), Value::Table(t)) if !t.contains_key("kind") => {
+                let sub = changed(b, t);
+                if !sub.is_empty() {
+                    out.insert(k.clone(), Value::Table(sub));
+                }
+            }
+            (Some(b), v) if b == v => {}
+            _ => {
+                out.insert(k.clone(), v.clone());
+            }
+        }
+    }
+    out
+}
+
+/// Sets `keys` into `table`, merging sub-tables that are not filters.
+fn set_keys(table: &mut Table, keys: Table) {
+    for (k, v) in keys {
+        match (table.get_mut(&k), v) {
+            (Some(Value::Table(old)), Value::Table(new)) if !new.contains_key("kind") => {
+                set_keys(old, new);
+            }
+            (_, v) => {
+                table.insert(k, v);
+            }
+        }
+    }
+}
+
+/// `DIR/drive.toml`: the input machine file with its `[drive]` table's keys set where the
+/// tuned drive differs from the drive the file gives (`base`); it composes to the tuned
+/// drive.
+pub fn merged_config(
+    config_path: &Path,
+    base: &DriveConfig,
+    tuned: &DriveConfig,
+) -> Result<String> {
+    let mut doc = sim_engine::config::read_table(config_path)?;
+    let keys = changed(&drive_table(base)?, &drive_table(tuned)?);
+    let drive = doc
+        .entry("drive")
+        .or_insert_with(|| Value::Table(Table::new()));
+    if let Value::Table(d) = drive {
+        set_keys(d, keys);
+    }
+    toml::to_string(&doc).map_err(toml_error)
+}
+
+fn damping_text(f: &StepFit, tolerance: f64) -> String {
+    let diff = (f.fitted.damping() - f.smallest_damping).abs();
+    format!(
+        "## Damping in the nonlinear loop\n\n{} load steps between {:.2} and {:.2} pu, {:.2} s apart, \
+         from {:.2} s on the `fig6` move (the load held from before the ramp ends, so the gears \
+         stay engaged: smallest shaft torque {:.3} pu; largest torque reference {:.3} pu). The \
+         mean of their load-speed error responses (the steps off with the sign turned) is \
+         fitted with the matrix-pencil method; its dominant oscillatory mode: **ζ = {:.3} at \
+         {:.2} Hz**. The linear model's pole nearest to it: ζ = {:.3} at {:.2} Hz ({}). The \
+         model's smallest damping, {:.3}, is {:.3} from the fitted one: {} (tolerance \
+         {tolerance}). The same fit on the linear model's own step response gives ζ = {:.3}: \
+         the part of the difference that is the method's.\n",
+        f.steps,
+        f.load_pu[0],
+        f.load_pu[1],
+        (f.window_s[1] - f.window_s[0]) / f.steps.max(1) as f64,
+        f.window_s[0],
+        f.min_shaft_torque_pu,
+        f.max_torque_pu,
+        f.fitted.damping(),
+        f.fitted.hz(),
+        f.nearest_pole_damping,
+        f.nearest_pole_hz,
+        if f.nearest_is_smallest {
+            "the least damped pole"
+        } else {
+            "not the least damped pole"
+        },
+        f.smallest_damping,
+        diff,
+        if diff <= tolerance { "within" } else { "outside" },
+        f.fitted_to_model_damping,
+    )
+}
+
+/// `DIR/tune.md`: every number from `r`; `images` are the Bode plot and the pole map.
+#[must_use]
+pub fn markdown(r: &TuneResult, drive_toml: &str, images: &[String; 2]) -> String {
+    let d = &r.design;
+    let mut s = format!(
+        "# tune: `{}`\n\n{} candidates judged on the linear model, {} met the constraints; {} \
+         refused in the nonlinear loop before this one.\n\n## Design\n\n```toml\n{}```\n\n",
+        r.config,
+        r.judged,
+        r.feasible,
+        r.refused.len(),
+        drive_toml
+    );
+    let _ = writeln!(
+        s,
+        "Predicted (linear model): smallest damping {:.3} engaged, {} apart; velocity-loop phase \
+         margin {:.1}°, gain margin {:.1} dB; quantization torque noise {:.4} pu RMS; weakest \
+         stiffness over ω_v … 10·ω_v {:.4e} pu per pu·s.\n",
+        d.damping[0],
+        if d.damping[1].is_finite() {
+            format!("{:.3}", d.damping[1])
+        } else {
+            "(no lost motion)".into()
+        },
+        d.margins[0],
+        d.margins[1],
+        d.noise_pu,
+        d.stiffness
+    );
+    if let Some(b) = d.notch_band_damping {
+        let _ = writeln!(
+            s,
+            "The drive has a notch on the torque reference: the damping figures above are of \
+             the poles outside its band; inside it (the resonance it leaves to the machine, \
+             and its own poles) the smallest damping is {b:.4}.\n"
+        );
+    }
+    let _ = writeln!(
+        s,
+        "![Bode plot of the velocity loop]({})\n\n![Closed-loop poles]({})\n",
+        images[0], images[1]
+    );
+    let _ = writeln!(
+        s,
+        "| verification | stable | oscillation verdict | faulted | shaft-torque ripple (pu) | \
+         torque chatter (pu) |\n|---|---|---|---|---|---|"
+    );
+    for v in &r.verification {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} at {:.1} Hz | {} | {:.4} | {:.4} |",
+            v.scenario,
+            v.stable,
+            v.oscillation.word(),
+            v.oscillation_freq_hz,
+            v.faulted,
+            v.shaft_torque_ripple_rms_pu,
+            v.limit_cycle_torque_pu
+        );
+    }
+    let _ = write!(
+        s,
+        "\n{}",
+        super::summary::markdown(&r.per_bandwidth, &r.constraints)
+    );
+    if let Some(f) = &r.step {
+        let _ = write!(s, "\n{}", damping_text(f, super::DAMPING_TOLERANCE));
+    } else if r.no_oscillatory_mode {
+        let _ = write!(
+            s,
+            "\n## Damping in the nonlinear loop\n\nThe load speed error after the `fig6` move's \
+             load steps has no decaying oscillatory mode that the fit finds, so no damping is \
+             fitted to it: the mode the model names least damped does not show there. The \
+             model's smallest damping is {:.3}.\n",
+            r.design.damping[0]
+        );
+    }
+    s
+}

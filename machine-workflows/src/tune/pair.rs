@@ -1,0 +1,243 @@
+//! The design with acceleration feedback and the design without it by the same
+//! constraints, and the nonlinear run that compares them: what `commission` verifies on a
+//! machine and `reproduce` reports for the shipped machines, written once here.
+//!
+//! The no-AFB design is searched at the bandwidths the AFB design was searched at and at
+//! every bandwidth of `tune`'s grid below the highest of them, highest first: at the
+//! bandwidth asked for if it can be had there, else the highest below it that meets the
+//! constraints.
+
+use super::bandwidths;
+use super::{candidates, design, design_from, search, without_afb, Candidate, Constraints};
+use super::{Judged, Tuned};
+use serde::Serialize;
+use sim_engine::config::{Grid, RunConfig};
+use sim_engine::engine::metrics::OscillationKind;
+use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::Result;
+
+/// The two designs of one machine.
+#[derive(Debug, Clone)]
+pub struct Pair {
+    /// Tuned with AFB ([`design`]; its damping measured in the loop).
+    pub with: Tuned,
+    /// The no-AFB design by the same constraints (its damping is not measured:
+    /// [`super::TuneResult::step`] is `None`).
+    pub without: Tuned,
+}
+
+/// The bandwidths the no-AFB design is searched at, for an AFB search at `bws` on `grid`
+/// (module docs), ascending and each once.
+#[must_use]
+pub fn no_afb_bandwidths(grid: &Grid, bws: &[f64]) -> Vec<f64> {
+    let top = bws.iter().copied().fold(0.0, f64::max);
+    let mut v: Vec<f64> = bws
+        .iter()
+        .copied()
+        .chain(grid.bandwidths_rad_s.iter().copied().filter(|w| *w < top))
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    v
+}
+
+/// Tunes `config` with AFB ([`design`]) and without it by the same constraints.
+pub fn design_both(
+    config: &str,
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+) -> Result<Pair> {
+    design_both_from(config, None, target_bandwidth, constraints)
+}
+
+/// [`design_both`], with the AFB candidates already judged on `config`
+/// ([`super::judge_grid`] at [`bandwidths`]`(target_bandwidth)`) when `judged` is given.
+pub fn design_both_from(
+    config: &str,
+    judged: Option<Vec<Judged>>,
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+) -> Result<Pair> {
+    let grid = sim_engine::config::tune_grid()?;
+    let bws = bandwidths(&grid, target_bandwidth)?;
+    let with = match judged {
+        Some(j) => design_from(config, j, constraints)?,
+        None => design(config, target_bandwidth, constraints)?,
+    };
+    let no_afb = without_afb(&candidates(&grid, &no_afb_bandwidths(&grid, &bws)));
+    let result = search(config, &no_afb, constraints).map_err(|e| match e {
+        sim_engine::error::HarnessError::NoDesign(m) => {
+            sim_engine::error::HarnessError::NoDesign(format!("{config} without AFB: {m}"))
+        }
+        other => other,
+    })?;
+    let mut tuned = with.base.clone();
+    result.design.candidate.apply(&mut tuned.drive);
+    let without = Tuned {
+        result,
+        base: with.base.clone(),
+        tuned,
+    };
+    Ok(Pair { with, without })
+}
+
+/// One design run in the nonlinear loop.
+#[derive(Clone, Debug, Serialize)]
+pub struct LoopRun {
+    /// Which design.
+    pub design: &'static str,
+    /// The design's velocity bandwidth \[rad/s\].
+    pub bandwidth_rad_s: f64,
+    /// Its AFB, as `tune` labels it.
+    pub afb: String,
+    /// The scenario's `stable`.
+    pub stable: bool,
+    /// The oscillation verdict of the run (`summary.json`'s `oscillation.kind`).
+    pub oscillation: OscillationKind,
+    /// Its spectral peak \[Hz\].
+    pub oscillation_freq_hz: f64,
+    /// Its torque amplitude \[pu\].
+    pub oscillation_amplitude_pu: f64,
+    /// The scenario's `stable_by_speed`: the criterion without the oscillation verdict.
+    pub stable_by_speed: bool,
+    /// A fault latched.
+    pub faulted: bool,
+    /// Shaft-torque ripple after the load step \[pu\].
+    pub shaft_torque_ripple_rms_pu: f64,
+    /// Its dominant frequency: the peak of the shaft torque's spectrum in the machine's
+    /// resonance band (the ring) \[Hz\].
+    pub shaft_ripple_freq_hz: f64,
+    /// Speed droop at the load step \[pu\] (none without a load step).
+    pub load_step_droop_pu: Option<f64>,
+}
+
+impl LoopRun {
+    /// Runs `cfg` (a scenario on a machine) with `design`'s drive settings.
+    pub fn run(mut cfg: RunConfig, label: &'static str, design: &Candidate) -> Result<Self> {
+        design.apply(&mut cfg.drive);
+        let m = run_scenario(&cfg)?.metrics;
+        Ok(Self {
+            design: label,
+            bandwidth_rad_s: design.bandwidth_rad_s,
+            afb: design.afb.label(),
+            stable: m.stable,
+            oscillation: m.oscillation.kind,
+            oscillation_freq_hz: m.oscillation.freq_hz,
+            oscillation_amplitude_pu: m.oscillation.amplitude_pu,
+            stable_by_speed: m.stable_by_speed,
+            faulted: m.faulted,
+            shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
+            shaft_ripple_freq_hz: m.shaft_ripple_freq_hz,
+            load_step_droop_pu: m.load_step_droop_pu,
+        })
+    }
+
+    /// The header of [`LoopRun::row`]'s table columns (after any leading columns).
+    pub const HEADER: &'static str = "design | bandwidth (rad/s) | AFB | stable | oscillation \
+        verdict | fault | shaft-torque ripple after the load step (pu) | its peak in the \
+        resonance band (Hz) | droop (pu) |";
+    /// The markdown separator of [`LoopRun::HEADER`]'s nine columns.
+    pub const RULE: &'static str = "---|---|---|---|---|---|---|---|---|";
+
+    /// The oscillation verdict and its frequency: `limit_cycle at 178.2 Hz`.
+    #[must_use]
+    pub fn verdict(&self) -> String {
+        format!(
+            "{} at {:.1} Hz",
+            self.oscillation.word(),
+            self.oscillation_freq_hz
+        )
+    }
+
+    /// When the oscillation verdict decided this run's `stable` against the speed criterion
+    /// alone: a sentence naming the verdict that did.
+    #[must_use]
+    pub fn moved_by_verdict(&self) -> Option<String> {
+        (self.stable != self.stable_by_speed).then(|| {
+            format!(
+                "{}: the speed criterion alone says stable {}; the oscillation verdict, {} at \
+                 {:.1} Hz, ±{:.3} pu, makes it {}",
+                self.design,
+                self.stable_by_speed,
+                self.oscillation.word(),
+                self.oscillation_freq_hz,
+                self.oscillation_amplitude_pu,
+                if self.stable { "stable" } else { "unstable" }
+            )
+        })
+    }
+
+    /// This run as the cells of [`LoopRun::HEADER`], each followed by `|`.
+    #[must_use]
+    pub fn row(&self) -> String {
+        format!(
+            " {} | {} | {} | {} | {} | {} | {:.4} | {:.1} | {} |",
+            self.design,
+            self.bandwidth_rad_s,
+            self.afb,
+            self.stable,
+            self.verdict(),
+            self.faulted,
+            self.shaft_torque_ripple_rms_pu,
+            self.shaft_ripple_freq_hz,
+            self.load_step_droop_pu
+                .map_or_else(|| "-".into(), |d| format!("{d:.4}"))
+        )
+    }
+}
+
+/// The criterion, fixed before any run: the AFB design is stable without a fault and
+/// leaves less shaft-torque ripple after the load step than the no-AFB design tuned by
+/// the same constraints.
+pub const CRITERION: &str = "the AFB design is stable without a fault and leaves less \
+    shaft-torque ripple after the load step than the no-AFB design tuned by the same \
+    constraints";
+
+/// Whether `with` passes [`CRITERION`] against `without`.
+#[must_use]
+pub fn afb_passes(with: &LoopRun, without: &LoopRun) -> bool {
+    with.stable
+        && !with.faulted
+        && with.shaft_torque_ripple_rms_pu < without.shaft_torque_ripple_rms_pu
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+
+    fn run(stable: bool, ripple: f64) -> LoopRun {
+        LoopRun {
+            design: "d",
+            bandwidth_rad_s: 1.0,
+            afb: String::new(),
+            stable,
+            oscillation: OscillationKind::Quantization,
+            oscillation_freq_hz: 0.0,
+            oscillation_amplitude_pu: 0.0,
+            stable_by_speed: stable,
+            faulted: false,
+            shaft_torque_ripple_rms_pu: ripple,
+            shaft_ripple_freq_hz: 0.0,
+            load_step_droop_pu: None,
+        }
+    }
+
+    #[test]
+    fn the_criterion_needs_a_stable_afb_design_with_less_ripple() {
+        assert!(afb_passes(&run(true, 0.1), &run(true, 0.2)));
+        assert!(!afb_passes(&run(true, 0.2), &run(true, 0.1)));
+        assert!(!afb_passes(&run(false, 0.1), &run(true, 0.2)));
+    }
+
+    #[test]
+    fn no_afb_bandwidths_are_the_target_and_the_grid_below_it() {
+        let grid = sim_engine::config::tune_grid().unwrap();
+        let all = &grid.bandwidths_rad_s;
+        let top = all[3];
+        let v = no_afb_bandwidths(&grid, &[top]);
+        assert_eq!(v.last().copied(), Some(top));
+        assert_eq!(v.len(), 4);
+        assert_eq!(no_afb_bandwidths(&grid, all), all.clone());
+    }
+}

@@ -1,0 +1,156 @@
+//! The firmware in QEMU as a [`ControlBackend`], and a recorder of any backend's ticks.
+
+use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
+use pil_link::host::{HostError, HostLink};
+use pil_link::tick::{Commands, Sensors};
+use pil_link::wire::Writer;
+use sim_engine::engine::runner::ControlBackend;
+use std::os::unix::net::UnixStream;
+
+/// Every controller input and output of a run, in tick order (raw fixed-point values).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TickLog {
+    /// Current ticks.
+    pub current: Vec<(CurrentInputs, CurrentOutputs)>,
+    /// Velocity ticks.
+    pub velocity: Vec<(VelocityInputs, VelocityOutputs)>,
+}
+
+/// A backend that records every tick of another.
+pub struct Recorder<B> {
+    /// The backend recorded.
+    pub inner: B,
+    /// What it saw and answered.
+    pub log: TickLog,
+}
+
+impl<B: ControlBackend> ControlBackend for Recorder<B> {
+    fn halted(&self) -> bool {
+        self.inner.halted()
+    }
+
+    fn excitation_pu(&self) -> f64 {
+        self.inner.excitation_pu()
+    }
+
+    fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
+        let out = self.inner.current_tick(inputs);
+        self.log.current.push((inputs, out));
+        out
+    }
+
+    fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
+        let out = self.inner.velocity_tick(inputs);
+        self.log.velocity.push((inputs, out));
+        out
+    }
+}
+
+/// The firmware in QEMU as a [`ControlBackend`]. After a link fault it stops talking to the
+/// firmware, answers with the safe state (zero commands, fault set) and reports itself
+/// halted, so the runner stops at the next tick; [`super::run_pil`] then cuts the trace exactly at
+/// the fault.
+pub struct PilBackend {
+    pub(super) link: HostLink<UnixStream>,
+    pub(super) log: TickLog,
+    pub(super) current_ticks: u64,
+    pub(super) fault: Option<(HostError, u64)>,
+    /// The excitation sample the firmware reported with its last current tick (Q16.16).
+    pub(super) excitation_bits: i32,
+}
+
+impl PilBackend {
+    /// A backend on an open, configured link.
+    pub(super) fn new(link: HostLink<UnixStream>) -> Self {
+        Self {
+            link,
+            log: TickLog::default(),
+            current_ticks: 0,
+            fault: None,
+            excitation_bits: 0,
+        }
+    }
+
+    /// Every tick the firmware answered so far.
+    pub fn log(&self) -> &TickLog {
+        &self.log
+    }
+
+    fn exchange(&mut self, sensors: Sensors) -> Option<Commands> {
+        if self.fault.is_some() {
+            return None;
+        }
+        let mut w = Writer::new();
+        let result = sensors
+            .encode(&mut w)
+            .map_err(HostError::Link)
+            .and_then(|()| self.link.tick(w.as_slice()))
+            .and_then(|frame| Commands::decode(frame.payload()).map_err(HostError::Link));
+        match result {
+            Ok(c) => Some(c),
+            Err(e) => {
+                self.fault = Some((e, self.current_ticks));
+                None
+            }
+        }
+    }
+}
+
+const SAFE_CURRENT: CurrentOutputs = CurrentOutputs {
+    voltage_cmd_pu: controller_core::Pu::ZERO,
+    current_ref_pu: controller_core::Pu::ZERO,
+    accel_fb_pu: controller_core::Pu::ZERO,
+    fault: Some(Fault::External),
+};
+
+impl ControlBackend for PilBackend {
+    fn halted(&self) -> bool {
+        self.fault.is_some()
+    }
+
+    fn excitation_pu(&self) -> f64 {
+        sim_engine::engine::plant::f(controller_core::Pu::from_bits(self.excitation_bits))
+    }
+
+    fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
+        let out = match self.exchange(Sensors::Current(inputs)) {
+            Some(Commands::Current(out, applied)) => {
+                self.log.current.push((inputs, out));
+                self.excitation_bits = applied.excitation_bits;
+                out
+            }
+            Some(Commands::Velocity(_)) => {
+                self.fault = Some((wrong_reply(), self.current_ticks));
+                SAFE_CURRENT
+            }
+            None => SAFE_CURRENT,
+        };
+        self.current_ticks += 1;
+        out
+    }
+
+    fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
+        let safe = VelocityOutputs {
+            fault: Some(Fault::External),
+            ..VelocityOutputs::default()
+        };
+        match self.exchange(Sensors::Velocity(inputs)) {
+            Some(Commands::Velocity(out)) => {
+                self.log.velocity.push((inputs, out));
+                out
+            }
+            Some(Commands::Current(..)) => {
+                self.fault = Some((wrong_reply(), self.current_ticks));
+                safe
+            }
+            None => safe,
+        }
+    }
+}
+
+fn wrong_reply() -> HostError {
+    HostError::Link(pil_link::LinkError::BadPayload {
+        kind: pil_link::FrameKind::Commands as u8,
+        len: 0,
+    })
+}
