@@ -8,6 +8,8 @@
 //! * the tree explains itself: no tracked file (outside `target/`, `.git/` and `out/`) refers
 //!   to a work-tracker item by number, because a reader of the tree cannot open one. Say
 //!   what the code does and why instead; design reasons go in `docs/design.md`;
+//! * short READMEs about the product: the root README.md at most 200 lines, each crate's at
+//!   most 150, and history in CHANGELOG.md;
 //! * shared code is a crate, not a file borrowed by path: no `#[path]` attribute anywhere
 //!   reaches into a `tests/` folder (the machine file's composer is the `machine-file`
 //!   crate, not a test helper that a build script or another crate's tests include).
@@ -312,4 +314,35 @@ fn the_path_scanner_sees_an_include_into_tests_and_passes_a_local_module() {
     let found = paths_into_tests(text);
     assert_eq!(found.len(), 1, "{found:?}");
     assert_eq!(found[0].0, 1);
+}
+
+#[test]
+fn readmes_are_short_and_history_is_in_the_changelog() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let lines = |p: &Path| std::fs::read_to_string(p).map_or(0, |t| t.lines().count());
+    let mut bad = Vec::new();
+    let top = lines(&root.join("README.md"));
+    if top == 0 || top > 200 {
+        bad.push(format!("README.md: {top} lines (1..=200)"));
+    }
+    let mut crates = 0;
+    for entry in std::fs::read_dir(root).unwrap().flatten() {
+        let dir = entry.path();
+        if dir.join("Cargo.toml").is_file() && dir.join("README.md").is_file() {
+            crates += 1;
+            let n = lines(&dir.join("README.md"));
+            if n > 150 {
+                bad.push(format!(
+                    "{}: {n} lines (at most 150)",
+                    dir.join("README.md").display()
+                ));
+            }
+        }
+    }
+    assert!(crates >= 8, "{crates} crate READMEs found");
+    assert!(
+        root.join("CHANGELOG.md").is_file(),
+        "CHANGELOG.md is missing"
+    );
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
