@@ -37,6 +37,8 @@ pub(crate) struct Piecewise {
     shaft: Shaft,
     law: BacklashModel,
     h_max_s: f64,
+    /// Mode changes allowed inside one step ([`MAX_EVENTS_PER_STEP`]).
+    max_events: u32,
     x: Vec5,
     contact: Contact,
     events: u64,
@@ -65,6 +67,7 @@ impl Piecewise {
             shaft: model.shaft,
             law: model.law,
             h_max_s,
+            max_events: MAX_EVENTS_PER_STEP,
             x: Vec5::zeros(),
             contact: Contact::Free,
             events: 0,
@@ -275,7 +278,7 @@ impl Piecewise {
             x0 = self.x;
             let (a, b) = self.maps.system(self.contact);
             x_end = Taylor::new(a, b, &x0, u, remaining).state(remaining);
-            if changes >= MAX_EVENTS_PER_STEP || !self.guards().suspect(&x0, &x_end, u, remaining) {
+            if changes >= self.max_events || !self.guards().suspect(&x0, &x_end, u, remaining) {
                 self.x = x_end;
                 return;
             }
@@ -340,6 +343,59 @@ mod tests {
             // Every mode is met, and the clamp releases some states beyond each edge.
             assert!(seen.iter().all(|&n| n > 0), "{law:?} {seen:?}");
         }
+    }
+
+    /// Without lost motion (g = 0) the dead zone is one linear mode that never switches,
+    /// while the clamp still releases when the contact force turns to pull: through a
+    /// shaft oscillation that reverses the twist, the dead zone stays engaged with no mode
+    /// change and the clamped law changes mode.
+    #[test]
+    fn without_lost_motion_only_the_clamp_changes_mode() {
+        for law in [BacklashModel::DeadZone, BacklashModel::Clamped] {
+            let mut m = test_model(law);
+            m.shaft.g = 0.0;
+            let mut p = Piecewise::new(&m);
+            p.set_state(Vec5::new(0.001, 0.0, 0.1, 0.0, 0.0));
+            assert_eq!(p.contact(), Contact::Driving, "{law:?}");
+            let mut reversed = false;
+            for _ in 0..200 {
+                p.advance(250e-6, &Vec3::new(0.1, 0.0, 1.0));
+                reversed |= p.twist_rad() < -1e-4;
+            }
+            assert!(reversed, "{law:?}: the twist never reversed");
+            match law {
+                BacklashModel::DeadZone => {
+                    assert_eq!((p.mode_changes(), p.contact()), (0, Contact::Driving));
+                }
+                BacklashModel::Clamped => assert!(p.mode_changes() > 0),
+            }
+        }
+    }
+
+    /// Two mode changes in one sub-step: from just inside the driving contact, the motor
+    /// 0.5 pu slower than the load, the gears part at once and the twist crosses the whole
+    /// 8 mrad gap to the braking edge in about 53 µs. Each change takes one search, and the
+    /// step ends in braking contact; with the cap on changes set to one, it stops after the
+    /// first (the rest of the step in the free mode).
+    #[test]
+    fn a_sub_step_takes_every_mode_change_in_it_up_to_the_cap() {
+        let m = test_model(BacklashModel::DeadZone);
+        let u = Vec3::new(0.0, 0.0, 1.0);
+        let start = Vec5::new(m.shaft.g + 1e-7, 0.0, 0.0, 0.5, 0.0);
+        let mut p = Piecewise::new(&m);
+        assert!(p.max_step_s() > 60e-6, "{}", p.max_step_s());
+        p.set_state(start);
+        assert_eq!(p.contact(), Contact::Driving);
+        p.advance(60e-6, &u);
+        assert_eq!(p.contact(), Contact::Braking);
+        assert_eq!((p.mode_changes(), p.crossing_searches()), (2, 2));
+        let mut capped = Piecewise::new(&m);
+        capped.max_events = 1;
+        capped.set_state(start);
+        capped.advance(60e-6, &u);
+        assert_eq!(capped.contact(), Contact::Free);
+        assert_eq!((capped.mode_changes(), capped.crossing_searches()), (1, 1));
+        assert!(capped.twist_rad() < -m.shaft.g, "{}", capped.twist_rad());
     }
 
     /// The cost counter: no search while the gears stay apart in the middle of the gap; a
