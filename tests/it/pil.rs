@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 
 /// One QEMU at a time: the fault tests use a 500 ms link watchdog, and on a loaded 2-core
 /// machine two lock-step runs side by side could starve each other towards it.
-fn one_at_a_time() -> MutexGuard<'static, ()> {
+pub(crate) fn one_at_a_time() -> MutexGuard<'static, ()> {
     static LOCK: Mutex<()> = Mutex::new(());
     LOCK.lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
