@@ -3,8 +3,10 @@
 //! it, and the RMS of the part of a signal inside a frequency band.
 
 use rustfft::num_complex::Complex64;
-use rustfft::FftPlanner;
+use rustfft::{Fft, FftPlanner};
+use std::cell::RefCell;
 use std::f64::consts::PI;
+use std::sync::Arc;
 
 /// Zero padding of the peak search: the FFT is this many times the window's length
 /// (rounded up to a power of two), so the bins are T/16 apart before interpolation.
@@ -31,10 +33,26 @@ pub(super) fn detrended(x: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+thread_local! {
+    /// One planner per thread, which keeps the plan of each length it has made: a run's
+    /// spectra come in a few lengths, and planning is most of a transform's cost.
+    static PLANNER: RefCell<FftPlanner<f64>> = RefCell::new(FftPlanner::new());
+}
+
+/// The forward (or inverse) transform of `n` points, from this thread's planner.
+fn plan(n: usize, inverse: bool) -> Arc<dyn Fft<f64>> {
+    PLANNER.with(|p| {
+        let mut p = p.borrow_mut();
+        if inverse {
+            p.plan_fft_inverse(n)
+        } else {
+            p.plan_fft_forward(n)
+        }
+    })
+}
+
 fn fft(mut buf: Vec<Complex64>) -> Vec<Complex64> {
-    FftPlanner::new()
-        .plan_fft_forward(buf.len())
-        .process(&mut buf);
+    plan(buf.len(), false).process(&mut buf);
     buf
 }
 
@@ -189,7 +207,7 @@ pub(super) fn band_passed(x: &[f64], fs_hz: f64, (lo_hz, hi_hz): (f64, f64)) -> 
             *c = Complex64::new(0.0, 0.0);
         }
     }
-    FftPlanner::new().plan_fft_inverse(n).process(&mut spectrum);
+    plan(n, true).process(&mut spectrum);
     spectrum.iter().map(|c| c.re / n as f64).collect()
 }
 
