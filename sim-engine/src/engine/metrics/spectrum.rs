@@ -34,8 +34,9 @@ pub(super) fn detrended(x: &[f64]) -> Vec<f64> {
 }
 
 thread_local! {
-    /// One planner per thread, which keeps the plan of each length it has made: a run's
-    /// spectra come in a few lengths, and planning is most of a transform's cost.
+    /// One planner per thread, which keeps the plan of each length it has made: planning
+    /// is most of a transform's cost, and the runs one thread makes (a sweep, `tune`, the
+    /// benchmark) ask for the same few lengths again and again.
     static PLANNER: RefCell<FftPlanner<f64>> = RefCell::new(FftPlanner::new());
 }
 
