@@ -10,9 +10,12 @@ use nalgebra::{Complex, DMatrix, DVector};
 /// M in Hessenberg form with B and C carried along.
 #[derive(Debug, Clone)]
 pub struct HessenbergResponse {
-    h: DMatrix<f64>,
-    b: DVector<f64>,
-    c: DVector<f64>,
+    n: usize,
+    /// H by rows: entry (i, j) at `i·n + j`, so that the elimination walks each row in
+    /// order.
+    h: Vec<f64>,
+    b: Vec<f64>,
+    c: Vec<f64>,
 }
 
 impl HessenbergResponse {
@@ -21,9 +24,11 @@ impl HessenbergResponse {
     pub fn new(m: &DMatrix<f64>, b: &DVector<f64>, c: &DVector<f64>) -> Self {
         let (q, h) = m.clone().hessenberg().unpack();
         Self {
-            b: q.transpose() * b,
-            c: q.transpose() * c,
-            h,
+            n: h.nrows(),
+            // nalgebra stores by columns: the columns of Hᵀ are the rows of H.
+            h: h.transpose().as_slice().to_vec(),
+            b: (q.transpose() * b).as_slice().to_vec(),
+            c: (q.transpose() * c).as_slice().to_vec(),
         }
     }
 
@@ -31,28 +36,43 @@ impl HessenbergResponse {
     #[must_use]
     pub fn at(&self, z: Complex<f64>) -> Option<Complex<f64>> {
         let zero = Complex::new(0.0, 0.0);
-        let n = self.h.nrows();
-        // a = zI − H (upper Hessenberg), x = Qᵀ·B; reduced to upper triangular in place.
-        let mut a: DMatrix<Complex<f64>> = DMatrix::from_fn(n, n, |i, j| {
-            let h = self.h.get((i, j)).copied().unwrap_or(0.0);
-            if i == j { z - h } else { Complex::new(-h, 0.0) }
-        });
-        let mut x: DVector<Complex<f64>> = self.b.map(Complex::from);
-        let get =
-            |a: &DMatrix<Complex<f64>>, i: usize, j: usize| a.get((i, j)).copied().unwrap_or(zero);
+        let n = self.n;
+        // a = zI − H (upper Hessenberg, by rows), x = Qᵀ·B; reduced to upper triangular in
+        // place. The entries left of the diagonal are never read again once their column
+        // is eliminated, so each step works on its two rows from the pivot's column on.
+        let mut a: Vec<Complex<f64>> = self
+            .h
+            .iter()
+            .enumerate()
+            .map(|(at, &h)| {
+                if at % (n + 1) == 0 {
+                    z - h
+                } else {
+                    Complex::new(-h, 0.0)
+                }
+            })
+            .collect();
+        let mut x: Vec<Complex<f64>> = self.b.iter().map(|&b| Complex::from(b)).collect();
         for k in 0..n.saturating_sub(1) {
-            if get(&a, k + 1, k).norm() > get(&a, k, k).norm() {
-                a.swap_rows(k, k + 1);
-                x.swap_rows(k, k + 1);
+            let (upper, lower) = a.split_at_mut((k + 1) * n);
+            let (Some(row), Some(next)) = (upper.get_mut(k * n + k..), lower.get_mut(k..n))
+            else {
+                return None;
+            };
+            let head = |r: &[Complex<f64>]| r.first().copied().unwrap_or(zero);
+            if head(next).norm() > head(row).norm() {
+                row.swap_with_slice(next);
+                if let Some(pair) = x.get_mut(k..=k + 1) {
+                    pair.swap(0, 1);
+                }
             }
-            let pivot = get(&a, k, k);
+            let pivot = head(row);
             if pivot == zero {
                 return None;
             }
-            let f = get(&a, k + 1, k) / pivot;
+            let f = head(next) / pivot;
             if f != zero {
-                let (upper, mut lower) = a.rows_range_pair_mut(k..=k, k + 1..=k + 1);
-                for (dst, v) in lower.iter_mut().zip(upper.iter()).skip(k) {
+                for (dst, v) in next.iter_mut().zip(row.iter()) {
                     *dst -= f * v;
                 }
                 let xk = x.get(k).copied().unwrap_or(zero);
@@ -62,13 +82,13 @@ impl HessenbergResponse {
             }
         }
         for k in (0..n).rev() {
-            let row = a.row(k);
+            let row = a.get(k * n..(k + 1) * n)?;
             let s = row
                 .iter()
                 .zip(x.iter())
                 .skip(k + 1)
                 .fold(x.get(k).copied().unwrap_or(zero), |s, (a, x)| s - a * x);
-            let pivot = get(&a, k, k);
+            let pivot = row.get(k).copied().unwrap_or(zero);
             if pivot == zero {
                 return None;
             }

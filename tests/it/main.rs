@@ -1,7 +1,8 @@
 //! The workspace's end-to-end tests, built as one test binary: the command line and its bad
-//! inputs, the closed loop against the paper's claims, the firmware image's symbols and the
-//! shape of the source tree, and the processor-in-the-loop runs (`pil`, `pil_identify`), which
-//! take one QEMU session at a time (`pil::one_at_a_time`) while the other tests run beside them.
+//! inputs, the closed loop against the paper's claims, the machine workflows (`workflows`:
+//! tune, identify, commission), the firmware image's symbols and the shape of the source tree,
+//! and the processor-in-the-loop runs (`pil`, `pil_identify`), which run one QEMU session at a
+//! time in one test (`pil::processor_in_the_loop`) while the other tests run beside it.
 //! `cargo test --test it <module>::` runs one module.
 
 mod afb_claims;
@@ -15,3 +16,4 @@ mod pil;
 mod pil_identify;
 mod same_gains;
 mod structure;
+mod workflows;

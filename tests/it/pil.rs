@@ -23,15 +23,60 @@ use pil_link::host::{HostError, HostLink};
 use pil_link::qemu::{Qemu, QemuOptions};
 use pil_link::FaultCode;
 use std::path::PathBuf;
-use std::sync::{Mutex, MutexGuard, OnceLock};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-/// One QEMU at a time: the fault tests use a 500 ms link watchdog, and on a loaded 2-core
-/// machine two lock-step runs side by side could starve each other towards it.
-pub(crate) fn one_at_a_time() -> MutexGuard<'static, ()> {
-    static LOCK: Mutex<()> = Mutex::new(());
-    LOCK.lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
+/// The processor-in-the-loop cases (this module's and `pil_identify`'s), one after another
+/// in one test: one QEMU session at a time, since the fault cases use a 500 ms link watchdog
+/// that two lock-step runs side by side on a loaded 2-core machine could starve towards.
+/// The binary's other tests run beside it on the other test thread. A failing case is named
+/// in the test's output.
+#[test]
+fn processor_in_the_loop() {
+    let cases: [(&str, fn()); 9] = [
+        (
+            "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
+            fig6_through_the_firmware_is_bit_identical_to_the_host_run,
+        ),
+        (
+            "link_faults_latch_the_safe_state_on_both_sides",
+            link_faults_latch_the_safe_state_on_both_sides,
+        ),
+        (
+            "the_command_fails_loudly_on_a_link_fault",
+            the_command_fails_loudly_on_a_link_fault,
+        ),
+        (
+            "a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check",
+            a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check,
+        ),
+        (
+            "the_firmware_refuses_an_unbounded_watchdog_with_a_protocol_fault",
+            the_firmware_refuses_an_unbounded_watchdog_with_a_protocol_fault,
+        ),
+        (
+            "a_second_config_while_running_is_a_protocol_fault",
+            a_second_config_while_running_is_a_protocol_fault,
+        ),
+        (
+            "qemu_ends_by_itself_when_the_harness_goes_silent",
+            qemu_ends_by_itself_when_the_harness_goes_silent,
+        ),
+        (
+            "pil_identify: the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for_bit",
+            crate::pil_identify::the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for_bit,
+        ),
+        (
+            "pil_identify: the_firmware_refuses_a_bad_excitation_with_a_config_fault",
+            crate::pil_identify::the_firmware_refuses_a_bad_excitation_with_a_config_fault,
+        ),
+    ];
+    for (name, case) in cases {
+        let t0 = Instant::now();
+        eprintln!("processor in the loop: {name}");
+        case();
+        eprintln!("processor in the loop: {name} passed in {:.1} s", t0.elapsed().as_secs_f64());
+    }
 }
 
 /// The `pil` ELF, built once per test binary.
@@ -50,9 +95,7 @@ fn csv_rows(dir: &std::path::Path) -> usize {
     text.lines().count() - 1
 }
 
-#[test]
 fn fig6_through_the_firmware_is_bit_identical_to_the_host_run() {
-    let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let mut args = PilRun::new("fig6", dir.path());
     args.elf = Some(elf());
@@ -110,9 +153,7 @@ struct Case {
     reply_timeout_ms: u64,
 }
 
-#[test]
 fn link_faults_latch_the_safe_state_on_both_sides() {
-    let _serial = one_at_a_time();
     let elf = elf();
     let cases = [
         // A bit flipped in a sensor frame: the firmware's CRC check.
@@ -239,9 +280,7 @@ fn link_faults_latch_the_safe_state_on_both_sides() {
     }
 }
 
-#[test]
 fn the_command_fails_loudly_on_a_link_fault() {
-    let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let mut args = PilRun::new("fig6", dir.path());
     args.elf = Some(elf());
@@ -271,9 +310,7 @@ fn raw_session(
     (qemu, HostLink::new(stream, Duration::from_secs(3)))
 }
 
-#[test]
 fn a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check() {
-    let _serial = one_at_a_time();
     fw_runner::provision::ensure_qemu().unwrap();
     // The same image with the safe-state entry sabotaged (enable stays on, controller runs).
     let bad = build_pil_image_with(&["test-unsafe-keep-outputs-on"]).unwrap();
@@ -303,9 +340,7 @@ fn a_firmware_that_keeps_its_outputs_on_fails_the_safe_state_check() {
     assert!(err.contains("NOT SAFE"), "{err}");
 }
 
-#[test]
 fn the_firmware_refuses_an_unbounded_watchdog_with_a_protocol_fault() {
-    let _serial = one_at_a_time();
     let elf = elf();
     let dir = tempfile::tempdir().unwrap();
     let start = Instant::now();
@@ -346,9 +381,7 @@ fn the_firmware_refuses_an_unbounded_watchdog_with_a_protocol_fault() {
     assert!(!out.exists(), "nothing is written");
 }
 
-#[test]
 fn a_second_config_while_running_is_a_protocol_fault() {
-    let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let (mut qemu, mut link) = raw_session(&elf(), &dir.path().join("fw.defmt"));
     link.hello(500).unwrap();
@@ -363,9 +396,7 @@ fn a_second_config_while_running_is_a_protocol_fault() {
     qemu.finish(Duration::from_secs(1));
 }
 
-#[test]
 fn qemu_ends_by_itself_when_the_harness_goes_silent() {
-    let _serial = one_at_a_time();
     let dir = tempfile::tempdir().unwrap();
     let (mut qemu, mut link) = raw_session(&elf(), &dir.path().join("fw.defmt"));
     link.hello(200).unwrap();

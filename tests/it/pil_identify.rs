@@ -4,7 +4,8 @@
 //! travels to the firmware in the `Config` frame, the firmware's own controller adds it,
 //! and the record (excitation, torque reference, measured current, encoder counts) is the
 //! host loop's bit for bit, tick for tick; so are every controller output and the fitted
-//! estimates. Like the `pil` module, this builds the ARM image and runs QEMU (never skipped).
+//! estimates. Like the `pil` module, this builds the ARM image and runs QEMU (never skipped); its
+//! cases run in `pil::processor_in_the_loop`, one QEMU session at a time.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
@@ -39,9 +40,7 @@ fn first_difference(host: &Record, pil: &Record) -> Option<(&'static str, usize)
     })
 }
 
-#[test]
-fn the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for_bit() {
-    let _one = crate::pil::one_at_a_time();
+pub(crate) fn the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for_bit() {
     fw_runner::provision::ensure_qemu().unwrap();
     let (base, spec) = load("configs/machines/table1.toml", &SETS.map(String::from)).unwrap();
     let (cfg, excitation) = frequency_response_setup(&base, &spec).unwrap();
@@ -104,9 +103,7 @@ fn the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for
     assert!(!log.is_empty());
 }
 
-#[test]
-fn the_firmware_refuses_a_bad_excitation_with_a_config_fault() {
-    let _one = crate::pil::one_at_a_time();
+pub(crate) fn the_firmware_refuses_a_bad_excitation_with_a_config_fault() {
     fw_runner::provision::ensure_qemu().unwrap();
     let (base, spec) = load("configs/machines/table1.toml", &SETS.map(String::from)).unwrap();
     let (cfg, mut excitation) = frequency_response_setup(&base, &spec).unwrap();

@@ -4,7 +4,7 @@
 //! better than the no-AFB design).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use crate::common;
+use super::common;
 
 use machine_workflows::commission::commission;
 use machine_workflows::tune::Constraints;
@@ -95,7 +95,7 @@ fn commissioning_with_no_design_keeps_the_identification_and_says_what_failed() 
     let tmp = tempfile::tempdir().unwrap();
     let config = tmp.path().join("light.toml");
     let text = std::fs::read_to_string(
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/machines/table1.toml"),
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/machines/table1.toml"),
     )
     .unwrap();
     let mut doc: toml::Table = text.parse().unwrap();

@@ -5,7 +5,7 @@
 //! must be better with it than without it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use crate::common;
+use super::common;
 
 use machine_workflows::commission::commission;
 use machine_workflows::tune::Constraints;

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 /// Runs `tune` on Table 1 with `--max-bandwidth` into `dir`; returns `tune.json`.
 fn tune_table1(dir: &Path) -> serde_json::Value {
-    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/machines/table1.toml");
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/machines/table1.toml");
     let t0 = Instant::now();
     let text = tune(
         &config.display().to_string(),

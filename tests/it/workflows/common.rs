@@ -8,7 +8,7 @@ use toml::{Table, Value};
 /// `configs/machines/table1.toml` with each `(table, key, value)` of `keys` set (a missing table is
 /// created), written to `dir/name`; returns the file's path.
 pub fn machine_file(dir: &Path, name: &str, keys: &[(&str, &str, Value)]) -> String {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs/machines/table1.toml");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/machines/table1.toml");
     let mut doc: Table = std::fs::read_to_string(root).unwrap().parse().unwrap();
     for (table, key, value) in keys {
         let t = doc

@@ -3,7 +3,7 @@
 //! same constraints.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
-use crate::common;
+use super::common;
 
 use machine_workflows::tune::{candidates, search, without_afb, Candidate, Constraints};
 

@@ -1,0 +1,14 @@
+//! The machine workflows end to end, each module one workflow (tune, identify, commission,
+//! the notch, the linear model) on the shipped machine files and on machines written for the
+//! test (`common`). `cargo test --test it workflows::<module>::` runs one module.
+
+mod common;
+
+mod commission;
+mod commission_notch;
+mod identify;
+mod linear_model;
+mod notch;
+mod tune;
+mod tune_report;
+mod tune_table1;
