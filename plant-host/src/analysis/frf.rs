@@ -14,7 +14,6 @@
 //! uncorrelated with r, so it averages out of both.
 
 use nalgebra::Complex;
-use rustfft::FftPlanner;
 use std::f64::consts::PI;
 
 /// A measured frequency response.
@@ -95,7 +94,6 @@ fn spectra(
     if channels.iter().any(|c| c.iter().any(|v| !v.is_finite())) {
         return Err(FrfError::NotFinite);
     }
-    let fft = FftPlanner::<f64>::new().plan_fft_forward(segment_len);
     let window: Vec<f64> = (0..segment_len)
         .map(|i| 0.5 - 0.5 * (2.0 * PI * i as f64 / segment_len as f64).cos())
         .collect();
@@ -116,7 +114,7 @@ fn spectra(
                     .zip(&window)
                     .map(|(v, w)| Complex::new((v - mean) * w, 0.0)),
             );
-            fft.process(buf);
+            fft::forward(buf);
         }
         for (acc, &(a, b)) in cross.iter_mut().zip(pairs) {
             let (Some(xa), Some(xb)) = (buffers.get(a), buffers.get(b)) else {

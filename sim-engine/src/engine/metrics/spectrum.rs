@@ -2,11 +2,10 @@
 //! figures: the peak of a Hann-windowed, zero-padded FFT, the share of the energy near
 //! it, and the RMS of the part of a signal inside a frequency band.
 
-use rustfft::num_complex::Complex64;
-use rustfft::{Fft, FftPlanner};
-use std::cell::RefCell;
+use fft::Complex;
 use std::f64::consts::PI;
-use std::sync::Arc;
+
+type Complex64 = Complex<f64>;
 
 /// Zero padding of the peak search: the FFT is this many times the window's length
 /// (rounded up to a power of two), so the bins are T/16 apart before interpolation.
@@ -33,27 +32,8 @@ pub(super) fn detrended(x: &[f64]) -> Vec<f64> {
         .collect()
 }
 
-thread_local! {
-    /// One planner per thread, which keeps the plan of each length it has made: planning
-    /// is most of a transform's cost, and the runs one thread makes (a sweep, `tune`, the
-    /// benchmark) ask for the same few lengths again and again.
-    static PLANNER: RefCell<FftPlanner<f64>> = RefCell::new(FftPlanner::new());
-}
-
-/// The forward (or inverse) transform of `n` points, from this thread's planner.
-fn plan(n: usize, inverse: bool) -> Arc<dyn Fft<f64>> {
-    PLANNER.with(|p| {
-        let mut p = p.borrow_mut();
-        if inverse {
-            p.plan_fft_inverse(n)
-        } else {
-            p.plan_fft_forward(n)
-        }
-    })
-}
-
-fn fft(mut buf: Vec<Complex64>) -> Vec<Complex64> {
-    plan(buf.len(), false).process(&mut buf);
+fn forward(mut buf: Vec<Complex64>) -> Vec<Complex64> {
+    fft::forward(&mut buf);
     buf
 }
 
@@ -68,7 +48,7 @@ fn padded_power(x: &[f64], fs_hz: f64) -> (Vec<f64>, f64) {
         let hann = 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos();
         *b = Complex64::new(v * hann, 0.0);
     }
-    let power = fft(buf)
+    let power = forward(buf)
         .iter()
         .take(len / 2 + 1)
         .map(|c| c.norm_sqr())
@@ -175,7 +155,7 @@ pub(super) fn band_rms(x: &[f64], fs_hz: f64, lo_hz: f64, hi_hz: f64) -> f64 {
         .into_iter()
         .map(|v| Complex64::new(v, 0.0))
         .collect();
-    let spectrum = fft(buf);
+    let spectrum = forward(buf);
     let df = fs_hz / n as f64;
     let energy: f64 = spectrum
         .iter()
@@ -201,14 +181,14 @@ pub(super) fn band_passed(x: &[f64], fs_hz: f64, (lo_hz, hi_hz): (f64, f64)) -> 
         .map(|v| Complex64::new(v, 0.0))
         .collect();
     let df = fs_hz / n as f64;
-    let mut spectrum = fft(buf);
+    let mut spectrum = forward(buf);
     for (k, c) in spectrum.iter_mut().enumerate() {
         let f = k.min(n - k) as f64 * df;
         if f < lo_hz || f > hi_hz {
             *c = Complex64::new(0.0, 0.0);
         }
     }
-    plan(n, true).process(&mut spectrum);
+    fft::inverse(&mut spectrum);
     spectrum.iter().map(|c| c.re / n as f64).collect()
 }
 
