@@ -141,11 +141,26 @@ mod target {
             mem.static_ram_bytes
         );
         LOOPS.install(app, b.current_io, b.velocity_io, motion);
+        let mut console = b.console;
         // QEMU demo: enable at once. The real board waits for `e` on the console.
         #[cfg(not(feature = "board-stm32f4"))]
         enable(true);
+        // The real board says on its serial port what it runs and on which clock (the QEMU
+        // image's UART shares QEMU's stdout with the defmt log, so it stays silent there).
+        #[cfg(feature = "board-stm32f4")]
+        {
+            use core::fmt::Write as _;
+            let _ = write!(
+                console,
+                "stiffdrive firmware {} on {}: drive {}; clock: {}\r\n",
+                env!("CARGO_PKG_VERSION"),
+                board::NAME,
+                firmware::drive::NAME,
+                board::Clocks::now().source.describe()
+            );
+        }
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
-        run(b.console)
+        run(console)
     }
 
     /// The drive baked at build time (`firmware::drive`); an image whose settings do not decode

@@ -20,6 +20,7 @@
 //! rails (1024 LSB per pu); set [`ADC_LSB_PER_PU`] and [`ADC_OFFSET`] for the real stage.
 
 use core::convert::Infallible;
+use core::sync::atomic::{AtomicU8, Ordering};
 
 use controller_core::per_unit::Pu;
 use cortex_m::peripheral::NVIC;
@@ -27,16 +28,112 @@ use stm32f4::stm32f407::{self as pac, Interrupt};
 
 use crate::board::{CurrentIo, CurrentSense, EncoderCounter, VelocityIo};
 
-/// Core clock [Hz].
+/// Core clock [Hz] with the PLL locked (from the crystal or, without one, the internal
+/// oscillator); [`Clocks::now`] gives the clock the board runs at.
 pub const CORE_CLOCK_HZ: u32 = 168_000_000;
 /// Board name for logs.
 pub const NAME: &str = "stm32f4-discovery";
-/// APB1 timer clock (APB1 = 42 MHz, ×2 for timers) [Hz].
-const APB1_TIMER_HZ: u32 = 84_000_000;
-/// APB1 peripheral clock [Hz].
-const APB1_HZ: u32 = 42_000_000;
-/// TIM1 auto-reload for 20 kHz centre-aligned at 168 MHz: f = 168 MHz / (2·ARR).
-const PWM_ARR: u16 = 4200;
+/// Bridge PWM frequency [Hz] (TIM1, centre aligned).
+const PWM_HZ: u32 = 20_000;
+
+/// Where the core clock comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum ClockSource {
+    /// The 8 MHz crystal (HSE) through the PLL.
+    Crystal,
+    /// No crystal answered: the internal 16 MHz RC oscillator (HSI) through the PLL.
+    Internal,
+    /// Neither the crystal nor the PLL answered: the internal oscillator alone, 16 MHz on
+    /// every bus (QEMU's STM32F405 machine, which models no clock controller, boots here).
+    InternalWithoutPll,
+}
+
+impl ClockSource {
+    /// For the boot line on the console.
+    pub const fn describe(self) -> &'static str {
+        match self {
+            Self::Crystal => "crystal (HSE 8 MHz) through the PLL, 168 MHz",
+            Self::Internal => {
+                "internal oscillator (HSI 16 MHz) through the PLL, 168 MHz: no crystal"
+            }
+            Self::InternalWithoutPll => {
+                "internal oscillator (HSI 16 MHz) without the PLL: no crystal, PLL not locked"
+            }
+        }
+    }
+}
+
+/// The bus and timer clocks `init` set up [Hz].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub struct Clocks {
+    /// Where they come from.
+    pub source: ClockSource,
+    /// Core clock (AHB).
+    pub sysclk_hz: u32,
+    /// APB1 peripheral clock (USART2).
+    pub apb1_hz: u32,
+    /// APB1 timer clock (TIM3, TIM6, TIM7): ×2 when APB1 is divided.
+    pub apb1_timer_hz: u32,
+    /// APB2 timer clock (TIM1).
+    pub apb2_timer_hz: u32,
+}
+
+impl Clocks {
+    /// 168 MHz through the PLL: AHB /1, APB1 /4 (42 MHz, timers 84 MHz), APB2 /2 (timers
+    /// 168 MHz).
+    pub const fn pll(source: ClockSource) -> Self {
+        Self {
+            source,
+            sysclk_hz: CORE_CLOCK_HZ,
+            apb1_hz: 42_000_000,
+            apb1_timer_hz: 84_000_000,
+            apb2_timer_hz: CORE_CLOCK_HZ,
+        }
+    }
+
+    /// The internal oscillator alone: 16 MHz, every bus /1 (the reset state).
+    pub const HSI: Self = Self {
+        source: ClockSource::InternalWithoutPll,
+        sysclk_hz: 16_000_000,
+        apb1_hz: 16_000_000,
+        apb1_timer_hz: 16_000_000,
+        apb2_timer_hz: 16_000_000,
+    };
+
+    /// TIM1 auto-reload for [`PWM_HZ`] centre aligned: f = timer clock / (2·ARR) (4200 at
+    /// 168 MHz).
+    pub const fn pwm_arr(&self) -> u16 {
+        let arr = self.apb2_timer_hz / (2 * PWM_HZ);
+        if arr > u16::MAX as u32 {
+            u16::MAX
+        } else {
+            arr as u16
+        }
+    }
+
+    /// The clocks `init` set up (the reset state's before it ran).
+    pub fn now() -> Self {
+        match CLOCK_SOURCE.load(Ordering::Relaxed) {
+            1 => Self::pll(ClockSource::Crystal),
+            2 => Self::pll(ClockSource::Internal),
+            _ => Self::HSI,
+        }
+    }
+}
+
+/// [`Clocks::now`]'s source, set once by `init`: 0 the internal oscillator alone, 1 the
+/// crystal, 2 the internal oscillator through the PLL.
+static CLOCK_SOURCE: AtomicU8 = AtomicU8::new(0);
+
+fn set_clocks(c: Clocks) {
+    let code = match c.source {
+        ClockSource::InternalWithoutPll => 0,
+        ClockSource::Crystal => 1,
+        ClockSource::Internal => 2,
+    };
+    CLOCK_SOURCE.store(code, Ordering::Relaxed);
+}
+
 /// ADC counts at zero current.
 pub const ADC_OFFSET: i32 = 2048;
 /// ADC counts per pu of current.
@@ -137,8 +234,10 @@ register_block!(tim6: TIM6 => tim6);
 // SAFETY: after `init`, TIM7 SR is cleared only by its own interrupt.
 register_block!(tim7: TIM7 => tim6);
 
-/// TIM1 channel 1 (complementary) as the bridge PWM.
-pub struct Tim1Pwm;
+/// TIM1 channel 1 (complementary) as the bridge PWM; `arr` is its auto-reload, full duty.
+pub struct Tim1Pwm {
+    arr: u16,
+}
 
 impl embedded_hal::pwm::ErrorType for Tim1Pwm {
     type Error = Infallible;
@@ -146,12 +245,12 @@ impl embedded_hal::pwm::ErrorType for Tim1Pwm {
 
 impl embedded_hal::pwm::SetDutyCycle for Tim1Pwm {
     fn max_duty_cycle(&self) -> u16 {
-        PWM_ARR
+        self.arr
     }
 
     fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
         // Preloaded (OC1PE): takes effect at the next update, glitch free.
-        wr!(tim1().ccr1(), u32::from(duty.min(PWM_ARR)));
+        wr!(tim1().ccr1(), u32::from(duty.min(self.arr)));
         Ok(())
     }
 }
@@ -257,7 +356,10 @@ pub struct Board {
 pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
     for (tim, rate) in [(tim6(), current_rate_hz), (tim7(), velocity_rate_hz)] {
         wr!(tim.psc(), 0);
-        wr!(tim.arr(), (APB1_TIMER_HZ / rate.max(1)).saturating_sub(1));
+        wr!(
+            tim.arr(),
+            (Clocks::now().apb1_timer_hz / rate.max(1)).saturating_sub(1)
+        );
         wr!(tim.egr(), 1); // load ARR
         wr!(tim.sr(), 0);
         wr!(tim.dier(), 1); // UIE

@@ -6,33 +6,51 @@
 use stm32f4::stm32f407 as pac;
 
 use super::{
-    wait, AdcCurrent, Board, EnablePin, FaultPin, Tim1Pwm, Tim3Encoder, Usart2, APB1_HZ, PWM_ARR,
+    set_clocks, wait, AdcCurrent, Board, ClockSource, Clocks, EnablePin, FaultPin, Tim1Pwm,
+    Tim3Encoder, Usart2,
 };
 use crate::board::{CurrentIo, VelocityIo};
 
-/// 168 MHz from the 8 MHz crystal: PLL M = 8, N = 336, P = 2 (Q = 7 for 48 MHz USB);
-/// AHB /1, APB1 /4 (42 MHz), APB2 /2 (84 MHz); flash 5 wait states with caches.
-fn clocks(rcc: &pac::RCC, flash: &pac::FLASH) -> bool {
+/// 168 MHz through the PLL from the 8 MHz crystal: M = 8, N = 336, P = 2 (Q = 7 for 48 MHz
+/// USB); AHB /1, APB1 /4 (42 MHz), APB2 /2 (84 MHz); flash 5 wait states with caches.
+///
+/// The wait for the crystal is bounded, as ST's `HSE_STARTUP_TIMEOUT` bounds it (a million
+/// polls of HSERDY: about 0.3 s on the 16 MHz internal oscillator the core starts on, against
+/// ST's 100 ms). A board without a crystal, or with one that does not start, gets the same
+/// 168 MHz from the internal 16 MHz oscillator (HSI, M = 16). If the PLL does not lock
+/// either, the core stays on the internal oscillator at 16 MHz with every bus /1, the reset
+/// state, and the clocks returned say so.
+fn clocks(rcc: &pac::RCC, flash: &pac::FLASH) -> Clocks {
     rmw!(rcc.cr(), 0, 1 << 16); // HSEON
-    if !wait(|| rcc.cr().read().bits() & (1 << 17) != 0) {
-        return false; // HSERDY never came: no crystal?
-    }
-    // PLLCFGR: PLLM[5:0] = 8, PLLN[14:6] = 336, PLLP[17:16] = 0 (/2), PLLSRC[22] = HSE,
-    // PLLQ[27:24] = 7; the reserved bits keep their reset values.
+    let (source, pllm, pllsrc) = if wait(|| rcc.cr().read().bits() & (1 << 17) != 0) {
+        (ClockSource::Crystal, 8, 1 << 22) // PLLSRC[22] = HSE
+    } else {
+        rmw!(rcc.cr(), 1 << 16, 0); // HSEON off: HSERDY never came
+        (ClockSource::Internal, 16, 0) // PLLSRC = HSI
+    };
+    // PLLCFGR: PLLM[5:0], PLLN[14:6] = 336, PLLP[17:16] = 0 (/2), PLLSRC[22], PLLQ[27:24] = 7;
+    // the reserved bits keep their reset values.
     rmw!(
         rcc.pllcfgr(),
         0x0F43_7FFF,
-        8 | (336 << 6) | (1 << 22) | (7 << 24)
+        pllm | (336 << 6) | pllsrc | (7 << 24)
     );
     rmw!(rcc.cr(), 0, 1 << 24); // PLLON
     if !wait(|| rcc.cr().read().bits() & (1 << 25) != 0) {
-        return false;
+        rmw!(rcc.cr(), 1 << 24, 0); // PLLON off: PLLRDY never came
+        return Clocks::HSI;
     }
     // ACR: LATENCY = 5 WS (168 MHz at 3.3 V), PRFTEN, ICEN, DCEN.
     wr!(flash.acr(), 5 | (1 << 8) | (1 << 9) | (1 << 10));
     // CFGR: PPRE1[12:10] = 101 (/4), PPRE2[15:13] = 100 (/2), SW[1:0] = 10 (PLL).
     rmw!(rcc.cfgr(), 0xFCF3, (0b101 << 10) | (0b100 << 13) | 0b10);
-    wait(|| (rcc.cfgr().read().bits() >> 2) & 0b11 == 0b10)
+    if wait(|| (rcc.cfgr().read().bits() >> 2) & 0b11 == 0b10) {
+        Clocks::pll(source)
+    } else {
+        // The switch did not happen: back to the reset state (HSI, every bus /1).
+        rmw!(rcc.cfgr(), 0xFCF3, 0);
+        Clocks::HSI
+    }
 }
 
 /// Set a pin's mode (2 bits), alternate function (4 bits) and pull (2 bits). A macro: the
@@ -63,19 +81,22 @@ pub fn init(_core: &mut cortex_m::Peripherals, _cfg: &controller_core::DriveConf
     let Some(dp) = pac::Peripherals::take() else {
         crate::rt::exit(false)
     };
-    if !clocks(&dp.RCC, &dp.FLASH) {
-        defmt::error!("clock setup failed (HSE or PLL not ready)");
-        crate::rt::exit(false)
+    let clocks = clocks(&dp.RCC, &dp.FLASH);
+    set_clocks(clocks);
+    if clocks.source != ClockSource::Crystal {
+        defmt::error!("fault: clock: {=str}", clocks.source.describe());
     }
     peripheral_clocks(&dp.RCC, &dp.DBGMCU);
     pins(&dp);
-    pwm_tim1(&dp.TIM1);
+    pwm_tim1(&dp.TIM1, &clocks);
     adc1(&dp.ADC_COMMON, &dp.ADC1);
     encoder_tim3(&dp.TIM3);
-    console_usart2(&dp.USART2);
+    console_usart2(&dp.USART2, clocks.apb1_hz);
     Board {
         current_io: CurrentIo {
-            pwm: Tim1Pwm,
+            pwm: Tim1Pwm {
+                arr: clocks.pwm_arr(),
+            },
             current: AdcCurrent,
             encoder: Tim3Encoder,
             enable: EnablePin,
@@ -128,17 +149,21 @@ fn pins(dp: &pac::Peripherals) {
     pin!(dp.GPIOA, 3, MODE_AF, 7, PULL_NONE); // USART2_RX
 }
 
-/// TIM1: the 20 kHz centre-aligned bridge PWM at 0 V, with dead time, and the ADC trigger.
-fn pwm_tim1(t1: &pac::TIM1) {
+/// TIM1: the 20 kHz centre-aligned bridge PWM at 0 V, with dead time, and the ADC trigger,
+/// for the clocks `c`.
+fn pwm_tim1(t1: &pac::TIM1, c: &Clocks) {
     // TIM1: centre-aligned mode 1 (CMS = 01), ARPE; PWM mode 1 with preload on CH1;
-    // CH1 + CH1N on; dead time DTG = 84 × 5.95 ns = 500 ns; MOE; TRGO = update (MMS = 010).
+    // CH1 + CH1N on; dead time 500 ns (DTG = 84 × 5.95 ns at 168 MHz, 8 × 62.5 ns on the
+    // internal oscillator alone); MOE; TRGO = update (MMS = 010).
+    let arr = c.pwm_arr();
+    let dead_time = (c.apb2_timer_hz / 2_000_000).min(127);
     wr!(t1.psc(), 0);
-    wr!(t1.arr(), u32::from(PWM_ARR));
+    wr!(t1.arr(), u32::from(arr));
     wr!(t1.rcr(), 1); // one update per PWM period (at the counter underflow: mid low-side)
-    wr!(t1.ccr1(), u32::from(PWM_ARR / 2)); // 0 V
+    wr!(t1.ccr1(), u32::from(arr / 2)); // 0 V
     wr!(t1.ccmr1_output(), (0b110 << 4) | (1 << 3));
     wr!(t1.ccer(), 1 | (1 << 2));
-    wr!(t1.bdtr(), (1 << 15) | 84);
+    wr!(t1.bdtr(), (1 << 15) | dead_time);
     wr!(t1.cr2(), 0b010 << 4);
     wr!(t1.egr(), 1);
     wr!(t1.cr1(), (0b01 << 5) | (1 << 7) | 1);
@@ -166,11 +191,11 @@ fn encoder_tim3(t3: &pac::TIM3) {
     wr!(t3.cr1(), 1);
 }
 
-/// USART2: the console, 115200 Bd, receive interrupt on.
-fn console_usart2(usart: &pac::USART2) {
-    // USART2: 115200 Bd from 42 MHz (BRR = 42e6/115200 = 364.6 → 22 + 13/16), TE, RE,
-    // RXNEIE, UE.
-    let brr = ((APB1_HZ + 57_600) / 115_200) as u16;
+/// USART2: the console, 115200 Bd from the APB1 clock `apb1_hz`, receive interrupt on.
+fn console_usart2(usart: &pac::USART2, apb1_hz: u32) {
+    // USART2: 115200 Bd (BRR = 42e6/115200 = 364.6 → 22 + 13/16 at 42 MHz; 139 on the
+    // internal oscillator alone), TE, RE, RXNEIE, UE.
+    let brr = ((apb1_hz + 57_600) / 115_200) as u16;
     wr!(usart.brr(), brr);
     wr!(usart.cr1(), (1 << 13) | (1 << 5) | (1 << 3) | (1 << 2));
 }
