@@ -8,7 +8,10 @@
 //!    damping, viscous friction (Bm + Bl), each with its standard error;
 //! 3. the lost motion from the reversal test, fitted by simulating the test on the
 //!    identified model ([`lost_motion`]);
-//! 4. `DIR/plant.toml` (the `[plant]` table), `DIR/identify.json`, `DIR/identify.md` with
+//! 4. the same measurement and fits on a simulated twin with the identified mechanics, whose
+//!    bias is taken out of the estimates and whose spread enters their standard errors
+//!    ([`twin`]);
+//! 5. `DIR/plant.toml` (the `[plant]` table), `DIR/identify.json`, `DIR/identify.md` with
 //!    the measured and fitted Bode plot (`DIR/bode.png|svg`), all staged: on an error
 //!    nothing is written ([`write`]).
 //!
@@ -22,6 +25,7 @@
 pub mod lost_motion;
 pub mod measure;
 pub mod spec;
+pub mod twin;
 pub mod write;
 
 use controller_core::AfbMode;
@@ -38,10 +42,15 @@ use std::path::Path;
 pub struct Identification {
     /// The measured θm/Tm \[rad per pu torque\] and its coherence.
     pub response: MeasuredResponse,
-    /// The two-inertia fit.
+    /// The two-inertia fit, the twin's bias taken out ([`twin::corrected`]).
     pub fit: FitResult,
-    /// The lost motion.
+    /// The lost motion, the twin's bias taken out.
     pub lost_motion: LostMotionFit,
+    /// The fit and the lost motion as measured, before the twin's correction.
+    pub raw: (FitResult, LostMotionFit),
+    /// What the twin showed (`None` when no twin run gave a fit: the estimates are then the
+    /// raw ones).
+    pub twin: Option<twin::Twin>,
     /// Length of the frequency-response record used \[s\].
     pub record_s: f64,
 }
@@ -82,10 +91,17 @@ pub fn identify_machine(base: &RunConfig, spec: &IdentifySpec) -> Result<Identif
     let (response, fit) = fit_response(base, spec, &rec)?;
     let reversal = measure::reversal_run(base, spec)?;
     let lost_motion = fit_lost_motion(base, spec, &fit.fit, &reversal)?;
+    let twin = twin::check(base, spec, &fit.fit, &lost_motion);
+    let (corrected, corrected_lm) = match &twin {
+        Some(t) => twin::corrected(&fit, &lost_motion, t, base.drive.encoder_cpr),
+        None => (fit, lost_motion),
+    };
     Ok(Identification {
         response,
-        fit,
-        lost_motion,
+        fit: corrected,
+        lost_motion: corrected_lm,
+        raw: (fit, lost_motion),
+        twin,
         record_s: rec.counts.len() as f64 / rate,
     })
 }

@@ -4,6 +4,7 @@
 
 use super::lost_motion::identified_mechanics;
 use super::spec::IdentifySpec;
+use super::twin::{self, Twin};
 use super::Identification;
 use plant_host::MechanicsConfig;
 use serde::Serialize;
@@ -43,6 +44,12 @@ pub struct Report<'a> {
     pub record_s: f64,
     /// RMS torque-reference mismatch of the lost-motion fit \[pu\].
     pub lost_motion_rms_mismatch_pu: f64,
+    /// The check on the twin: the raw estimates (`truth`), the twin's mean estimates, their
+    /// spread and how far the bias moved on a second twin (`null` when no twin run gave a
+    /// fit), in the order of `twin_parameters`.
+    pub twin: Option<Twin>,
+    /// The parameters of `twin`'s arrays.
+    pub twin_parameters: [&'static str; twin::PARAMS],
     /// The measurement settings.
     pub settings: &'a IdentifySpec,
 }
@@ -226,7 +233,50 @@ fn markdown(
             e.name, e.value, e.std_error, e.unit
         );
     }
+    md.push_str(&twin_table(ident));
     md.push_str("\n![Bode plot: measured and fitted](bode.png)\n\n`plant.toml` holds the `[plant]` table; `identify.json` every estimate.\n");
+    md
+}
+
+/// The check on the twin, as a table: what the fit gave, what the same fit gave on a twin
+/// with those mechanics, and the estimate with the twin's bias taken out.
+fn twin_table(ident: &Identification) -> String {
+    let Some(t) = &ident.twin else {
+        return "\nThe check on a simulated twin gave no fit: the estimates above are the raw \
+                fit's.\n"
+            .into();
+    };
+    let (fit, lm) = (&ident.fit.fit, &ident.lost_motion);
+    let reported = [
+        fit.motor_inertia_s,
+        fit.load_inertia_s,
+        fit.anti_resonance_hz,
+        fit.shaft_damping_ratio,
+        fit.viscous_pu,
+        fit.delay_s,
+        lm.backlash_deg,
+    ];
+    let mut md = format!(
+        "\nThe estimates above have the method's own bias taken out: the same measurement and \
+         fit, run {} times (noise seeds) on a simulated twin whose mechanics are the raw fit, \
+         miss those mechanics by the bias shown; the standard errors include the twin's spread \
+         and how much the bias moved on a second twin (`docs/tuning.md`).\n\n\
+         | parameter | raw fit | twin's estimate of it | spread | bias moved | reported |\n\
+         |---|---|---|---|---|---|\n",
+        t.runs
+    );
+    for (j, name) in twin::NAMES.iter().enumerate() {
+        let at = |a: &[f64; twin::PARAMS]| a.get(j).copied().unwrap_or(f64::NAN);
+        let _ = writeln!(
+            md,
+            "| {name} | {:.6} | {:.6} | {:.2e} | {:.2e} | {:.6} |",
+            at(&t.truth),
+            at(&t.mean),
+            at(&t.spread),
+            at(&t.variation),
+            at(&reported)
+        );
+    }
     md
 }
 
@@ -251,6 +301,8 @@ pub fn write_all(
         segments: ident.response.segments,
         record_s: ident.record_s,
         lost_motion_rms_mismatch_pu: ident.lost_motion.rms_mismatch_pu,
+        twin: ident.twin,
+        twin_parameters: twin::NAMES,
         settings: spec,
     };
     let json = serde_json::to_string_pretty(&report)
