@@ -32,6 +32,10 @@ pub struct PilArgs {
     /// Skip the bit-for-bit comparison with the host run.
     #[arg(long)]
     pub no_compare: bool,
+    /// Where QEMU puts the firmware's UART: `socket` (a Unix socket) or `pty` (a
+    /// pseudo-terminal the harness opens as a serial device, as it would a board's port).
+    #[arg(long, default_value = "socket", value_name = "socket|pty")]
+    pub link: pil_host::LinkPort,
 }
 
 impl PilArgs {
@@ -48,6 +52,7 @@ impl PilArgs {
             watchdog_ms: self.watchdog_ms,
             reply_timeout_ms: self.reply_timeout_ms,
             no_compare: self.no_compare,
+            port: self.link,
         }
     }
 }

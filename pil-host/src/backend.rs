@@ -1,11 +1,10 @@
 //! The firmware in QEMU as a [`ControlBackend`], and a recorder of any backend's ticks.
 
 use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
-use pil_link::host::{HostError, HostLink};
+use pil_link::host::{HostError, HostLink, Stream};
 use pil_link::tick::{Commands, Sensors};
 use pil_link::wire::Writer;
 use sim_engine::engine::runner::ControlBackend;
-use std::os::unix::net::UnixStream;
 
 /// Every controller input and output of a run, in tick order (raw fixed-point values).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -51,7 +50,7 @@ impl<B: ControlBackend> ControlBackend for Recorder<B> {
 /// halted, so the runner stops at the next tick; [`super::run_pil`] then cuts the trace exactly at
 /// the fault.
 pub struct PilBackend {
-    pub(super) link: HostLink<UnixStream>,
+    pub(super) link: HostLink<Stream>,
     pub(super) log: TickLog,
     pub(super) current_ticks: u64,
     pub(super) fault: Option<(HostError, u64)>,
@@ -61,7 +60,7 @@ pub struct PilBackend {
 
 impl PilBackend {
     /// A backend on an open, configured link.
-    pub(super) fn new(link: HostLink<UnixStream>) -> Self {
+    pub(super) fn new(link: HostLink<Stream>) -> Self {
         Self {
             link,
             log: TickLog::default(),

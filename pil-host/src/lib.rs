@@ -34,6 +34,8 @@ pub mod settings;
 pub use backend::{PilBackend, Recorder, TickLog};
 pub use compare::{compare, Comparison, Mismatch};
 pub use image::{build_pil_image, build_pil_image_with, firmware_target_dir, with_all_images};
+/// Where QEMU puts the firmware's UART ([`PilRun::port`]).
+pub use pil_link::qemu::LinkPort;
 pub use session::{run_pil, with_firmware, FirmwareFault, LinkFault, LinkReport, PilOutcome};
 pub use settings::{PilRun, DEFAULT_REPLY_TIMEOUT_MS, DEFAULT_WATCHDOG_MS, REPLY_TIMEOUT_MS};
 

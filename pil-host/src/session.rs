@@ -9,7 +9,7 @@ use crate::settings::PilRun;
 use controller_core::excitation::ExcitationConfig;
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
-use pil_link::host::{FaultPlan, HostError, HostLink};
+use pil_link::host::{FaultPlan, HostError, HostLink, Stream};
 use pil_link::qemu::{Qemu, QemuOptions};
 use pil_link::wire::Writer;
 use pil_link::{FaultReport, HelloAck};
@@ -144,7 +144,7 @@ fn own_design(cfg: &RunConfig, check: bool) -> Result<()> {
 /// QEMU running the image, with the link through Hello and the drive settings.
 struct Session {
     qemu: Qemu,
-    link: HostLink<std::os::unix::net::UnixStream>,
+    link: HostLink<Stream>,
     ack: HelloAck,
 }
 
@@ -161,6 +161,7 @@ impl Session {
             elf: elf.to_path_buf(),
             log: log.to_path_buf(),
             connect_timeout: Duration::from_secs(20),
+            port: args.port,
         })
         .map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
         let mut link = HostLink::new(stream, Duration::from_millis(args.reply_timeout_ms));
@@ -431,8 +432,9 @@ fn write_json<T: Serialize>(staging: &Staging, name: &str, value: &T) -> Result<
 /// `firmware.defmt`). A log that cannot be decoded says why in `firmware.log`.
 fn decode_log(elf: &Path, raw: &Path, staging: &Staging) -> Result<()> {
     let bytes = std::fs::read(raw).map_err(|e| HarnessError::io(raw, e))?;
+    let bytes = pil_link::qemu::log_bytes(&bytes);
     let lines = match LogDecoder::from_elf(elf) {
-        Ok(d) => d.decode_all(&bytes, LineFormat::Full),
+        Ok(d) => d.decode_all(bytes, LineFormat::Full),
         Err(e) => vec![format!("(defmt log not decoded: {e})")],
     };
     let mut text = lines.join("\n");

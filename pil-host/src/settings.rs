@@ -36,6 +36,9 @@ pub struct PilRun {
     pub reply_timeout_ms: u64,
     /// Skip the bit-for-bit comparison with the host run.
     pub no_compare: bool,
+    /// Where QEMU puts the firmware's UART: a Unix socket, or a pseudo-terminal opened as a
+    /// serial device (the code path of a board's serial port).
+    pub port: crate::LinkPort,
 }
 
 impl PilRun {
@@ -52,6 +55,7 @@ impl PilRun {
             watchdog_ms: DEFAULT_WATCHDOG_MS,
             reply_timeout_ms: DEFAULT_REPLY_TIMEOUT_MS,
             no_compare: false,
+            port: crate::LinkPort::Socket,
         }
     }
 

@@ -1,5 +1,7 @@
 //! The harness side of the link (needs `std`): lock-step request/reply over any byte stream
-//! with a read timeout (a Unix socket to QEMU's serial port), and fault injection for tests.
+//! with a read timeout (a Unix socket to QEMU's serial port, or a serial device: a board's
+//! `/dev/ttyACM0`, or the pseudo-terminal QEMU gives its UART), and fault injection for
+//! tests.
 
 use crate::message::{FaultReport, Hello, HelloAck};
 use crate::wire::Writer;
@@ -17,6 +19,66 @@ pub trait Transport: Read + Write {
 impl Transport for UnixStream {
     fn set_read_deadline(&mut self, timeout: Option<Duration>) -> io::Result<()> {
         self.set_read_timeout(timeout)
+    }
+}
+
+/// A serial device: termios raw mode, reads that time out (the `serialport` crate).
+impl Transport for serialport::TTYPort {
+    fn set_read_deadline(&mut self, timeout: Option<Duration>) -> io::Result<()> {
+        // No timeout is a long one: the device has no blocking mode of its own.
+        serialport::SerialPort::set_timeout(self, timeout.unwrap_or(Duration::from_secs(3600)))
+            .map_err(io::Error::from)
+    }
+}
+
+/// Opens the serial device `path` at `baud` (8N1, no flow control, raw) as a link stream.
+pub fn open_serial(path: &std::path::Path, baud: u32) -> io::Result<Stream> {
+    let port = serialport::new(path.to_string_lossy(), baud)
+        .timeout(Duration::from_secs(1))
+        .open_native()
+        .map_err(|e| io::Error::other(format!("serial device {}: {e}", path.display())))?;
+    Ok(Stream::Serial(port))
+}
+
+/// The byte stream of a link: a Unix socket or a serial device.
+pub enum Stream {
+    /// A Unix socket (QEMU's UART on a socket chardev).
+    Socket(UnixStream),
+    /// A serial device (a board's port, or QEMU's UART on a pseudo-terminal).
+    Serial(serialport::TTYPort),
+}
+
+impl Read for Stream {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        match self {
+            Self::Socket(s) => s.read(buf),
+            Self::Serial(s) => s.read(buf),
+        }
+    }
+}
+
+impl Write for Stream {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        match self {
+            Self::Socket(s) => s.write(buf),
+            Self::Serial(s) => s.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        match self {
+            Self::Socket(s) => s.flush(),
+            Self::Serial(s) => s.flush(),
+        }
+    }
+}
+
+impl Transport for Stream {
+    fn set_read_deadline(&mut self, timeout: Option<Duration>) -> io::Result<()> {
+        match self {
+            Self::Socket(s) => Transport::set_read_deadline(s, timeout),
+            Self::Serial(s) => Transport::set_read_deadline(s, timeout),
+        }
     }
 }
 

@@ -1,14 +1,39 @@
 //! Starts the firmware's PIL image in QEMU (mps2-an386, Cortex-M4F) with UART0 on a Unix
-//! socket the harness listens on (loopback only, no network), and its semihosting output
-//! (the defmt log) in a file. Needs `std`.
+//! socket the harness listens on (loopback only, no network) or on a pseudo-terminal the
+//! harness opens as a serial device ([`LinkPort`]), and its semihosting output (the defmt
+//! log) in a file. Needs `std`.
 
+use crate::host::{Stream, open_serial};
 use std::fs::File;
 use std::io;
-use std::os::unix::net::{UnixListener, UnixStream};
+use std::os::unix::net::UnixListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::{Duration, Instant};
+
+/// Where QEMU puts the firmware's UART0 for the harness.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LinkPort {
+    /// A Unix socket QEMU connects to.
+    #[default]
+    Socket,
+    /// A pseudo-terminal QEMU creates, which the harness opens as a serial device (termios,
+    /// read timeouts): the code path of a board's `/dev/ttyACM0`.
+    Pty,
+}
+
+impl core::str::FromStr for LinkPort {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "socket" => Ok(Self::Socket),
+            "pty" => Ok(Self::Pty),
+            other => Err(format!("link port {other:?}: one of socket, pty")),
+        }
+    }
+}
 
 /// How to start QEMU.
 #[derive(Clone, Debug)]
@@ -19,8 +44,10 @@ pub struct QemuOptions {
     pub elf: PathBuf,
     /// Where QEMU's stdout goes: the firmware's defmt-over-semihosting log (binary).
     pub log: PathBuf,
-    /// How long QEMU may take to connect to the socket.
+    /// How long QEMU may take to connect to the socket (or to name its pseudo-terminal).
     pub connect_timeout: Duration,
+    /// Where UART0 goes.
+    pub port: LinkPort,
 }
 
 /// Why QEMU could not be started or connected.
@@ -87,18 +114,38 @@ impl From<io::Error> for QemuError {
     }
 }
 
+/// What QEMU writes on its stdout, before anything else, when it puts a UART on a
+/// pseudo-terminal: this, the device's path, and " (label serialN)". The firmware's defmt
+/// log follows on the same stream ([`log_bytes`] leaves the notice out).
+pub const PTY_NOTICE: &str = "char device redirected to ";
+
+/// The firmware's log in QEMU's stdout `bytes`, without the pseudo-terminal notice line.
+#[must_use]
+pub fn log_bytes(bytes: &[u8]) -> &[u8] {
+    if bytes.starts_with(PTY_NOTICE.as_bytes()) {
+        bytes
+            .iter()
+            .position(|b| *b == b'\n')
+            .and_then(|i| bytes.get(i + 1..))
+            .unwrap_or(&[])
+    } else {
+        bytes
+    }
+}
+
 /// A running QEMU with the PIL image. Dropping it kills QEMU and removes the socket.
 pub struct Qemu {
     child: Child,
     dir: PathBuf,
     stderr_path: PathBuf,
+    stdout_path: PathBuf,
 }
 
 static INSTANCE: AtomicU32 = AtomicU32::new(0);
 
 impl Qemu {
     /// Starts QEMU and waits for it to connect; returns it and the UART0 stream.
-    pub fn spawn(opts: &QemuOptions) -> Result<(Self, UnixStream), QemuError> {
+    pub fn spawn(opts: &QemuOptions) -> Result<(Self, Stream), QemuError> {
         if !opts.elf.is_file() {
             return Err(QemuError::NoImage {
                 elf: opts.elf.clone(),
@@ -108,16 +155,29 @@ impl Qemu {
         let dir = std::env::temp_dir().join(format!("stiffdrive-pil-{}-{n}", std::process::id()));
         std::fs::create_dir_all(&dir)?;
         let sock = dir.join("uart0.sock");
-        let listener = UnixListener::bind(&sock)?;
-        listener.set_nonblocking(true)?;
+        let listener = match opts.port {
+            LinkPort::Socket => {
+                let l = UnixListener::bind(&sock)?;
+                l.set_nonblocking(true)?;
+                Some(l)
+            }
+            LinkPort::Pty => None,
+        };
+        let serial: Vec<String> = match opts.port {
+            LinkPort::Socket => vec![
+                "-chardev".into(),
+                format!("socket,id=pil,path={}", sock.display()),
+                "-serial".into(),
+                "chardev:pil".into(),
+            ],
+            LinkPort::Pty => vec!["-serial".into(), "pty".into()],
+        };
         let stderr_path = dir.join("qemu.stderr");
         let spawned = Command::new(&opts.qemu)
             .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
             .args(["-nographic", "-monitor", "none"])
             .args(["-semihosting-config", "enable=on,target=native"])
-            .arg("-chardev")
-            .arg(format!("socket,id=pil,path={}", sock.display()))
-            .args(["-serial", "chardev:pil"])
+            .args(&serial)
             .arg("-kernel")
             .arg(&opts.elf)
             .stdin(Stdio::null())
@@ -138,16 +198,12 @@ impl Qemu {
             child,
             dir,
             stderr_path,
+            stdout_path: opts.log.clone(),
         };
         let start = Instant::now();
         loop {
-            match listener.accept() {
-                Ok((stream, _)) => {
-                    stream.set_nonblocking(false)?;
-                    return Ok((qemu, stream));
-                }
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {}
-                Err(e) => return Err(e.into()),
+            if let Some(stream) = qemu.connected(listener.as_ref())? {
+                return Ok((qemu, stream));
             }
             if let Some(status) = qemu.child.try_wait()? {
                 return Err(QemuError::ExitedEarly {
@@ -162,6 +218,33 @@ impl Qemu {
             }
             std::thread::sleep(Duration::from_millis(5));
         }
+    }
+
+    /// The UART0 stream once there is one: QEMU connected to the socket `listener`, or
+    /// (without one) named the pseudo-terminal it made, on the first line of its stdout
+    /// ([`PTY_NOTICE`]), which is then opened as a serial device.
+    fn connected(&self, listener: Option<&UnixListener>) -> Result<Option<Stream>, QemuError> {
+        if let Some(l) = listener {
+            return match l.accept() {
+                Ok((stream, _)) => {
+                    stream.set_nonblocking(false)?;
+                    Ok(Some(Stream::Socket(stream)))
+                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => Ok(None),
+                Err(e) => Err(e.into()),
+            };
+        }
+        let stdout = std::fs::read(&self.stdout_path)?;
+        let Some(path) = stdout
+            .strip_prefix(PTY_NOTICE.as_bytes())
+            .and_then(|rest| rest.split(|b| *b == b' ' || *b == b'\n').next())
+            .and_then(|p| std::str::from_utf8(p).ok())
+            .filter(|p| !p.is_empty())
+        else {
+            return Ok(None);
+        };
+        // The firmware talks only after the harness's Hello, so nothing is lost before.
+        Ok(Some(open_serial(Path::new(path), 115_200)?))
     }
 
     /// Waits up to `timeout` for QEMU to exit (the firmware exits through semihosting after

@@ -19,8 +19,8 @@
 )]
 
 use pil_host::{build_pil_image, build_pil_image_with, pil_command, run_pil, PilRun};
-use pil_link::host::{HostError, HostLink};
-use pil_link::qemu::{Qemu, QemuOptions};
+use pil_link::host::{HostError, HostLink, Stream};
+use pil_link::qemu::{LinkPort, Qemu, QemuOptions};
 use pil_link::FaultCode;
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -33,10 +33,14 @@ use std::time::{Duration, Instant};
 /// in the test's output.
 #[test]
 fn processor_in_the_loop() {
-    let cases: [(&str, fn()); 9] = [
+    let cases: [(&str, fn()); 10] = [
         (
             "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
             fig6_through_the_firmware_is_bit_identical_to_the_host_run,
+        ),
+        (
+            "the_link_over_a_serial_device_is_bit_identical_too",
+            the_link_over_a_serial_device_is_bit_identical_too,
         ),
         (
             "link_faults_latch_the_safe_state_on_both_sides",
@@ -154,6 +158,27 @@ struct Case {
     harness_says: &'static str,
     /// Harness reply deadline (ms); the firmware watchdog is 500 ms.
     reply_timeout_ms: u64,
+}
+
+/// The first half second of `fig6` with QEMU's UART on a pseudo-terminal that the harness
+/// opens as a serial device (termios raw mode, read timeouts): the code path a board's
+/// `/dev/ttyACM0` takes. The run is the host's bit for bit, and the firmware's log (on the
+/// same QEMU stdout as the pseudo-terminal's notice) decodes.
+fn the_link_over_a_serial_device_is_bit_identical_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = PilRun::new("fig6", dir.path());
+    args.elf = Some(elf());
+    args.port = pil_host::LinkPort::Pty;
+    args.set = vec!["scenario.duration_s=0.5".into()];
+    let o = run_pil(&args).unwrap();
+    assert!(o.link.fault.is_none(), "link fault: {:?}", o.link.fault);
+    let c = o.comparison.expect("compared with the host run");
+    assert_eq!((c.current_ticks, c.velocity_ticks), (2_000, 1_000));
+    assert_eq!(c.mismatches, 0, "first mismatch: {:?}", c.first_mismatch);
+    assert!(c.bit_identical);
+    let log = std::fs::read_to_string(dir.path().join("firmware.log")).unwrap();
+    assert!(log.contains("waiting for Hello on UART0"), "{log}");
+    assert!(log.contains("stopped after 3000 ticks"), "{log}");
 }
 
 fn link_faults_latch_the_safe_state_on_both_sides() {
@@ -299,15 +324,13 @@ fn the_command_fails_loudly_on_a_link_fault() {
 
 /// QEMU with the `pil` image and the raw link to it, for tests that speak the protocol
 /// themselves (below the harness's own argument checks).
-fn raw_session(
-    elf: &std::path::Path,
-    log: &std::path::Path,
-) -> (Qemu, HostLink<std::os::unix::net::UnixStream>) {
+fn raw_session(elf: &std::path::Path, log: &std::path::Path) -> (Qemu, HostLink<Stream>) {
     let (qemu, stream) = Qemu::spawn(&QemuOptions {
         qemu: PathBuf::from("qemu-system-arm"),
         elf: elf.to_path_buf(),
         log: log.to_path_buf(),
         connect_timeout: Duration::from_secs(20),
+        port: LinkPort::Socket,
     })
     .unwrap();
     (qemu, HostLink::new(stream, Duration::from_secs(3)))
