@@ -32,6 +32,10 @@ impl<B: ControlBackend> ControlBackend for Recorder<B> {
         self.inner.excitation_pu()
     }
 
+    fn finished(&mut self) {
+        self.inner.finished();
+    }
+
     fn current_tick(&mut self, inputs: CurrentInputs) -> CurrentOutputs {
         let out = self.inner.current_tick(inputs);
         self.log.current.push((inputs, out));
@@ -56,6 +60,9 @@ pub struct PilBackend {
     pub(super) fault: Option<(HostError, u64)>,
     /// The excitation sample the firmware reported with its last current tick (Q16.16).
     pub(super) excitation_bits: i32,
+    /// The `Stop` sent when the run's last tick was done ([`ControlBackend::finished`]), and
+    /// how it went; `None` before, or after a fault.
+    pub(super) stopped: Option<Result<(), HostError>>,
 }
 
 impl PilBackend {
@@ -67,6 +74,16 @@ impl PilBackend {
             current_ticks: 0,
             fault: None,
             excitation_bits: 0,
+            stopped: None,
+        }
+    }
+
+    /// Ends a run without a fault: the `Stop` sent at its last tick, or now if the runner
+    /// did not say it finished.
+    pub(super) fn stop(&mut self) -> Result<(), HostError> {
+        match self.stopped.take() {
+            Some(result) => result,
+            None => self.link.stop(),
         }
     }
 
@@ -105,6 +122,12 @@ const SAFE_CURRENT: CurrentOutputs = CurrentOutputs {
 impl ControlBackend for PilBackend {
     fn halted(&self) -> bool {
         self.fault.is_some()
+    }
+
+    fn finished(&mut self) {
+        if self.fault.is_none() && self.stopped.is_none() {
+            self.stopped = Some(self.link.stop());
+        }
     }
 
     fn excitation_pu(&self) -> f64 {

@@ -200,7 +200,7 @@ fn settle(
     run: &mut RunOutput,
 ) -> Result<Option<LinkFault>> {
     let Some((error, at)) = backend.fault.take() else {
-        return match backend.link.stop() {
+        return match backend.stop() {
             Ok(()) => Ok(None),
             Err(e) => Err(qemu_error(qemu, "stop", e)),
         };
@@ -376,10 +376,7 @@ pub fn with_firmware<T>(
         Some((e, at)) => Err(HarnessError::Backend(format!(
             "PIL link fault at current tick {at}: {e}"
         ))),
-        None => backend
-            .link
-            .stop()
-            .map_err(|e| qemu_error(&qemu, "stop", e)),
+        None => backend.stop().map_err(|e| qemu_error(&qemu, "stop", e)),
     };
     let _ = qemu.finish(Duration::from_secs(5));
     end.and(out)

@@ -42,6 +42,10 @@ pub trait ControlBackend {
     fn excitation_pu(&self) -> f64 {
         0.0
     }
+    /// The run's last tick is done: a backend whose other end waits in lock step (the PIL
+    /// link, whose firmware watchdog would expire) ends its session here, before the
+    /// end-of-run figures are computed.
+    fn finished(&mut self) {}
 }
 
 /// The signals of one current tick as the drive records them, for a
@@ -434,6 +438,7 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
             row.fault = f64::from(fault_code(out.fault));
         }
     }
+    backend.finished();
     let wall_time_s = start.elapsed().as_secs_f64();
     let trace = Trace { rows };
     let windows = cfg.metric_windows();
