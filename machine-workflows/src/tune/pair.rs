@@ -8,6 +8,7 @@
 
 use super::bandwidths;
 use super::{candidates, design_from, judge_grid, without_afb, Candidate, Constraints};
+use super::objective::Figures;
 use super::{Judged, Tuned};
 use controller_core::AfbMode;
 use sim_engine::error::HarnessError;
@@ -142,6 +143,8 @@ pub struct LoopRun {
     pub shaft_ripple_freq_hz: f64,
     /// Speed droop at the load step \[pu\] (none without a load step).
     pub load_step_droop_pu: Option<f64>,
+    /// The figures the objective reads ([`super::objective`]).
+    pub figures: Figures,
 }
 
 impl LoopRun {
@@ -162,6 +165,7 @@ impl LoopRun {
             shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
             shaft_ripple_freq_hz: m.shaft_ripple_freq_hz,
             load_step_droop_pu: m.load_step_droop_pu,
+            figures: Figures::of(&m),
         })
     }
 
@@ -253,6 +257,14 @@ mod tests {
             shaft_torque_ripple_rms_pu: ripple,
             shaft_ripple_freq_hz: 0.0,
             load_step_droop_pu: None,
+            figures: Figures {
+                peak_droop_pu: None,
+                peak_shaft_torque_pu: None,
+                recovery_s: None,
+                torque_noise_rms_pu: 0.0,
+                stable,
+                faulted: false,
+            },
         }
     }
 
