@@ -11,8 +11,12 @@
 //! J < 3 does better than the default drive by the sum of the three ratios.
 //!
 //! A run with no figure (no load step seen, or a speed error that never recovers) has
-//! J = +∞: it is never chosen. A reference that has no figure, or a zero one, cannot
-//! normalize anything: the objective is then an error naming the figure.
+//! J = +∞: it is never chosen. When the default drive itself never recovers, its recovery
+//! time is taken as the whole response window after the step (to the next load change or
+//! the end of the run: a lower bound of it) to normalize the others, and its own J is +∞.
+//! A default drive without a droop or a shaft-torque figure (no load step in the run), or
+//! with a zero one, cannot normalize anything: the objective is then an error naming the
+//! figure.
 //!
 //! Budgets a design must stay within, besides the linear constraints of
 //! [`super::Constraints`]:
@@ -85,6 +89,9 @@ impl Figures {
 pub struct Reference {
     /// `fig6` with the file's `[drive]`.
     pub default_drive: Figures,
+    /// What each term is divided by: the default drive's peak droop \[pu\], peak shaft
+    /// torque \[pu\] and recovery time \[s\] (when it never recovers: the response window).
+    pub norms: [f64; 3],
     /// The torque-noise budget \[pu RMS\].
     pub max_torque_noise_pu: f64,
     /// Whether the budget was given (`--max-torque-noise-pu`) or is the default rule.
@@ -123,17 +130,29 @@ impl Reference {
     /// normalize by.
     pub fn of(fig6: &RunConfig, max_torque_noise_pu: Option<f64>) -> Result<Self> {
         check_budget(max_torque_noise_pu)?;
-        Self::from_figures(Figures::run(fig6)?, max_torque_noise_pu)
+        let w = fig6.metric_windows();
+        let window_s = w
+            .step_time_s
+            .map(|t| w.step_end_s.unwrap_or(fig6.scenario.duration_s) - t);
+        Self::from_figures(Figures::run(fig6)?, window_s, max_torque_noise_pu)
     }
 
-    /// [`Reference::of`] from the default drive's figures already measured.
-    pub fn from_figures(default_drive: Figures, max_torque_noise_pu: Option<f64>) -> Result<Self> {
+    /// [`Reference::of`] from the default drive's figures already measured; `window_s`, the
+    /// response window after the step, stands for a recovery that never came.
+    pub fn from_figures(
+        default_drive: Figures,
+        window_s: Option<f64>,
+        max_torque_noise_pu: Option<f64>,
+    ) -> Result<Self> {
         check_budget(max_torque_noise_pu)?;
-        needed("peak droop", default_drive.peak_droop_pu)?;
-        needed("peak shaft torque", default_drive.peak_shaft_torque_pu)?;
-        needed("recovery time", default_drive.recovery_s)?;
+        let norms = [
+            needed("peak droop", default_drive.peak_droop_pu)?,
+            needed("peak shaft torque", default_drive.peak_shaft_torque_pu)?,
+            needed("recovery time", default_drive.recovery_s.or(window_s))?,
+        ];
         Ok(Self {
             default_drive,
+            norms,
             max_torque_noise_pu: max_torque_noise_pu.unwrap_or_else(|| {
                 (NOISE_FACTOR * default_drive.torque_noise_rms_pu).max(NOISE_FLOOR_PU)
             }),
@@ -144,14 +163,12 @@ impl Reference {
     /// J of `f` (module docs): +∞ when a figure is missing.
     #[must_use]
     pub fn objective(&self, f: &Figures) -> f64 {
-        let d = &self.default_drive;
-        let ratio = |x: Option<f64>, r: Option<f64>| match (x, r) {
-            (Some(x), Some(r)) if x.is_finite() && r > 0.0 => x / r,
+        let [d, s, r] = self.norms;
+        let ratio = |x: Option<f64>, n: f64| match x {
+            Some(x) if x.is_finite() && n > 0.0 => x / n,
             _ => f64::INFINITY,
         };
-        ratio(f.peak_droop_pu, d.peak_droop_pu)
-            + ratio(f.peak_shaft_torque_pu, d.peak_shaft_torque_pu)
-            + ratio(f.recovery_s, d.recovery_s)
+        ratio(f.peak_droop_pu, d) + ratio(f.peak_shaft_torque_pu, s) + ratio(f.recovery_s, r)
     }
 
     /// The budgets `f` breaks, in words (empty: within every budget).
@@ -180,18 +197,23 @@ impl Reference {
     #[must_use]
     pub fn describe(&self) -> String {
         let d = &self.default_drive;
-        let f = |x: Option<f64>| x.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
+        let [nd, ns, nr] = self.norms;
         format!(
-            "The objective: after `{SCENARIO}`'s load step, J = peak droop / {} pu + peak \
-             shaft torque / {} pu + recovery time / {} s, each divided by the same figure of \
-             the machine file's own `[drive]` (the default drive, J = 3); lower is better, \
-             and a run without one of the figures (no step seen, never recovered) has \
-             J = ∞. Budgets: torque noise above the velocity bandwidth ≤ {:.4} pu RMS ({}); \
-             stable and no fault in `{SCENARIO}` and in the verification runs; and the \
+            "The objective: after `{SCENARIO}`'s load step, J = peak droop / {nd:.4} pu + peak \
+             shaft torque / {ns:.4} pu + recovery time / {nr:.4} s, each divided by the same \
+             figure of the machine file's own `[drive]` (the default drive, J = 3){}; lower \
+             is better, and a run without one of the figures (no step seen, never recovered) \
+             has J = ∞. Budgets: torque noise above the velocity bandwidth ≤ {:.4} pu RMS \
+             ({}); stable and no fault in `{SCENARIO}` and in the verification runs; and the \
              linear constraints below.",
-            f(d.peak_droop_pu),
-            f(d.peak_shaft_torque_pu),
-            f(d.recovery_s),
+            if d.recovery_s.is_none() {
+                format!(
+                    "; the default drive never recovers within the {nr:.3} s after the step, \
+                     so that window stands for its recovery time and its own J is ∞"
+                )
+            } else {
+                String::new()
+            },
             self.max_torque_noise_pu,
             if self.budget_given {
                 format!("{NOISE_FLAG}")
@@ -255,7 +277,7 @@ mod tests {
     #[test]
     fn the_default_drive_scores_three_and_halving_every_figure_scores_one_and_a_half() {
         let d = figures(Some(0.01), 0.8, Some(0.2), 0.1);
-        let r = Reference::from_figures(d, None).unwrap();
+        let r = Reference::from_figures(d, None, None).unwrap();
         assert!((r.objective(&d) - 3.0).abs() < 1e-12);
         let half = figures(Some(0.005), 0.4, Some(0.1), 0.1);
         assert!((r.objective(&half) - 1.5).abs() < 1e-12);
@@ -264,7 +286,7 @@ mod tests {
 
     #[test]
     fn a_missing_figure_is_an_infinite_objective_and_out_of_budget() {
-        let r = Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.0), None).unwrap();
+        let r = Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.0), None, None).unwrap();
         assert_eq!(r.max_torque_noise_pu, NOISE_FLOOR_PU);
         let never = figures(Some(0.01), 0.8, None, 0.001);
         assert_eq!(r.objective(&never), f64::INFINITY);
@@ -276,13 +298,25 @@ mod tests {
 
     #[test]
     fn a_reference_without_a_load_step_and_a_bad_budget_are_errors_naming_the_key() {
-        let e = Reference::from_figures(figures(None, 0.8, Some(0.2), 0.1), None).unwrap_err();
+        let e = Reference::from_figures(figures(None, 0.8, Some(0.2), 0.1), Some(1.0), None).unwrap_err();
         assert!(e.to_string().contains("peak droop"), "{e}");
         for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             let e = check_budget(Some(bad)).unwrap_err().to_string();
             assert!(e.contains(NOISE_FLAG) && e.contains("> 0"), "{e}");
         }
-        let r = Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.1), Some(0.05));
+        let r = Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.1), None, Some(0.05));
         assert_eq!(r.unwrap().max_torque_noise_pu, 0.05);
+    }
+
+    #[test]
+    fn a_default_drive_that_never_recovers_is_normalized_by_the_window_and_scores_infinity() {
+        let never = figures(Some(0.01), 0.8, None, 0.1);
+        assert!(Reference::from_figures(never, None, None).is_err());
+        let r = Reference::from_figures(never, Some(1.0), None).unwrap();
+        assert_eq!(r.norms, [0.01, 0.8, 1.0]);
+        assert_eq!(r.objective(&never), f64::INFINITY);
+        let good = figures(Some(0.01), 0.8, Some(0.25), 0.1);
+        assert!((r.objective(&good) - 2.25).abs() < 1e-12);
+        assert!(r.describe().contains("never recovers"));
     }
 }
