@@ -90,12 +90,26 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
     let _ = writeln!(
         md,
         "\nThe machine file's own drive on the machine: peak droop {} pu, peak shaft torque {} \
-         pu, recovery {} s, torque noise {:.4} pu RMS (J = 3).",
+         pu, recovery {} s, torque noise {:.4} pu RMS (J {:.3}).",
         f(g.peak_droop_pu),
         f(g.peak_shaft_torque_pu),
         f(g.recovery_s),
-        g.torque_noise_rms_pu
+        g.torque_noise_rms_pu,
+        c.reference.objective(g)
     );
+    let jc = if pair.afb_chosen() {
+        c.objective[0]
+    } else {
+        c.objective[1]
+    };
+    if jc >= c.reference.objective(g) {
+        let _ = writeln!(
+            md,
+            "\nThe chosen design does not beat the machine file's own drive on the machine \
+             (J {jc:.3}): at the bandwidths searched, the file's `[drive]` is better by this \
+             objective."
+        );
+    }
     for line in c
         .runs
         .iter()

@@ -336,5 +336,16 @@ pub fn comparison_markdown(p: &super::pair::Pair, c: &Comparison) -> String {
         scored(&p.with),
         scored(&p.without)
     );
+    let (chosen, _) = p.chosen();
+    let j = chosen.result.score.objective;
+    let default = r.objective(d);
+    if j >= default {
+        let _ = writeln!(
+            s,
+            "\n**The chosen design does not beat the machine file's own drive** (J {j:.3} \
+             against {default:.3}): with the bandwidths searched here, keeping the file's \
+             `[drive]` is better by this objective."
+        );
+    }
     s
 }
