@@ -55,8 +55,7 @@ impl HessenbergResponse {
         let mut x: Vec<Complex<f64>> = self.b.iter().map(|&b| Complex::from(b)).collect();
         for k in 0..n.saturating_sub(1) {
             let (upper, lower) = a.split_at_mut((k + 1) * n);
-            let (Some(row), Some(next)) = (upper.get_mut(k * n + k..), lower.get_mut(k..n))
-            else {
+            let (Some(row), Some(next)) = (upper.get_mut(k * n + k..), lower.get_mut(k..n)) else {
                 return None;
             };
             let head = |r: &[Complex<f64>]| r.first().copied().unwrap_or(zero);

@@ -75,7 +75,10 @@ fn processor_in_the_loop() {
         let t0 = Instant::now();
         eprintln!("processor in the loop: {name}");
         case();
-        eprintln!("processor in the loop: {name} passed in {:.1} s", t0.elapsed().as_secs_f64());
+        eprintln!(
+            "processor in the loop: {name} passed in {:.1} s",
+            t0.elapsed().as_secs_f64()
+        );
     }
 }
 

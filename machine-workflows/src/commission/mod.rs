@@ -234,7 +234,12 @@ pub fn commission(
         constraints.max_torque_noise_pu,
     )?;
     let runs = [
-        on_machine(&m, "tuned with AFB", &pair.with.result.design.candidate, false)?,
+        on_machine(
+            &m,
+            "tuned with AFB",
+            &pair.with.result.design.candidate,
+            false,
+        )?,
         on_machine(
             &m,
             "tuned without AFB",

@@ -55,7 +55,11 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
         notch_text(c),
         c.chosen,
         chosen.result.score.objective,
-        if pair.afb_chosen() { "without AFB" } else { "with AFB" },
+        if pair.afb_chosen() {
+            "without AFB"
+        } else {
+            "with AFB"
+        },
         other.result.score.objective,
         d.candidate.bandwidth_rad_s,
         d.candidate.afb.label(),

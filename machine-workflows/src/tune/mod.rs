@@ -339,7 +339,9 @@ pub fn shortlist(judged: &[Judged]) -> Vec<Judged> {
 /// passes is the design.
 pub fn choose(config: &str, judged: Vec<Judged>, k: &Constraints) -> Result<TuneResult> {
     let bases = bases(config)?;
-    let fig6 = bases.first().ok_or_else(|| HarnessError::Backend("no fig6".into()))?;
+    let fig6 = bases
+        .first()
+        .ok_or_else(|| HarnessError::Backend("no fig6".into()))?;
     let reference = objective::Reference::of(fig6, k.max_torque_noise_pu)?;
     let total = judged.len();
     let feasible = judged.iter().filter(|j| j.feasible).count();
@@ -355,7 +357,11 @@ pub fn choose(config: &str, judged: Vec<Judged>, k: &Constraints) -> Result<Tune
     runs.sort_by(|(a, x), (b, y)| {
         x.objective
             .total_cmp(&y.objective)
-            .then(b.candidate.bandwidth_rad_s.total_cmp(&a.candidate.bandwidth_rad_s))
+            .then(
+                b.candidate
+                    .bandwidth_rad_s
+                    .total_cmp(&a.candidate.bandwidth_rad_s),
+            )
             .then(b.stiffness.total_cmp(&a.stiffness))
     });
     let scored: Vec<Scored> = runs
@@ -455,7 +461,7 @@ pub fn design_from(config: &str, judged: Vec<Judged>, constraints: &Constraints)
 
 /// Writes the design's files into `dir` (module docs, and [`write_files`]).
 pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
-    write_design_with(dir, t, "", |r| serde_json::to_string_pretty(r))
+    write_design_with(dir, t, "", serde_json::to_string_pretty)
 }
 
 /// [`write_design`], with `extra` appended to `tune.md` and `tune.json` from `json`.

@@ -181,7 +181,7 @@ impl Reference {
         if f.faulted {
             v.push("faulted".to_string());
         }
-        if !(f.torque_noise_rms_pu <= self.max_torque_noise_pu) {
+        if f.torque_noise_rms_pu.is_nan() || f.torque_noise_rms_pu > self.max_torque_noise_pu {
             v.push(format!(
                 "torque noise {:.4} pu > {:.4} pu",
                 f.torque_noise_rms_pu, self.max_torque_noise_pu
@@ -216,7 +216,7 @@ impl Reference {
             },
             self.max_torque_noise_pu,
             if self.budget_given {
-                format!("{NOISE_FLAG}")
+                NOISE_FLAG.to_string()
             } else {
                 format!(
                     "the larger of {NOISE_FACTOR} × the default drive's {:.4} pu and \
@@ -286,7 +286,8 @@ mod tests {
 
     #[test]
     fn a_missing_figure_is_an_infinite_objective_and_out_of_budget() {
-        let r = Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.0), None, None).unwrap();
+        let r =
+            Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.0), None, None).unwrap();
         assert_eq!(r.max_torque_noise_pu, NOISE_FLOOR_PU);
         let never = figures(Some(0.01), 0.8, None, 0.001);
         assert_eq!(r.objective(&never), f64::INFINITY);
@@ -298,7 +299,8 @@ mod tests {
 
     #[test]
     fn a_reference_without_a_load_step_and_a_bad_budget_are_errors_naming_the_key() {
-        let e = Reference::from_figures(figures(None, 0.8, Some(0.2), 0.1), Some(1.0), None).unwrap_err();
+        let e = Reference::from_figures(figures(None, 0.8, Some(0.2), 0.1), Some(1.0), None)
+            .unwrap_err();
         assert!(e.to_string().contains("peak droop"), "{e}");
         for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             let e = check_budget(Some(bad)).unwrap_err().to_string();

@@ -280,7 +280,14 @@ fn opt(x: Option<f64>) -> String {
 }
 
 /// One row of the comparison table.
-fn figures_row(s: &mut String, name: &str, bw: &str, afb: &str, j: f64, f: &super::objective::Figures) {
+fn figures_row(
+    s: &mut String,
+    name: &str,
+    bw: &str,
+    afb: &str,
+    j: f64,
+    f: &super::objective::Figures,
+) {
     let _ = writeln!(
         s,
         "| {name} | {bw} | {afb} | {j:.3} | {} | {} | {} | {:.4} | {} |",
@@ -304,14 +311,33 @@ pub fn comparison_markdown(p: &super::pair::Pair, c: &Comparison) -> String {
         r.describe()
     );
     let d = &r.default_drive;
-    figures_row(&mut s, "default drive (the file's `[drive]`)", "-", "-", r.objective(d), d);
+    figures_row(
+        &mut s,
+        "default drive (the file's `[drive]`)",
+        "-",
+        "-",
+        r.objective(d),
+        d,
+    );
     for (name, e) in [("with AFB", &c.with_afb), ("without AFB", &c.without_afb)] {
         let bw = format!("{}", e.bandwidth_rad_s);
-        figures_row(&mut s, name, &bw, &e.afb, e.score.objective, &e.score.figures);
+        figures_row(
+            &mut s,
+            name,
+            &bw,
+            &e.afb,
+            e.score.objective,
+            &e.score.figures,
+        );
     }
     let scored = |t: &super::Tuned| {
         let n = t.result.scored.len();
-        let within = t.result.scored.iter().filter(|x| x.score.within_budget).count();
+        let within = t
+            .result
+            .scored
+            .iter()
+            .filter(|x| x.score.within_budget)
+            .count();
         format!("{n} run in the loop, {within} within the budgets")
     };
     let gain = c.afb_gain;

@@ -7,15 +7,15 @@
 //! the bandwidths of `tune`'s grid below the highest of them.
 
 use super::bandwidths;
-use super::{candidates, design_from, judge_grid, without_afb, Candidate, Constraints};
 use super::objective::Figures;
+use super::{candidates, design_from, judge_grid, without_afb, Candidate, Constraints};
 use super::{Judged, Tuned};
 use controller_core::AfbMode;
-use sim_engine::error::HarnessError;
 use serde::Serialize;
 use sim_engine::config::{Grid, RunConfig};
 use sim_engine::engine::metrics::OscillationKind;
 use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::HarnessError;
 use sim_engine::error::Result;
 
 /// The two designs of one machine.

@@ -92,7 +92,11 @@ fn commissioning_an_unseen_machine_gives_a_stable_design_better_than_no_afb() {
     let chosen = json["chosen"].as_str().unwrap();
     let objective = &json["objective"];
     let j = |i: usize| objective[i].as_f64().unwrap();
-    eprintln!("chosen {chosen}; J on the machine: {} with AFB, {} without", j(0), j(1));
+    eprintln!(
+        "chosen {chosen}; J on the machine: {} with AFB, {} without",
+        j(0),
+        j(1)
+    );
     let afb = chosen == "with AFB";
     assert_eq!(
         cfg.drive.accel_feedback.mode != controller_core::AfbMode::Off,

@@ -147,10 +147,7 @@ fn the_mirror_follows_the_fixed_point_controller() {
 /// J·s² + Kp·s + Ki.
 #[test]
 fn rigid_body_poles_are_the_pi_roots() {
-    let table1 = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/configs/machines/table1.toml"
-    );
+    let table1 = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/machines/table1.toml");
     let mut plant = PlantConfig::from_machine_file(table1.as_ref()).unwrap();
     plant.mechanics.backlash_deg = 0.0;
     plant.mechanics.anti_resonance_hz = 400.0;

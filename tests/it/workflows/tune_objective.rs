@@ -37,9 +37,14 @@ pub fn check_choice(config: &str, out: &Path) {
     let (cfg, chosen) = fig6(&drive);
     let (cfg_r, other) = fig6(&runner);
     // Both files load as they are, as the firmware build composes them.
-    assert_eq!(machine_file::load(&out.join("drive.toml")).unwrap().drive, cfg.drive);
     assert_eq!(
-        machine_file::load(&out.join("runner-up.toml")).unwrap().drive,
+        machine_file::load(&out.join("drive.toml")).unwrap().drive,
+        cfg.drive
+    );
+    assert_eq!(
+        machine_file::load(&out.join("runner-up.toml"))
+            .unwrap()
+            .drive,
         cfg_r.drive
     );
     let budget = o["reference"]["max_torque_noise_pu"].as_f64().unwrap();
@@ -69,7 +74,11 @@ pub fn check_choice(config: &str, out: &Path) {
     );
     // The files are the designs tune.json reports, and the chosen one has the lower J.
     let (jc, jo) = (j(&chosen, &default), j(&other, &default));
-    let (with, without) = if kind == "with AFB" { (jc, jo) } else { (jo, jc) };
+    let (with, without) = if kind == "with AFB" {
+        (jc, jo)
+    } else {
+        (jo, jc)
+    };
     let reported = |k: &str| o[k]["score"]["objective"].as_f64().unwrap();
     assert!((reported("with_afb") - with).abs() < 1e-9, "{o}");
     assert!((reported("without_afb") - without).abs() < 1e-9, "{o}");
@@ -116,7 +125,9 @@ fn the_noise_budget_binds_and_a_bad_one_is_refused() {
             ..Constraints::default()
         };
         let out = dir.path().join("bad");
-        let e = tune("table1", Some(60.0), &k, &out).unwrap_err().to_string();
+        let e = tune("table1", Some(60.0), &k, &out)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(NOISE_FLAG) && e.contains("> 0"), "{e}");
         assert!(!out.exists());
     }
