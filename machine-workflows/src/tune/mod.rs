@@ -13,13 +13,17 @@
 //!      resonance ([`machine_resonance_damping`]);
 //!    - velocity-loop phase margin ≥ 40° and gain margin ≥ 6 dB;
 //!    - torque noise from encoder quantization ≤ `max_noise_pu`.
-//! 2. The candidates that pass are ranked by the stiffness above the velocity bandwidth:
-//!    the weakest |τ_L/θl| over ω_v … 10·ω_v, where a load-torque disturbance moves the
-//!    load most (with `--max-bandwidth`, the highest bandwidth first).
-//! 3. In that order, each is run in the nonlinear loop with this config on `fig6` (a move
-//!    with a load step), `shock` (a 150 % step at speed) and the sweep's probe. The first
-//!    that is stable in all three without a fault, and quiet on the probe, is the design.
-//!    A design that fails is refused and the next one is tried.
+//! 2. Of the candidates that pass, up to [`SCORED_PER_BANDWIDTH`] per bandwidth
+//!    ([`shortlist`]: spread over their ranking by the stiffness above the velocity
+//!    bandwidth, the weakest |τ_L/θl| over ω_v … 10·ω_v) are run on `fig6` (a move with a
+//!    load step) and scored by the objective ([`objective`]: droop, shaft torque and
+//!    recovery after the step against the file's own drive, within a torque-noise budget).
+//! 3. In the order of the objective, those within the budgets are run in the nonlinear
+//!    loop on `fig6`, `shock` (a 150 % step at speed) and the sweep's probe. The first that
+//!    is stable in all three without a fault, and quiet on the probe, is the design; one
+//!    that fails is refused and the next one is tried. `tune` does this with AFB and
+//!    without ([`pair`]) and writes the lower objective as `drive.toml`, the other as
+//!    `runner-up.toml` ([`write_pair`]).
 //! 4. The design's damping is measured in the nonlinear loop ([`damping`]: load steps with
 //!    the gears engaged, the dominant mode fitted) against the model's, and `tune.md` gets
 //!    the Bode plot and the pole map ([`plots`]) and, per bandwidth, which constraint
