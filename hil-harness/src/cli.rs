@@ -23,9 +23,11 @@ pub enum Command {
     /// noise; writes DIR/linear.json and DIR/linear.md.
     Linear(ScenarioArgs),
     /// Design the acceleration feedback, estimator and velocity loop from the plant on the
-    /// linear model, with margins, and prove the design in the nonlinear loop; writes
-    /// DIR/drive.toml (the machine file with the tuned drive), DIR/tune.md (with DIR/tune-bode.png and
-    /// DIR/tune-poles.png) and DIR/tune.json.
+    /// linear model, with margins, with AFB and without, and choose in the nonlinear loop by
+    /// the load-step objective against the file's own drive (docs/tuning.md); writes
+    /// DIR/drive.toml (the machine file with the chosen drive), DIR/runner-up.toml (the best
+    /// of the other kind), DIR/tune.md (with DIR/tune-bode.png and DIR/tune-poles.png) and
+    /// DIR/tune.json.
     Tune {
         /// Configuration (path, or name under configs/).
         #[arg(long)]
@@ -52,9 +54,10 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// Commission a machine: identify it, tune on the identified model (with AFB, and
-    /// without for the comparison; with a notch placed on an identified resonance the loop
-    /// cannot damp), and verify both drives on the machine itself; writes DIR/identify/,
+    /// Commission a machine: identify it, tune on the identified model (with AFB and
+    /// without, the chosen one by the load-step objective; with a notch placed on an
+    /// identified resonance the loop cannot damp), and verify both drives on the machine
+    /// itself; writes DIR/identify/,
     /// DIR/identified.toml, DIR/notched.toml (with a notch), DIR/tune/, DIR/commission.md
     /// and .json.
     Commission {
@@ -180,6 +183,11 @@ pub struct DesignArgs {
     /// Largest torque noise from encoder quantization (pu RMS).
     #[arg(long, default_value_t = 0.2)]
     pub max_noise_pu: f64,
+    /// Largest motor-torque noise above the velocity bandwidth in the nonlinear `fig6` run
+    /// (pu RMS; finite, > 0). Default: the larger of 2 x the machine file's own drive's and
+    /// 0.01 pu.
+    #[arg(long)]
+    pub max_torque_noise_pu: Option<f64>,
 }
 
 impl DesignArgs {
@@ -189,6 +197,7 @@ impl DesignArgs {
         machine_workflows::tune::Constraints {
             min_damping: self.min_damping,
             max_noise_pu: self.max_noise_pu,
+            max_torque_noise_pu: self.max_torque_noise_pu,
             ..machine_workflows::tune::Constraints::default()
         }
     }

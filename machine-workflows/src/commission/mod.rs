@@ -6,21 +6,26 @@
 //! 2. **The identified machine file**, `DIR/identified.toml`: `CFG` (with `--set` applied)
 //!    with its `[plant]` table replaced by the identified one. Everything the drive knows of
 //!    the machine now comes from the measurement.
-//! 3. **Tune** on the identified file ([`super::tune`]), with AFB (`DIR/tune/`), and the
-//!    no-AFB design by the same constraints, for the comparison ([`tune::pair`]).
+//! 3. **Tune** on the identified file ([`super::tune`]), with AFB and without by the same
+//!    constraints ([`tune::pair`]), each chosen by the objective; `DIR/tune/` as `tune`
+//!    writes it.
 //!    **The automatic notch** ([`notch`]): when no candidate meets the constraints because
 //!    the least-damped mode of the best one is the identified resonance, a notch is placed
 //!    on it, `DIR/notched.toml` is `identified.toml` with that `[drive.notch]`, and both
 //!    designs are tuned on it instead (so `tune/drive.toml` carries the notch). Otherwise
 //!    nothing changes.
 //! 4. **Verify on the machine itself**: both drives run `fig6` (a move with a load step)
-//!    against the plant of `CFG`, not the identified one. The commissioning passes by
-//!    [`tune::pair::CRITERION`] (the AFB design is stable, does not fault, and leaves less
-//!    shaft-torque ripple after the load step than the no-AFB design) and, with a notch
-//!    placed, by [`NOTCH_CRITERION`] (less ripple than the same AFB design with the notch
-//!    taken out, run too for the comparison). `DIR/commission.md` and
-//!    `DIR/commission.json` hold the figures and the notch decision with its reason; the
-//!    command fails (after writing them) when it does not pass.
+//!    against the plant of `CFG`, not the identified one, and are scored by `tune`'s
+//!    objective ([`tune::objective`]) against `CFG`'s own drive on the machine. The
+//!    chosen design (the lower objective on the identified model) is `DIR/tune/drive.toml`,
+//!    the other `DIR/tune/runner-up.toml`. The commissioning passes by [`CRITERION`] (the
+//!    chosen design is stable, does not fault, stays within the noise budget, and on the
+//!    machine its objective is no higher than the other design's and lower than the file's
+//!    own drive's) and, with a notch placed, by [`NOTCH_CRITERION`] (less ripple than the
+//!    chosen design with the notch taken out, run too for the comparison).
+//!    `DIR/commission.md` and `DIR/commission.json` hold the figures and the notch
+//!    decision with its reason; the command fails (after writing them) when it does not
+//!    pass.
 //!
 //! Everything is staged: on an error before the verification nothing is written.
 
@@ -29,7 +34,7 @@ pub mod notch;
 mod write;
 
 use crate::identify::{self, lost_motion::identified_mechanics};
-use crate::tune::{self, Constraints, Tuned};
+use crate::tune::{self, Constraints};
 use controller_core::NotchConfig;
 use notch::Decision;
 use sim_engine::config::{config_path, overrides, read_table, resolve, RunConfig};
@@ -43,7 +48,13 @@ pub use crate::tune::pair::LoopRun as OnMachine;
 
 /// The second criterion with a notch placed, fixed before any run.
 pub const NOTCH_CRITERION: &str =
-    "less shaft-torque ripple than the same AFB design with the notch taken out";
+    "less shaft-torque ripple than the same chosen design with the notch taken out";
+
+/// The criterion on the machine itself, fixed before any run.
+pub const CRITERION: &str = "the chosen design (the lower objective on the identified model) \
+    is stable without a fault on the machine, within the torque-noise budget there, and its \
+    objective on the machine (against the machine file's own drive on the machine) is no \
+    higher than the other design's and lower than the file's own drive's (3)";
 
 /// What `commission` found.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -52,12 +63,20 @@ pub struct Commissioning {
     pub config: String,
     /// The AFB design and the no-AFB design, verified on the machine.
     pub runs: [OnMachine; 2],
+    /// Which of `runs` was chosen (the lower objective on the model it was tuned on):
+    /// "with AFB" or "without AFB".
+    pub chosen: &'static str,
+    /// The machine file's own drive on the machine, and the budget: the reference of the
+    /// objective on the machine.
+    pub reference: tune::objective::Reference,
+    /// The objective of `runs` on the machine.
+    pub objective: [f64; 2],
     /// Whether a notch was placed, where and why ([`notch`]).
     pub notch: Decision,
-    /// With a notch placed: the AFB design with the notch taken out, on the machine.
+    /// With a notch placed: the chosen design with the notch taken out, on the machine.
     pub without_notch: Option<OnMachine>,
-    /// The AFB design passed (stable, no fault, less ripple than the no-AFB design and,
-    /// with a notch placed, than itself without the notch).
+    /// The chosen design passed ([`CRITERION`] and, with a notch placed,
+    /// [`NOTCH_CRITERION`]).
     pub passed: bool,
 }
 
@@ -159,6 +178,7 @@ pub fn commission(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
+    tune::objective::check_budget(constraints.max_torque_noise_pu)?;
     let grid = sim_engine::config::tune_grid()?;
     let bws = tune::bandwidths(&grid, target_bandwidth)?;
     let staging = Staging::new(out)?;
@@ -202,54 +222,88 @@ pub fn commission(
         }
         Err(e) => return Err(e),
     };
-    let (mut with, without) = (pair.with, pair.without.result);
-    with.result.config = name.into();
+    let mut pair = pair;
+    pair.with.result.config = name.into();
+    pair.without.result.config = name.into();
     let tune_md = staging.path("tune/tune.md")?;
-    tune::write_design(tune_md.parent().unwrap_or(staging.dir()), &with)?;
+    tune::write_pair(tune_md.parent().unwrap_or(staging.dir()), &pair)?;
 
     let m = verification_base(config, sets, &tuned_on)?;
-    let design = &with.result.design.candidate;
+    let reference = tune::objective::Reference::of(
+        &resolve("fig6", Some(config), sets)?,
+        constraints.max_torque_noise_pu,
+    )?;
     let runs = [
-        on_machine(&m, "tuned with AFB", design, false)?,
-        on_machine(&m, "tuned without AFB", &without.design.candidate, false)?,
+        on_machine(
+            &m,
+            "tuned with AFB",
+            &pair.with.result.design.candidate,
+            false,
+        )?,
+        on_machine(
+            &m,
+            "tuned without AFB",
+            &pair.without.result.design.candidate,
+            false,
+        )?,
     ];
+    let afb = pair.afb_chosen();
+    let (chosen_tuned, _) = pair.chosen();
     let without_notch = match decision.notch {
         Some(_) => Some(on_machine(
             &m,
-            "tuned with AFB, notch taken out",
-            design,
+            "chosen, notch taken out",
+            &chosen_tuned.result.design.candidate,
             true,
         )?),
         None => None,
     };
+    let objective = [
+        reference.objective(&runs[0].figures),
+        reference.objective(&runs[1].figures),
+    ];
     let [a, b] = &runs;
-    let passed = tune::pair::afb_passes(a, b)
+    let (c_run, c_j, o_j) = if afb {
+        (a, objective[0], objective[1])
+    } else {
+        (b, objective[1], objective[0])
+    };
+    let passed = c_run.stable
+        && !c_run.faulted
+        && reference.broken(&c_run.figures).is_empty()
+        && c_j <= o_j
+        && c_j < reference.objective(&reference.default_drive)
         && without_notch
             .as_ref()
-            .is_none_or(|n| a.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu);
+            .is_none_or(|n| c_run.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu);
     let c = Commissioning {
         config: base.config_path.display().to_string(),
         runs,
+        chosen: if afb { "with AFB" } else { "without AFB" },
+        reference,
+        objective,
         notch: decision,
         without_notch,
         passed,
     };
-    write::write_all(&staging, &c, &base, &ident, &with)?;
+    write::write_all(&staging, &c, &base, &ident, &pair)?;
     staging.commit()?;
-    finish(&c, &with, out)
+    finish(&c, &pair, out)
 }
 
 /// The command's line, or its error when the commissioning did not pass.
-fn finish(c: &Commissioning, with: &Tuned, out: &Path) -> Result<String> {
+fn finish(c: &Commissioning, pair: &tune::pair::Pair, out: &Path) -> Result<String> {
     let notch = c.notch.notch.map_or_else(
         || "no notch".to_string(),
         |n| format!("notch at {:.1} Hz", n.centre_hz),
     );
     let line = format!(
-        "commission {}: {}; {notch}; on the machine: ripple {:.4} pu with AFB ({}), {:.4} pu \
-         without ({}) -> {}",
+        "commission {}: {}; {notch}; on the machine: J {:.3} with AFB, {:.3} without \
+         (the file's own drive 3), ripple {:.4} pu with AFB ({}), {:.4} pu without ({}) -> {}",
         c.config,
-        tune::summary_line(with, &out.join("tune")),
+        tune::pair_line(pair, &out.join("tune")),
+        c.objective[0],
+        c.objective[1],
         c.runs[0].shaft_torque_ripple_rms_pu,
         c.runs[0].verdict(),
         c.runs[1].shaft_torque_ripple_rms_pu,
@@ -260,7 +314,7 @@ fn finish(c: &Commissioning, with: &Tuned, out: &Path) -> Result<String> {
         Ok(line)
     } else {
         Err(HarnessError::Backend(format!(
-            "{line}: the AFB design did not pass on the machine (commission.md)"
+            "{line}: the chosen design did not pass on the machine (commission.md)"
         )))
     }
 }

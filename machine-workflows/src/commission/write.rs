@@ -2,7 +2,7 @@
 
 use super::Commissioning;
 use crate::identify::{write::estimates, Identification};
-use crate::tune::Tuned;
+use crate::tune::pair::Pair;
 use sim_engine::config::RunConfig;
 use sim_engine::error::{HarnessError, Result};
 use sim_engine::output::Staging;
@@ -22,7 +22,7 @@ fn file_value(base: &RunConfig, name: &str) -> Option<f64> {
     }
 }
 
-fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &Tuned) -> String {
+fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &Pair) -> String {
     let mut md = format!(
         "# Commissioning of {}\n\n## 1. Identified ([identify/identify.md](identify/identify.md))\n\n\
          | parameter | identified | standard error | the simulated machine's file | unit |\n\
@@ -37,17 +37,30 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
             e.name, e.value, e.std_error, e.unit
         );
     }
-    let d = &with.result.design;
+    let (chosen, other) = pair.chosen();
+    let d = &chosen.result.design;
     let _ = write!(
         md,
         "\n`identified.toml` is the machine file with that `[plant]` table.\n\n{}\
          ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
-         {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin {:.1} deg, gain \
-         margin {:.1} dB, quantization torque noise {:.3} pu RMS. `tune/drive.toml` is the \
-         identified machine file with that drive.\n\n\
+         Chosen {} by the objective on the identified model (J {:.3}; {} J {:.3}; the \
+         file's own drive 3): {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin \
+         {:.1} deg, gain margin {:.1} dB, quantization torque noise {:.3} pu RMS. \
+         `tune/drive.toml` is the identified machine file with that drive, \
+         `tune/runner-up.toml` with the other.\n\n\
          ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
-         | {} \n|{}\n",
+         {}\n\n\
+         | {} J on the machine | peak droop (pu) | peak shaft torque (pu) | recovery (s) | \
+         torque noise (pu RMS) |\n|{}---|---|---|---|---|\n",
         notch_text(c),
+        c.chosen,
+        chosen.result.score.objective,
+        if pair.afb_chosen() {
+            "without AFB"
+        } else {
+            "with AFB"
+        },
+        other.result.score.objective,
         d.candidate.bandwidth_rad_s,
         d.candidate.afb.label(),
         d.damping[0],
@@ -59,11 +72,47 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
         d.margins[0],
         d.margins[1],
         d.noise_pu,
+        c.reference.describe(),
         super::OnMachine::HEADER,
         super::OnMachine::RULE,
     );
+    let f = |x: Option<f64>| x.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
     for r in c.runs.iter().chain(&c.without_notch) {
-        let _ = writeln!(md, "|{}", r.row());
+        let g = &r.figures;
+        let _ = writeln!(
+            md,
+            "|{} {:.3} | {} | {} | {} | {:.4} |",
+            r.row(),
+            c.reference.objective(g),
+            f(g.peak_droop_pu),
+            f(g.peak_shaft_torque_pu),
+            f(g.recovery_s),
+            g.torque_noise_rms_pu
+        );
+    }
+    let g = &c.reference.default_drive;
+    let _ = writeln!(
+        md,
+        "\nThe machine file's own drive on the machine: peak droop {} pu, peak shaft torque {} \
+         pu, recovery {} s, torque noise {:.4} pu RMS (J {:.3}).",
+        f(g.peak_droop_pu),
+        f(g.peak_shaft_torque_pu),
+        f(g.recovery_s),
+        g.torque_noise_rms_pu,
+        c.reference.objective(g)
+    );
+    let jc = if pair.afb_chosen() {
+        c.objective[0]
+    } else {
+        c.objective[1]
+    };
+    if jc >= c.reference.objective(g) {
+        let _ = writeln!(
+            md,
+            "\nThe chosen design does not beat the machine file's own drive on the machine \
+             (J {jc:.3}): at the bandwidths searched, the file's `[drive]` is better by this \
+             objective."
+        );
     }
     for line in c
         .runs
@@ -77,7 +126,7 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, with: &
         md,
         "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).\n\n{}",
         if c.passed { "Passed" } else { "Failed" },
-        crate::tune::pair::CRITERION,
+        super::CRITERION,
         super::NOTCH_CRITERION,
         if c.passed {
             "The drive to flash is `tune/drive.toml` (`cargo run --release -- flash \
@@ -125,8 +174,8 @@ fn notch_text(c: &Commissioning) -> String {
             s,
             "\n`[drive.notch]`: centre {:.2} Hz, width {:.2} Hz, depth {:.1} dB \
              ([notched.toml](notched.toml); both designs below are tuned on it, and \
-             `tune/drive.toml` carries it). On the machine, the AFB design is also run with \
-             the notch taken out (last row below).\n",
+             `tune/drive.toml` carries it). On the machine, the chosen design is also run \
+             with the notch taken out (last row below).\n",
             n.centre_hz, n.width_hz, n.depth_db
         );
     }
@@ -139,9 +188,9 @@ pub fn write_all(
     c: &Commissioning,
     base: &RunConfig,
     ident: &Identification,
-    with: &Tuned,
+    pair: &Pair,
 ) -> Result<()> {
-    staging.write("commission.md", &markdown(c, base, ident, with))?;
+    staging.write("commission.md", &markdown(c, base, ident, pair))?;
     let json = serde_json::to_string_pretty(c)
         .map_err(|e| HarnessError::Backend(format!("commission.json: {e}")))?;
     staging.write("commission.json", &(json + "\n"))?;

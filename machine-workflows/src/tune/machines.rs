@@ -48,6 +48,10 @@ pub struct MachineTune {
     pub runs: [LoopRun; 2],
     /// [`pair::afb_passes`].
     pub passed: bool,
+    /// The objective ([`super::objective`]) of the designs: with AFB, without.
+    pub objective: [f64; 2],
+    /// The design the objective chooses: "with AFB" or "without AFB".
+    pub chosen: &'static str,
     /// Wall time of this machine's tuning and runs \[s\] (the machines run in parallel).
     pub wall_s: f64,
 }
@@ -82,6 +86,12 @@ pub fn tune_machine(
         judged: [w.judged, wo.judged],
         runs,
         passed,
+        objective: [w.score.objective, wo.score.objective],
+        chosen: if pair.afb_chosen() {
+            "with AFB"
+        } else {
+            "without AFB"
+        },
         wall_s: t0.elapsed().as_secs_f64(),
     };
     Ok((t, pair))

@@ -13,13 +13,17 @@
 //!      resonance ([`machine_resonance_damping`]);
 //!    - velocity-loop phase margin ≥ 40° and gain margin ≥ 6 dB;
 //!    - torque noise from encoder quantization ≤ `max_noise_pu`.
-//! 2. The candidates that pass are ranked by the stiffness above the velocity bandwidth:
-//!    the weakest |τ_L/θl| over ω_v … 10·ω_v, where a load-torque disturbance moves the
-//!    load most (with `--max-bandwidth`, the highest bandwidth first).
-//! 3. In that order, each is run in the nonlinear loop with this config on `fig6` (a move
-//!    with a load step), `shock` (a 150 % step at speed) and the sweep's probe. The first
-//!    that is stable in all three without a fault, and quiet on the probe, is the design.
-//!    A design that fails is refused and the next one is tried.
+//! 2. Of the candidates that pass, up to [`SCORED_PER_BANDWIDTH`] per bandwidth
+//!    ([`shortlist`]: spread over their ranking by the stiffness above the velocity
+//!    bandwidth, the weakest |τ_L/θl| over ω_v … 10·ω_v) are run on `fig6` (a move with a
+//!    load step) and scored by the objective ([`objective`]: droop, shaft torque and
+//!    recovery after the step against the file's own drive, within a torque-noise budget).
+//! 3. In the order of the objective, those within the budgets are run in the nonlinear
+//!    loop on `fig6`, `shock` (a 150 % step at speed) and the sweep's probe. The first that
+//!    is stable in all three without a fault, and quiet on the probe, is the design; one
+//!    that fails is refused and the next one is tried. `tune` does this with AFB and
+//!    without ([`pair`]) and writes the lower objective as `drive.toml`, the other as
+//!    `runner-up.toml` ([`write_pair`]).
 //! 4. The design's damping is measured in the nonlinear loop ([`damping`]: load steps with
 //!    the gears engaged, the dominant mode fitted) against the model's, and `tune.md` gets
 //!    the Bode plot and the pole map ([`plots`]) and, per bandwidth, which constraint
@@ -28,6 +32,7 @@
 pub mod damping;
 pub mod grid;
 pub mod machines;
+pub mod objective;
 pub mod output;
 pub mod pair;
 pub mod plots;
@@ -57,6 +62,9 @@ pub struct Constraints {
     pub min_gain_margin_db: f64,
     /// Largest quantization torque noise \[pu RMS\].
     pub max_noise_pu: f64,
+    /// Largest torque noise in the nonlinear `fig6` run \[pu RMS\] (`--max-torque-noise-pu`);
+    /// `None`: the default rule of [`objective::Reference::of`].
+    pub max_torque_noise_pu: Option<f64>,
 }
 
 impl Default for Constraints {
@@ -66,6 +74,7 @@ impl Default for Constraints {
             min_phase_margin_deg: 40.0,
             min_gain_margin_db: 6.0,
             max_noise_pu: 0.2,
+            max_torque_noise_pu: None,
         }
     }
 }
@@ -241,6 +250,12 @@ pub struct TuneResult {
     pub refused: Vec<(Judged, Vec<Verification>)>,
     /// The design.
     pub design: Judged,
+    /// The default drive's figures and the budgets ([`objective`]).
+    pub reference: objective::Reference,
+    /// The design's figures and objective on `fig6`.
+    pub score: objective::Score,
+    /// Every candidate run on `fig6` to be scored, in the order of their objective.
+    pub scored: Vec<Scored>,
     /// Its verification runs.
     pub verification: Vec<Verification>,
     /// Per velocity bandwidth: the constraints met, the best damping and stiffness.
@@ -283,46 +298,115 @@ pub fn search(config: &str, grid: &[Candidate], k: &Constraints) -> Result<TuneR
     choose(config, judge_grid(config, grid, k)?, k)
 }
 
-/// Ranks the candidates `judged` on `config` and verifies them in the nonlinear loop
-/// (module docs, steps 2-3).
-pub fn choose(config: &str, mut judged: Vec<Judged>, k: &Constraints) -> Result<TuneResult> {
+/// At most this many feasible candidates of one velocity bandwidth are run in the loop
+/// to be scored: on Table 1, 125 of the 128 feasible ones (its most at one bandwidth is 34).
+pub const SCORED_PER_BANDWIDTH: usize = 32;
+
+/// A candidate run on `fig6` and scored ([`objective`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct Scored {
+    /// The candidate.
+    pub candidate: Candidate,
+    /// Its figures and objective.
+    pub score: objective::Score,
+}
+
+/// The feasible candidates of `judged` to score in the loop: per velocity bandwidth, all of
+/// them up to [`SCORED_PER_BANDWIDTH`], and beyond that as many spread evenly over their
+/// ranking by stiffness, the stiffest first.
+#[must_use]
+pub fn shortlist(judged: &[Judged]) -> Vec<Judged> {
+    let mut bws: Vec<f64> = judged.iter().map(|j| j.candidate.bandwidth_rad_s).collect();
+    bws.sort_by(f64::total_cmp);
+    bws.dedup();
+    let mut out = Vec::new();
+    for bw in bws {
+        let mut at: Vec<&Judged> = judged
+            .iter()
+            .filter(|j| j.feasible && j.candidate.bandwidth_rad_s == bw)
+            .collect();
+        at.sort_by(|a, b| b.stiffness.total_cmp(&a.stiffness));
+        let n = at.len();
+        let take = n.min(SCORED_PER_BANDWIDTH);
+        out.extend(
+            (0..take)
+                .filter_map(|i| at.get(i * n / take.max(1)))
+                .map(|j| (*j).clone()),
+        );
+    }
+    out
+}
+
+/// Chooses among the candidates `judged` on `config` (module docs, steps 2-3): the
+/// [`shortlist`] of the feasible ones is run on `fig6` and scored ([`objective`]); those
+/// within the budgets are verified in the order of their objective, and the first that
+/// passes is the design.
+pub fn choose(config: &str, judged: Vec<Judged>, k: &Constraints) -> Result<TuneResult> {
     let bases = bases(config)?;
+    let fig6 = bases
+        .first()
+        .ok_or_else(|| HarnessError::Backend("no fig6".into()))?;
+    let reference = objective::Reference::of(fig6, k.max_torque_noise_pu)?;
     let total = judged.len();
-    let all = judged.clone();
-    judged.retain(|j| j.feasible);
-    let feasible = judged.len();
-    judged.sort_by(|a, b| {
-        b.candidate
-            .bandwidth_rad_s
-            .total_cmp(&a.candidate.bandwidth_rad_s)
+    let feasible = judged.iter().filter(|j| j.feasible).count();
+    // A candidate the drive cannot hold (a coefficient out of its fixed-point format) is
+    // passed over, as one that fails in the loop.
+    let mut runs: Vec<(Judged, objective::Score)> = shortlist(&judged)
+        .into_par_iter()
+        .filter_map(|j| {
+            let s = objective::Score::run(fig6, &reference, &j.candidate).ok()?;
+            Some((j, s))
+        })
+        .collect();
+    runs.sort_by(|(a, x), (b, y)| {
+        x.objective
+            .total_cmp(&y.objective)
+            .then(
+                b.candidate
+                    .bandwidth_rad_s
+                    .total_cmp(&a.candidate.bandwidth_rad_s),
+            )
             .then(b.stiffness.total_cmp(&a.stiffness))
     });
+    let scored: Vec<Scored> = runs
+        .iter()
+        .map(|(j, s)| Scored {
+            candidate: j.candidate,
+            score: *s,
+        })
+        .collect();
+    let within = runs.iter().filter(|(_, s)| s.within_budget).count();
     let mut refused = Vec::new();
-    for j in judged {
-        // A design the drive cannot hold (a coefficient out of its fixed-point format) is
-        // passed over, as one that fails in the loop.
-        let Ok(runs) = verify(&bases, &j.candidate) else {
+    for (j, score) in runs.into_iter().filter(|(_, s)| s.within_budget) {
+        let Ok(verification) = verify(&bases, &j.candidate) else {
             continue;
         };
-        if runs.iter().all(|r| r.passed) {
+        if verification.iter().all(|r| r.passed) {
             return Ok(TuneResult {
                 config: config.into(),
                 constraints: *k,
                 judged: total,
                 feasible,
-                per_bandwidth: summary::per_bandwidth(&all, &refused, k),
+                per_bandwidth: summary::per_bandwidth(&judged, &refused, k),
                 refused,
                 design: j,
-                verification: runs,
+                reference,
+                score,
+                scored,
+                verification,
                 step: None,
                 no_oscillatory_mode: false,
             });
         }
-        refused.push((j, runs));
+        refused.push((j, verification));
     }
     Err(HarnessError::NoDesign(format!(
-        "none of the {total} designs tried meets the constraints on the linear model and is \
-         stable in the loop ({feasible} met the constraints on the linear model)"
+        "none of the {total} designs tried meets the constraints on the linear model, stays \
+         within the budgets in the loop and passes verification ({feasible} met the \
+         constraints on the linear model, {} were run in the loop, {within} of them within \
+         the budgets: torque noise <= {:.4} pu, stable, no fault, a load-step response)",
+        scored.len(),
+        reference.max_torque_noise_pu
     )))
 }
 
@@ -381,6 +465,16 @@ pub fn design_from(config: &str, judged: Vec<Judged>, constraints: &Constraints)
 
 /// Writes the design's files into `dir` (module docs, and [`write_files`]).
 pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
+    write_design_with(dir, t, "", serde_json::to_string_pretty)
+}
+
+/// [`write_design`], with `extra` appended to `tune.md` and `tune.json` from `json`.
+fn write_design_with(
+    dir: &Path,
+    t: &Tuned,
+    extra: &str,
+    json: impl Fn(&TuneResult) -> serde_json::Result<String>,
+) -> Result<()> {
     let gains = regulator_gains(&t.tuned)?;
     let engaged = for_gains(&t.tuned, &gains, Gears::Engaged)?;
     let apart = if has_lost_motion(&t.tuned) {
@@ -388,7 +482,22 @@ pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
     } else {
         None
     };
-    write_files(dir, &t.result, &t.base, &t.tuned, &engaged, apart.as_ref())
+    let json = json(&t.result).map_err(|e| HarnessError::io(dir.join("tune.json"), e))?;
+    let files = Files {
+        json,
+        extra,
+        base: &t.base,
+        tuned: &t.tuned,
+    };
+    write_files(dir, &t.result, &files, &engaged, apart.as_ref())
+}
+
+/// What [`write_files`] writes besides the figures.
+struct Files<'a> {
+    json: String,
+    extra: &'a str,
+    base: &'a RunConfig,
+    tuned: &'a RunConfig,
 }
 
 /// The one-line summary of a design.
@@ -424,19 +533,76 @@ pub fn summary_line(t: &Tuned, out: &Path) -> String {
     )
 }
 
-/// `hil-harness tune`.
+/// `hil-harness tune`: both designs ([`pair::design_both`]), the chosen one's files and
+/// the runner-up's machine file ([`write_pair`]).
 pub fn tune(
     config: &str,
     target_bandwidth: Option<f64>,
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
+    objective::check_budget(constraints.max_torque_noise_pu)?;
     // The output directory is checked before the design's runs.
     let staging = Staging::new(out)?;
-    let t = design(config, target_bandwidth, constraints)?;
-    write_design(staging.dir(), &t)?;
+    let p = pair::design_both(config, target_bandwidth, constraints)?;
+    write_pair(staging.dir(), &p)?;
     staging.commit()?;
-    Ok(summary_line(&t, out))
+    Ok(pair_line(&p, out))
+}
+
+/// The one-line summary of a pair: the chosen design's [`summary_line`] and both
+/// objectives.
+#[must_use]
+pub fn pair_line(p: &pair::Pair, out: &Path) -> String {
+    let (chosen, _) = p.chosen();
+    format!(
+        "{}; J {:.3} with AFB, {:.3} without (default drive 3): chose {}",
+        summary_line(chosen, out),
+        p.with.result.score.objective,
+        p.without.result.score.objective,
+        if p.afb_chosen() {
+            "with AFB"
+        } else {
+            "without AFB"
+        }
+    )
+}
+
+/// What `tune.json` holds: the chosen design's [`TuneResult`], which kind it is, and the
+/// runner-up's.
+#[derive(Serialize)]
+struct PairJson<'a> {
+    #[serde(flatten)]
+    chosen: &'a TuneResult,
+    /// "with AFB" or "without AFB".
+    chosen_kind: &'static str,
+    /// The objective with AFB, without, and the default drive's (3).
+    objective: output::Comparison,
+    runner_up: &'a TuneResult,
+}
+
+/// Writes a pair into `dir`: the chosen design's figures, `tune.md` (with the comparison of
+/// both designs by the objective) and `tune.json`, `drive.toml` (the machine file with the
+/// chosen drive) and `runner-up.toml` (with the other kind's).
+pub fn write_pair(dir: &Path, p: &pair::Pair) -> Result<()> {
+    let (chosen, other) = p.chosen();
+    let cmp = output::Comparison::of(p);
+    let text = output::comparison_markdown(p, &cmp);
+    write_design_with(dir, chosen, &text, |r| {
+        serde_json::to_string_pretty(&PairJson {
+            chosen: r,
+            chosen_kind: cmp.chosen,
+            objective: cmp.clone(),
+            runner_up: &other.result,
+        })
+    })?;
+    let path = dir.join("runner-up.toml");
+    let text = output::merged_config(
+        &other.base.config_path,
+        &other.base.drive,
+        &other.tuned.drive,
+    )?;
+    std::fs::write(&path, text).map_err(|e| HarnessError::io(&path, e))
 }
 
 /// The figures, `drive.toml` (the machine file with the tuned drive), `tune.md` and
@@ -444,18 +610,19 @@ pub fn tune(
 fn write_files(
     dir: &Path,
     result: &TuneResult,
-    base: &RunConfig,
-    tuned: &RunConfig,
+    f: &Files<'_>,
     engaged: &LoopModel,
     apart: Option<&LoopModel>,
 ) -> Result<()> {
+    let (base, tuned, json) = (f.base, f.tuned, f.json.clone());
     let nyquist_hz = 0.5 * f64::from(tuned.drive.velocity_rate_hz);
     let images = plots::write(dir, engaged, apart, nyquist_hz)?;
-    let json = serde_json::to_string_pretty(result)
-        .map_err(|e| HarnessError::io(dir.join("tune.json"), e))?;
     let drive = output::drive_toml(&tuned.drive)?;
     let files = [
-        ("tune.md", output::markdown(result, &drive, &images)),
+        (
+            "tune.md",
+            output::markdown(result, &drive, &images) + f.extra,
+        ),
         (
             "drive.toml",
             output::merged_config(&base.config_path, &base.drive, &tuned.drive)?,

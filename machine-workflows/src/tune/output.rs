@@ -217,3 +217,161 @@ pub fn markdown(r: &TuneResult, drive_toml: &str, images: &[String; 2]) -> Strin
     }
     s
 }
+
+/// One design of a [`Comparison`].
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Entry {
+    /// Its velocity bandwidth \[rad/s\].
+    pub bandwidth_rad_s: f64,
+    /// Its AFB, as `tune` labels it.
+    pub afb: String,
+    /// Its figures and objective on `fig6`.
+    pub score: super::objective::Score,
+}
+
+impl Entry {
+    fn of(t: &super::Tuned) -> Self {
+        let c = &t.result.design.candidate;
+        Self {
+            bandwidth_rad_s: c.bandwidth_rad_s,
+            afb: c.afb.label(),
+            score: t.result.score,
+        }
+    }
+}
+
+/// Both designs of a pair by the objective, against the default drive.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Comparison {
+    /// The default drive's figures and the budgets.
+    pub reference: super::objective::Reference,
+    /// The best design with AFB.
+    pub with_afb: Entry,
+    /// The best design without AFB.
+    pub without_afb: Entry,
+    /// "with AFB" or "without AFB": the lower objective.
+    pub chosen: &'static str,
+    /// J without AFB − J with AFB: how much AFB lowers the objective on this machine
+    /// (negative: it does not help).
+    pub afb_gain: f64,
+}
+
+impl Comparison {
+    /// The comparison of `p`'s two designs (the reference is the AFB search's; both
+    /// searches run the same default drive).
+    #[must_use]
+    pub fn of(p: &super::pair::Pair) -> Self {
+        Self {
+            reference: p.with.result.reference,
+            with_afb: Entry::of(&p.with),
+            without_afb: Entry::of(&p.without),
+            chosen: if p.afb_chosen() {
+                "with AFB"
+            } else {
+                "without AFB"
+            },
+            afb_gain: p.without.result.score.objective - p.with.result.score.objective,
+        }
+    }
+}
+
+fn opt(x: Option<f64>) -> String {
+    x.map_or_else(|| "-".into(), |v| format!("{v:.4}"))
+}
+
+/// One row of the comparison table.
+fn figures_row(
+    s: &mut String,
+    name: &str,
+    bw: &str,
+    afb: &str,
+    j: f64,
+    f: &super::objective::Figures,
+) {
+    let _ = writeln!(
+        s,
+        "| {name} | {bw} | {afb} | {j:.3} | {} | {} | {} | {:.4} | {} |",
+        opt(f.peak_droop_pu),
+        opt(f.peak_shaft_torque_pu),
+        opt(f.recovery_s),
+        f.torque_noise_rms_pu,
+        f.stable && !f.faulted
+    );
+}
+
+/// `tune.md`'s section on the choice: the objective and budgets in words and numbers, the
+/// default drive and both designs, which was chosen and by how much AFB helps.
+#[must_use]
+pub fn comparison_markdown(p: &super::pair::Pair, c: &Comparison) -> String {
+    let r = &c.reference;
+    let mut s = format!(
+        "\n## Choice by the objective\n\n{}\n\n| design | bandwidth (rad/s) | AFB | J | peak \
+         droop (pu) | peak shaft torque (pu) | recovery (s) | torque noise (pu RMS) | stable, \
+         no fault |\n|---|---|---|---|---|---|---|---|---|\n",
+        r.describe()
+    );
+    let d = &r.default_drive;
+    figures_row(
+        &mut s,
+        "default drive (the file's `[drive]`)",
+        "-",
+        "-",
+        r.objective(d),
+        d,
+    );
+    for (name, e) in [("with AFB", &c.with_afb), ("without AFB", &c.without_afb)] {
+        let bw = format!("{}", e.bandwidth_rad_s);
+        figures_row(
+            &mut s,
+            name,
+            &bw,
+            &e.afb,
+            e.score.objective,
+            &e.score.figures,
+        );
+    }
+    let scored = |t: &super::Tuned| {
+        let n = t.result.scored.len();
+        let within = t
+            .result
+            .scored
+            .iter()
+            .filter(|x| x.score.within_budget)
+            .count();
+        format!("{n} run in the loop, {within} within the budgets")
+    };
+    let gain = c.afb_gain;
+    let _ = writeln!(
+        s,
+        "\n**Chosen: {}** (`drive.toml`; the best of the other kind is `runner-up.toml`). {}\n\n\
+         Candidates scored: with AFB {}; without AFB {}.",
+        c.chosen,
+        if gain > 0.0 {
+            format!(
+                "AFB helps on this machine: it lowers J by {gain:.3} ({:.1} % of the no-AFB \
+                 design's).",
+                100.0 * gain / c.without_afb.score.objective
+            )
+        } else {
+            format!(
+                "AFB does not help on this machine: the no-AFB design's J is lower or equal \
+                 by {:.3}.",
+                -gain
+            )
+        },
+        scored(&p.with),
+        scored(&p.without)
+    );
+    let (chosen, _) = p.chosen();
+    let j = chosen.result.score.objective;
+    let default = r.objective(d);
+    if j >= default {
+        let _ = writeln!(
+            s,
+            "\n**The chosen design does not beat the machine file's own drive** (J {j:.3} \
+             against {default:.3}): with the bandwidths searched here, keeping the file's \
+             `[drive]` is better by this objective."
+        );
+    }
+    s
+}

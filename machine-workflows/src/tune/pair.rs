@@ -2,27 +2,28 @@
 //! constraints, and the nonlinear run that compares them: what `commission` verifies on a
 //! machine and `reproduce` reports for the shipped machines, written once here.
 //!
-//! The no-AFB design is searched at the bandwidths the AFB design was searched at and at
-//! every bandwidth of `tune`'s grid below the highest of them, highest first: at the
-//! bandwidth asked for if it can be had there, else the highest below it that meets the
-//! constraints.
+//! Each is chosen by the objective ([`super::objective`]) among the candidates of its kind
+//! at the bandwidths searched; the no-AFB design, when none passes there, among those at
+//! the bandwidths of `tune`'s grid below the highest of them.
 
 use super::bandwidths;
-use super::{candidates, design, design_from, search, without_afb, Candidate, Constraints};
+use super::objective::Figures;
+use super::{candidates, design_from, judge_grid, without_afb, Candidate, Constraints};
 use super::{Judged, Tuned};
+use controller_core::AfbMode;
 use serde::Serialize;
 use sim_engine::config::{Grid, RunConfig};
 use sim_engine::engine::metrics::OscillationKind;
 use sim_engine::engine::runner::run_scenario;
+use sim_engine::error::HarnessError;
 use sim_engine::error::Result;
 
 /// The two designs of one machine.
 #[derive(Debug, Clone)]
 pub struct Pair {
-    /// Tuned with AFB ([`design`]; its damping measured in the loop).
+    /// Tuned with AFB (its damping measured in the loop).
     pub with: Tuned,
-    /// The no-AFB design by the same constraints (its damping is not measured:
-    /// [`super::TuneResult::step`] is `None`).
+    /// The no-AFB design by the same constraints (its damping measured in the loop).
     pub without: Tuned,
 }
 
@@ -41,7 +42,8 @@ pub fn no_afb_bandwidths(grid: &Grid, bws: &[f64]) -> Vec<f64> {
     v
 }
 
-/// Tunes `config` with AFB ([`design`]) and without it by the same constraints.
+/// Tunes `config` with AFB and without it by the same constraints, each chosen by the
+/// objective ([`super::objective`]); [`Pair::chosen`] is the better of the two.
 pub fn design_both(
     config: &str,
     target_bandwidth: Option<f64>,
@@ -50,8 +52,18 @@ pub fn design_both(
     design_both_from(config, None, target_bandwidth, constraints)
 }
 
-/// [`design_both`], with the AFB candidates already judged on `config`
-/// ([`super::judge_grid`] at [`bandwidths`]`(target_bandwidth)`) when `judged` is given.
+fn named(config: &str, kind: &str, e: HarnessError) -> HarnessError {
+    match e {
+        HarnessError::NoDesign(m) => HarnessError::NoDesign(format!("{config} {kind}: {m}")),
+        other => other,
+    }
+}
+
+/// [`design_both`], with the candidates already judged on `config`
+/// ([`super::judge_grid`] of [`candidates`] at [`bandwidths`]`(target_bandwidth)`) when
+/// `judged` is given. The AFB design is searched among those with AFB; the no-AFB design
+/// among those without it, and, when none of them passes, at the bandwidths of the grid
+/// below ([`no_afb_bandwidths`]).
 pub fn design_both_from(
     config: &str,
     judged: Option<Vec<Judged>>,
@@ -60,25 +72,47 @@ pub fn design_both_from(
 ) -> Result<Pair> {
     let grid = sim_engine::config::tune_grid()?;
     let bws = bandwidths(&grid, target_bandwidth)?;
-    let with = match judged {
-        Some(j) => design_from(config, j, constraints)?,
-        None => design(config, target_bandwidth, constraints)?,
+    let judged = match judged {
+        Some(j) => j,
+        None => judge_grid(config, &candidates(&grid, &bws), constraints)?,
     };
-    let no_afb = without_afb(&candidates(&grid, &no_afb_bandwidths(&grid, &bws)));
-    let result = search(config, &no_afb, constraints).map_err(|e| match e {
-        sim_engine::error::HarnessError::NoDesign(m) => {
-            sim_engine::error::HarnessError::NoDesign(format!("{config} without AFB: {m}"))
+    let (off, afb): (Vec<Judged>, Vec<Judged>) = judged
+        .into_iter()
+        .partition(|j| j.candidate.afb.mode == AfbMode::Off);
+    let with = design_from(config, afb, constraints).map_err(|e| named(config, "with AFB", e))?;
+    let without = match design_from(config, off, constraints) {
+        Err(HarnessError::NoDesign(_)) => {
+            let below: Vec<f64> = no_afb_bandwidths(&grid, &bws)
+                .into_iter()
+                .filter(|w| !bws.contains(w))
+                .collect();
+            let lower = without_afb(&candidates(&grid, &below));
+            let judged = judge_grid(config, &lower, constraints)?;
+            design_from(config, judged, constraints)
         }
         other => other,
-    })?;
-    let mut tuned = with.base.clone();
-    result.design.candidate.apply(&mut tuned.drive);
-    let without = Tuned {
-        result,
-        base: with.base.clone(),
-        tuned,
-    };
+    }
+    .map_err(|e| named(config, "without AFB", e))?;
     Ok(Pair { with, without })
+}
+
+impl Pair {
+    /// Whether the design with AFB is the chosen one: its objective is lower than the
+    /// no-AFB design's (a tie keeps the simpler drive, without AFB).
+    #[must_use]
+    pub fn afb_chosen(&self) -> bool {
+        self.with.result.score.objective < self.without.result.score.objective
+    }
+
+    /// The chosen design and the runner-up (the best of the other kind).
+    #[must_use]
+    pub fn chosen(&self) -> (&Tuned, &Tuned) {
+        if self.afb_chosen() {
+            (&self.with, &self.without)
+        } else {
+            (&self.without, &self.with)
+        }
+    }
 }
 
 /// One design run in the nonlinear loop.
@@ -109,6 +143,8 @@ pub struct LoopRun {
     pub shaft_ripple_freq_hz: f64,
     /// Speed droop at the load step \[pu\] (none without a load step).
     pub load_step_droop_pu: Option<f64>,
+    /// The figures the objective reads ([`super::objective`]).
+    pub figures: Figures,
 }
 
 impl LoopRun {
@@ -129,6 +165,7 @@ impl LoopRun {
             shaft_torque_ripple_rms_pu: m.shaft_torque_ripple_rms_pu,
             shaft_ripple_freq_hz: m.shaft_ripple_freq_hz,
             load_step_droop_pu: m.load_step_droop_pu,
+            figures: Figures::of(&m),
         })
     }
 
@@ -220,6 +257,14 @@ mod tests {
             shaft_torque_ripple_rms_pu: ripple,
             shaft_ripple_freq_hz: 0.0,
             load_step_droop_pu: None,
+            figures: Figures {
+                peak_droop_pu: None,
+                peak_shaft_torque_pu: None,
+                recovery_s: None,
+                torque_noise_rms_pu: 0.0,
+                stable,
+                faulted: false,
+            },
         }
     }
 

@@ -211,6 +211,20 @@ pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
         }
     }
     m.push_str(&moved_by_verdict(tunes));
+    let _ = write!(
+        m,
+        "\nBy `tune`'s objective (after `{LOOP_SCENARIO}`'s load step, peak droop + peak shaft \
+         torque + recovery time, each against the machine file's own drive: 3 is the file's \
+         drive, lower is better; docs/tuning.md), the design `tune` writes as `drive.toml`:\n\n\
+         | machine | J with AFB | J without AFB | chosen |\n|---|---|---|---|\n"
+    );
+    for t in tunes {
+        let _ = writeln!(
+            m,
+            "| {} | {:.3} | {:.3} | {} |",
+            t.machine, t.objective[0], t.objective[1], t.chosen
+        );
+    }
     let passed = tunes.iter().filter(|t| t.passed).count();
     let verdict = match passed {
         n if n == tunes.len() && n > 0 => "**agrees**",
@@ -331,6 +345,14 @@ mod tests {
             shaft_torque_ripple_rms_pu: ripple,
             shaft_ripple_freq_hz: 12.5,
             load_step_droop_pu: Some(ripple / 10.0),
+            figures: machine_workflows::tune::objective::Figures {
+                peak_droop_pu: None,
+                peak_shaft_torque_pu: None,
+                recovery_s: None,
+                torque_noise_rms_pu: 0.0,
+                stable,
+                faulted: false,
+            },
         }
     }
 
@@ -363,6 +385,8 @@ mod tests {
             judged: [4321, 43],
             passed: afb_passes(&runs[0], &runs[1]),
             runs,
+            objective: [2.5, 3.5],
+            chosen: "with AFB",
             wall_s: 1.5,
         }
     }

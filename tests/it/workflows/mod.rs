@@ -10,5 +10,6 @@ mod identify;
 mod linear_model;
 mod notch;
 mod tune;
+mod tune_objective;
 mod tune_report;
 mod tune_table1;

@@ -49,6 +49,15 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
     let tmp = tempfile::tempdir().unwrap();
     let out = out_dir(&tmp);
     let json = tune_table1(&out);
+    // The choice by the objective: no worse than the shipped drive, within the noise
+    // budget, drive.toml and runner-up.toml as tune.json reports them.
+    super::tune_objective::check_choice(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("configs/machines/table1.toml")
+            .display()
+            .to_string(),
+        &out,
+    );
 
     // `run --scenario fig6 --config DIR/drive.toml` is stable, with the tuned drive.
     let config = out.join("drive.toml").display().to_string();
@@ -86,9 +95,41 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
     let f = |k: &str| step[k].as_f64().unwrap();
     assert!(f("min_shaft_torque_pu") > 0.0, "the gears separated");
     assert!(f("max_torque_pu") < f64::from(cfg.drive.torque_limit_pu));
+    // On the design chosen by the objective (plain form, Ka = 0.5 J, 25 Hz filter, at
+    // 110 rad/s) the method's own error is 0.020 (0.315 fitted to the model's response
+    // against its 8.5 Hz pole's 0.334), measured on this tree: above the 0.01 that held on
+    // the design `tune` chose before (by bandwidth, then stiffness). This design's model has a
+    // well-damped pair at 12.2 Hz (ζ 0.78) and real poles at 2.4 and 15.9 Hz beside the
+    // 8.5 Hz mode, which the single-mode fit does not separate from it. The chosen design is
+    // held to half the acceptance tolerance, and the method itself to the old 0.01 on the
+    // old design, measured here too.
     assert!(
-        (f("fitted_to_model_damping") - f("nearest_pole_damping")).abs() <= DAMPING_TOLERANCE / 5.0,
+        (f("fitted_to_model_damping") - f("nearest_pole_damping")).abs() <= DAMPING_TOLERANCE / 2.0,
         "{step}"
+    );
+    let mut before = sim_engine::resolve("fig6", Some(&config), &[]).unwrap();
+    machine_workflows::tune::Candidate {
+        bandwidth_rad_s: 110.0,
+        afb: machine_workflows::sweep::AfbDesign {
+            mode: controller_core::AfbMode::Error,
+            gain_fraction: 0.5,
+            filter: controller_core::FilterConfig::FirstOrder { corner_hz: 50.0 },
+            source: controller_core::Estimator::Observer,
+            observer_hz: 75.0,
+        },
+    }
+    .apply(&mut before.drive);
+    let gains = sim_engine::engine::runner::regulator_gains(&before).unwrap();
+    let model = for_gains(&before, &gains, Gears::Engaged).unwrap();
+    let old = damping::measure(&before, &model).unwrap();
+    eprintln!(
+        "the design chosen before the objective: the fit on the model's response {:.3}, its \
+         nearest pole {:.3}",
+        old.fitted_to_model_damping, old.nearest_pole_damping
+    );
+    assert!(
+        (old.fitted_to_model_damping - old.nearest_pole_damping).abs() <= DAMPING_TOLERANCE / 5.0,
+        "{old:?}"
     );
 
     // Why the Must-show below fails at 4096 counts: the same tuned drive, measured with a
