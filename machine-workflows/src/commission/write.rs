@@ -43,8 +43,8 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
         md,
         "\n`identified.toml` is the machine file with that `[plant]` table.\n\n{}\
          ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
-         Chosen {} by the objective on the identified model (J {:.3}; {} J {:.3}; the \
-         file's own drive 3): {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin \
+         Chosen {} (J {:.3} on the identified model; {} J {:.3}; the file's own drive \
+         3) by the objective on the machine, where both designs ran (section 3): {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin \
          {:.1} deg, gain margin {:.1} dB, quantization torque noise {:.3} pu RMS. \
          `tune/drive.toml` is the identified machine file with that drive, \
          `tune/runner-up.toml` with the other.\n\n\
@@ -90,51 +90,7 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
             g.torque_noise_rms_pu
         );
     }
-    let g = &c.reference.default_drive;
-    let _ = writeln!(
-        md,
-        "\nThe machine file's own drive on the machine: peak droop {} pu, peak shaft torque {} \
-         pu, recovery {} s, torque noise {:.4} pu RMS (J {:.3}).",
-        f(g.peak_droop_pu),
-        f(g.peak_shaft_torque_pu),
-        f(g.recovery_s),
-        g.torque_noise_rms_pu,
-        c.reference.objective(g)
-    );
-    let jc = if pair.afb_chosen() {
-        c.objective[0]
-    } else {
-        c.objective[1]
-    };
-    if jc >= c.reference.objective(g) {
-        let _ = writeln!(
-            md,
-            "\nThe chosen design does not beat the machine file's own drive on the machine \
-             (J {jc:.3}): at the bandwidths searched, the file's `[drive]` is better by this \
-             objective."
-        );
-    }
-    for line in c
-        .runs
-        .iter()
-        .chain(&c.without_notch)
-        .filter_map(super::OnMachine::moved_by_verdict)
-    {
-        let _ = writeln!(md, "\n{line}.");
-    }
-    let _ = writeln!(
-        md,
-        "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).\n\n{}",
-        if c.passed { "Passed" } else { "Failed" },
-        super::CRITERION,
-        super::NOTCH_CRITERION,
-        if c.passed {
-            "The drive to flash is `tune/drive.toml` (`cargo run --release -- flash \
-             --config DIR/tune/drive.toml`)."
-        } else {
-            "`tune/drive.toml` did not pass on the machine: do not flash it."
-        }
-    );
+    verdict(&mut md, c, pair);
     md
 }
 
@@ -195,4 +151,54 @@ pub fn write_all(
         .map_err(|e| HarnessError::Backend(format!("commission.json: {e}")))?;
     staging.write("commission.json", &(json + "\n"))?;
     Ok(())
+}
+
+/// The file's own drive on the machine, the chosen design against it, and the verdict.
+fn verdict(md: &mut String, c: &Commissioning, pair: &Pair) {
+    let f = |x: Option<f64>| x.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
+    let g = &c.reference.default_drive;
+    let _ = writeln!(
+        md,
+        "\nThe machine file's own drive on the machine: peak droop {} pu, peak shaft torque {} \
+         pu, recovery {} s, torque noise {:.4} pu RMS (J {:.3}).",
+        f(g.peak_droop_pu),
+        f(g.peak_shaft_torque_pu),
+        f(g.recovery_s),
+        g.torque_noise_rms_pu,
+        c.reference.objective(g)
+    );
+    let jc = if pair.afb_chosen() {
+        c.objective[0]
+    } else {
+        c.objective[1]
+    };
+    if jc >= c.reference.objective(g) {
+        let _ = writeln!(
+            md,
+            "\nThe chosen design does not beat the machine file's own drive on the machine \
+             (J {jc:.3}): at the bandwidths searched, the file's `[drive]` is better by this \
+             objective."
+        );
+    }
+    for line in c
+        .runs
+        .iter()
+        .chain(&c.without_notch)
+        .filter_map(super::OnMachine::moved_by_verdict)
+    {
+        let _ = writeln!(md, "\n{line}.");
+    }
+    let _ = writeln!(
+        md,
+        "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).\n\n{}",
+        if c.passed { "Passed" } else { "Failed" },
+        super::CRITERION,
+        super::NOTCH_CRITERION,
+        if c.passed {
+            "The drive to flash is `tune/drive.toml` (`cargo run --release -- flash \
+             --config DIR/tune/drive.toml`)."
+        } else {
+            "`tune/drive.toml` did not pass on the machine: do not flash it."
+        }
+    );
 }

@@ -25,6 +25,9 @@ pub struct Pair {
     pub with: Tuned,
     /// The no-AFB design by the same constraints (its damping measured in the loop).
     pub without: Tuned,
+    /// Set by `commission`, which runs both designs on the machine itself: whether the one
+    /// with AFB has the lower objective there. It then decides instead of the model.
+    pub on_machine_afb: Option<bool>,
 }
 
 /// The bandwidths the no-AFB design is searched at, for an AFB search at `bws` on `grid`
@@ -93,14 +96,26 @@ pub fn design_both_from(
         other => other,
     }
     .map_err(|e| named(config, "without AFB", e))?;
-    Ok(Pair { with, without })
+    Ok(Pair {
+        with,
+        without,
+        on_machine_afb: None,
+    })
 }
 
 impl Pair {
-    /// Whether the design with AFB is the chosen one: its objective is lower than the
-    /// no-AFB design's (a tie keeps the simpler drive, without AFB).
+    /// Whether the design with AFB is the chosen one: on the machine when `commission` ran
+    /// both there ([`Pair::on_machine_afb`]), else on the model (a tie keeps the simpler
+    /// drive, without AFB).
     #[must_use]
     pub fn afb_chosen(&self) -> bool {
+        self.on_machine_afb
+            .unwrap_or_else(|| self.afb_chosen_on_model())
+    }
+
+    /// Whether the design with AFB has the lower objective on the model it was tuned on.
+    #[must_use]
+    pub fn afb_chosen_on_model(&self) -> bool {
         self.with.result.score.objective < self.without.result.score.objective
     }
 

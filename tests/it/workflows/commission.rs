@@ -26,7 +26,7 @@ fn unseen_machine(dir: &std::path::Path) -> String {
 }
 
 #[test]
-fn commissioning_an_unseen_machine_gives_a_stable_design_better_than_no_afb() {
+fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() {
     let tmp = tempfile::tempdir().unwrap();
     let config = unseen_machine(tmp.path());
     let out = tmp.path().join("commission");
