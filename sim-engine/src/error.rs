@@ -51,11 +51,17 @@ pub enum HarnessError {
     /// `tune` or `commission` found no design that meets the constraints: what was tried
     /// and which constraint failed (exit code [`NO_DESIGN_EXIT_CODE`]). Not a bad input.
     NoDesign(String),
+    /// `commission` found a design, but on the machine it did not pass (exit code
+    /// [`NOT_PASSED_EXIT_CODE`]): every file is written, `commission.md` says why and not to
+    /// flash it. Not a bad input.
+    NotPassed(String),
 }
 
 /// The exit code of a `tune` or `commission` that found no design meeting the constraints
 /// (every other error exits 1, a command-line usage error 2).
 pub const NO_DESIGN_EXIT_CODE: u8 = 3;
+/// The exit code of a `commission` whose chosen design did not pass on the machine.
+pub const NOT_PASSED_EXIT_CODE: u8 = 4;
 
 impl fmt::Display for HarnessError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -76,6 +82,7 @@ impl fmt::Display for HarnessError {
             Self::Plot(reason) => write!(f, "plot failed: {reason}"),
             Self::Backend(reason) => write!(f, "{reason}"),
             Self::NoDesign(reason) => write!(f, "no design: {reason}"),
+            Self::NotPassed(reason) => write!(f, "not passed: {reason}"),
         }
     }
 }
@@ -92,11 +99,13 @@ impl HarnessError {
     }
 
     /// The process exit code for this error: [`NO_DESIGN_EXIT_CODE`] for
-    /// [`HarnessError::NoDesign`], 1 for every other.
+    /// [`HarnessError::NoDesign`], [`NOT_PASSED_EXIT_CODE`] for [`HarnessError::NotPassed`],
+    /// 1 for every other.
     #[must_use]
     pub fn exit_code(&self) -> u8 {
         match self {
             Self::NoDesign(_) => NO_DESIGN_EXIT_CODE,
+            Self::NotPassed(_) => NOT_PASSED_EXIT_CODE,
             _ => 1,
         }
     }

@@ -327,7 +327,7 @@ fn finish(c: &Commissioning, pair: &tune::pair::Pair, out: &Path) -> Result<Stri
     if c.passed {
         Ok(line)
     } else {
-        Err(HarnessError::Backend(format!(
+        Err(HarnessError::NotPassed(format!(
             "{line}: the chosen design did not pass on the machine (commission.md)"
         )))
     }

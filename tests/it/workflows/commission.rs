@@ -181,3 +181,31 @@ fn commissioning_with_no_design_keeps_the_identification_and_says_what_failed() 
     assert!(md.contains("## The designs that came closest"), "{md}");
     assert!(md.contains("(needs ≥ 0.3)"), "{md}");
 }
+
+/// Table 1 at its own 94.25 rad/s: the design the machine chooses does not beat the file's
+/// own drive there, so the commissioning does not pass. Every file is written, the report
+/// says not to flash the drive, and the error carries its own exit code, 4.
+#[test]
+fn a_commissioning_that_does_not_pass_says_so_with_its_own_exit_code() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("commission");
+    let config = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("configs/machines/table1.toml")
+        .display()
+        .to_string();
+    let e = commission(&config, &[], Some(94.25), &Constraints::default(), &out).unwrap_err();
+    assert_eq!(
+        e.exit_code(),
+        sim_engine::error::NOT_PASSED_EXIT_CODE,
+        "{e}"
+    );
+    assert_eq!(sim_engine::error::NOT_PASSED_EXIT_CODE, 4);
+    for f in ["commission.md", "identify/plant.toml", "tune/drive.toml"] {
+        assert!(out.join(f).is_file(), "{f} not written");
+    }
+    let md = std::fs::read_to_string(out.join("commission.md")).unwrap();
+    assert!(
+        md.contains("**Failed**") && md.contains("do not flash"),
+        "{md}"
+    );
+}
