@@ -15,6 +15,6 @@ pub mod model;
 pub mod notch;
 mod reduce;
 
-pub use margins::{Margins, margins_of};
+pub use margins::{Margins, margin_grid, margins_of, refined};
 pub use mirror::{Break, Coefficients};
 pub use model::LoopModel;

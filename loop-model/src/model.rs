@@ -21,7 +21,7 @@
 //! - With the gears apart, the load coasts on its own. Its states are dropped.
 
 use super::hessenberg::HessenbergResponse;
-use super::margins::{Margins, margins_of};
+use super::margins::{Margins, margin_grid, margins_of, refined};
 use super::mirror::{Break, Coefficients, Inputs, State};
 use super::reduce::{deflate, drop_unused};
 use nalgebra::{Complex, DMatrix, DVector};
@@ -337,12 +337,36 @@ impl LoopModel {
             .collect()
     }
 
-    /// Gain and phase margins of the loop opened at `brk`, from its response on a log grid
-    /// up to the velocity Nyquist frequency.
+    /// Gain and phase margins of the loop opened at `brk`, from its response on the log grid
+    /// [`margin_grid`] up to the velocity Nyquist frequency.
+    ///
+    /// The response is evaluated at every [`COARSE_STRIDE`](crate::margins::COARSE_STRIDE)-th point of the grid first, and
+    /// at every point only in the coarse intervals (and their neighbours) where it turns:
+    /// a phase change over [`TURN_RAD`](crate::margins::TURN_RAD), a change of ln |L| over it, a gain crossing of 1
+    /// or a phase crossing of −180°. Elsewhere the response is smooth on the coarse
+    /// points, and [`margins_of`] reads its crossings only in the intervals evaluated in
+    /// full, so the margins are those of the whole grid ([`Self::margins_dense`]) at a
+    /// fraction of the evaluations.
     #[must_use]
     pub fn margins(&self, brk: Break) -> Margins {
-        let nyquist = 0.5 / self.period_s;
-        let freqs = plant_host::analysis::log_space(0.01, nyquist * 0.999, 800);
+        let freqs = margin_grid(self.period_s);
+        let (m, bw, c, d) = self.matrices(brk);
+        let d = *d;
+        let form = HessenbergResponse::new(m, bw, c);
+        let at = |f: f64| {
+            let z = Complex::from_polar(1.0, 2.0 * PI * f * self.period_s);
+            form.at(z)
+                .map_or(Complex::new(f64::INFINITY, 0.0), |g| -(g + d))
+        };
+        let (f, l) = refined(&freqs, at);
+        margins_of(&f, &l)
+    }
+
+    /// The margins from the response at every point of [`margin_grid`]: what
+    /// [`Self::margins`] reads from fewer points.
+    #[must_use]
+    pub fn margins_dense(&self, brk: Break) -> Margins {
+        let freqs = margin_grid(self.period_s);
         let l = self.loop_gain(brk, &freqs);
         margins_of(&freqs, &l)
     }

@@ -90,8 +90,53 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
             g.torque_noise_rms_pu
         );
     }
+    tried_table(&mut md, c);
     verdict(&mut md, c, pair);
     md
+}
+
+/// The designs tried on the machine: the identified model's prediction beside the machine.
+fn tried_table(md: &mut String, c: &Commissioning) {
+    let f = |x: Option<f64>| x.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
+    let _ = write!(
+        md,
+        "\n### Predicted and measured\n\nThe first {} designs of each kind within the budgets \
+         on the identified model, run on the machine; of each kind, the one the machine ranks \
+         first (within the budgets and no worse than the file's own drive, then the lower J \
+         there) that also passes `tune`'s verification is taken.\n\n\
+         | kind | bandwidth (rad/s) | design | J model | J machine | peak droop model / \
+         machine (pu) | peak shaft torque model / machine (pu) | recovery model / machine \
+         (s) | torque noise model / machine (pu RMS) | on the machine | taken |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        super::ON_MACHINE_PER_KIND
+    );
+    for t in &c.tried {
+        let (p, m) = (&t.model.figures, &t.machine.figures);
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.3} | {:.3} | {} / {} | {} / {} | {} / {} | {:.4} / {:.4} | {} \
+             | {} |",
+            t.kind,
+            t.candidate.bandwidth_rad_s,
+            t.candidate.afb.label(),
+            t.model.objective,
+            t.objective,
+            f(p.peak_droop_pu),
+            f(m.peak_droop_pu),
+            f(p.peak_shaft_torque_pu),
+            f(m.peak_shaft_torque_pu),
+            f(p.recovery_s),
+            f(m.recovery_s),
+            p.torque_noise_rms_pu,
+            m.torque_noise_rms_pu,
+            match t.qualifies {
+                2 => "qualifies, no worse",
+                1 => "qualifies, worse than the file's drive",
+                _ => "out of budget",
+            },
+            if t.taken { "yes" } else { "" }
+        );
+    }
 }
 
 /// The notch section: whether one was placed, why (the figures of the best candidate

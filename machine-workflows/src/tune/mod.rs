@@ -280,8 +280,9 @@ pub fn shortlist(judged: &[Judged]) -> Vec<Judged> {
 
 /// Chooses among the candidates `judged` on `config` (module docs, steps 2-3): the
 /// [`shortlist`] of the feasible ones is run on `fig6` and scored ([`objective`]); those
-/// within the budgets are verified in the order of their objective, and the first that
-/// passes is the design.
+/// within the budgets are verified, those no worse than the default drive in droop and
+/// shaft torque first, each group in the order of its objective, and the first that passes
+/// is the design.
 pub fn choose(config: &str, judged: Vec<Judged>, k: &Constraints) -> Result<TuneResult> {
     let bases = bases(config)?;
     let fig6 = bases
@@ -300,8 +301,9 @@ pub fn choose(config: &str, judged: Vec<Judged>, k: &Constraints) -> Result<Tune
         })
         .collect();
     runs.sort_by(|(a, x), (b, y)| {
-        x.objective
-            .total_cmp(&y.objective)
+        y.no_worse
+            .cmp(&x.no_worse)
+            .then(x.objective.total_cmp(&y.objective))
             .then(
                 b.candidate
                     .bandwidth_rad_s
@@ -402,6 +404,23 @@ pub fn design_from(config: &str, judged: Vec<Judged>, constraints: &Constraints)
         base,
         tuned,
     })
+}
+
+/// `t` with its design replaced by `c` (one of the candidates `t`'s search scored), judged,
+/// scored and verified on `config` as [`design_from`] does, its damping measured; `t`'s
+/// record of the search (candidates judged, scored and refused, per bandwidth) kept. An
+/// error when `c` leaves the budgets or fails its verification.
+pub fn retarget(config: &str, t: &Tuned, c: &Candidate, k: &Constraints) -> Result<Tuned> {
+    let judged = judge_grid(config, std::slice::from_ref(c), k)?;
+    let mut new = design_from(config, judged, k)?;
+    let (r, n) = (&t.result, &mut new.result);
+    n.config.clone_from(&r.config);
+    n.judged = r.judged;
+    n.feasible = r.feasible;
+    n.refused.clone_from(&r.refused);
+    n.scored.clone_from(&r.scored);
+    n.per_bandwidth.clone_from(&r.per_bandwidth);
+    Ok(new)
 }
 
 /// Writes the design's files into `dir` (module docs, and [`write_files`]).

@@ -24,6 +24,12 @@
 //!   at most [`Budget::max_torque_noise_pu`]: `--max-torque-noise-pu`, or by default
 //!   the larger of [`NOISE_FACTOR`] × the default drive's own and [`NOISE_FLOOR_PU`];
 //! - stable and not faulted in that run (and in `tune`'s verification runs).
+//!
+//! J trades the three figures against each other, but a user who swaps drives expects
+//! neither the droop nor the shaft torque to get worse. So among the designs within the
+//! budgets, those no worse than the default drive in peak droop and in peak shaft torque
+//! ([`Reference::worse`] empty, [`Score::no_worse`]) come first, by J, and the others only
+//! after them; a design chosen from the others is reported as worse, by how much.
 
 use super::Candidate;
 use serde::Serialize;
@@ -193,6 +199,32 @@ impl Reference {
         v
     }
 
+    /// The figures in which `f` is worse than the default drive, in words (empty: no worse
+    /// in peak droop and in peak shaft torque).
+    #[must_use]
+    pub fn worse(&self, f: &Figures) -> Vec<String> {
+        let mut v = Vec::new();
+        let d = &self.default_drive;
+        for (name, x, reference) in [
+            ("peak droop", f.peak_droop_pu, d.peak_droop_pu),
+            (
+                "peak shaft torque",
+                f.peak_shaft_torque_pu,
+                d.peak_shaft_torque_pu,
+            ),
+        ] {
+            if let (Some(x), Some(r)) = (x, reference) {
+                if x > r {
+                    v.push(format!(
+                        "{name} {x:.4} pu > the default drive's {r:.4} pu (+{:.1} %)",
+                        100.0 * (x / r - 1.0)
+                    ));
+                }
+            }
+        }
+        v
+    }
+
     /// The budgets and the objective, in words, for `tune.md` and `commission.md`.
     #[must_use]
     pub fn describe(&self) -> String {
@@ -205,7 +237,10 @@ impl Reference {
              is better, and a run without one of the figures (no step seen, never recovered) \
              has J = ∞. Budgets: torque noise above the velocity bandwidth ≤ {:.4} pu RMS \
              ({}); stable and no fault in `{SCENARIO}` and in the verification runs; and the \
-             linear constraints below.",
+             linear constraints below. Of the designs within the budgets, those no worse than \
+             the default drive in peak droop ({:.4} pu) and in peak shaft torque ({:.4} pu) \
+             are preferred, by J; another is chosen only when none of them passes, and is \
+             reported as worse.",
             if d.recovery_s.is_none() {
                 format!(
                     "; the default drive never recovers within the {nr:.3} s after the step, \
@@ -223,7 +258,9 @@ impl Reference {
                      {NOISE_FLOOR_PU} pu",
                     d.torque_noise_rms_pu
                 )
-            }
+            },
+            d.peak_droop_pu.unwrap_or(f64::NAN),
+            d.peak_shaft_torque_pu.unwrap_or(f64::NAN),
         )
     }
 }
@@ -235,8 +272,11 @@ pub struct Score {
     pub figures: Figures,
     /// J (module docs).
     pub objective: f64,
-    /// Within the noise budget, stable and not faulted, J finite.
+    /// Within every budget of [`Reference::broken`].
     pub within_budget: bool,
+    /// No worse than the default drive in peak droop and in peak shaft torque
+    /// ([`Reference::worse`]).
+    pub no_worse: bool,
 }
 
 impl Score {
@@ -247,6 +287,7 @@ impl Score {
             figures: f,
             objective: r.objective(&f),
             within_budget: r.broken(&f).is_empty(),
+            no_worse: r.worse(&f).is_empty(),
         }
     }
 
@@ -260,7 +301,7 @@ impl Score {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
 
     fn figures(droop: Option<f64>, shaft: f64, rec: Option<f64>, noise: f64) -> Figures {
@@ -295,6 +336,24 @@ mod tests {
         let noisy = figures(Some(0.01), 0.8, Some(0.2), 0.02);
         assert!(r.objective(&noisy).is_finite());
         assert!(!Score::of(&r, noisy).within_budget);
+    }
+
+    #[test]
+    fn a_lower_objective_bought_with_more_shaft_torque_or_droop_is_worse() {
+        let r =
+            Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.01), None, None).unwrap();
+        // J = 0.5 + 1.01 + 0.25 < 3, but the shaft torque is 1 % above the default's.
+        let shaft = figures(Some(0.005), 0.808, Some(0.05), 0.01);
+        assert!(r.objective(&shaft) < 3.0);
+        let worse = r.worse(&shaft);
+        assert_eq!(worse.len(), 1, "{worse:?}");
+        assert!(worse[0].contains("peak shaft torque 0.8080 pu") && worse[0].contains("+1.0 %"));
+        let s = Score::of(&r, shaft);
+        assert!(s.within_budget && !s.no_worse);
+        let droop = figures(Some(0.0101), 0.4, Some(0.05), 0.01);
+        assert!(r.worse(&droop)[0].starts_with("peak droop"));
+        // Equal to the default drive's is no worse.
+        assert!(Score::of(&r, figures(Some(0.01), 0.8, Some(0.1), 0.01)).no_worse);
     }
 
     #[test]

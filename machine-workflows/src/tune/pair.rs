@@ -113,10 +113,17 @@ impl Pair {
             .unwrap_or_else(|| self.afb_chosen_on_model())
     }
 
-    /// Whether the design with AFB has the lower objective on the model it was tuned on.
+    /// Whether the design with AFB is the better on the model it was tuned on: the one no
+    /// worse than the default drive in droop and shaft torque when only one of them is
+    /// ([`super::objective::Score::no_worse`]), else the lower objective.
     #[must_use]
     pub fn afb_chosen_on_model(&self) -> bool {
-        self.with.result.score.objective < self.without.result.score.objective
+        let (w, wo) = (&self.with.result.score, &self.without.result.score);
+        match (w.no_worse, wo.no_worse) {
+            (true, false) => true,
+            (false, true) => false,
+            _ => w.objective < wo.objective,
+        }
     }
 
     /// The chosen design and the runner-up (the best of the other kind).

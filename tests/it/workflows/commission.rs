@@ -1,7 +1,8 @@
 //! `commission` on a machine no shipped config and no other test describes: identify it,
 //! tune on the identified model, and verify on the machine itself (a plant the other
-//! tests have not seen: identify -> tune gives a design whose nonlinear run is stable and
-//! better than the no-AFB design).
+//! tests have not seen: identify -> tune -> the machine's choice gives a design that is
+//! stable there, no worse than the file's own drive in peak droop and peak shaft torque,
+//! and lower in the objective).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use super::common;
@@ -9,19 +10,19 @@ use super::common;
 use machine_workflows::commission::commission;
 use machine_workflows::tune::Constraints;
 
-/// Table 1's file with another machine: a heavier motor, a lighter load, a stiffer shaft
-/// with less lost motion, an 8192-count encoder.
+/// Table 1's file with another machine: a heavy motor on a lighter load through a soft,
+/// 12 Hz coupling with 1° of lost motion, a 65,536-count encoder.
 const MACHINE: [(&str, f64); 5] = [
-    ("motor_inertia_s", 0.35),
-    ("load_inertia_s", 0.6),
-    ("anti_resonance_hz", 18.0),
+    ("motor_inertia_s", 0.4),
+    ("load_inertia_s", 0.3),
+    ("anti_resonance_hz", 12.0),
     ("shaft_damping_ratio", 0.04),
-    ("backlash_deg", 0.2),
+    ("backlash_deg", 1.0),
 ];
 
 fn unseen_machine(dir: &std::path::Path) -> String {
     let mut keys = common::plant(&MACHINE);
-    keys.push(("plant", "encoder_cpr", toml::Value::Integer(8192)));
+    keys.push(("plant", "encoder_cpr", toml::Value::Integer(65536)));
     common::machine_file(dir, "unseen.toml", &keys)
 }
 
@@ -30,11 +31,8 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     let tmp = tempfile::tempdir().unwrap();
     let config = unseen_machine(tmp.path());
     let out = tmp.path().join("commission");
-    // At 110 rad/s. At 60 rad/s, where this test ran before `tune` chose by the objective,
-    // both designs do worse on this machine than the file's own 94.25 rad/s drive (J 3.415
-    // with AFB and 3.529 without, against 3, measured on this tree), and a design worse than
-    // the drive the file ships no longer passes.
-    let line = commission(&config, &[], Some(110.0), &Constraints::default(), &out).unwrap();
+    // Over the grid's bandwidths (`--max-bandwidth`).
+    let line = commission(&config, &[], None, &Constraints::default(), &out).unwrap();
     eprintln!("{line}");
     for f in [
         "commission.md",
@@ -63,9 +61,23 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     // The loop damps this machine's resonance: no notch, the designs as without the feature.
     assert!(json["notch"]["notch"].is_null(), "{json}");
     assert!(json["without_notch"].is_null(), "{json}");
-    assert_eq!(runs[0]["stable"], true);
-    assert_eq!(runs[0]["faulted"], false);
-    assert!(ripple(0) < ripple(1), "{json}");
+    let i = usize::from(json["chosen"] != "with AFB");
+    assert_eq!(runs[i]["stable"], true);
+    assert_eq!(runs[i]["faulted"], false);
+    assert!(ripple(i).is_finite(), "{json}");
+    // Designs of both kinds were tried on the machine, one of each taken, each with the
+    // model's prediction beside the machine's figures.
+    let tried = json["tried"].as_array().unwrap();
+    for kind in ["with AFB", "without AFB"] {
+        let of: Vec<_> = tried.iter().filter(|t| t["kind"] == kind).collect();
+        assert!(!of.is_empty(), "{kind}");
+        assert_eq!(
+            of.iter().filter(|t| t["taken"] == true).count(),
+            1,
+            "{kind}"
+        );
+    }
+    assert!(md.contains("### Predicted and measured"), "{md}");
     assert_ne!(
         runs[0]["afb"].as_str().unwrap(),
         runs[1]["afb"].as_str().unwrap()
@@ -85,7 +97,18 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     // The tuned machine file runs with `run --config` as it is.
     let tuned = out.join("tune/drive.toml").display().to_string();
     let cfg = sim_engine::resolve("fig6", Some(&tuned), &[]).unwrap();
-    assert!(sim_engine::run_scenario(&cfg).unwrap().metrics.stable);
+    let m = sim_engine::run_scenario(&cfg).unwrap().metrics;
+    assert!(m.stable);
+    // `run --scenario fig6 --config D/tune/drive.toml` against `--config X`: the chosen
+    // drive is no worse than the file's own in peak droop and peak shaft torque.
+    let own = sim_engine::resolve("fig6", Some(&config), &[]).unwrap();
+    let d = sim_engine::run_scenario(&own).unwrap().metrics;
+    eprintln!(
+        "fig6 peak droop {:?} against {:?}, peak shaft torque {:?} against {:?}",
+        m.peak_droop_pu, d.peak_droop_pu, m.peak_shaft_torque_pu, d.peak_shaft_torque_pu
+    );
+    assert!(m.peak_droop_pu.unwrap() <= d.peak_droop_pu.unwrap());
+    assert!(m.peak_shaft_torque_pu.unwrap() <= d.peak_shaft_torque_pu.unwrap());
 
     // tune/drive.toml is the chosen design, whichever kind it is, and the chosen one has the
     // lower objective on the machine too; tune/runner-up.toml is the other kind.
@@ -110,10 +133,9 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
         other.drive.accel_feedback.mode != controller_core::AfbMode::Off,
         !afb
     );
-    let i = usize::from(!afb);
     assert_eq!(
         f64::from(cfg.drive.velocity_bandwidth_rad_s),
-        runs[i]["bandwidth_rad_s"].as_f64().unwrap()
+        runs[usize::from(!afb)]["bandwidth_rad_s"].as_f64().unwrap()
     );
 }
 

@@ -308,3 +308,51 @@ fn table1_drive() -> controller_core::DriveConfig {
         .expect("configs/machines/table1.toml composes")
         .drive
 }
+
+/// The margins read from the coarse pass and its refinement equal those of the whole grid,
+/// on every 37th candidate of `tune`'s grid on the three shipped machines and a light motor
+/// on a 2 %-damped coupling (gears engaged and apart, opened at the velocity regulator).
+#[test]
+fn refined_margins_equal_the_dense_grid_margins() {
+    let dir = tempfile::tempdir().unwrap();
+    let light = super::common::machine_file(
+        dir.path(),
+        "light.toml",
+        &super::common::plant(&[
+            ("motor_inertia_s", 0.05),
+            ("load_inertia_s", 0.6),
+            ("anti_resonance_hz", 30.0),
+            ("shaft_damping_ratio", 0.02),
+        ]),
+    );
+    let grid = sim_engine::config::tune_grid().unwrap();
+    let all = machine_workflows::tune::candidates(&grid, &grid.bandwidths_rad_s);
+    let mut compared = 0;
+    for config in ["table1", "dyno", "printing-press", light.as_str()] {
+        let fig6 = sim_engine::resolve("fig6", Some(config), &[]).unwrap();
+        for c in all.iter().step_by(37) {
+            let mut cfg = fig6.clone();
+            c.apply(&mut cfg.drive);
+            let Ok(gains) = sim_engine::engine::runner::regulator_gains(&cfg) else {
+                continue;
+            };
+            for gears in [Gears::Engaged, Gears::Apart] {
+                let m = machine_workflows::linear::for_gains(&cfg, &gains, gears).unwrap();
+                let (a, b) = (
+                    m.margins(Break::VelocityRegulator),
+                    m.margins_dense(Break::VelocityRegulator),
+                );
+                let same = |x: f64, y: f64| x == y || (x.is_nan() && y.is_nan());
+                assert!(
+                    same(a.phase_margin_deg, b.phase_margin_deg)
+                        && same(a.gain_margin_db, b.gain_margin_db)
+                        && same(a.crossover_hz, b.crossover_hz)
+                        && same(a.phase_crossover_hz, b.phase_crossover_hz),
+                    "{config} {c:?} {gears:?}: {a:?} against {b:?}"
+                );
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared > 500, "{compared}");
+}
