@@ -40,6 +40,7 @@ pub mod summary;
 mod verify;
 
 pub use grid::{candidates, without_afb, Candidate};
+pub use verify::retarget;
 use verify::{bases, verify};
 pub use verify::{Verification, VERIFY};
 
@@ -404,23 +405,6 @@ pub fn design_from(config: &str, judged: Vec<Judged>, constraints: &Constraints)
         base,
         tuned,
     })
-}
-
-/// `t` with its design replaced by `c` (one of the candidates `t`'s search scored), judged,
-/// scored and verified on `config` as [`design_from`] does, its damping measured; `t`'s
-/// record of the search (candidates judged, scored and refused, per bandwidth) kept. An
-/// error when `c` leaves the budgets or fails its verification.
-pub fn retarget(config: &str, t: &Tuned, c: &Candidate, k: &Constraints) -> Result<Tuned> {
-    let judged = judge_grid(config, std::slice::from_ref(c), k)?;
-    let mut new = design_from(config, judged, k)?;
-    let (r, n) = (&t.result, &mut new.result);
-    n.config.clone_from(&r.config);
-    n.judged = r.judged;
-    n.feasible = r.feasible;
-    n.refused.clone_from(&r.refused);
-    n.scored.clone_from(&r.scored);
-    n.per_bandwidth.clone_from(&r.per_bandwidth);
-    Ok(new)
 }
 
 /// Writes the design's files into `dir` (module docs, and [`write_files`]).

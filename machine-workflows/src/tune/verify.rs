@@ -1,7 +1,8 @@
 //! The nonlinear verification of a design (module docs of [`super`], step 3): `fig6`, a
 //! 150 % shock and the sweep's probe, each stable and without a fault, the probe quiet too.
+//! [`retarget`] puts another scored candidate in place of a design, verified the same way.
 
-use super::Candidate;
+use super::{design_from, judge_grid, Candidate, Constraints, Tuned};
 use serde::Serialize;
 use sim_engine::config::{resolve, RunConfig};
 use sim_engine::engine::runner::run_scenario;
@@ -66,4 +67,21 @@ pub(super) fn verify(bases: &[RunConfig], c: &Candidate) -> Result<Vec<Verificat
             })
         })
         .collect()
+}
+
+/// `t` with its design replaced by `c` (one of the candidates `t`'s search scored), judged,
+/// scored and verified on `config` as [`design_from`] does, its damping measured; `t`'s
+/// record of the search (candidates judged, scored and refused, per bandwidth) kept. An
+/// error when `c` leaves the budgets or fails its verification.
+pub fn retarget(config: &str, t: &Tuned, c: &Candidate, k: &Constraints) -> Result<Tuned> {
+    let judged = judge_grid(config, std::slice::from_ref(c), k)?;
+    let mut new = design_from(config, judged, k)?;
+    let (r, n) = (&t.result, &mut new.result);
+    n.config.clone_from(&r.config);
+    n.judged = r.judged;
+    n.feasible = r.feasible;
+    n.refused.clone_from(&r.refused);
+    n.scored.clone_from(&r.scored);
+    n.per_bandwidth.clone_from(&r.per_bandwidth);
+    Ok(new)
 }

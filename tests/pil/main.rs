@@ -26,6 +26,8 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+mod pil_identify;
+
 /// The processor-in-the-loop cases (this module's and `pil_identify`'s), one after another
 /// in one test: one QEMU session at a time, since the fault cases use a 500 ms link watchdog
 /// that two lock-step runs side by side on a loaded 2-core machine could starve towards.
