@@ -31,8 +31,9 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     let tmp = tempfile::tempdir().unwrap();
     let config = unseen_machine(tmp.path());
     let out = tmp.path().join("commission");
-    // Over the grid's bandwidths (`--max-bandwidth`).
-    let line = commission(&config, &[], None, &Constraints::default(), &out).unwrap();
+    // At 110 rad/s, the bandwidth `--max-bandwidth` chooses here (with AFB; the design
+    // without AFB falls back to the grid's bandwidths below it, and takes 60 rad/s).
+    let line = commission(&config, &[], Some(110.0), &Constraints::default(), &out).unwrap();
     eprintln!("{line}");
     for f in [
         "commission.md",

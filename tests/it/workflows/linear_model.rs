@@ -310,7 +310,7 @@ fn table1_drive() -> controller_core::DriveConfig {
 }
 
 /// The margins read from the coarse pass and its refinement equal those of the whole grid,
-/// on every 37th candidate of `tune`'s grid on the three shipped machines and a light motor
+/// on every 97th candidate of `tune`'s grid on the three shipped machines and a light motor
 /// on a 2 %-damped coupling (gears engaged and apart, opened at the velocity regulator).
 #[test]
 fn refined_margins_equal_the_dense_grid_margins() {
@@ -330,7 +330,7 @@ fn refined_margins_equal_the_dense_grid_margins() {
     let mut compared = 0;
     for config in ["table1", "dyno", "printing-press", light.as_str()] {
         let fig6 = sim_engine::resolve("fig6", Some(config), &[]).unwrap();
-        for c in all.iter().step_by(37) {
+        for c in all.iter().step_by(97) {
             let mut cfg = fig6.clone();
             c.apply(&mut cfg.drive);
             let Ok(gains) = sim_engine::engine::runner::regulator_gains(&cfg) else {
@@ -354,5 +354,5 @@ fn refined_margins_equal_the_dense_grid_margins() {
             }
         }
     }
-    assert!(compared > 500, "{compared}");
+    assert!(compared > 200, "{compared}");
 }
