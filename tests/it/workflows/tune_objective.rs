@@ -108,7 +108,9 @@ fn tune_on_a_heavy_motor_with_a_soft_coupling_chooses_no_worse_than_the_default_
     );
     let out = dir.path().join("tune");
     let t0 = Instant::now();
-    let line = tune(&config, None, &Constraints::default(), &out).unwrap();
+    // At 94.25 rad/s, where `--max-bandwidth` chooses on this machine (docs/tuning.md);
+    // `tune_table1` runs the search over every bandwidth.
+    let line = tune(&config, Some(94.25), &Constraints::default(), &out).unwrap();
     eprintln!("{line} ({:.1} s)", t0.elapsed().as_secs_f64());
     check_choice(&config, &out);
 }
