@@ -323,11 +323,36 @@ pub fn commission(
     constraints: &Constraints,
     out: &Path,
 ) -> Result<String> {
+    // One bar over the stages (hidden when stderr is not a terminal); `tune`'s own bar
+    // shows the linear judging within its stage.
+    let pb = sim_engine::progress::bar(STAGES.len() as u64, "commission");
+    let stage = |i: usize| {
+        pb.set_position(i as u64);
+        pb.set_message(STAGES.get(i).copied().unwrap_or("commission"));
+    };
+    let result = run_stages(config, sets, target_bandwidth, constraints, out, &stage);
+    pb.finish_and_clear();
+    result
+}
+
+/// The stages the progress bar names.
+const STAGES: [&str; 5] = ["identify", "judge", "tune", "on the machine", "write"];
+
+fn run_stages(
+    config: &str,
+    sets: &[String],
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+    out: &Path,
+    stage: &dyn Fn(usize),
+) -> Result<String> {
     tune::objective::check_budget(constraints.max_torque_noise_pu)?;
     let grid = sim_engine::config::tune_grid()?;
     let bws = tune::bandwidths(&grid, target_bandwidth)?;
     let staging = Staging::new(out)?;
+    stage(0);
     let (base, ident, doc, identified) = identify_into(&staging, config, sets)?;
+    stage(1);
     let judged = tune::judge_grid(&identified, &tune::candidates(&grid, &bws), constraints)?;
     let fig6 = resolve("fig6", Some(&identified), &[])?;
     let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
@@ -344,6 +369,7 @@ pub fn commission(
             (path.display().to_string(), "notched.toml", None)
         }
     };
+    stage(2);
     let pair = match tune::pair::design_both_from(&tuned_on, judged, target_bandwidth, constraints)
     {
         Ok(p) => p,
@@ -373,6 +399,7 @@ pub fn commission(
         &resolve("fig6", Some(config), sets)?,
         constraints.max_torque_noise_pu,
     )?;
+    stage(3);
     let tried = try_on_machine(&m, &tuned_on, &mut pair, &reference, constraints)?;
     pair.with.result.config = name.into();
     pair.without.result.config = name.into();
@@ -410,6 +437,7 @@ pub fn commission(
         without_notch,
         passed,
     };
+    stage(4);
     write::write_all(&staging, &c, &base, &ident, &pair)?;
     staging.commit()?;
     finish(&c, &pair, out)
