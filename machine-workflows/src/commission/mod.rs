@@ -30,6 +30,8 @@
 //!    objective on the machine is lower) and, with a notch
 //!    placed, by [`NOTCH_CRITERION`] (less ripple than the chosen design with the notch
 //!    taken out, run too for the comparison).
+//!    `DIR/drive.toml` is `CFG` as given with the chosen `[drive]` (what `run --config` and
+//!    `flash --config` take on this machine), `DIR/runner-up.toml` with the other kind's.
 //!    `DIR/commission.md` and `DIR/commission.json` hold the figures and the notch
 //!    decision with its reason; the command fails (after writing them) when it does not
 //!    pass.
@@ -90,6 +92,38 @@ pub struct Commissioning {
     /// The chosen design passed ([`CRITERION`] and, with a notch placed,
     /// [`NOTCH_CRITERION`]).
     pub passed: bool,
+}
+
+/// `DIR/drive.toml` and `DIR/runner-up.toml`: the machine file `config` as given (with
+/// `sets` applied) with the chosen design's `[drive]`, and with the other kind's: what
+/// `run --config` and `flash --config` take on this machine.
+fn write_drives(
+    staging: &Staging,
+    config: &str,
+    sets: &[String],
+    base: &RunConfig,
+    pair: &tune::pair::Pair,
+) -> Result<()> {
+    let (chosen, other) = pair.chosen();
+    for (name, t, what) in [
+        ("drive.toml", chosen, "the chosen design's [drive]"),
+        (
+            "runner-up.toml",
+            other,
+            "the [drive] of the best design of the other kind",
+        ),
+    ] {
+        let mut doc = read_table(&config_path(config)?)?;
+        overrides::apply_all(&mut doc, sets)?;
+        let body = tune::output::merged_doc(doc, &base.drive, &t.tuned.drive)?;
+        let text = format!(
+            "# `hil-harness commission`: {} with {what} (commission.md says whether to \
+             flash it).\n{body}",
+            base.config_path.display()
+        );
+        staging.write(name, &text)?;
+    }
+    Ok(())
 }
 
 /// `CFG` with `sets` applied and its `[plant]` table replaced by the identified one.
@@ -338,6 +372,33 @@ pub fn commission(
 /// The stages the progress bar names.
 const STAGES: [&str; 5] = ["identify", "judge", "tune", "on the machine", "write"];
 
+/// The notch decision ([`notch::decide`]) on the identified file and the file both designs
+/// are tuned on: `identified.toml` with the candidates already judged on it, or with a notch
+/// placed `notched.toml` (written) and nothing judged yet.
+fn place_notch(
+    staging: &Staging,
+    ident: &identify::Identification,
+    identified: String,
+    doc: Table,
+    judged: Vec<tune::Judged>,
+    constraints: &Constraints,
+) -> Result<(Decision, String, &'static str, Option<Vec<tune::Judged>>)> {
+    let fig6 = resolve("fig6", Some(&identified), &[])?;
+    let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
+    Ok(match &decision.notch {
+        None => (decision, identified, "identified.toml", Some(judged)),
+        Some(n) => {
+            let header = format!(
+                "identified.toml with the notch commission placed ({}).",
+                decision.reason
+            );
+            let text = render("notched.toml", &header, &with_notch(doc, n)?)?;
+            let path = staging.write("notched.toml", &text)?.display().to_string();
+            (decision, path, "notched.toml", None)
+        }
+    })
+}
+
 fn run_stages(
     config: &str,
     sets: &[String],
@@ -354,21 +415,9 @@ fn run_stages(
     let (base, ident, doc, identified) = identify_into(&staging, config, sets)?;
     stage(1);
     let judged = tune::judge_grid(&identified, &tune::candidates(&grid, &bws), constraints)?;
-    let fig6 = resolve("fig6", Some(&identified), &[])?;
-    let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
     let all_judged = judged.clone();
-    let (tuned_on, name, judged) = match &decision.notch {
-        None => (identified, "identified.toml", Some(judged)),
-        Some(n) => {
-            let header = format!(
-                "identified.toml with the notch commission placed ({}).",
-                decision.reason
-            );
-            let text = render("notched.toml", &header, &with_notch(doc, n)?)?;
-            let path = staging.write("notched.toml", &text)?;
-            (path.display().to_string(), "notched.toml", None)
-        }
-    };
+    let (decision, tuned_on, name, judged) =
+        place_notch(&staging, &ident, identified, doc, judged, constraints)?;
     stage(2);
     let pair = match tune::pair::design_both_from(&tuned_on, judged, target_bandwidth, constraints)
     {
@@ -439,6 +488,7 @@ fn run_stages(
     };
     stage(4);
     write::write_all(&staging, &c, &base, &ident, &pair)?;
+    write_drives(&staging, config, sets, &base, &pair)?;
     staging.commit()?;
     finish(&c, &pair, out)
 }

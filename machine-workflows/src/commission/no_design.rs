@@ -95,6 +95,7 @@ mod tests {
             },
             damping: [damping, 0.5],
             notch_band_damping: None,
+            resonance_band_damping: None,
             margins: [pm, 10.0],
             noise_pu: noise,
             stiffness: 1.0,

@@ -46,8 +46,9 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
          Chosen {} (J {:.3} on the identified model; {} J {:.3}; the file's own drive \
          3) by the objective on the machine, where both designs ran (section 3): {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin \
          {:.1} deg, gain margin {:.1} dB, quantization torque noise {:.3} pu RMS. \
-         `tune/drive.toml` is the identified machine file with that drive, \
-         `tune/runner-up.toml` with the other.\n\n\
+         `drive.toml` is the machine file as given with that drive and `runner-up.toml` \
+         with the other (`tune/drive.toml` and `tune/runner-up.toml`: the same drives in the \
+         identified machine file).\n\n\
          ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
          {}\n\n\
          | {} J on the machine | peak droop (pu) | peak shaft torque (pu) | recovery (s) | \
@@ -240,10 +241,10 @@ fn verdict(md: &mut String, c: &Commissioning, pair: &Pair) {
         super::CRITERION,
         super::NOTCH_CRITERION,
         if c.passed {
-            "The drive to flash is `tune/drive.toml` (`cargo run --release -- flash \
-             --config DIR/tune/drive.toml`)."
+            "The drive to flash is `drive.toml` (`cargo run --release -- flash \
+             --config DIR/drive.toml`)."
         } else {
-            "`tune/drive.toml` did not pass on the machine: do not flash it."
+            "`drive.toml` did not pass on the machine: do not flash it."
         }
     );
 }

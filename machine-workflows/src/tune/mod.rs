@@ -6,7 +6,9 @@
 //!    acceleration source, observer bandwidth, and the velocity bandwidth when asked for
 //!    the maximum) is judged on the
 //!    linear model, with the gears engaged and, on a machine with lost motion, apart:
-//!    - smallest damping ≥ `min_damping` in both; with a notch on the torque reference
+//!    - smallest damping ≥ `min_damping` in both; without a notch, on a machine that damps
+//!      its own resonance less, the engaged poles near it need only keep the machine's own
+//!      damping ([`resonance_band`]); with a notch on the torque reference
 //!      (`[drive.notch]`), the poles within [`notch_band`] are judged apart: those are
 //!      the resonance the notch leaves to the machine (and the notch's own pair), and
 //!      they must keep [`NOTCH_BAND_DAMPING_SHARE`] of the machine's own damping of its
@@ -29,6 +31,7 @@
 //!    the Bode plot and the pole map ([`plots`]) and, per bandwidth, which constraint
 //!    stopped the search ([`summary`]).
 
+pub mod bands;
 pub mod damping;
 pub mod grid;
 pub mod machines;
@@ -39,6 +42,11 @@ pub mod plots;
 pub mod summary;
 mod verify;
 
+use bands::damping_of;
+pub use bands::{
+    machine_resonance_damping, machine_resonance_hz, notch_band, resonance_band,
+    NOTCH_BAND_DAMPING_SHARE, RESONANCE_BAND_SHARE,
+};
 pub use grid::{candidates, without_afb, Candidate};
 pub use verify::retarget;
 use verify::{bases, verify};
@@ -94,6 +102,11 @@ pub struct Judged {
     /// (the resonance the notch leaves to the machine, and the notch's own poles).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub notch_band_damping: Option<f64>,
+    /// Without a notch, on a machine whose own resonance damping is below the floor: the
+    /// smallest damping of the engaged poles within [`resonance_band`] (infinite if none),
+    /// which must keep the machine's own; `damping[0]` is then of the poles outside it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resonance_band_damping: Option<f64>,
     /// Velocity-loop phase margin \[deg\] and gain margin \[dB\], engaged.
     pub margins: [f64; 2],
     /// Quantization torque noise \[pu RMS\].
@@ -102,39 +115,6 @@ pub struct Judged {
     pub stiffness: f64,
     /// Meets every constraint.
     pub feasible: bool,
-}
-
-/// Share of the machine's own damping of its resonance that the poles in a notch's band
-/// must keep: the loop may take at most half of it away.
-pub const NOTCH_BAND_DAMPING_SHARE: f64 = 0.5;
-
-/// The band of natural frequencies \[Hz\] where a notch (`centre_hz`, `width_hz`) leaves
-/// the modes to the machine: the centre ± one width (twice its −3 dB band, so that a mode
-/// a few per cent off the centre, where an identified resonance may be, still counts).
-#[must_use]
-pub fn notch_band(n: &controller_core::NotchConfig) -> (f64, f64) {
-    let (c, w) = (f64::from(n.centre_hz), f64::from(n.width_hz));
-    (c - w, c + w)
-}
-
-/// The damping ratio of the machine's engaged resonance mode on its own (motor free, no
-/// loop): ζ·√(1 + Jl/Jm) for the shaft's ζ (defined at the anti-resonance).
-#[must_use]
-pub fn machine_resonance_damping(cfg: &RunConfig) -> f64 {
-    let m = &cfg.plant.mechanics;
-    m.shaft_damping_ratio * (1.0 + m.load_inertia_s / m.motor_inertia_s).sqrt()
-}
-
-/// The smallest damping of `model`: of all poles without a notch; with one, (outside its
-/// band, inside it).
-fn damping_of(cfg: &RunConfig, model: &LoopModel) -> (f64, Option<f64>) {
-    match &cfg.drive.notch {
-        None => (model.smallest_damping(), None),
-        Some(n) => {
-            let (outside, inside) = model.smallest_damping_split(notch_band(n));
-            (outside, Some(inside))
-        }
-    }
 }
 
 fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
@@ -151,6 +131,14 @@ fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
     } else {
         f64::INFINITY
     };
+    // Without a notch, the poles near the machine's resonance are held to its own damping.
+    let (engaged_damping, resonance_band_damping) = match resonance_band(&cfg, k.min_damping) {
+        Some(band) => {
+            let (outside, inside) = engaged.smallest_damping_split(band);
+            (outside, Some(inside))
+        }
+        None => (engaged_damping, None),
+    };
     let damping = [engaged_damping, apart];
     let band_floor = NOTCH_BAND_DAMPING_SHARE * machine_resonance_damping(&cfg);
     let m = engaged.margins(Break::VelocityRegulator);
@@ -163,6 +151,7 @@ fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
         .fold(f64::INFINITY, f64::min);
     let feasible = damping.iter().all(|d| *d >= k.min_damping)
         && in_band.is_none_or(|d| d >= band_floor)
+        && resonance_band_damping.is_none_or(|d| d >= machine_resonance_damping(&cfg))
         && m.phase_margin_deg >= k.min_phase_margin_deg
         && m.gain_margin_db >= k.min_gain_margin_db
         && noise_pu <= k.max_noise_pu;
@@ -170,6 +159,7 @@ fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
         candidate: *c,
         damping,
         notch_band_damping: in_band,
+        resonance_band_damping,
         margins: [m.phase_margin_deg, m.gain_margin_db],
         noise_pu,
         stiffness,

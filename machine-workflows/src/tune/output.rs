@@ -92,7 +92,12 @@ pub fn merged_config(
     base: &DriveConfig,
     tuned: &DriveConfig,
 ) -> Result<String> {
-    let mut doc = sim_engine::config::read_table(config_path)?;
+    merged_doc(sim_engine::config::read_table(config_path)?, base, tuned)
+}
+
+/// [`merged_config`] on a machine file's tree `doc` already read (e.g. with `--set`
+/// applied), whose drive composes to `base`.
+pub fn merged_doc(mut doc: Table, base: &DriveConfig, tuned: &DriveConfig) -> Result<String> {
     let keys = changed(&drive_table(base)?, &drive_table(tuned)?);
     let drive = doc
         .entry("drive")
@@ -173,6 +178,15 @@ pub fn markdown(r: &TuneResult, drive_toml: &str, images: &[String; 2]) -> Strin
             "The drive has a notch on the torque reference: the damping figures above are of \
              the poles outside its band; inside it (the resonance it leaves to the machine, \
              and its own poles) the smallest damping is {b:.4}.\n"
+        );
+    }
+    if let Some(b) = d.resonance_band_damping {
+        let _ = writeln!(
+            s,
+            "The machine damps its own resonance less than the floor: the engaged damping \
+             above is of the poles outside ±{:.0} % of that resonance; inside it the \
+             smallest damping is {b:.4}, held to the machine's own (docs/tuning.md).\n",
+            100.0 * super::RESONANCE_BAND_SHARE
         );
     }
     let _ = writeln!(

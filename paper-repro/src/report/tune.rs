@@ -326,6 +326,7 @@ mod tests {
             margins: [45.6, 7.8],
             noise_pu: 0.0123,
             notch_band_damping: None,
+            resonance_band_damping: None,
             stiffness: 1.0,
             feasible: true,
         }

@@ -42,6 +42,8 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
         "identify/plant.toml",
         "tune/drive.toml",
         "tune/tune.md",
+        "drive.toml",
+        "runner-up.toml",
     ] {
         assert!(out.join(f).is_file(), "{f} not written");
     }
@@ -54,10 +56,7 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     // Only a design that passed is called the one to flash.
     let md = std::fs::read_to_string(out.join("commission.md")).unwrap();
     assert!(md.contains("**Passed**"), "{md}");
-    assert!(
-        md.contains("The drive to flash is `tune/drive.toml`"),
-        "{md}"
-    );
+    assert!(md.contains("The drive to flash is `drive.toml`"), "{md}");
     assert!(!md.contains("do not flash"), "{md}");
     // The loop damps this machine's resonance: no notch, the designs as without the feature.
     assert!(json["notch"]["notch"].is_null(), "{json}");
@@ -96,11 +95,11 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
         assert!((v / truth - 1.0).abs() < 0.05, "{k}: {v} against {truth}");
     }
     // The tuned machine file runs with `run --config` as it is.
-    let tuned = out.join("tune/drive.toml").display().to_string();
+    let tuned = out.join("drive.toml").display().to_string();
     let cfg = sim_engine::resolve("fig6", Some(&tuned), &[]).unwrap();
     let m = sim_engine::run_scenario(&cfg).unwrap().metrics;
     assert!(m.stable);
-    // `run --scenario fig6 --config D/tune/drive.toml` against `--config X`: the chosen
+    // `run --scenario fig6 --config D/drive.toml` against `--config X`: the chosen
     // drive is no worse than the file's own in peak droop and peak shaft torque.
     let own = sim_engine::resolve("fig6", Some(&config), &[]).unwrap();
     let d = sim_engine::run_scenario(&own).unwrap().metrics;
@@ -110,6 +109,14 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     );
     assert!(m.peak_droop_pu.unwrap() <= d.peak_droop_pu.unwrap());
     assert!(m.peak_shaft_torque_pu.unwrap() <= d.peak_shaft_torque_pu.unwrap());
+    // drive.toml is the machine file as given with the drive tuned on the identified one.
+    assert_eq!(cfg.plant, own.plant);
+    assert_eq!(
+        machine_file::load(&out.join("tune/drive.toml"))
+            .unwrap()
+            .drive,
+        cfg.drive
+    );
 
     // tune/drive.toml is the chosen design, whichever kind it is, and the chosen one has the
     // lower objective on the machine too; tune/runner-up.toml is the other kind.
@@ -200,6 +207,7 @@ fn commissioning_with_no_design_keeps_the_identification_and_says_what_failed() 
         assert!(out.join(f).is_file(), "{f} not written");
     }
     assert!(!out.join("tune/drive.toml").exists());
+    assert!(!out.join("drive.toml").exists());
     let md = std::fs::read_to_string(out.join("commission.md")).unwrap();
     assert!(md.contains("## The designs that came closest"), "{md}");
     assert!(md.contains("(needs ≥ 0.3)"), "{md}");
@@ -223,7 +231,12 @@ fn a_commissioning_that_does_not_pass_says_so_with_its_own_exit_code() {
         "{e}"
     );
     assert_eq!(sim_engine::error::NOT_PASSED_EXIT_CODE, 4);
-    for f in ["commission.md", "identify/plant.toml", "tune/drive.toml"] {
+    for f in [
+        "commission.md",
+        "identify/plant.toml",
+        "tune/drive.toml",
+        "drive.toml",
+    ] {
         assert!(out.join(f).is_file(), "{f} not written");
     }
     let md = std::fs::read_to_string(out.join("commission.md")).unwrap();
