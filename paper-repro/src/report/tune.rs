@@ -174,7 +174,8 @@ fn moved_by_verdict(tunes: &[MachineTune]) -> String {
 pub fn section(tunes: &[MachineTune], k: &Constraints) -> Result<Section> {
     let mut m = format!(
         "`hil-harness tune` on each machine with AFB, and the no-AFB design by the same \
-         constraints (smallest damping {} engaged and apart, phase margin {} deg, gain margin \
+         constraints (smallest damping {} engaged and apart, except near a resonance the \
+         machine damps less, where the machine's own; phase margin {} deg, gain margin \
          {} dB, quantization torque noise at most {} pu RMS; the no-AFB design at the AFB \
          search's bandwidths or the highest below them that meets the constraints). {}Files: \
          `tune/<machine>/` (the AFB design, as `tune` writes it) and `tune/<machine>/no-afb/`; \
