@@ -452,11 +452,16 @@ pub fn summary_line(t: &Tuned, out: &Path) -> String {
         })
         .collect();
     format!(
-        "tune {}: {} rad/s, {}; damping {:.3} (fitted in the loop {}); verified: {}; -> {}",
+        "tune {}: {} rad/s, {}; damping {:.3}{} (fitted in the loop {}); verified: {}; -> {}",
         r.config,
         c.bandwidth_rad_s,
         c.afb.label(),
         r.design.damping[0],
+        r.design
+            .resonance_band_damping
+            .map_or_else(String::new, |d| format!(
+                " away from the machine's resonance, {d:.3} near it"
+            )),
         match (&r.step, r.no_oscillatory_mode) {
             (Some(f), _) => format!("{:.3}", f.fitted.damping()),
             (None, true) => "-: no decaying oscillatory mode".into(),
