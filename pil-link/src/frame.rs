@@ -49,6 +49,12 @@ pub enum FrameKind {
     Fault = 0x07,
     /// H→F: end of the run; the firmware exits.
     Stop = 0x08,
+    /// H→F: a board console request ([`crate::board`]; board protocol version first).
+    BoardRequest = 0x10,
+    /// F→H: the answer to a board console request (same sequence number).
+    BoardReply = 0x11,
+    /// F→H: scope samples streamed between `ScopeStart` and `ScopeStop`.
+    ScopeData = 0x12,
 }
 
 impl FrameKind {
@@ -63,6 +69,9 @@ impl FrameKind {
             0x06 => Self::Commands,
             0x07 => Self::Fault,
             0x08 => Self::Stop,
+            0x10 => Self::BoardRequest,
+            0x11 => Self::BoardReply,
+            0x12 => Self::ScopeData,
             _ => return Err(LinkError::UnknownKind { kind }),
         })
     }

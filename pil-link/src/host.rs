@@ -287,6 +287,20 @@ impl<S: Transport> HostLink<S> {
         r
     }
 
+    /// Sends a frame of `kind` with the next sequence number, without waiting for a reply
+    /// (the board console, [`crate::board::client`]); returns the sequence number used.
+    pub fn send_next(&mut self, kind: FrameKind, payload: &[u8]) -> Result<u16, HostError> {
+        let seq = self.next_seq;
+        self.next_seq = seq.wrapping_add(1);
+        self.send(kind, seq, payload)?;
+        Ok(seq)
+    }
+
+    /// The next frame from the firmware, whatever its kind, by `deadline`.
+    pub fn receive(&mut self, deadline: Instant) -> Result<Frame, HostError> {
+        self.read_frame(deadline, None)
+    }
+
     /// Ends the session cleanly (the firmware acknowledges and exits).
     pub fn stop(&mut self) -> Result<(), HostError> {
         self.request(FrameKind::Stop, &[], FrameKind::Stop)

@@ -9,9 +9,11 @@
 //! `DriveConfig` as raw bits), [`run_config`] (the `Config` payload: the settings and the
 //! run's identification excitation, if any), [`session`] (the firmware's state machine: sequence, watchdog, latched safe
 //! state) and, with the `std` feature, [`host`] (the harness's lock-step client with fault
-//! injection) and [`qemu`] (starts the PIL image with UART0 on a Unix socket).
+//! injection) and [`qemu`] (starts the PIL image with UART0 on a Unix socket). [`board`] is the board console, a
+//! session of its own in the same frames.
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 
+pub mod board;
 pub mod crc;
 mod error;
 pub mod frame;

@@ -145,3 +145,13 @@ impl<'a> Reader<'a> {
         }
     }
 }
+
+/// Text into a payload (the board console's messages). Text beyond the payload is an error;
+/// what fit stays written.
+impl core::fmt::Write for Writer {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        self.bytes(s.as_bytes())
+            .map(|_| ())
+            .map_err(|_| core::fmt::Error)
+    }
+}

@@ -12,6 +12,7 @@ mod common {
     }
 }
 
+mod board;
 mod frames;
 mod run_config;
 // The socket pair needs the harness side of the link (`pil_link::host`).

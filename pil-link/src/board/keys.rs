@@ -1,0 +1,151 @@
+//! The console's keys: the machine file's `[drive]` keys, spelled `drive.<key>`, with the
+//! ranges of controller-core's one range table ([`controller_core::ranges::RANGES`]). Both
+//! sides look a key up here; the wire carries the key as text, so an error names it as the
+//! operator typed it. A key is a field of [`DriveConfig`] reached through [`field`].
+
+use controller_core::ranges::{self, Range};
+use controller_core::{ConfigError, DriveConfig, FilterConfig};
+
+/// How the machine file spells a key of its `[drive]` table: `drive.` + the range key.
+pub const PREFIX: &str = "drive.";
+
+/// The range table entry of `key` (`drive.velocity_damping`, or without the prefix).
+#[must_use]
+pub fn range(key: &str) -> Option<&'static Range> {
+    ranges::range_of(key.strip_prefix(PREFIX).unwrap_or(key))
+}
+
+/// A setting of a [`DriveConfig`], by reference, in its own type.
+#[derive(Debug)]
+pub enum Field<'a> {
+    /// A real-valued setting.
+    Real(&'a mut f32),
+    /// A whole-number setting.
+    Whole(&'a mut u32),
+    /// A whole-number setting stored in a byte (`counter_bits`).
+    Byte(&'a mut u8),
+}
+
+/// Why a key cannot be read or written.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum KeyError {
+    /// No setting has this key.
+    Unknown,
+    /// The setting exists, but not in this drive (a notch key without a notch, the `q` of a
+    /// first-order filter, the corner of no filter).
+    NotPresent(&'static Range),
+    /// Outside its range (or not whole for a whole-number key).
+    Invalid(ConfigError),
+}
+
+/// The field of `cfg` the range `r` belongs to; `None` when this drive lacks it.
+pub fn field<'a>(cfg: &'a mut DriveConfig, r: &Range) -> Option<Field<'a>> {
+    use ranges as k;
+    let f = &mut cfg.faults;
+    let key = r.key;
+    let real = |x: &'a mut f32| Some(Field::Real(x));
+    match key {
+        _ if key == k::BASE_SPEED_RPM.key => real(&mut cfg.base_speed_rpm),
+        _ if key == k::ENCODER_CPR.key => Some(Field::Whole(&mut cfg.encoder_cpr)),
+        _ if key == k::COUNTER_BITS.key => Some(Field::Byte(&mut cfg.counter_bits)),
+        _ if key == k::CURRENT_RATE_HZ.key => Some(Field::Whole(&mut cfg.current_rate_hz)),
+        _ if key == k::VELOCITY_RATE_HZ.key => Some(Field::Whole(&mut cfg.velocity_rate_hz)),
+        _ if key == k::MOTOR_INERTIA_S.key => real(&mut cfg.motor_inertia_s),
+        _ if key == k::LOAD_INERTIA_S.key => real(&mut cfg.load_inertia_s),
+        _ if key == k::POSITION_BANDWIDTH_RAD_S.key => real(&mut cfg.position_bandwidth_rad_s),
+        _ if key == k::VELOCITY_BANDWIDTH_RAD_S.key => real(&mut cfg.velocity_bandwidth_rad_s),
+        _ if key == k::VELOCITY_DAMPING.key => real(&mut cfg.velocity_damping),
+        _ if key == k::CURRENT_BANDWIDTH_RAD_S.key => real(&mut cfg.current_bandwidth_rad_s),
+        _ if key == k::WINDING_RESISTANCE_PU.key => real(&mut cfg.winding_resistance_pu),
+        _ if key == k::WINDING_INDUCTANCE_PU_S.key => real(&mut cfg.winding_inductance_pu_s),
+        _ if key == k::TORQUE_LIMIT_PU.key => real(&mut cfg.torque_limit_pu),
+        _ if key == k::VOLTAGE_LIMIT_PU.key => real(&mut cfg.voltage_limit_pu),
+        _ if key == k::VELOCITY_FF_GAIN.key => real(&mut cfg.velocity_ff_gain),
+        _ if key == k::ACCEL_FF_GAIN.key => real(&mut cfg.accel_ff_gain),
+        _ if key == k::VELOCITY_FILTER_CORNER_HZ.key => corner(&mut cfg.velocity_filter),
+        _ if key == k::VELOCITY_FILTER_Q.key => q(&mut cfg.velocity_filter),
+        _ if key == k::AFB_GAIN_FRACTION.key => real(&mut cfg.accel_feedback.gain_fraction),
+        _ if key == k::AFB_LIMIT_HEADROOM_FRACTION.key => {
+            real(&mut cfg.accel_feedback.limit_headroom_fraction)
+        }
+        _ if key == k::AFB_FILTER_CORNER_HZ.key => corner(&mut cfg.accel_feedback.filter),
+        _ if key == k::AFB_FILTER_Q.key => q(&mut cfg.accel_feedback.filter),
+        _ if key == k::OBSERVER_BANDWIDTH_HZ.key => real(&mut cfg.observer.bandwidth_hz),
+        _ if key == k::OVERSPEED_PU.key => real(&mut f.overspeed_pu),
+        _ if key == k::FOLLOWING_ERROR_COUNTS.key => real(&mut f.following_error_counts),
+        _ if key == k::ENCODER_JUMP_MARGIN.key => real(&mut f.encoder_jump_margin),
+        _ if key == k::OVERCURRENT_RATIO.key => real(&mut f.overcurrent_ratio),
+        _ if key == k::OVERCURRENT_TICKS.key => Some(Field::Whole(&mut f.overcurrent_ticks)),
+        _ if key == k::CONTINUOUS_CURRENT_PU.key => real(&mut f.continuous_current_pu),
+        _ if key == k::OVERLOAD_CURRENT_PU.key => real(&mut f.overload_current_pu),
+        _ if key == k::OVERLOAD_TIME_S.key => real(&mut f.overload_time_s),
+        _ if key == k::THERMAL_WARNING_FRACTION.key => real(&mut f.thermal_warning_fraction),
+        _ if key == k::STALL_SPEED_PU.key => real(&mut f.stall_speed_pu),
+        _ if key == k::STALL_TORQUE_FRACTION.key => real(&mut f.stall_torque_fraction),
+        _ if key == k::STALL_TIME_S.key => real(&mut f.stall_time_s),
+        _ if key == k::NOTCH_CENTRE_HZ.key => {
+            cfg.notch.as_mut().map(|n| Field::Real(&mut n.centre_hz))
+        }
+        _ if key == k::NOTCH_WIDTH_HZ.key => {
+            cfg.notch.as_mut().map(|n| Field::Real(&mut n.width_hz))
+        }
+        _ if key == k::NOTCH_DEPTH_DB.key => {
+            cfg.notch.as_mut().map(|n| Field::Real(&mut n.depth_db))
+        }
+        _ => None,
+    }
+}
+
+fn corner(f: &mut FilterConfig) -> Option<Field<'_>> {
+    match f {
+        FilterConfig::None => None,
+        FilterConfig::FirstOrder { corner_hz } | FilterConfig::SecondOrder { corner_hz, .. } => {
+            Some(Field::Real(corner_hz))
+        }
+    }
+}
+
+fn q(f: &mut FilterConfig) -> Option<Field<'_>> {
+    match f {
+        FilterConfig::SecondOrder { q, .. } => Some(Field::Real(q)),
+        _ => None,
+    }
+}
+
+/// The value of `key` in `cfg`.
+///
+/// # Errors
+/// [`KeyError::Unknown`] or [`KeyError::NotPresent`].
+pub fn get(cfg: &DriveConfig, key: &str) -> Result<f64, KeyError> {
+    let r = range(key).ok_or(KeyError::Unknown)?;
+    let mut copy = *cfg;
+    Ok(match field(&mut copy, r).ok_or(KeyError::NotPresent(r))? {
+        Field::Real(v) => f64::from(*v),
+        Field::Whole(v) => f64::from(*v),
+        Field::Byte(v) => f64::from(*v),
+    })
+}
+
+/// Writes `value` into the setting `key` of `cfg`, checked against the key's range (and
+/// for a whole-number key, that it is whole). Only that key's own range is checked here:
+/// the settings as a whole are checked by the caller (`controller_core::design`).
+///
+/// # Errors
+/// [`KeyError`]; `cfg` is then unchanged.
+pub fn set(cfg: &mut DriveConfig, key: &str, value: f64) -> Result<(), KeyError> {
+    let r = range(key).ok_or(KeyError::Unknown)?;
+    // f32 is the type of every real setting; whole ones are exact in f32 up to 2^24 and
+    // every whole bound of the table is a power of two.
+    let narrow = value as f32;
+    if r.whole && value.fract() != 0.0 {
+        return Err(KeyError::Invalid(r.out_of_range(narrow)));
+    }
+    r.check(narrow).map_err(KeyError::Invalid)?;
+    match field(cfg, r).ok_or(KeyError::NotPresent(r))? {
+        Field::Real(v) => *v = narrow,
+        // In range, so within u32 (and within u8 for `counter_bits`, at most 32).
+        Field::Whole(v) => *v = value as u32,
+        Field::Byte(v) => *v = value as u8,
+    }
+    Ok(())
+}

@@ -1,0 +1,309 @@
+//! The board console's firmware side (`pil_link::board::session`) on a mock drive: `Set`
+//! validation and refusals, `Save` records, the fault history; and the fuzz test: a million
+//! random and corrupted bytes never panic, never change a setting, and turn an enabled
+//! drive off.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    clippy::panic
+)]
+
+use crate::common::table1;
+use controller_core::{ConfigError, DriveConfig};
+use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
+use pil_link::board::message::{Origin, Refusal, Reply, Request, get_f64};
+use pil_link::board::scope::ScopeInfo;
+use pil_link::board::session::{BoardSession, Drive};
+use pil_link::board::store::{self, RECORD_LEN, StoreError};
+use pil_link::wire::Writer;
+use pil_link::{Frame, FrameKind, MAX_FRAME};
+
+/// A drive that records what the session asked of it.
+#[derive(Default)]
+struct MockDrive {
+    enabled: bool,
+    fault: u8,
+    applied: Option<DriveConfig>,
+    saved: Option<[u8; RECORD_LEN]>,
+    history: FaultHistory,
+    scope_on: bool,
+}
+
+impl Drive for MockDrive {
+    fn apply(&mut self, cfg: &DriveConfig) -> Result<(), ConfigError> {
+        self.applied = Some(*cfg);
+        Ok(())
+    }
+    fn enabled(&self) -> bool {
+        self.enabled
+    }
+    fn set_enabled(&mut self, on: bool) {
+        self.enabled = on;
+    }
+    fn fault_code(&self) -> u8 {
+        self.fault
+    }
+    fn save(&mut self, record: &[u8; RECORD_LEN]) -> bool {
+        self.saved = Some(*record);
+        true
+    }
+    fn fault_history(&self) -> FaultHistory {
+        self.history
+    }
+    fn scope(&mut self, on: bool) -> ScopeInfo<'static> {
+        self.scope_on = on;
+        ScopeInfo {
+            rate_hz: 1000,
+            channels: "a,b,c,d",
+        }
+    }
+    fn enter_safe_state(&mut self) {
+        self.enabled = false;
+        self.history.push(FaultEntry {
+            ms: 0,
+            code: LINK_FAULT_CODE,
+        });
+    }
+}
+
+fn session() -> BoardSession {
+    BoardSession::new(
+        table1(),
+        Origin::Baked,
+        0x0001_0000,
+        "configs/machines/table1.toml",
+    )
+}
+
+fn wire(request: &Request<'_>, seq: u16) -> Vec<u8> {
+    let mut w = Writer::new();
+    request.encode(&mut w).unwrap();
+    let frame = Frame::new(FrameKind::BoardRequest, seq, w.as_slice()).unwrap();
+    let mut buf = [0_u8; MAX_FRAME];
+    let n = frame.encode(&mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+/// Feeds `bytes`; the replies' payloads.
+fn feed(s: &mut BoardSession, d: &mut MockDrive, bytes: &[u8]) -> Vec<Vec<u8>> {
+    bytes
+        .iter()
+        .filter_map(|&b| s.on_byte(b, d))
+        .map(|f| f.payload().to_vec())
+        .collect()
+}
+
+fn ask(
+    s: &mut BoardSession,
+    d: &mut MockDrive,
+    r: &Request<'_>,
+) -> Result<Vec<u8>, (Refusal, String)> {
+    let replies = feed(s, d, &wire(r, 7));
+    assert_eq!(replies.len(), 1, "one reply per request");
+    let reply = Reply::decode(&replies[0]).unwrap();
+    assert_eq!(reply.op, r.op() as u8);
+    reply
+        .result
+        .map(<[u8]>::to_vec)
+        .map_err(|(c, m)| (c, m.to_string()))
+}
+
+const KEY: &str = "drive.velocity_bandwidth_rad_s";
+
+#[test]
+fn a_set_in_range_changes_the_setting_and_rebuilds_the_drive() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let body = ask(&mut s, &mut d, &Request::Set(KEY, 50.0)).unwrap();
+    assert_eq!(get_f64(&body).unwrap(), 50.0);
+    assert_eq!(s.settings().velocity_bandwidth_rad_s, 50.0);
+    assert_eq!(d.applied.unwrap().velocity_bandwidth_rad_s, 50.0);
+    assert_eq!(s.origin(), Origin::Changed);
+    let got = ask(&mut s, &mut d, &Request::Get(KEY)).unwrap();
+    assert_eq!(get_f64(&got).unwrap(), 50.0);
+}
+
+#[test]
+fn a_set_while_enabled_is_refused_naming_the_key_and_changes_nothing() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    ask(&mut s, &mut d, &Request::Enable).unwrap();
+    let before = *s.settings();
+    let (code, msg) = ask(&mut s, &mut d, &Request::Set(KEY, 50.0)).unwrap_err();
+    assert_eq!(code, Refusal::Enabled);
+    assert!(msg.contains(KEY), "{msg}");
+    assert_eq!(*s.settings(), before);
+    assert!(d.applied.is_none());
+}
+
+#[test]
+fn an_out_of_range_set_is_refused_naming_the_key_and_its_range() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let before = *s.settings();
+    let (code, msg) = ask(
+        &mut s,
+        &mut d,
+        &Request::Set("drive.velocity_damping", 50.0),
+    )
+    .unwrap_err();
+    assert_eq!(code, Refusal::Invalid);
+    assert!(
+        msg.contains("drive.velocity_damping") && msg.contains("0.1, 10]"),
+        "{msg}"
+    );
+    // In its own range, but above the velocity loop's Nyquist limit: design() refuses it.
+    let (code, msg) = ask(&mut s, &mut d, &Request::Set(KEY, 1.0e6)).unwrap_err();
+    assert_eq!(code, Refusal::Invalid);
+    assert!(msg.contains(KEY), "{msg}");
+    let (code, _) = ask(&mut s, &mut d, &Request::Set("drive.no_such_key", 1.0)).unwrap_err();
+    assert_eq!(code, Refusal::UnknownKey);
+    let (code, _) = ask(&mut s, &mut d, &Request::Set("drive.encoder_cpr", 4096.5)).unwrap_err();
+    assert_eq!(code, Refusal::Invalid);
+    assert_eq!(*s.settings(), before);
+    assert!(d.applied.is_none());
+}
+
+#[test]
+fn save_writes_a_record_the_boot_reads_back_and_a_damaged_one_is_refused() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    ask(&mut s, &mut d, &Request::Set(KEY, 50.0)).unwrap();
+    ask(&mut s, &mut d, &Request::Save).unwrap();
+    assert_eq!(s.origin(), Origin::Saved);
+    let record = d.saved.unwrap();
+    assert_eq!(
+        store::decode(&record).unwrap().velocity_bandwidth_rad_s,
+        50.0
+    );
+    let mut torn = record;
+    torn[20] ^= 1;
+    assert!(matches!(
+        store::decode(&torn),
+        Err(StoreError::BadCrc { .. })
+    ));
+    assert_eq!(store::decode(&[0; RECORD_LEN]), Err(StoreError::Empty));
+    // Another record version with a valid CRC.
+    let mut other = record;
+    other[4] = 9;
+    let crc = pil_link::crc32(&other[..RECORD_LEN - 4]);
+    other[RECORD_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(
+        store::decode(&other),
+        Err(StoreError::BadVersion { found: 9 })
+    );
+}
+
+#[test]
+fn enable_is_refused_while_a_fault_is_latched_and_faults_returns_the_history() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    d.fault = 1;
+    for ms in 0..20 {
+        d.history.push(FaultEntry { ms, code: 1 });
+    }
+    let (code, msg) = ask(&mut s, &mut d, &Request::Enable).unwrap_err();
+    assert_eq!(code, Refusal::Faulted);
+    assert!(msg.contains("fault latched"), "{msg}");
+    assert!(!d.enabled);
+    let h = FaultHistory::decode(&ask(&mut s, &mut d, &Request::Faults).unwrap()).unwrap();
+    assert_eq!(h.total(), 20);
+    let ms: Vec<u32> = h.entries().map(|e| e.ms).collect();
+    assert_eq!(ms, (4..20).collect::<Vec<_>>());
+}
+
+#[test]
+fn a_request_of_another_board_version_is_refused() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let mut bytes = wire(&Request::Status, 1);
+    // Payload byte 0 is the board version; fix the CRC so only the version is wrong.
+    bytes[7] = 99;
+    let n = bytes.len();
+    let crc = pil_link::crc32(&bytes[2..n - 4]);
+    bytes[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    let replies = feed(&mut s, &mut d, &bytes);
+    let reply = Reply::decode(&replies[0]).unwrap();
+    assert!(matches!(reply.result, Err((Refusal::Version, _))));
+}
+
+/// xorshift64*: a deterministic byte source for the fuzz test.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+}
+
+/// One damaged stream: noise, a valid `Set` with a bit flipped, truncated, or of another
+/// protocol version.
+fn damaged(rng: &mut Rng) -> Vec<u8> {
+    let set = wire(
+        &Request::Set(KEY, 20.0 + rng.below(100) as f64),
+        rng.next() as u16,
+    );
+    match rng.below(4) {
+        0 => (0..1 + rng.below(64)).map(|_| rng.next() as u8).collect(),
+        1 => {
+            let mut b = set;
+            let i = rng.below(b.len() - 2) + 2;
+            b[i] ^= 1 << rng.below(8);
+            b
+        }
+        2 => set[..rng.below(set.len() - 1) + 1].to_vec(),
+        _ => {
+            let mut b = set;
+            b[2] = b[2].wrapping_add(1 + rng.below(255) as u8);
+            b
+        }
+    }
+}
+
+#[test]
+fn a_million_damaged_bytes_never_change_a_setting_and_turn_an_enabled_drive_off() {
+    let mut rng = Rng(0x5EED_B0A4_D000_0001);
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let before = *s.settings();
+    let (mut bytes, mut trips, mut enabled_hits) = (0_usize, 0_u32, 0_u32);
+    while bytes < 1_000_000 {
+        let enabled = rng.below(2) == 0;
+        d.enabled = enabled;
+        let errors_before = s.link_errors();
+        let stream = damaged(&mut rng);
+        bytes += stream.len();
+        for b in stream {
+            if let Some(frame) = s.on_byte(b, &mut d) {
+                // Only an intact frame is answered; a corrupt Set never is a done Set.
+                let reply = Reply::decode(frame.payload()).unwrap();
+                assert!(reply.result.is_err() || reply.op != 3, "{reply:?}");
+            }
+        }
+        // A truncated frame completes only with the next stream's bytes: hunt again.
+        let closing = [0_u8; MAX_FRAME];
+        for b in closing {
+            let _ = s.on_byte(b, &mut d);
+        }
+        assert_eq!(
+            *s.settings(),
+            before,
+            "a damaged frame changed the settings"
+        );
+        assert!(d.applied.is_none());
+        if s.link_errors() > errors_before && enabled {
+            enabled_hits += 1;
+            assert!(!d.enabled, "a corrupt frame left the drive enabled");
+            trips += 1;
+        }
+    }
+    assert!(
+        enabled_hits > 1000,
+        "the damage reached an enabled drive {enabled_hits} times"
+    );
+    assert_eq!(d.history.total(), trips);
+    // After all that, an intact request is still served.
+    d.enabled = false;
+    let body = ask(&mut s, &mut d, &Request::Set(KEY, 50.0)).unwrap();
+    assert_eq!(get_f64(&body).unwrap(), 50.0);
+}
