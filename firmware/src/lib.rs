@@ -12,6 +12,8 @@
 //! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU).
 //! * [`drive`]: the drive settings baked at build time (`STIFFDRIVE_DRIVE`, else `configs/machines/table1.toml`).
 //! * [`lil`]: the loop-in-the-loop record format and its reference run.
+//! * [`ring`]: the UART receive ring of the link images; [`console`]: the board console's
+//!   drive (settings sector, fault history, scope tap) of the `board` image.
 //! * `boards::qemu` / `boards::stm32f4`, `rt`: the hardware edge, target builds only.
 //!
 //! The library builds on the host too (`cargo test -p firmware`), where the hardware
@@ -20,9 +22,11 @@
 
 pub mod app;
 pub mod board;
+pub mod console;
 pub mod drive;
 pub mod isr;
 pub mod lil;
+pub mod ring;
 pub mod synthetic;
 pub mod trace;
 pub mod virtual_motor;
@@ -34,3 +38,16 @@ pub mod rt;
 
 #[cfg(target_os = "none")]
 pub use defmt;
+
+/// `major << 16 | minor << 8 | patch` of this crate, as the link protocols report it.
+#[must_use]
+pub fn version() -> u32 {
+    let mut parts = env!("CARGO_PKG_VERSION")
+        .split('.')
+        .map(|p| p.parse::<u32>().unwrap_or(0));
+    let mut v = 0;
+    for _ in 0..3 {
+        v = (v << 8) | (parts.next().unwrap_or(0) & 0xFF);
+    }
+    v
+}

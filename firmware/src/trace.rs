@@ -304,6 +304,11 @@ impl<const N: usize> TraceBuffer<N> {
         }
     }
 
+    /// The newest stored sample (the board console's scope taps it).
+    pub fn newest(&self) -> Option<TraceSample> {
+        self.ring.back().copied()
+    }
+
     /// The stored samples, oldest first.
     pub fn samples(&self) -> impl Iterator<Item = &TraceSample> + '_ {
         self.ring.iter()

@@ -1,5 +1,5 @@
 //! The command line: `run`, `linear`, `tune`, `identify`, `commission`, `sweep`, `stiffness`,
-//! `sec2-map`, `reproduce`, `pil`, `schema`, `replay`, `flash`.
+//! `sec2-map`, `reproduce`, `pil`, `board`, `schema`, `replay`, `flash`.
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -111,6 +111,10 @@ pub enum Command {
     },
     /// Run one scenario through the firmware in QEMU (processor in the loop).
     Pil(crate::pil::PilArgs),
+    /// The board's serial console: status, settings by machine-file key (get, set, save),
+    /// reset, faults, enable/disable and the scope, on a board's port or the `board` image
+    /// in QEMU; the actions run in order in one session.
+    Board(crate::board::BoardArgs),
     /// Write the JSON Schema of a machine file (`configs/machines/*.toml`: the plant tables
     /// and `[drive]`, with every range), or with `--grids` of the grids file
     /// (`configs/grids.toml`), for an editor to complete and check it.

@@ -1,8 +1,9 @@
 //! hil-harness: stiffdrive's command line. [`cli`] parses it and [`dispatch`] hands each
-//! command to the crate that does it: `run`, `replay` and `schema` to `sim-engine`, `pil` to
+//! command to the crate that does it: `run`, `replay` and `schema` to `sim-engine`, `pil` and `board` to
 //! `pil-host`, `linear`, `tune`, `identify`, `commission`, `sweep`, `stiffness` and `flash`
 //! to `machine-workflows`, `reproduce` and `sec2-map` to `paper-repro`.
 
+pub mod board;
 pub mod cli;
 pub mod pil;
 
@@ -86,6 +87,7 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             out,
         } => sim_engine::replay::replay(&config, &torque, &out),
         Command::Pil(args) => pil_host::pil_command(&args.to_run()),
+        Command::Board(args) => args.run(),
         Command::Schema { grids, out } => {
             use sim_engine::config::schema::{write_schema, SchemaOf};
             let of = if grids {

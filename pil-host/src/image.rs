@@ -103,6 +103,14 @@ pub fn build_pil_image_with(features: &[&str]) -> Result<PathBuf> {
     build_locked(&args, None, |release| copy_out(release, "pil", &name))
 }
 
+/// Builds the firmware's `board` image (the board console in QEMU) and returns the ELF
+/// path, `images/board`.
+pub fn build_board_console_image() -> Result<PathBuf> {
+    build_locked(&["--bin", "board"], None, |release| {
+        copy_out(release, "board", "board")
+    })
+}
+
 /// Copies the built binary `bin` of `release` to `release/images/name` (atomically, by
 /// rename) and returns that path.
 fn copy_out(release: &Path, bin: &str, name: &str) -> Result<PathBuf> {

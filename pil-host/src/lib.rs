@@ -8,7 +8,9 @@
 //! * [`session`]: QEMU, the link, the run, the fault handling and the files;
 //! * [`image`]: building the firmware's `pil` image;
 //! * [`compare`](mod@compare): the bit-for-bit comparison with the host run;
-//! * [`comparison_markdown`]: its Markdown (`pil-comparison.md`), from the typed results.
+//! * [`comparison_markdown`]: its Markdown (`pil-comparison.md`), from the typed results;
+//! * [`board`](mod@board), [`board_scope`]: `stiffdrive board`, the board console session (on a
+//!   serial port, or the `board` image in QEMU) and its scope recording.
 //!
 //! Files in `--out` DIR: `trace.csv`, `summary.json`, `trace.svg/png` (as `run`), plus
 //! `pil.json` (link statistics, fault), `pil-comparison.json` and `pil-comparison.md` (the
@@ -26,6 +28,8 @@
 //! writes the trace up to the fault and returns an error naming both sides' view.
 
 pub mod backend;
+pub mod board;
+pub mod board_scope;
 pub mod compare;
 pub mod image;
 pub mod session;

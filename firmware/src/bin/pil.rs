@@ -39,9 +39,11 @@ mod target {
         run_config, FaultCode, FirmwareSession, Frame, SafeOutputs, SessionState, Target, MAX_FRAME,
     };
 
+    use firmware::ring::ByteRing;
+
     use super::pil_board::{
-        ByteRing, LinkCurrentIo, LinkSetpoint, LinkVelocityIo, APPLIED, CURRENT_IN,
-        CURRENT_ISR_TICKS, CURRENT_OUT, LINK_FAULT, VELOCITY_IN, VELOCITY_OUT,
+        LinkCurrentIo, LinkSetpoint, LinkVelocityIo, APPLIED, CURRENT_IN, CURRENT_ISR_TICKS,
+        CURRENT_OUT, LINK_FAULT, VELOCITY_IN, VELOCITY_OUT,
     };
 
     static LOOPS: Loops<LinkCurrentIo, LinkVelocityIo, LinkSetpoint> = Loops::new();
@@ -204,18 +206,6 @@ mod target {
         }
     }
 
-    /// `major << 16 | minor << 8 | patch` of this crate.
-    fn version() -> u32 {
-        let mut parts = env!("CARGO_PKG_VERSION")
-            .split('.')
-            .map(|p| p.parse::<u32>().unwrap_or(0));
-        let mut v = 0;
-        for _ in 0..3 {
-            v = (v << 8) | (parts.next().unwrap_or(0) & 0xFF);
-        }
-        v
-    }
-
     #[entry]
     fn main() -> ! {
         let Some(mut core) = cortex_m::Peripherals::take() else {
@@ -235,7 +225,7 @@ mod target {
             pil_link::PROTOCOL_VERSION
         );
 
-        let mut session = FirmwareSession::new(version());
+        let mut session = FirmwareSession::new(firmware::version());
         let mut target = PilTarget;
         loop {
             while let Some(byte) = RX.pop() {

@@ -420,6 +420,45 @@ pub fn stop() {
     PeriodicTimer::TIMER1.stop();
 }
 
+/// The board console's settings sector: the last 4 KiB of the SRAM, outside every section
+/// of the image (root `memory.x`, region `SETTINGS`; `link/check-qemu.x` holds the two to
+/// the same address). QEMU's system reset reloads the image's segments but leaves other RAM
+/// as it was, so a record written here is read back after `SCB::sys_reset`; a cold start
+/// finds it zeroed.
+pub const SETTINGS_SECTOR: usize = 0x203F_F000;
+/// Bytes of the settings sector.
+pub const SETTINGS_SECTOR_LEN: usize = 4096;
+
+/// Reads the start of the settings sector into `buf` (at most its length).
+pub fn read_settings_sector(buf: &mut [u8]) {
+    for (i, b) in buf.iter_mut().take(SETTINGS_SECTOR_LEN).enumerate() {
+        // SAFETY: inside the 4 KiB SETTINGS region of memory.x, which is RAM on this machine
+        // and no Rust object occupies; a volatile byte read has no other effect.
+        #[allow(unsafe_code)]
+        unsafe {
+            *b = core::ptr::read_volatile((SETTINGS_SECTOR + i) as *const u8);
+        }
+    }
+}
+
+/// Writes `bytes` at the start of the settings sector; true if they read back.
+pub fn write_settings_sector(bytes: &[u8]) -> bool {
+    for (i, &b) in bytes.iter().take(SETTINGS_SECTOR_LEN).enumerate() {
+        // SAFETY: as in `read_settings_sector`: a byte of the SETTINGS region, written volatile.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::ptr::write_volatile((SETTINGS_SECTOR + i) as *mut u8, b);
+        }
+    }
+    let mut back = [0_u8; 256];
+    let n = bytes.len().min(back.len());
+    let Some(back) = back.get_mut(..n) else {
+        return false;
+    };
+    read_settings_sector(back);
+    bytes.len() <= SETTINGS_SECTOR_LEN && bytes.get(..n) == Some(&*back)
+}
+
 /// A command byte from the console, if one arrived.
 pub fn read_command() -> Option<u8> {
     Uart0.read_byte()

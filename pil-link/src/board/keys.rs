@@ -137,7 +137,8 @@ pub fn set(cfg: &mut DriveConfig, key: &str, value: f64) -> Result<(), KeyError>
     // f32 is the type of every real setting; whole ones are exact in f32 up to 2^24 and
     // every whole bound of the table is a power of two.
     let narrow = value as f32;
-    if r.whole && value.fract() != 0.0 {
+    // (`as i64` saturates: a value beyond it is out of every whole range anyway.)
+    if r.whole && (value as i64) as f64 != value {
         return Err(KeyError::Invalid(r.out_of_range(narrow)));
     }
     r.check(narrow).map_err(KeyError::Invalid)?;

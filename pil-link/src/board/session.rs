@@ -41,7 +41,7 @@ pub trait Drive {
     /// The fault history.
     fn fault_history(&self) -> FaultHistory;
     /// Starts or stops the scope stream; returns its rate and channels.
-    fn scope(&mut self, on: bool) -> ScopeInfo<'static>;
+    fn scope(&mut self, on: bool) -> ScopeInfo<'_>;
     /// Power stage off after a link fault, recorded in the fault history.
     fn enter_safe_state(&mut self);
 }

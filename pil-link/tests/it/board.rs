@@ -51,7 +51,7 @@ impl Drive for MockDrive {
     fn fault_history(&self) -> FaultHistory {
         self.history
     }
-    fn scope(&mut self, on: bool) -> ScopeInfo<'static> {
+    fn scope(&mut self, on: bool) -> ScopeInfo<'_> {
         self.scope_on = on;
         ScopeInfo {
             rate_hz: 1000,

@@ -1,0 +1,340 @@
+//! The board console image (`board`, QEMU mps2-an386): the drive firmware as a board runs
+//! it, the 4 kHz and 2 kHz loop interrupts on the virtual motor, started disabled and held
+//! at rest, with the board console of `stiffdrive board` on UART0 (pil-link's board frames,
+//! `pil_link::board`).
+//!
+//! At boot it reads the settings sector (`boards::qemu::SETTINGS_SECTOR`): a record that
+//! passes its checks (`pil_link::board::store`) and `design` is the drive it runs;
+//! otherwise the baked drive, and the boot log says why. `Save` writes the running settings
+//! there; `Reset` answers, then resets the system (`SCB::sys_reset`), and QEMU keeps the
+//! sector across it.
+//!
+//! Thread mode serves the console (`BoardSession`), records each fault latch in the fault
+//! history, and while the scope runs sends the samples the current-loop interrupt tapped
+//! from the trend buffer (`console::ScopeTap`), eight to a frame.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(all(target_os = "none", feature = "board-qemu"))]
+mod target {
+    use core::cell::RefCell;
+    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+    use controller_core::{ConfigError, DriveConfig, Setpoint};
+    use cortex_m_rt::entry;
+    use critical_section::Mutex;
+    use firmware::app::{fault_code, App, AppError, DEFAULT_TRACE};
+    use firmware::board::EncoderCounter;
+    use firmware::boards::qemu::{self as board, PeriodicTimer, Uart0};
+    use firmware::console::{channel_names, ticks_to_ms, FaultTracker, ScopeTap};
+    use firmware::isr::Loops;
+    use firmware::ring::ByteRing;
+    use firmware::rt::exit;
+    use firmware::trace::TraceState;
+    use heapless::Deque;
+    use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
+    use pil_link::board::message::Origin;
+    use pil_link::board::scope::{ScopeChunk, ScopeInfo, ScopeSample, CHUNK_SAMPLES};
+    use pil_link::board::session::{settings_crc, BoardSession, Drive};
+    use pil_link::board::store::{self, StoreError, RECORD_LEN};
+    use pil_link::wire::Writer;
+    use pil_link::{Frame, FrameKind, MAX_FRAME};
+
+    static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, Setpoint> = Loops::new();
+    static RX: ByteRing = ByteRing::new();
+    /// Current-loop interrupts since boot: the clock of the fault history.
+    static BOOT_TICKS: AtomicU32 = AtomicU32::new(0);
+    static SCOPE_ON: AtomicBool = AtomicBool::new(false);
+    /// Scope samples from the current-loop interrupt to thread mode (a full queue drops
+    /// the sample, which the stream's counter then shows as a gap).
+    static SCOPE: Mutex<RefCell<(ScopeTap, Deque<(u32, ScopeSample), 256>)>> =
+        Mutex::new(RefCell::new((ScopeTap::new(), Deque::new())));
+
+    fn current_loop() {
+        let _ = LOOPS.current_isr();
+        BOOT_TICKS.fetch_add(1, Ordering::Relaxed);
+        if SCOPE_ON.load(Ordering::Relaxed) {
+            let newest = LOOPS.with_app(|app| app.trace().newest()).flatten();
+            critical_section::with(|cs| {
+                let mut scope = SCOPE.borrow_ref_mut(cs);
+                let (tap, queue) = &mut *scope;
+                if let Some(item) = tap.offer(newest) {
+                    let _ = queue.push_back(item);
+                }
+            });
+        }
+    }
+
+    fn velocity_loop() {
+        let _ = LOOPS.velocity_isr();
+    }
+
+    fn uart_rx() {
+        while let Some(b) = Uart0.read_byte() {
+            RX.push(b);
+        }
+    }
+
+    firmware::bind_interrupts!(current: current_loop, velocity: velocity_loop, command: uart_rx);
+
+    /// The drive behind the console: the app in `LOOPS`, the power stage, the settings
+    /// sector, the fault history, the scope.
+    struct BoardDrive {
+        enabled: bool,
+        current_rate_hz: u32,
+        history: FaultHistory,
+        tracker: FaultTracker,
+        channels: heapless::String<128>,
+    }
+
+    impl BoardDrive {
+        fn now_ms(&self) -> u32 {
+            ticks_to_ms(
+                u64::from(BOOT_TICKS.load(Ordering::Relaxed)),
+                self.current_rate_hz,
+            )
+        }
+
+        /// Thread mode, each pass: a new fault latch into the history; a trend buffer a
+        /// fault froze armed again, so the scope goes on.
+        fn poll(&mut self) {
+            let record = LOOPS.with_app(|app| app.fault_record()).flatten();
+            let now = self.now_ms();
+            self.tracker.poll(record, now, &mut self.history);
+            LOOPS.with_app(|app| {
+                if matches!(app.trace().state(), TraceState::Frozen { .. }) {
+                    app.trace_mut().rearm();
+                }
+            });
+        }
+    }
+
+    /// The board's refusal of settings `design` accepted, as the core's error.
+    fn app_error(e: AppError) -> ConfigError {
+        match e {
+            AppError::Config(e) => e,
+            AppError::CounterBits { board, config } => ConfigError::OutOfRange {
+                param: "counter_bits",
+                value: f32::from(config),
+                min: f32::from(board),
+                max: f32::from(board),
+                min_exclusive: false,
+            },
+            AppError::Trace(_) | AppError::Settings(_) => ConfigError::NotFinite { param: "trace" },
+        }
+    }
+
+    impl Drive for BoardDrive {
+        fn apply(&mut self, cfg: &DriveConfig) -> Result<(), ConfigError> {
+            let app =
+                App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE).map_err(app_error)?;
+            LOOPS.with_app(|slot| *slot = app);
+            if cfg.current_rate_hz != self.current_rate_hz {
+                PeriodicTimer::TIMER1.start(cfg.velocity_rate_hz);
+                PeriodicTimer::TIMER0.start(cfg.current_rate_hz);
+            }
+            self.current_rate_hz = cfg.current_rate_hz;
+            defmt::info!(
+                "console: settings applied (settings crc {=u32:08x})",
+                settings_crc(cfg)
+            );
+            Ok(())
+        }
+
+        fn enabled(&self) -> bool {
+            self.enabled
+        }
+
+        fn set_enabled(&mut self, on: bool) {
+            LOOPS.with_app(|app| app.set_enable_request(on));
+            self.enabled = on;
+            defmt::info!(
+                "console: drive {=str}",
+                if on { "enabled" } else { "disabled" }
+            );
+        }
+
+        fn fault_code(&self) -> u8 {
+            LOOPS.with_app(|app| fault_code(app.fault())).unwrap_or(0)
+        }
+
+        fn save(&mut self, record: &[u8; RECORD_LEN]) -> bool {
+            board::write_settings_sector(record)
+        }
+
+        fn fault_history(&self) -> FaultHistory {
+            self.history
+        }
+
+        fn scope(&mut self, on: bool) -> ScopeInfo<'_> {
+            critical_section::with(|cs| {
+                *SCOPE.borrow_ref_mut(cs) = (ScopeTap::new(), Deque::new());
+            });
+            SCOPE_ON.store(on, Ordering::Relaxed);
+            ScopeInfo {
+                rate_hz: self.current_rate_hz / u32::from(DEFAULT_TRACE.decimation.max(1)),
+                channels: self.channels.as_str(),
+            }
+        }
+
+        fn enter_safe_state(&mut self) {
+            self.set_enabled(false);
+            let ms = self.now_ms();
+            self.history.push(FaultEntry {
+                ms,
+                code: LINK_FAULT_CODE,
+            });
+            defmt::warn!("console: corrupt frame while enabled: drive disabled");
+        }
+    }
+
+    fn send(frame: &Frame) {
+        let mut wire = [0_u8; MAX_FRAME];
+        if let Ok(n) = frame.encode(&mut wire) {
+            Uart0.write_bytes(wire.get(..n).unwrap_or(&[]));
+        }
+    }
+
+    /// Sends the queued scope samples, [`CHUNK_SAMPLES`] to a frame, once that many wait.
+    fn send_scope(seq: &mut u16) {
+        loop {
+            let mut chunk: Option<ScopeChunk> = None;
+            let ready = critical_section::with(|cs| SCOPE.borrow_ref(cs).1.len() >= CHUNK_SAMPLES);
+            if !ready {
+                return;
+            }
+            for _ in 0..CHUNK_SAMPLES {
+                let Some((n, s)) =
+                    critical_section::with(|cs| SCOPE.borrow_ref_mut(cs).1.pop_front())
+                else {
+                    break;
+                };
+                let c = chunk.get_or_insert_with(|| ScopeChunk::new(n));
+                // A gap (a dropped sample) ends the chunk; the next one starts after it.
+                if n != c.first.wrapping_add(u32::from(c.len)) || !c.push(s) {
+                    send_chunk(c, seq);
+                    let mut next = ScopeChunk::new(n);
+                    next.push(s);
+                    chunk = Some(next);
+                }
+            }
+            if let Some(c) = chunk {
+                send_chunk(&c, seq);
+            }
+        }
+    }
+
+    fn send_chunk(chunk: &ScopeChunk, seq: &mut u16) {
+        let mut w = Writer::new();
+        if chunk.encode(&mut w).is_ok() {
+            if let Ok(frame) = Frame::new(FrameKind::ScopeData, *seq, w.as_slice()) {
+                send(&frame);
+            }
+        }
+        *seq = seq.wrapping_add(1);
+    }
+
+    /// The settings to run: the sector's record if it passes its checks and `design`, else
+    /// the baked drive; the boot log says which and why.
+    fn boot_settings(baked: DriveConfig) -> (DriveConfig, Origin) {
+        let mut sector = [0_u8; RECORD_LEN];
+        board::read_settings_sector(&mut sector);
+        match store::decode(&sector) {
+            Ok(cfg) => match controller_core::design(&cfg) {
+                Ok(_) => {
+                    defmt::info!(
+                        "drive: saved on the board (settings crc {=u32:08x}), in place of the baked {=str}",
+                        settings_crc(&cfg),
+                        firmware::drive::NAME
+                    );
+                    return (cfg, Origin::Saved);
+                }
+                Err(e) => defmt::warn!(
+                    "saved settings refused (drive.{=str}): running the baked drive",
+                    e.param()
+                ),
+            },
+            Err(StoreError::Empty) => defmt::info!("no saved settings on the board"),
+            Err(e) => defmt::warn!("{}: running the baked drive", defmt::Display2Format(&e)),
+        }
+        defmt::info!("drive: {=str}", firmware::drive::NAME);
+        (baked, Origin::Baked)
+    }
+
+    #[entry]
+    fn main() -> ! {
+        let Some(mut core) = cortex_m::Peripherals::take() else {
+            exit(false)
+        };
+        let Ok(baked) = firmware::drive::baked() else {
+            defmt::error!("baked drive settings do not decode");
+            exit(false)
+        };
+        defmt::info!(
+            "stiffdrive firmware {=str} on {=str}: board console on UART0 (board protocol {=u8})",
+            env!("CARGO_PKG_VERSION"),
+            board::NAME,
+            pil_link::board::BOARD_VERSION
+        );
+        let (mut cfg, mut origin) = boot_settings(baked);
+        let app = match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+            Ok(app) => app,
+            Err(e) => {
+                defmt::warn!(
+                    "settings refused by the board ({}): baked drive",
+                    defmt::Debug2Format(&e)
+                );
+                (cfg, origin) = (baked, Origin::Baked);
+                match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+                    Ok(app) => app,
+                    Err(_) => exit(false),
+                }
+            }
+        };
+        let b = board::init(&mut core, &cfg);
+        LOOPS.install(app, b.current_io, b.velocity_io, Setpoint::default());
+        let mut drive = BoardDrive {
+            enabled: false,
+            current_rate_hz: cfg.current_rate_hz,
+            history: FaultHistory::new(),
+            tracker: FaultTracker::new(),
+            channels: channel_names(&DEFAULT_TRACE),
+        };
+        let mut session =
+            BoardSession::new(cfg, origin, firmware::version(), firmware::drive::NAME);
+        board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+        serve(&mut session, &mut drive)
+    }
+
+    fn serve(session: &mut BoardSession, drive: &mut BoardDrive) -> ! {
+        let mut scope_seq = 0_u16;
+        loop {
+            while let Some(byte) = RX.pop() {
+                if let Some(frame) = session.on_byte(byte, drive) {
+                    send(&frame);
+                }
+                if session.reset_requested() {
+                    defmt::info!("console: system reset");
+                    board::stop();
+                    cortex_m::peripheral::SCB::sys_reset();
+                }
+            }
+            drive.poll();
+            if SCOPE_ON.load(Ordering::Relaxed) {
+                send_scope(&mut scope_seq);
+            }
+            cortex_m::interrupt::free(|_| {
+                if RX.is_empty() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        }
+    }
+}
+
+#[cfg(not(all(target_os = "none", feature = "board-qemu")))]
+fn main() {
+    println!(
+        "board: the board console image runs in QEMU under `stiffdrive board --qemu`; build it \
+         with cargo build -p firmware --release --target thumbv7em-none-eabihf --bin board"
+    );
+}

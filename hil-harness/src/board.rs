@@ -1,0 +1,67 @@
+//! `stiffdrive board` arguments: where the board is (`--qemu` or `--port PATH`) and the
+//! actions, run in order in one session (`pil_host::board`).
+
+use pil_host::board::{board_command, parse_actions, BoardTarget};
+use sim_engine::Result;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// `stiffdrive board` arguments.
+#[derive(Clone, Debug, clap::Args)]
+#[command(group = clap::ArgGroup::new("where").required(true).args(["qemu", "port"]))]
+pub struct BoardArgs {
+    /// The `board` image in QEMU, its UART on a pseudo-terminal (opened as a serial device).
+    #[arg(long)]
+    pub qemu: bool,
+    /// A board's serial device, e.g. /dev/ttyACM0.
+    #[arg(long, value_name = "PATH")]
+    pub port: Option<PathBuf>,
+    /// Baud rate of `--port`.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// With `--qemu`: the image to run; default: build the `board` image with cargo
+    /// (`cargo build -p firmware --release --target thumbv7em-none-eabihf --bin board`).
+    #[arg(long, requires = "qemu")]
+    pub elf: Option<PathBuf>,
+    /// With `--qemu`: the QEMU binary.
+    #[arg(long, default_value = "qemu-system-arm")]
+    pub qemu_bin: PathBuf,
+    /// Deadline for each reply (ms).
+    #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub reply_timeout_ms: u64,
+    /// In order: status, get KEY, set KEY=VALUE, save, reset, faults, enable, disable,
+    /// scope --seconds S --out DIR. KEY is a machine file's `[drive]` key, e.g.
+    /// drive.velocity_bandwidth_rad_s.
+    #[arg(
+        required = true,
+        trailing_var_arg = true,
+        allow_hyphen_values = true,
+        value_name = "ACTION"
+    )]
+    pub actions: Vec<String>,
+}
+
+impl BoardArgs {
+    /// Runs the session these arguments ask for.
+    ///
+    /// # Errors
+    /// A bad action, a refused or failed one (naming the key), a link failure.
+    pub fn run(&self) -> Result<String> {
+        let actions = parse_actions(&self.actions)?;
+        let target = match &self.port {
+            Some(path) => BoardTarget::Port {
+                path: path.clone(),
+                baud: self.baud,
+            },
+            None => BoardTarget::Qemu {
+                elf: self.elf.clone(),
+                qemu: self.qemu_bin.clone(),
+            },
+        };
+        board_command(
+            &target,
+            &actions,
+            Duration::from_millis(self.reply_timeout_ms),
+        )
+    }
+}

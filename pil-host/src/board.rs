@@ -1,0 +1,275 @@
+//! `stiffdrive board`: a console session with the drive firmware, on a board's serial port
+//! or on the `board` image in QEMU (its UART0 on a pseudo-terminal opened as a serial
+//! device, the board's code path). The actions run in order in one session; the first one
+//! that fails or is refused ends the command with an error that names the key.
+
+use crate::board_scope::{scope, Scope};
+use crate::image::build_board_console_image;
+use fw_runner::defmt_log::{LineFormat, LogDecoder};
+use fw_runner::provision;
+use pil_link::board::client::{BoardClient, BoardError};
+use pil_link::board::keys;
+use pil_link::board::message::Request;
+use pil_link::board::session::fault_name;
+use pil_link::host::{open_serial, Stream};
+use pil_link::qemu::{LinkPort, Qemu, QemuOptions};
+use sim_engine::error::{HarnessError, Result};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// One console action.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    /// Firmware version, drive, enabled, latched fault.
+    Status,
+    /// Print one setting.
+    Get(String),
+    /// Change one setting (drive disabled).
+    Set(String, f64),
+    /// Store the running settings on the board.
+    Save,
+    /// Reset the board and wait until it answers again.
+    Reset,
+    /// Print the fault history.
+    Faults,
+    /// Power stage on.
+    Enable,
+    /// Power stage off.
+    Disable,
+    /// Record the scope for `seconds` into `out/scope.csv` and a plot.
+    Scope(Scope),
+}
+
+/// Where the board is.
+#[derive(Clone, Debug)]
+pub enum BoardTarget {
+    /// The `board` image in QEMU (`elf`, or built with cargo), run with `qemu`.
+    Qemu {
+        /// Image to run instead of building it.
+        elf: Option<PathBuf>,
+        /// The QEMU binary.
+        qemu: PathBuf,
+    },
+    /// A serial device at a baud rate.
+    Port {
+        /// The device, e.g. /dev/ttyACM0.
+        path: PathBuf,
+        /// Baud rate.
+        baud: u32,
+    },
+}
+
+const USAGE: &str = "actions: status, get KEY, set KEY=VALUE, save, reset, faults, enable, \
+                     disable, scope --seconds S --out DIR";
+
+fn bad(reason: impl Into<String>) -> HarnessError {
+    HarnessError::config("board", format!("{}; {USAGE}", reason.into()))
+}
+
+/// Parses the action words of the command line, in order.
+///
+/// # Errors
+/// A word that is not an action, or an action without its argument.
+pub fn parse_actions(words: &[String]) -> Result<Vec<Action>> {
+    let mut actions = Vec::new();
+    let mut it = words.iter().peekable();
+    while let Some(word) = it.next() {
+        let action = match word.as_str() {
+            "status" => Action::Status,
+            "save" => Action::Save,
+            "reset" => Action::Reset,
+            "faults" => Action::Faults,
+            "enable" => Action::Enable,
+            "disable" => Action::Disable,
+            "get" => Action::Get(it.next().ok_or_else(|| bad("get needs a KEY"))?.clone()),
+            "set" => {
+                let arg = it.next().ok_or_else(|| bad("set needs KEY=VALUE"))?;
+                let (key, value) = arg
+                    .split_once('=')
+                    .ok_or_else(|| bad(format!("set {arg}: expected KEY=VALUE")))?;
+                let value: f64 = value
+                    .trim()
+                    .parse()
+                    .map_err(|_| bad(format!("set {key}: {value:?} is not a number")))?;
+                Action::Set(key.trim().to_string(), value)
+            }
+            "scope" => {
+                let (mut seconds, mut out) = (None, None);
+                while let Some(opt) = it.next_if(|w| w.starts_with("--")) {
+                    let val = it
+                        .next()
+                        .ok_or_else(|| bad(format!("scope {opt} needs a value")))?;
+                    match opt.as_str() {
+                        "--seconds" => seconds = val.parse::<f64>().ok(),
+                        "--out" => out = Some(PathBuf::from(val)),
+                        _ => return Err(bad(format!("scope: unknown option {opt}"))),
+                    }
+                }
+                let seconds = seconds
+                    .filter(|s| s.is_finite() && *s > 0.0 && *s <= 3600.0)
+                    .ok_or_else(|| bad("scope needs --seconds S (0 < S <= 3600)"))?;
+                let out = out.ok_or_else(|| bad("scope needs --out DIR"))?;
+                Action::Scope(Scope { seconds, out })
+            }
+            other => return Err(bad(format!("unknown action {other:?}"))),
+        };
+        actions.push(action);
+    }
+    if actions.is_empty() {
+        return Err(bad("no action given"));
+    }
+    Ok(actions)
+}
+
+/// `stiffdrive board`: runs `actions` on the board at `target`, printing a line for each;
+/// each reply must come within `reply_timeout`.
+///
+/// # Errors
+/// The first action that fails or is refused (its message names the key and range), a
+/// link that fails, an `--out` that is not stiffdrive's to write.
+pub fn board_command(
+    target: &BoardTarget,
+    actions: &[Action],
+    reply_timeout: Duration,
+) -> Result<String> {
+    // A scope's --out is checked before anything runs (and again when it is written).
+    for a in actions {
+        if let Action::Scope(s) = a {
+            sim_engine::output::check_dir_target(&s.out)?;
+        }
+    }
+    match target {
+        BoardTarget::Port { path, baud } => {
+            let stream = open_serial(path, *baud).map_err(|e| HarnessError::io(path, e))?;
+            run_actions(&mut BoardClient::new(stream, reply_timeout), actions)
+        }
+        BoardTarget::Qemu { elf, qemu } => {
+            provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
+            let elf = match elf {
+                Some(e) => e.clone(),
+                None => build_board_console_image()?,
+            };
+            let log =
+                std::env::temp_dir().join(format!("stiffdrive-board-{}.defmt", std::process::id()));
+            let (mut vm, stream) = Qemu::spawn(&QemuOptions {
+                qemu: qemu.clone(),
+                elf: elf.clone(),
+                log: log.clone(),
+                connect_timeout: Duration::from_secs(20),
+                port: LinkPort::Pty,
+            })
+            .map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
+            let result = run_actions(&mut BoardClient::new(stream, reply_timeout), actions);
+            vm.finish(Duration::ZERO);
+            let lines = firmware_log(&elf, &log);
+            let _ = std::fs::remove_file(&log);
+            if result.is_err() || std::env::var_os("STIFFDRIVE_BOARD_LOG").is_some() {
+                for line in lines {
+                    eprintln!("firmware: {line}");
+                }
+            }
+            result
+        }
+    }
+}
+
+/// The decoded defmt log of the QEMU run.
+fn firmware_log(elf: &std::path::Path, raw: &std::path::Path) -> Vec<String> {
+    let Ok(bytes) = std::fs::read(raw) else {
+        return Vec::new();
+    };
+    match LogDecoder::from_elf(elf) {
+        Ok(d) => d.decode_all(pil_link::qemu::log_bytes(&bytes), LineFormat::Full),
+        Err(e) => vec![format!("(defmt log not decoded: {e})")],
+    }
+}
+
+fn link(e: BoardError) -> HarnessError {
+    match e {
+        BoardError::Refused { message, .. } => {
+            HarnessError::Backend(format!("board refused: {message}"))
+        }
+        other => HarnessError::Backend(format!("board: {other}")),
+    }
+}
+
+/// Runs the actions in order on one session; prints one line each.
+///
+/// # Errors
+/// As [`board_command`].
+pub fn run_actions(client: &mut BoardClient<Stream>, actions: &[Action]) -> Result<String> {
+    // The board may still be booting (QEMU just started it).
+    client
+        .wait_ready(Duration::from_secs(10), Duration::from_millis(300))
+        .map_err(link)?;
+    for action in actions {
+        let line = run_action(client, action)?;
+        println!("{line}");
+    }
+    Ok(format!("board: {} action(s) done", actions.len()))
+}
+
+fn run_action(client: &mut BoardClient<Stream>, action: &Action) -> Result<String> {
+    Ok(match action {
+        Action::Status => client
+            .status(|s| {
+                format!(
+                    "firmware {}.{}.{}; drive {}: settings crc {:08x} ({}); {}; fault: {}",
+                    s.firmware_version >> 16,
+                    (s.firmware_version >> 8) & 0xFF,
+                    s.firmware_version & 0xFF,
+                    s.baked_name,
+                    s.settings_crc,
+                    s.origin.describe(),
+                    if s.enabled { "enabled" } else { "disabled" },
+                    fault_name(s.fault_code)
+                )
+            })
+            .map_err(link)?,
+        Action::Get(key) => format!("{} = {}", shown(key), client.get(key).map_err(link)?),
+        Action::Set(key, value) => {
+            format!(
+                "{} = {} (set)",
+                shown(key),
+                client.set(key, *value).map_err(link)?
+            )
+        }
+        Action::Save => {
+            client.request(&Request::Save).map_err(link)?;
+            "settings saved on the board".to_string()
+        }
+        Action::Reset => {
+            client.request(&Request::Reset).map_err(link)?;
+            client
+                .wait_ready(Duration::from_secs(20), Duration::from_millis(300))
+                .map_err(link)?;
+            "board reset; it answers again".to_string()
+        }
+        Action::Faults => {
+            let h = client.faults().map_err(link)?;
+            let mut text = format!("faults since boot: {}", h.total());
+            for e in h.entries() {
+                text.push_str(&format!("\n  {:>10} ms  {}", e.ms, fault_name(e.code)));
+            }
+            text
+        }
+        Action::Enable => {
+            client.request(&Request::Enable).map_err(link)?;
+            "drive enabled".to_string()
+        }
+        Action::Disable => {
+            client.request(&Request::Disable).map_err(link)?;
+            "drive disabled".to_string()
+        }
+        Action::Scope(s) => scope(client, s)?,
+    })
+}
+
+/// A key as the machine file spells it (`drive.` prefixed).
+fn shown(key: &str) -> String {
+    if key.starts_with(keys::PREFIX) {
+        key.to_string()
+    } else {
+        format!("{}{key}", keys::PREFIX)
+    }
+}
