@@ -296,6 +296,13 @@ impl<S: Transport> HostLink<S> {
         Ok(seq)
     }
 
+    /// Writes `bytes` to the line as they are (tests: line noise, damaged frames).
+    pub fn write_raw(&mut self, bytes: &[u8]) -> Result<(), HostError> {
+        self.stream.write_all(bytes)?;
+        self.stream.flush()?;
+        Ok(())
+    }
+
     /// The next frame from the firmware, whatever its kind, by `deadline`.
     pub fn receive(&mut self, deadline: Instant) -> Result<Frame, HostError> {
         self.read_frame(deadline, None)

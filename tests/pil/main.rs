@@ -26,6 +26,7 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+mod board;
 mod pil_identify;
 
 /// The processor-in-the-loop cases (this module's and `pil_identify`'s), one after another
@@ -35,6 +36,9 @@ mod pil_identify;
 /// other test shares the cores with it. A failing case is named in the test's output.
 #[test]
 fn processor_in_the_loop() {
+    let _one_at_a_time = QEMU_TESTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let cases: [(&str, fn()); 10] = [
         (
             "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
@@ -77,15 +81,7 @@ fn processor_in_the_loop() {
             crate::pil_identify::the_firmware_refuses_a_bad_excitation_with_a_config_fault,
         ),
     ];
-    let run = |(name, case): (&str, fn())| {
-        let t0 = Instant::now();
-        eprintln!("processor in the loop: {name}");
-        case();
-        eprintln!(
-            "processor in the loop: {name} passed in {:.1} s",
-            t0.elapsed().as_secs_f64()
-        );
-    };
+    let run = |(name, case): (&str, fn())| run_case(name, case);
     // The two long bit-for-bit runs side by side (each one QEMU and one host thread in lock
     // step: about one core each, with the default 1 s watchdog), then the rest one after
     // another (the fault cases' 500 ms watchdog alone on the machine).
@@ -103,6 +99,50 @@ fn processor_in_the_loop() {
     });
     for c in one_by_one {
         run(c);
+    }
+}
+
+/// The QEMU tests of this binary run one at a time (cargo runs the tests of a binary side
+/// by side): each holds this lock.
+static QEMU_TESTS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn run_case(name: &str, case: fn()) {
+    let t0 = Instant::now();
+    eprintln!("processor in the loop: {name}");
+    case();
+    eprintln!(
+        "processor in the loop: {name} passed in {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
+}
+
+/// The board console (`stiffdrive board --qemu`, `board.rs`), case by case, after or before
+/// the processor-in-the-loop cases (never beside them).
+#[test]
+fn board_console() {
+    let _one_at_a_time = QEMU_TESTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let cases: [(&str, fn()); 4] = [
+        (
+            "board: set_save_reset_get_prints_the_saved_value",
+            crate::board::set_save_reset_get_prints_the_saved_value,
+        ),
+        (
+            "board: a_set_while_enabled_or_out_of_range_is_refused_naming_the_key",
+            crate::board::a_set_while_enabled_or_out_of_range_is_refused_naming_the_key,
+        ),
+        (
+            "board: refused_sets_leave_the_drive_unchanged_and_a_corrupt_frame_disables_it",
+            crate::board::refused_sets_leave_the_drive_unchanged_and_a_corrupt_frame_disables_it,
+        ),
+        (
+            "board: scope_writes_a_second_of_samples_at_the_trace_rate_without_gaps",
+            crate::board::scope_writes_a_second_of_samples_at_the_trace_rate_without_gaps,
+        ),
+    ];
+    for (name, case) in cases {
+        run_case(name, case);
     }
 }
 

@@ -168,6 +168,14 @@ impl<S: Transport> BoardClient<S> {
         }
     }
 
+    /// Writes `bytes` to the line as they are (tests: a damaged frame).
+    ///
+    /// # Errors
+    /// An I/O error.
+    pub fn write_raw(&mut self, bytes: &[u8]) -> Result<(), BoardError> {
+        self.link.write_raw(bytes).map_err(BoardError::Host)
+    }
+
     /// Waits up to `total` for the board to answer `Status` (after a reset: it reboots),
     /// asking every `every`.
     ///
