@@ -98,7 +98,7 @@ pub fn channel_names(trace: &TraceConfig) -> heapless::String<128> {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
     use crate::app::DEFAULT_TRACE;
 

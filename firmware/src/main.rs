@@ -141,6 +141,8 @@ mod target {
             mem.static_ram_bytes
         );
         LOOPS.install(app, b.current_io, b.velocity_io, motion);
+        // Written to before `run` only by the STM32 board's banner below.
+        #[allow(unused_mut)]
         let mut console = b.console;
         // QEMU demo: enable at once. The real board waits for `e` on the console.
         #[cfg(not(feature = "board-stm32f4"))]

@@ -57,7 +57,7 @@ fn firmware_images_hold_no_refcell_panic_path() {
             let path = release.join(image);
             std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
         };
-        Ok(["firmware", "fw-bench", "fw-lil", "pil"].map(|image| (image, read(image))))
+        Ok(["firmware", "fw-bench", "fw-lil", "pil", "board"].map(|image| (image, read(image))))
     })
     .unwrap();
     let mut checked = 0;
@@ -76,6 +76,6 @@ fn firmware_images_hold_no_refcell_panic_path() {
         }
         checked += 1;
     }
-    assert_eq!(checked, 4);
+    assert_eq!(checked, 5);
     eprintln!("{checked} firmware images checked for {FORBIDDEN:?}");
 }

@@ -16,17 +16,15 @@
 
 #[cfg(all(target_os = "none", feature = "board-qemu"))]
 mod target {
-    use core::cell::RefCell;
     use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
     use controller_core::{ConfigError, DriveConfig, Setpoint};
     use cortex_m_rt::entry;
-    use critical_section::Mutex;
     use firmware::app::{fault_code, App, AppError, DEFAULT_TRACE};
     use firmware::board::EncoderCounter;
     use firmware::boards::qemu::{self as board, PeriodicTimer, Uart0};
     use firmware::console::{channel_names, ticks_to_ms, FaultTracker, ScopeTap};
-    use firmware::isr::Loops;
+    use firmware::isr::{Loops, Shared};
     use firmware::ring::ByteRing;
     use firmware::rt::exit;
     use firmware::trace::TraceState;
@@ -46,8 +44,7 @@ mod target {
     static SCOPE_ON: AtomicBool = AtomicBool::new(false);
     /// Scope samples from the current-loop interrupt to thread mode (a full queue drops
     /// the sample, which the stream's counter then shows as a gap).
-    static SCOPE: Mutex<RefCell<(ScopeTap, Deque<(u32, ScopeSample), 256>)>> =
-        Mutex::new(RefCell::new((ScopeTap::new(), Deque::new())));
+    static SCOPE: Shared<(ScopeTap, Deque<(u32, ScopeSample), 256>)> = Shared::new();
 
     fn current_loop() {
         let _ = LOOPS.current_isr();
@@ -55,11 +52,11 @@ mod target {
         if SCOPE_ON.load(Ordering::Relaxed) {
             let newest = LOOPS.with_app(|app| app.trace().newest()).flatten();
             critical_section::with(|cs| {
-                let mut scope = SCOPE.borrow_ref_mut(cs);
-                let (tap, queue) = &mut *scope;
-                if let Some(item) = tap.offer(newest) {
-                    let _ = queue.push_back(item);
-                }
+                SCOPE.with(cs, |(tap, queue)| {
+                    if let Some(item) = tap.offer(newest) {
+                        let _ = queue.push_back(item);
+                    }
+                })
             });
         }
     }
@@ -167,7 +164,7 @@ mod target {
 
         fn scope(&mut self, on: bool) -> ScopeInfo<'_> {
             critical_section::with(|cs| {
-                *SCOPE.borrow_ref_mut(cs) = (ScopeTap::new(), Deque::new());
+                SCOPE.with_slot(cs, |slot| *slot = Some((ScopeTap::new(), Deque::new())))
             });
             SCOPE_ON.store(on, Ordering::Relaxed);
             ScopeInfo {
@@ -198,13 +195,16 @@ mod target {
     fn send_scope(seq: &mut u16) {
         loop {
             let mut chunk: Option<ScopeChunk> = None;
-            let ready = critical_section::with(|cs| SCOPE.borrow_ref(cs).1.len() >= CHUNK_SAMPLES);
-            if !ready {
+            let ready = critical_section::with(|cs| {
+                SCOPE.with(cs, |(_, queue)| queue.len() >= CHUNK_SAMPLES)
+            });
+            if ready != Some(true) {
                 return;
             }
             for _ in 0..CHUNK_SAMPLES {
                 let Some((n, s)) =
-                    critical_section::with(|cs| SCOPE.borrow_ref_mut(cs).1.pop_front())
+                    critical_section::with(|cs| SCOPE.with(cs, |(_, queue)| queue.pop_front()))
+                        .flatten()
                 else {
                     break;
                 };
