@@ -214,13 +214,14 @@ fn run_action(client: &mut BoardClient<Stream>, action: &Action) -> Result<Strin
         Action::Status => client
             .status(|s| {
                 format!(
-                    "firmware {}.{}.{}; drive {}: settings crc {:08x} ({}); {}; fault: {}",
+                    "firmware {}.{}.{}; running settings crc {:08x} ({}); baked drive {}; {}; \
+                     fault: {}",
                     s.firmware_version >> 16,
                     (s.firmware_version >> 8) & 0xFF,
                     s.firmware_version & 0xFF,
-                    s.baked_name,
                     s.settings_crc,
                     s.origin.describe(),
+                    s.baked_name,
                     if s.enabled { "enabled" } else { "disabled" },
                     fault_name(s.fault_code)
                 )
