@@ -301,3 +301,57 @@ fn the_summarys_peak_droop_and_peak_shaft_torque_are_the_traces() {
         field("peak_shaft_torque_pu")
     );
 }
+
+#[test]
+fn board_refuses_bad_actions_and_a_foreign_out_before_starting_the_board() {
+    // Parsed before QEMU or an image is touched: each fails at once, naming what is wrong.
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["board", "--qemu", "frobnicate"],
+            "unknown action \"frobnicate\"",
+        ),
+        (
+            &["board", "--qemu", "set", "drive.velocity_damping"],
+            "expected KEY=VALUE",
+        ),
+        (
+            &["board", "--qemu", "set", "drive.velocity_damping=x"],
+            "is not a number",
+        ),
+        (
+            &["board", "--qemu", "scope", "--seconds", "1"],
+            "scope needs --out DIR",
+        ),
+    ];
+    for (args, expected) in cases {
+        let o = stiffdrive(args);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(stderr(&o).contains(expected), "{args:?}: {}", stderr(&o));
+    }
+    // Neither --qemu nor --port: a usage error.
+    let o = stiffdrive(&["board", "status"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // A foreign file at a scope's --out is refused before the session starts (a missing
+    // serial device would be the next error, and is not reached).
+    let tmp = tempfile::tempdir().unwrap();
+    let file = tmp.path().join("notes.txt");
+    std::fs::write(&file, "mine").unwrap();
+    let o = stiffdrive(&[
+        "board",
+        "--port",
+        "/nonexistent/tty",
+        "scope",
+        "--seconds",
+        "1",
+        "--out",
+        file.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("notes.txt"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("/nonexistent/tty"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "mine");
+    // A missing serial device is named.
+    let o = stiffdrive(&["board", "--port", "/nonexistent/tty", "status"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("/nonexistent/tty"), "{}", stderr(&o));
+}
