@@ -77,7 +77,8 @@ mod target {
     /// sector, the fault history, the scope.
     struct BoardDrive {
         enabled: bool,
-        current_rate_hz: u32,
+        /// Current and velocity loop rates the timers run at [Hz].
+        rates_hz: (u32, u32),
         history: FaultHistory,
         tracker: FaultTracker,
         channels: heapless::String<128>,
@@ -87,7 +88,7 @@ mod target {
         fn now_ms(&self) -> u32 {
             ticks_to_ms(
                 u64::from(BOOT_TICKS.load(Ordering::Relaxed)),
-                self.current_rate_hz,
+                self.rates_hz.0,
             )
         }
 
@@ -116,6 +117,8 @@ mod target {
                 max: f32::from(board),
                 min_exclusive: false,
             },
+            // Neither happens: the trace setup is the constant DEFAULT_TRACE and the settings
+            // are already decoded. Named as the trace, should one ever.
             AppError::Trace(_) | AppError::Settings(_) => ConfigError::NotFinite { param: "trace" },
         }
     }
@@ -125,11 +128,12 @@ mod target {
             let app =
                 App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE).map_err(app_error)?;
             LOOPS.with_app(|slot| *slot = app);
-            if cfg.current_rate_hz != self.current_rate_hz {
+            if (cfg.current_rate_hz, cfg.velocity_rate_hz) != self.rates_hz {
+                // Both at once, as `board::start` does, so their ticks stay aligned.
                 PeriodicTimer::TIMER1.start(cfg.velocity_rate_hz);
                 PeriodicTimer::TIMER0.start(cfg.current_rate_hz);
             }
-            self.current_rate_hz = cfg.current_rate_hz;
+            self.rates_hz = (cfg.current_rate_hz, cfg.velocity_rate_hz);
             defmt::info!(
                 "console: settings applied (settings crc {=u32:08x})",
                 settings_crc(cfg)
@@ -168,7 +172,7 @@ mod target {
             });
             SCOPE_ON.store(on, Ordering::Relaxed);
             ScopeInfo {
-                rate_hz: self.current_rate_hz / u32::from(DEFAULT_TRACE.decimation.max(1)),
+                rate_hz: self.rates_hz.0 / u32::from(DEFAULT_TRACE.decimation.max(1)),
                 channels: self.channels.as_str(),
             }
         }
@@ -294,7 +298,7 @@ mod target {
         LOOPS.install(app, b.current_io, b.velocity_io, Setpoint::default());
         let mut drive = BoardDrive {
             enabled: false,
-            current_rate_hz: cfg.current_rate_hz,
+            rates_hz: (cfg.current_rate_hz, cfg.velocity_rate_hz),
             history: FaultHistory::new(),
             tracker: FaultTracker::new(),
             channels: channel_names(&DEFAULT_TRACE),
