@@ -307,3 +307,63 @@ fn a_million_damaged_bytes_never_change_a_setting_and_turn_an_enabled_drive_off(
     let body = ask(&mut s, &mut d, &Request::Set(KEY, 50.0)).unwrap();
     assert_eq!(get_f64(&body).unwrap(), 50.0);
 }
+
+/// Every key of controller-core's range table reaches its own setting: on a drive with
+/// every optional part (a notch, second-order filters), `set` writes a value from inside
+/// the key's range, `get` reads that value back and no other key's value changed. A key added to the table without its
+/// line in `pil-link/src/board/keys.rs` fails here.
+#[test]
+fn every_key_of_the_range_table_reaches_its_setting() {
+    use controller_core::{FilterConfig, NotchConfig};
+    use pil_link::board::keys;
+    let mut cfg = table1();
+    cfg.notch = Some(NotchConfig {
+        centre_hz: 300.0,
+        width_hz: 50.0,
+        depth_db: 20.0,
+    });
+    let second = FilterConfig::SecondOrder {
+        corner_hz: 500.0,
+        q: 0.7,
+    };
+    cfg.velocity_filter = second;
+    cfg.accel_feedback.filter = second;
+    for r in controller_core::RANGES {
+        let key = format!("{}{}", keys::PREFIX, r.key);
+        let before = keys::get(&cfg, &key)
+            .unwrap_or_else(|e| panic!("{key} reaches no setting ({e:?}): add it to keys.rs"));
+        let inside = if r.max.is_finite() {
+            f64::from(r.min) / 2.0 + f64::from(r.max) / 2.0
+        } else {
+            f64::from(r.min) + 1.5
+        };
+        let inside = if r.whole {
+            inside.round()
+        } else {
+            f64::from(inside as f32)
+        };
+        assert_ne!(inside, before, "{key}: pick another test value");
+        let mut changed = cfg;
+        keys::set(&mut changed, &key, inside).unwrap_or_else(|e| panic!("{key}: {e:?}"));
+        assert_eq!(keys::get(&changed, &key).unwrap(), inside, "{key}");
+        assert_ne!(changed, cfg, "{key}");
+        // ... and no other key's: each key has a setting of its own.
+        for other in controller_core::RANGES.iter().filter(|o| o.key != r.key) {
+            assert_eq!(
+                keys::get(&changed, other.key).unwrap(),
+                keys::get(&cfg, other.key).unwrap(),
+                "setting {key} changed {}",
+                other.key
+            );
+        }
+        // Without the prefix too, as the range table spells it.
+        assert_eq!(keys::get(&changed, r.key).unwrap(), inside, "{key}");
+    }
+    // A key of a part the drive lacks: not present, and named.
+    let mut plain = table1();
+    plain.notch = None;
+    assert!(matches!(
+        keys::get(&plain, "drive.notch.centre_hz"),
+        Err(keys::KeyError::NotPresent(r)) if r.key == "notch.centre_hz"
+    ));
+}
