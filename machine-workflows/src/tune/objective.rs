@@ -265,6 +265,15 @@ impl Reference {
     }
 }
 
+/// The order designs are ranked in, the better first: the higher `class` (how far a design
+/// qualifies: no worse than the default drive above worse than it, on the machine also
+/// within the budgets above out of them), then the lower J. `tune`'s ranking, the choice
+/// between the two kinds and `commission`'s ranking on the machine all use it.
+#[must_use]
+pub fn better_first(a: (u8, f64), b: (u8, f64)) -> std::cmp::Ordering {
+    b.0.cmp(&a.0).then(a.1.total_cmp(&b.1))
+}
+
 /// One candidate run on `fig6` and scored.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Score {
@@ -289,6 +298,12 @@ impl Score {
             within_budget: r.broken(&f).is_empty(),
             no_worse: r.worse(&f).is_empty(),
         }
+    }
+
+    /// Its key for [`better_first`]: no worse than the default drive, then J.
+    #[must_use]
+    pub fn rank(&self) -> (u8, f64) {
+        (u8::from(self.no_worse), self.objective)
     }
 
     /// Runs `c` on `fig6` and scores it.
