@@ -319,6 +319,18 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
 
+    #[test]
+    fn the_higher_class_ranks_first_then_the_lower_objective() {
+        use std::cmp::Ordering::{Equal, Greater, Less};
+        assert_eq!(better_first((2, 5.0), (1, 1.0)), Less);
+        assert_eq!(better_first((0, 1.0), (1, 5.0)), Greater);
+        assert_eq!(better_first((1, 2.0), (1, 3.0)), Less);
+        assert_eq!(better_first((1, 3.0), (1, 2.0)), Greater);
+        assert_eq!(better_first((1, 2.0), (1, 2.0)), Equal);
+        // A run with no figure (J = +inf) ranks after every finite one of its class.
+        assert_eq!(better_first((1, f64::INFINITY), (1, 9.0)), Greater);
+    }
+
     fn figures(droop: Option<f64>, shaft: f64, rec: Option<f64>, noise: f64) -> Figures {
         Figures {
             peak_droop_pu: droop,
