@@ -154,6 +154,14 @@ pub struct ObserverConfig {
     /// Torque input of the model (see `docs/design.md` for the measurement
     /// behind the default, `Command`).
     pub torque_input: ObserverTorque,
+    /// The encoder's quantization in the innovation \[counts\], 0..=0.5: a count n says
+    /// only that the position lies in \[n, n + 1). With h > 0 the observer corrects by how
+    /// far its predicted position lies outside the interval of half-width h around the
+    /// middle of that count (no correction inside it), so the count's own steps stop
+    /// reaching the velocity and acceleration estimates; 0.5 is the whole count. 0 is the
+    /// plain innovation (n − p̂) and the default (`docs/design.md`, "The count interval in
+    /// the observer").
+    pub count_interval_counts: f32,
 }
 
 /// A notch filter on the torque reference (`[drive.notch]`), designed at the current rate
@@ -351,11 +359,13 @@ pub mod defaults {
         source: Estimator::Observer,
         limit_headroom_fraction: 0.0,
     };
-    /// Observer: 75 Hz, motor-inertia model, driven by the torque command.
+    /// Observer: 75 Hz, motor-inertia model, driven by the torque command, the plain
+    /// innovation.
     pub const OBSERVER: ObserverConfig = ObserverConfig {
         bandwidth_hz: 75.0,
         model_inertia: ObserverInertia::Motor,
         torque_input: ObserverTorque::Command,
+        count_interval_counts: 0.0,
     };
     /// Fault limits: overspeed 1.5 pu, following error 4096 counts, encoder-jump margin 2;
     /// overcurrent at 1.5 × the torque limit for 3 current ticks; I²t with 1 pu continuous

@@ -34,6 +34,7 @@
 //! which lets [`crate::accel_feedback`] solve the loop T → model → â → T in closed form.
 
 use crate::per_unit::{Coef, Gain, Pu, PuPerS, TickGain, mul_bits, mul_gain, sat_bits, sat_shr};
+use fixed::types::I16F16;
 
 /// Observer coefficients.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,6 +53,44 @@ pub struct Observer {
     pub k_acc: Gain,
     /// Load torque per pu/s of disturbance acceleration (= −J_model) \[pu·s\], Q16.16.
     pub k_load: Gain,
+    /// The innovations the measured count cannot tell from zero
+    /// ([`Observer::outside_count_interval`]).
+    pub count_interval: CountInterval,
+}
+
+/// The innovations e = n − p̂ \[counts, Q16.16\] that the count n cannot tell from zero:
+/// e ∈ \[lo, hi\]. The position lies in \[n, n + 1), so the error to the middle of the
+/// count is e + ½, and a half-width h > 0 around that middle is e ∈ \[−½ − h, −½ + h\]
+/// ([`CountInterval::of`]). The plain innovation is \[0, 0\] ([`CountInterval::PLAIN`]):
+/// nothing taken out, so a tick costs the same two compares either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CountInterval {
+    /// Lower end \[counts\].
+    pub lo: I16F16,
+    /// Upper end \[counts\].
+    pub hi: I16F16,
+}
+
+impl CountInterval {
+    /// The plain innovation.
+    pub const PLAIN: Self = Self {
+        lo: I16F16::ZERO,
+        hi: I16F16::ZERO,
+    };
+
+    /// The interval of half-width `h` \[counts\] around the middle of the count; `h` ≤ 0
+    /// is [`CountInterval::PLAIN`].
+    #[must_use]
+    pub fn of(h: I16F16) -> Self {
+        if h <= I16F16::ZERO {
+            return Self::PLAIN;
+        }
+        let middle = I16F16::from_bits(-(1 << 15));
+        Self {
+            lo: middle.saturating_sub(h),
+            hi: middle.saturating_add(h),
+        }
+    }
 }
 
 /// Observer state (plain data, reset = default).
@@ -104,7 +143,7 @@ impl Observer {
     /// use controller_core::per_unit::{Coef, Gain, Pu, TickGain};
     /// let o = Observer { l1: Coef::from_num(0.5), l2: Coef::from_num(0.1), l3: Coef::from_num(0.01),
     ///     k_u: TickGain::from_num(0.01), k_vel: TickGain::from_num(0.0586), k_acc: Gain::from_num(234),
-    ///     k_load: Gain::from_num(-1) };
+    ///     k_load: Gain::from_num(-1), count_interval: controller_core::observer::CountInterval::PLAIN };
     /// let mut s = ObserverState::default();
     /// o.update(&mut s, 0, Pu::ZERO);
     /// assert_eq!(o.estimate(&s).velocity_pu, Pu::ZERO);
@@ -141,7 +180,7 @@ impl Observer {
         let p_pred = s.p.wrapping_add(v).wrapping_add(acc >> 1);
         let v_pred = v.wrapping_add(acc);
         // Innovation in counts, Q16.16, saturating (a huge error means a fault elsewhere).
-        let e = sat_shr::<16>(p_meas.wrapping_sub(p_pred));
+        let e = self.outside_count_interval(sat_shr::<16>(p_meas.wrapping_sub(p_pred)));
         // Corrections: e (Q16.16) · l (Q2.30) = Q.46 → Q.32.
         let corr = |l: Coef| (i64::from(e) * i64::from(l.to_bits())) >> 14;
         let dv = corr(self.l2);
@@ -152,6 +191,33 @@ impl Observer {
         s.residual = d.wrapping_add(dv);
         s.acc = u.wrapping_add(s.residual);
         s.d = d.wrapping_add(corr(self.l3));
+    }
+
+    /// The innovation `e` = n − p̂ \[counts, Q16.16\] as far as the count n tells
+    /// ([`CountInterval`]): the part of it outside \[lo, hi\].
+    ///
+    /// ```
+    /// use controller_core::observer::{CountInterval, Observer};
+    /// use controller_core::per_unit::{Coef, Gain, TickGain};
+    /// use fixed::types::I16F16;
+    /// let mut o = Observer { l1: Coef::ZERO, l2: Coef::ZERO, l3: Coef::ZERO,
+    ///     k_u: TickGain::ZERO, k_vel: TickGain::ZERO, k_acc: Gain::ZERO, k_load: Gain::ZERO,
+    ///     count_interval: CountInterval::of(I16F16::from_num(0.5)) };
+    /// let half = 1 << 15;
+    /// // p̂ within the count: no correction; 0.25 count below it: 0.25 count.
+    /// assert_eq!(o.outside_count_interval(-half), 0);
+    /// assert_eq!(o.outside_count_interval(half / 2), half / 2);
+    /// // 0.25 count above it (e = −1.25): −0.25 count.
+    /// assert_eq!(o.outside_count_interval(-5 * half / 2), -half / 2);
+    /// o.count_interval = CountInterval::PLAIN;
+    /// assert_eq!(o.outside_count_interval(-half), -half);
+    /// ```
+    #[inline(always)]
+    #[must_use]
+    pub fn outside_count_interval(&self, e: i32) -> i32 {
+        let CountInterval { lo, hi } = self.count_interval;
+        // max, then min: no panic even for lo > hi (a made-up interval).
+        e.saturating_sub(e.max(lo.to_bits()).min(hi.to_bits()))
     }
 
     /// Velocity estimate \[pu\].
@@ -178,7 +244,7 @@ impl Observer {
     /// use controller_core::per_unit::{Coef, Gain, Pu, TickGain};
     /// let o = Observer { l1: Coef::from_num(0.5), l2: Coef::from_num(0.1), l3: Coef::from_num(0.01),
     ///     k_u: TickGain::from_num(0.01), k_vel: TickGain::from_num(0.0586), k_acc: Gain::from_num(234),
-    ///     k_load: Gain::from_num(-1) };
+    ///     k_load: Gain::from_num(-1), count_interval: controller_core::observer::CountInterval::PLAIN };
     /// let s = ObserverState::default();
     /// // 1 pu of torque: 0.01 counts/tick², 2.34 pu/s.
     /// let a = o.predicted_acceleration_pu_s(&s, Pu::from_num(1));

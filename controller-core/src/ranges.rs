@@ -135,6 +135,9 @@ pub const AFB_FILTER_CORNER_HZ: Range =
 pub const AFB_FILTER_Q: Range = Range::real("accel_feedback.filter.q", 0.1, 10.0, false);
 /// Observer bandwidth \[Hz\] (and below current_rate_hz/2).
 pub const OBSERVER_BANDWIDTH_HZ: Range = Range::real("observer.bandwidth_hz", 0.0, INF, true);
+/// Half-width of the count interval in the observer's innovation \[counts\].
+pub const OBSERVER_COUNT_INTERVAL_COUNTS: Range =
+    Range::real("observer.count_interval_counts", 0.0, 0.5, false);
 /// Overspeed trip \[pu\].
 pub const OVERSPEED_PU: Range = Range::real("faults.overspeed_pu", 0.0, 100.0, true);
 /// Following-error trip \[counts\].
@@ -198,6 +201,7 @@ pub const RANGES: &[Range] = &[
     AFB_FILTER_CORNER_HZ,
     AFB_FILTER_Q,
     OBSERVER_BANDWIDTH_HZ,
+    OBSERVER_COUNT_INTERVAL_COUNTS,
     OVERSPEED_PU,
     FOLLOWING_ERROR_COUNTS,
     ENCODER_JUMP_MARGIN,

@@ -146,6 +146,10 @@ impl DriveConfig {
                 &r::AFB_LIMIT_HEADROOM_FRACTION,
                 self.accel_feedback.limit_headroom_fraction,
             ),
+            (
+                &r::OBSERVER_COUNT_INTERVAL_COUNTS,
+                self.observer.count_interval_counts,
+            ),
             (&r::OVERSPEED_PU, f.overspeed_pu),
             (&r::FOLLOWING_ERROR_COUNTS, f.following_error_counts),
             (&r::ENCODER_JUMP_MARGIN, f.encoder_jump_margin),

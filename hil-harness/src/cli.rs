@@ -171,14 +171,12 @@ pub struct ScenarioArgs {
 /// What `tune` and `commission` design for: the bandwidth and the constraints.
 #[derive(Args, Debug, Clone)]
 pub struct DesignArgs {
-    /// Velocity bandwidth to design for (rad/s).
-    #[arg(
-        long,
-        conflicts_with = "max_bandwidth",
-        required_unless_present = "max_bandwidth"
-    )]
+    /// Velocity bandwidth to design for (rad/s). Without it, every bandwidth of the grid
+    /// (`configs/grids.toml`) is searched too, as with `--max-bandwidth`.
+    #[arg(long, conflicts_with = "max_bandwidth")]
     pub target_bandwidth: Option<f64>,
-    /// Search the velocity bandwidth too, for the largest that meets the constraints.
+    /// Search the velocity bandwidth too (the default without `--target-bandwidth`): every
+    /// bandwidth of the grid, chosen by the objective among those that meet the constraints.
     #[arg(long)]
     pub max_bandwidth: bool,
     /// Smallest damping ratio, gears engaged and apart.

@@ -3,7 +3,7 @@
 //! comparison also checks that `design` (the one place floats are used) gives the same
 //! fixed-point coefficients on the Cortex-M4F as on the host.
 //!
-//! Layout (159 bytes): the scalar fields in declaration order, each filter as
+//! Layout (167 bytes): the scalar fields in declaration order, each filter as
 //! `tag u8 (0 none, 1 first order, 2 second order) | corner_hz f32 | q f32`, each enum as u8,
 //! and last the notch as `present u8 (0 none, 1 notch) | centre_hz f32 | width_hz f32 |
 //! depth_db f32` (zeros without one).
@@ -91,7 +91,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 163;
+pub const LEN: usize = 167;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -312,6 +312,7 @@ fn put_observer(w: &mut Writer, observer: ObserverConfig) -> Result<(), LinkErro
         bandwidth_hz,
         model_inertia,
         torque_input,
+        count_interval_counts,
     } = observer;
     w.u32(bandwidth_hz.to_bits())?
         .u8(match model_inertia {
@@ -321,7 +322,8 @@ fn put_observer(w: &mut Writer, observer: ObserverConfig) -> Result<(), LinkErro
         .u8(match torque_input {
             ObserverTorque::Command => 0,
             ObserverTorque::MeasuredCurrent => 1,
-        })?;
+        })?
+        .u32(count_interval_counts.to_bits())?;
     Ok(())
 }
 
@@ -337,10 +339,12 @@ fn get_observer(r: &mut Reader<'_>, bad: LinkError) -> Result<ObserverConfig, Li
         1 => ObserverTorque::MeasuredCurrent,
         _ => return Err(bad),
     };
+    let count_interval_counts = f(r)?;
     Ok(ObserverConfig {
         bandwidth_hz,
         model_inertia,
         torque_input,
+        count_interval_counts,
     })
 }
 

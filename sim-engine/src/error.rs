@@ -48,10 +48,12 @@ pub enum HarnessError {
     Plot(String),
     /// Anything raised by a component crate (plant, controller, PIL link).
     Backend(String),
-    /// `tune` or `commission` found no design that meets the constraints: what was tried
-    /// and which constraint failed (exit code [`NO_DESIGN_EXIT_CODE`]). Not a bad input.
+    /// `tune` or `commission` found no design that meets the constraints (for `commission`
+    /// also: none beats the machine file's own drive on the machine): what was tried and
+    /// which constraint failed (exit code [`NO_DESIGN_EXIT_CODE`]). Not a bad input.
     NoDesign(String),
-    /// `commission` found a design, but on the machine it did not pass (exit code
+    /// `commission` found a design that beats the file's own drive on the machine, but it
+    /// failed the rest of the criterion (a placed notch that does not help) (exit code
     /// [`NOT_PASSED_EXIT_CODE`]): every file is written, `commission.md` says why and not to
     /// flash it. Not a bad input.
     NotPassed(String),

@@ -9,7 +9,7 @@ use crate::differentiator::Differentiator;
 use crate::error::ConfigError;
 use crate::filter::LowPass;
 use crate::notch::Notch;
-use crate::observer::Observer;
+use crate::observer::{CountInterval, Observer};
 use crate::per_unit::{Coef, CountsErr, Gain, PosGain, Pu, TickGain, counter_shift, quantize};
 use crate::pi::PiCoefficients;
 use crate::protection::Protection;
@@ -164,6 +164,10 @@ fn observer(g: &Gains) -> Result<Observer, ConfigError> {
             "pu/s per count per current tick² (encoder_cpr, base_speed_rpm, current_rate_hz)",
         )?,
         k_load: quantize(-g.observer_inertia_s, "observer model inertia")?,
+        count_interval: CountInterval::of(quantize(
+            g.cfg.observer.count_interval_counts,
+            "observer.count_interval_counts",
+        )?),
     })
 }
 

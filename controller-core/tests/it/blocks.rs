@@ -231,6 +231,7 @@ fn observer_from_table1(cfg: &DriveConfig) -> (Observer, controller_core::Gains)
         k_vel: TickGain::from_num(g.cur_tick_pu_per_count),
         k_acc: Gain::from_num(g.cur_tick_pu_s_per_count),
         k_load: Gain::from_num(-g.observer_inertia_s),
+        count_interval: controller_core::observer::CountInterval::PLAIN,
     };
     (o, g)
 }

@@ -158,6 +158,7 @@ fn table1_observer() -> (Observer, controller_core::Gains, DriveConfig) {
         k_vel: TickGain::from_num(g.cur_tick_pu_per_count),
         k_acc: Gain::from_num(g.cur_tick_pu_s_per_count),
         k_load: Gain::from_num(-g.observer_inertia_s),
+        count_interval: controller_core::observer::CountInterval::PLAIN,
     };
     (o, g, cfg)
 }
@@ -272,4 +273,73 @@ fn low_frequency_error_falls_like_s_squared() {
     println!("ω = {w:.1} rad/s: |1 − â/a| Ellis {err:.4}, u + d form {err_ud:.4}");
     assert!(err < 0.015, "{err}");
     assert!(err_ud > 0.1, "{err_ud}");
+}
+
+/// The count interval: h ≤ 0 is the plain innovation; h > 0 is the interval of half-width h
+/// around the middle of the count, e ∈ [−½ − h, −½ + h].
+#[test]
+fn the_count_interval_is_centred_on_the_middle_of_the_count() {
+    use controller_core::observer::CountInterval;
+    use fixed::types::I16F16;
+    let n = |x: f64| I16F16::from_num(x);
+    assert_eq!(CountInterval::of(n(0.0)), CountInterval::PLAIN);
+    assert_eq!(CountInterval::of(n(-0.1)), CountInterval::PLAIN);
+    assert_eq!(
+        CountInterval::of(n(0.5)),
+        CountInterval {
+            lo: n(-1.0),
+            hi: n(0.0)
+        }
+    );
+    assert_eq!(
+        CountInterval::of(n(0.25)),
+        CountInterval {
+            lo: n(-0.75),
+            hi: n(-0.25)
+        }
+    );
+    let (mut o, _, _) = table1_observer();
+    let c = |x: f64| n(x).to_bits();
+    // Plain: the innovation passes unchanged.
+    for e in [-2.0, -0.5, 0.0, 0.75] {
+        assert_eq!(o.outside_count_interval(c(e)), c(e));
+    }
+    o.count_interval = CountInterval::of(n(0.25));
+    // Inside [−0.75, −0.25]: nothing; outside: the distance to the nearer end.
+    assert_eq!(o.outside_count_interval(c(-0.5)), 0);
+    assert_eq!(o.outside_count_interval(c(-0.75)), 0);
+    assert_eq!(o.outside_count_interval(c(-0.25)), 0);
+    assert_eq!(o.outside_count_interval(c(0.5)), c(0.75));
+    assert_eq!(o.outside_count_interval(c(-1.5)), c(-0.75));
+    // No overflow at the ends of the range.
+    assert_eq!(o.outside_count_interval(i32::MAX), i32::MAX);
+    assert_eq!(o.outside_count_interval(i32::MIN), i32::MIN + c(0.75));
+}
+
+/// A shaft held on a count edge: the count toggles between n and n + 1 while the shaft does
+/// not move. The plain observer turns each toggle into a velocity kick; with the whole count
+/// as the interval, both counts agree with a position on the edge, and the estimate stays
+/// near zero.
+#[test]
+fn the_count_interval_keeps_count_toggles_out_of_the_velocity_estimate() {
+    use controller_core::observer::CountInterval;
+    let (plain, _, _) = table1_observer();
+    let mut interval = plain;
+    interval.count_interval = CountInterval::of(fixed::types::I16F16::from_num(0.5));
+    let rms = |o: &Observer| {
+        let mut s = ObserverState::default();
+        let mut sum = 0.0;
+        for k in 0u64..8000 {
+            // A fixed pseudo-random toggle between counts 100 and 101.
+            let p = 100 + i64::from((k * 7919) % 13 < 6);
+            o.update(&mut s, p, Pu::ZERO);
+            if k >= 4000 {
+                sum += o.velocity_pu(&s).to_num::<f64>().powi(2);
+            }
+        }
+        (sum / 4000.0).sqrt()
+    };
+    let (r_plain, r_int) = (rms(&plain), rms(&interval));
+    assert!(r_plain > 1e-3, "plain {r_plain}");
+    assert!(r_int < 0.1 * r_plain, "{r_int} against {r_plain}");
 }

@@ -99,7 +99,8 @@ proptest! {
         ].iter().map(|f| LowPass::quantize(&design_low_pass(f, 4000.0, &controller_core::ranges::AFB_FILTER_CORNER_HZ, &controller_core::ranges::AFB_FILTER_Q).unwrap(), "t").unwrap()).collect();
         let mut fs = [LowPassState::default(); 3];
         let obs = Observer { l1: Coef::from_num(1.9), l2: Coef::from_num(1.9), l3: Coef::from_num(1.9),
-            k_u: TickGain::MAX, k_vel: TickGain::MAX, k_acc: Gain::MAX, k_load: Gain::MIN };
+            k_u: TickGain::MAX, k_vel: TickGain::MAX, k_acc: Gain::MAX, k_load: Gain::MIN,
+            count_interval: controller_core::observer::CountInterval { lo: fixed::types::I16F16::MAX, hi: fixed::types::I16F16::MIN } };
         let mut os = ObserverState::default();
         let diff = Differentiator { k_vel: TickGain::MAX, k_acc: Gain::MAX };
         let mut ds = DifferentiatorState::default();

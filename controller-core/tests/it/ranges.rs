@@ -56,6 +56,7 @@ proptest! {
             l1: Coef::from_bits(l[0]), l2: Coef::from_bits(l[1]), l3: Coef::from_bits(l[2]),
             k_u: TickGain::from_bits(k_u), k_vel: TickGain::ONE, k_acc: Gain::ONE,
             k_load: Gain::ONE,
+            count_interval: controller_core::observer::CountInterval::PLAIN,
         };
         let mut s = ObserverState { p, v, d, primed: true, ..ObserverState::default() };
         let mut r = s;

@@ -34,7 +34,8 @@
 //!    `flash --config` take on this machine), `DIR/runner-up.toml` with the other kind's.
 //!    `DIR/commission.md` and `DIR/commission.json` hold the figures and the notch
 //!    decision with its reason; the command fails (after writing them) when it does not
-//!    pass.
+//!    pass: with the no-design code, and without `drive.toml` and `runner-up.toml`, when
+//!    no design tried beats the file's own drive on the machine (keep that drive).
 //!
 //! Everything is staged: on an error before the verification nothing is written.
 
@@ -43,6 +44,7 @@ pub mod notch;
 mod write;
 
 use crate::identify::{self, lost_motion::identified_mechanics};
+use crate::tune::objective::better_first;
 use crate::tune::{self, Constraints};
 use controller_core::NotchConfig;
 use notch::Decision;
@@ -92,6 +94,10 @@ pub struct Commissioning {
     /// The chosen design passed ([`CRITERION`] and, with a notch placed,
     /// [`NOTCH_CRITERION`]).
     pub passed: bool,
+    /// No design tried beats the file's own drive on the machine ([`CRITERION`] without
+    /// the notch's part): the commissioning has no design, as when none meets the
+    /// constraints on the model, and `drive.toml` is not written.
+    pub no_design: bool,
 }
 
 /// `DIR/drive.toml` and `DIR/runner-up.toml`: the machine file `config` as given (with
@@ -99,8 +105,7 @@ pub struct Commissioning {
 /// `run --config` and `flash --config` take on this machine.
 fn write_drives(
     staging: &Staging,
-    config: &str,
-    sets: &[String],
+    machine: &Table,
     base: &RunConfig,
     pair: &tune::pair::Pair,
 ) -> Result<()> {
@@ -113,9 +118,7 @@ fn write_drives(
             "the [drive] of the best design of the other kind",
         ),
     ] {
-        let mut doc = read_table(&config_path(config)?)?;
-        overrides::apply_all(&mut doc, sets)?;
-        let body = tune::output::merged_doc(doc, &base.drive, &t.tuned.drive)?;
+        let body = tune::output::merged_doc(machine.clone(), &base.drive, &t.tuned.drive)?;
         let text = format!(
             "# `hil-harness commission`: {} with {what} (commission.md says whether to \
              flash it).\n{body}",
@@ -126,15 +129,19 @@ fn write_drives(
     Ok(())
 }
 
-/// `CFG` with `sets` applied and its `[plant]` table replaced by the identified one.
+/// The machine file `config` as given, with `sets` applied.
+fn machine_doc(config: &str, sets: &[String]) -> Result<Table> {
+    let mut doc = read_table(&config_path(config)?)?;
+    overrides::apply_all(&mut doc, sets)?;
+    Ok(doc)
+}
+
+/// `machine` ([`machine_doc`]) with its `[plant]` table replaced by the identified one.
 fn identified_doc(
-    config: &str,
-    sets: &[String],
+    mut doc: Table,
     base: &RunConfig,
     ident: &identify::Identification,
 ) -> Result<Table> {
-    let mut doc = read_table(&config_path(config)?)?;
-    overrides::apply_all(&mut doc, sets)?;
     // The measurement's own settings are not part of the machine.
     doc.remove("identify");
     let plant = identified_mechanics(base, &ident.fit.fit, ident.lost_motion.backlash_deg);
@@ -196,6 +203,7 @@ fn identify_into(
     staging: &Staging,
     config: &str,
     sets: &[String],
+    machine: &Table,
 ) -> Result<(RunConfig, identify::Identification, Table, String)> {
     let (base, spec) = identify::load(config, sets)?;
     let ident = identify::identify_machine(&base, &spec)?;
@@ -206,7 +214,7 @@ fn identify_into(
         &spec,
         &ident,
     )?;
-    let doc = identified_doc(config, sets, &base, &ident)?;
+    let doc = identified_doc(machine.clone(), &base, &ident)?;
     let header = format!(
         "{} with the [plant] table `identify` measured.",
         base.config_path.display()
@@ -238,6 +246,13 @@ pub struct Tried {
     pub qualifies: u8,
     /// It became the design of its kind.
     pub taken: bool,
+}
+
+impl Tried {
+    /// Its key for [`better_first`]: how it qualifies, then J on the machine.
+    fn rank(&self) -> (u8, f64) {
+        (self.qualifies, self.objective)
+    }
 }
 
 /// How a run on the machine qualifies: 2 stable without a fault, within the budgets and no
@@ -286,10 +301,7 @@ fn try_on_machine(
             .collect::<Result<Vec<_>>>()?;
         let mut order: Vec<usize> = (0..tried.len()).collect();
         order.sort_by(|&a, &b| match (tried.get(a), tried.get(b)) {
-            (Some(x), Some(y)) => y
-                .qualifies
-                .cmp(&x.qualifies)
-                .then(x.objective.total_cmp(&y.objective)),
+            (Some(x), Some(y)) => better_first(x.rank(), y.rank()),
             _ => std::cmp::Ordering::Equal,
         });
         for i in order {
@@ -309,28 +321,33 @@ fn try_on_machine(
     Ok(all)
 }
 
-/// Both designs of `pair` run on the machine `m`, their objectives against `reference`, and
-/// the machine's choice between them set on `pair` ([`tune::pair::Pair::on_machine_afb`]):
-/// of those stable, without a fault and within the budget there, the lower objective; the
-/// model's choice only if neither is.
+/// Both designs of `pair` on the machine `m` (the run [`try_on_machine`] made of a design
+/// it took, else a new one), their objectives against `reference`, and the machine's choice
+/// between them set on `pair` ([`tune::pair::Pair::on_machine_afb`]): of those stable,
+/// without a fault and within the budget there, the better by [`better_first`]; the model's
+/// choice only if neither is.
 fn both_on_machine(
     m: &RunConfig,
     pair: &mut tune::pair::Pair,
     reference: &tune::objective::Reference,
+    tried: &[Tried],
 ) -> Result<([OnMachine; 2], [f64; 2])> {
+    let run = |kind: &str, label: &'static str, t: &tune::Tuned| -> Result<OnMachine> {
+        let design = &t.result.design.candidate;
+        let taken = tried
+            .iter()
+            .find(|x| x.taken && x.kind == kind && x.candidate == *design);
+        Ok(match taken {
+            Some(x) => OnMachine {
+                design: label,
+                ..x.machine.clone()
+            },
+            None => on_machine(m, label, design, false)?,
+        })
+    };
     let runs = [
-        on_machine(
-            m,
-            "tuned with AFB",
-            &pair.with.result.design.candidate,
-            false,
-        )?,
-        on_machine(
-            m,
-            "tuned without AFB",
-            &pair.without.result.design.candidate,
-            false,
-        )?,
+        run("with AFB", "tuned with AFB", &pair.with)?,
+        run("without AFB", "tuned without AFB", &pair.without)?,
     ];
     let objective = [
         reference.objective(&runs[0].figures),
@@ -340,12 +357,8 @@ fn both_on_machine(
         qualifies(reference, &runs[0]),
         qualifies(reference, &runs[1]),
     );
-    pair.on_machine_afb = match a.cmp(&b) {
-        _ if a == 0 && b == 0 => None,
-        std::cmp::Ordering::Equal => Some(objective[0] < objective[1]),
-        std::cmp::Ordering::Greater => Some(true),
-        std::cmp::Ordering::Less => Some(false),
-    };
+    pair.on_machine_afb =
+        (a > 0 || b > 0).then(|| better_first((a, objective[0]), (b, objective[1])).is_lt());
     Ok((runs, objective))
 }
 
@@ -410,9 +423,10 @@ fn run_stages(
     tune::objective::check_budget(constraints.max_torque_noise_pu)?;
     let grid = sim_engine::config::tune_grid()?;
     let bws = tune::bandwidths(&grid, target_bandwidth)?;
+    let machine = machine_doc(config, sets)?;
     let staging = Staging::new(out)?;
     stage(0);
-    let (base, ident, doc, identified) = identify_into(&staging, config, sets)?;
+    let (base, ident, doc, identified) = identify_into(&staging, config, sets, &machine)?;
     stage(1);
     let judged = tune::judge_grid(&identified, &tune::candidates(&grid, &bws), constraints)?;
     let all_judged = judged.clone();
@@ -423,6 +437,10 @@ fn run_stages(
     {
         Ok(p) => p,
         Err(HarnessError::NoDesign(reason)) => {
+            // The reason names the file tuned on where it is staged; the user finds it
+            // under `out`.
+            let staged = staging.dir().display().to_string();
+            let reason = reason.replace(&staged, &out.display().to_string());
             // The identification stands on its own: keep it, say what failed, and exit
             // with the no-design code.
             let md = no_design::markdown(
@@ -452,8 +470,7 @@ fn run_stages(
     let tried = try_on_machine(&m, &tuned_on, &mut pair, &reference, constraints)?;
     pair.with.result.config = name.into();
     pair.without.result.config = name.into();
-    let (runs, objective) = both_on_machine(&m, &mut pair, &reference)?;
-    let fit = |r: &OnMachine| r.stable && !r.faulted && reference.broken(&r.figures).is_empty();
+    let (runs, objective) = both_on_machine(&m, &mut pair, &reference, &tried)?;
     let tune_md = staging.path("tune/tune.md")?;
     tune::write_pair(tune_md.parent().unwrap_or(staging.dir()), &pair)?;
     let afb = pair.afb_chosen();
@@ -469,9 +486,9 @@ fn run_stages(
     };
     let c_run = if afb { &runs[0] } else { &runs[1] };
     let c_j = if afb { objective[0] } else { objective[1] };
-    let passed = fit(c_run)
-        && reference.worse(&c_run.figures).is_empty()
-        && c_j < reference.objective(&reference.default_drive)
+    let beats_the_file =
+        qualifies(&reference, c_run) == 2 && c_j < reference.objective(&reference.default_drive);
+    let passed = beats_the_file
         && without_notch
             .as_ref()
             .is_none_or(|n| c_run.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu);
@@ -485,10 +502,13 @@ fn run_stages(
         notch: decision,
         without_notch,
         passed,
+        no_design: !beats_the_file,
     };
     stage(4);
     write::write_all(&staging, &c, &base, &ident, &pair)?;
-    write_drives(&staging, config, sets, &base, &pair)?;
+    if !c.no_design {
+        write_drives(&staging, &machine, &base, &pair)?;
+    }
     staging.commit()?;
     finish(&c, &pair, out)
 }
@@ -514,6 +534,13 @@ fn finish(c: &Commissioning, pair: &tune::pair::Pair, out: &Path) -> Result<Stri
     );
     if c.passed {
         Ok(line)
+    } else if c.no_design {
+        Err(HarnessError::NoDesign(format!(
+            "{line}: none of the {} designs tried beats the machine file's own drive on the \
+             machine; keep that drive (the identification is in identify/ and \
+             identified.toml, every design tried in commission.md)",
+            c.tried.len()
+        )))
     } else {
         Err(HarnessError::NotPassed(format!(
             "{line}: the chosen design did not pass on the machine (commission.md)"

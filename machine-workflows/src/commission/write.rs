@@ -237,12 +237,22 @@ fn verdict(md: &mut String, c: &Commissioning, pair: &Pair) {
     let _ = writeln!(
         md,
         "\n**{}** (criteria, fixed before the run: {}; with a notch placed, also {}).\n\n{}",
-        if c.passed { "Passed" } else { "Failed" },
+        if c.passed {
+            "Passed"
+        } else if c.no_design {
+            "No design"
+        } else {
+            "Failed"
+        },
         super::CRITERION,
         super::NOTCH_CRITERION,
         if c.passed {
             "The drive to flash is `drive.toml` (`cargo run --release -- flash \
              --config DIR/drive.toml`)."
+        } else if c.no_design {
+            "None of the designs tried beats the machine file's own drive on the machine \
+             (table above): keep that drive. No `drive.toml` is written; `tune/` holds the \
+             designs as tuned on the identified model."
         } else {
             "`drive.toml` did not pass on the machine: do not flash it."
         }

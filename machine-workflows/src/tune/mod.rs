@@ -292,9 +292,7 @@ pub fn choose(config: &str, judged: Vec<Judged>, k: &Constraints) -> Result<Tune
         })
         .collect();
     runs.sort_by(|(a, x), (b, y)| {
-        y.no_worse
-            .cmp(&x.no_worse)
-            .then(x.objective.total_cmp(&y.objective))
+        objective::better_first(x.rank(), y.rank())
             .then(
                 b.candidate
                     .bandwidth_rad_s

@@ -265,6 +265,15 @@ impl Reference {
     }
 }
 
+/// The order designs are ranked in, the better first: the higher `class` (how far a design
+/// qualifies: no worse than the default drive above worse than it, on the machine also
+/// within the budgets above out of them), then the lower J. `tune`'s ranking, the choice
+/// between the two kinds and `commission`'s ranking on the machine all use it.
+#[must_use]
+pub fn better_first(a: (u8, f64), b: (u8, f64)) -> std::cmp::Ordering {
+    b.0.cmp(&a.0).then(a.1.total_cmp(&b.1))
+}
+
 /// One candidate run on `fig6` and scored.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Score {
@@ -291,6 +300,12 @@ impl Score {
         }
     }
 
+    /// Its key for [`better_first`]: no worse than the default drive, then J.
+    #[must_use]
+    pub fn rank(&self) -> (u8, f64) {
+        (u8::from(self.no_worse), self.objective)
+    }
+
     /// Runs `c` on `fig6` and scores it.
     pub fn run(fig6: &RunConfig, r: &Reference, c: &Candidate) -> Result<Self> {
         let mut cfg = fig6.clone();
@@ -303,6 +318,18 @@ impl Score {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
+
+    #[test]
+    fn the_higher_class_ranks_first_then_the_lower_objective() {
+        use std::cmp::Ordering::{Equal, Greater, Less};
+        assert_eq!(better_first((2, 5.0), (1, 1.0)), Less);
+        assert_eq!(better_first((0, 1.0), (1, 5.0)), Greater);
+        assert_eq!(better_first((1, 2.0), (1, 3.0)), Less);
+        assert_eq!(better_first((1, 3.0), (1, 2.0)), Greater);
+        assert_eq!(better_first((1, 2.0), (1, 2.0)), Equal);
+        // A run with no figure (J = +inf) ranks after every finite one of its class.
+        assert_eq!(better_first((1, f64::INFINITY), (1, 9.0)), Greater);
+    }
 
     fn figures(droop: Option<f64>, shaft: f64, rec: Option<f64>, noise: f64) -> Figures {
         Figures {

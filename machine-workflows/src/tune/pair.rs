@@ -119,11 +119,7 @@ impl Pair {
     #[must_use]
     pub fn afb_chosen_on_model(&self) -> bool {
         let (w, wo) = (&self.with.result.score, &self.without.result.score);
-        match (w.no_worse, wo.no_worse) {
-            (true, false) => true,
-            (false, true) => false,
-            _ => w.objective < wo.objective,
-        }
+        super::objective::better_first(w.rank(), wo.rank()).is_lt()
     }
 
     /// The chosen design and the runner-up (the best of the other kind).

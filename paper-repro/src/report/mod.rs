@@ -10,6 +10,7 @@
 //! [`figures`] draws the comparison plots; [`pil`] the processor-in-the-loop section.
 
 pub mod claims;
+pub mod count_interval;
 pub mod facts;
 pub mod fig6;
 pub mod figures;
@@ -177,6 +178,7 @@ fn sections(r: &Results, elapsed_s: f64) -> Result<Vec<Section>> {
         )?,
         load::shock_30(runs)?,
         saturation::section(runs)?,
+        count_interval::section()?,
         sweep::section(&r.sweep_points, &r.sweep)?,
         tune::section(&r.tunes, &Constraints::default())?,
         stiffness::section(&r.stiffness)?,

@@ -71,6 +71,9 @@ pub fn field<'a>(cfg: &'a mut DriveConfig, r: &Range) -> Option<Field<'a>> {
         _ if key == k::AFB_FILTER_CORNER_HZ.key => corner(&mut cfg.accel_feedback.filter),
         _ if key == k::AFB_FILTER_Q.key => q(&mut cfg.accel_feedback.filter),
         _ if key == k::OBSERVER_BANDWIDTH_HZ.key => real(&mut cfg.observer.bandwidth_hz),
+        _ if key == k::OBSERVER_COUNT_INTERVAL_COUNTS.key => {
+            real(&mut cfg.observer.count_interval_counts)
+        }
         _ if key == k::OVERSPEED_PU.key => real(&mut f.overspeed_pu),
         _ if key == k::FOLLOWING_ERROR_COUNTS.key => real(&mut f.following_error_counts),
         _ if key == k::ENCODER_JUMP_MARGIN.key => real(&mut f.encoder_jump_margin),
