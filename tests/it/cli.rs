@@ -301,3 +301,32 @@ fn the_summarys_peak_droop_and_peak_shaft_torque_are_the_traces() {
         field("peak_shaft_torque_pu")
     );
 }
+
+/// `tune` and `commission` need no bandwidth flag: without `--target-bandwidth` they search
+/// every bandwidth of the grid; a bandwidth and `--max-bandwidth` together are refused.
+#[test]
+fn the_bandwidth_is_searched_unless_a_target_is_given() {
+    use clap::Parser;
+    use hil_harness::cli::{Cli, Command};
+    for cmd in ["tune", "commission"] {
+        let cli =
+            Cli::try_parse_from(["stiffdrive", cmd, "--config", "table1", "--out", "d"]).unwrap();
+        let design = match cli.command {
+            Command::Tune { design, .. } | Command::Commission { design, .. } => design,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(design.target_bandwidth, None);
+        let both = [
+            "stiffdrive",
+            cmd,
+            "--config",
+            "table1",
+            "--target-bandwidth",
+            "60",
+            "--max-bandwidth",
+            "--out",
+            "d",
+        ];
+        assert!(Cli::try_parse_from(both).is_err());
+    }
+}
