@@ -355,3 +355,32 @@ fn board_refuses_bad_actions_and_a_foreign_out_before_starting_the_board() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("/nonexistent/tty"), "{}", stderr(&o));
 }
+
+/// `tune` and `commission` need no bandwidth flag: without `--target-bandwidth` they search
+/// every bandwidth of the grid; a bandwidth and `--max-bandwidth` together are refused.
+#[test]
+fn the_bandwidth_is_searched_unless_a_target_is_given() {
+    use clap::Parser;
+    use hil_harness::cli::{Cli, Command};
+    for cmd in ["tune", "commission"] {
+        let cli =
+            Cli::try_parse_from(["stiffdrive", cmd, "--config", "table1", "--out", "d"]).unwrap();
+        let design = match cli.command {
+            Command::Tune { design, .. } | Command::Commission { design, .. } => design,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(design.target_bandwidth, None);
+        let both = [
+            "stiffdrive",
+            cmd,
+            "--config",
+            "table1",
+            "--target-bandwidth",
+            "60",
+            "--max-bandwidth",
+            "--out",
+            "d",
+        ];
+        assert!(Cli::try_parse_from(both).is_err());
+    }
+}
