@@ -367,3 +367,60 @@ fn every_key_of_the_range_table_reaches_its_setting() {
         Err(keys::KeyError::NotPresent(r)) if r.key == "notch.centre_hz"
     ));
 }
+
+/// `Reset` is answered first and only then asked of the firmware: the session says so
+/// after the reply, never before.
+#[test]
+fn reset_is_requested_only_once_it_was_answered() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    assert!(!s.reset_requested());
+    ask(&mut s, &mut d, &Request::Status).unwrap();
+    assert!(!s.reset_requested());
+    ask(&mut s, &mut d, &Request::Reset).unwrap();
+    assert!(s.reset_requested());
+}
+
+/// A well-formed board request in a frame of another kind (here the board's own reply
+/// kind, and a PIL `Config`) is not for the console: no reply, no setting changed.
+#[test]
+fn a_request_in_a_frame_of_another_kind_is_not_served() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let before = *s.settings();
+    let mut w = Writer::new();
+    Request::Set(KEY, 50.0).encode(&mut w).unwrap();
+    for kind in [FrameKind::BoardReply, FrameKind::Config] {
+        let frame = Frame::new(kind, 3, w.as_slice()).unwrap();
+        let mut buf = [0_u8; MAX_FRAME];
+        let n = frame.encode(&mut buf).unwrap();
+        assert!(feed(&mut s, &mut d, &buf[..n]).is_empty(), "{kind:?}");
+    }
+    assert_eq!(*s.settings(), before);
+    assert!(d.applied.is_none());
+    assert_eq!(s.link_errors(), 0);
+}
+
+/// The settings CRC is the CRC-32 of the settings encoding, and tells two drives apart.
+#[test]
+fn the_settings_crc_is_that_of_the_encoding() {
+    use pil_link::board::session::settings_crc;
+    let cfg = table1();
+    let mut w = Writer::new();
+    pil_link::settings::encode(&cfg, &mut w).unwrap();
+    assert_eq!(settings_crc(&cfg), pil_link::crc32(w.as_slice()));
+    let mut other = cfg;
+    other.velocity_bandwidth_rad_s = 50.0;
+    assert_ne!(settings_crc(&other), settings_crc(&cfg));
+}
+
+/// Fault names: the link's own, controller-core's, none, and a code nobody defines.
+#[test]
+fn fault_names_cover_the_link_the_drive_none_and_unknown_codes() {
+    use controller_core::Fault;
+    use controller_core::words::fault_code;
+    use pil_link::board::session::fault_name;
+    assert_eq!(fault_name(LINK_FAULT_CODE), "console link");
+    assert_eq!(fault_name(fault_code(Some(Fault::Overspeed))), "overspeed");
+    assert_eq!(fault_name(fault_code(Some(Fault::Stall))), "stall");
+    assert_eq!(fault_name(fault_code(None)), "none");
+    assert_eq!(fault_name(0xF0), "unknown");
+}
