@@ -23,6 +23,11 @@ pub struct BoardArgs {
     /// (`cargo build -p firmware --release --target thumbv7em-none-eabihf --bin board`).
     #[arg(long, requires = "qemu")]
     pub elf: Option<PathBuf>,
+    /// With `--qemu`: the machine file (path, or name under configs/) whose `[drive]` the
+    /// built image carries, e.g. a `drive.toml` from `tune` or `commission`; default
+    /// Table 1's.
+    #[arg(long, conflicts_with_all = ["elf", "port"])]
+    pub config: Option<String>,
     /// With `--qemu`: the QEMU binary.
     #[arg(long, default_value = "qemu-system-arm")]
     pub qemu_bin: PathBuf,
@@ -55,6 +60,11 @@ impl BoardArgs {
             },
             None => BoardTarget::Qemu {
                 elf: self.elf.clone(),
+                drive: self
+                    .config
+                    .as_deref()
+                    .map(machine_workflows::flash::drive_file)
+                    .transpose()?,
                 qemu: self.qemu_bin.clone(),
             },
         };

@@ -28,13 +28,7 @@ fn probe_command(elf: &Path) -> String {
 /// `flash`: build the board image for `config` (a path or a name under `configs/`) and, unless
 /// `build_only`, run it on the board through probe-rs.
 pub fn flash(config: &str, build_only: bool) -> Result<String> {
-    let path = config_path(config)?;
-    let path = path
-        .canonicalize()
-        .map_err(|e| HarnessError::io(&path, e))?;
-    let machine = machine_file::load(&path)?;
-    controller_core::design(&machine.drive)
-        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
+    let path = drive_file(config)?;
     let elf = build_board_image(&path)?;
     let run = probe_command(&elf);
     if build_only {
@@ -61,4 +55,21 @@ pub fn flash(config: &str, build_only: bool) -> Result<String> {
             program.display()
         ))),
     }
+}
+
+/// The machine file `config` (path, or name under configs/) as an absolute path, checked to
+/// give a drive (`controller_core::design`) before any image is built: what `flash` and
+/// `board --qemu --config` bake.
+///
+/// # Errors
+/// A missing file, a bad machine file, or a drive `design` refuses (naming the key).
+pub fn drive_file(config: &str) -> Result<PathBuf> {
+    let path = config_path(config)?;
+    let path = path
+        .canonicalize()
+        .map_err(|e| HarnessError::io(&path, e))?;
+    let machine = machine_file::load(&path)?;
+    controller_core::design(&machine.drive)
+        .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
+    Ok(path)
 }

@@ -4,7 +4,7 @@
 //! that fails or is refused ends the command with an error that names the key.
 
 use crate::board_scope::{scope, Scope};
-use crate::image::build_board_console_image;
+use crate::image::build_board_console_image_for;
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
 use pil_link::board::client::{BoardClient, BoardError};
@@ -47,6 +47,9 @@ pub enum BoardTarget {
     Qemu {
         /// Image to run instead of building it.
         elf: Option<PathBuf>,
+        /// The machine file (absolute path) whose drive the built image carries; `None`:
+        /// Table 1's.
+        drive: Option<PathBuf>,
         /// The QEMU binary.
         qemu: PathBuf,
     },
@@ -143,11 +146,11 @@ pub fn board_command(
             let stream = open_serial(path, *baud).map_err(|e| HarnessError::io(path, e))?;
             run_actions(&mut BoardClient::new(stream, reply_timeout), actions)
         }
-        BoardTarget::Qemu { elf, qemu } => {
+        BoardTarget::Qemu { elf, drive, qemu } => {
             provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
             let elf = match elf {
                 Some(e) => e.clone(),
-                None => build_board_console_image()?,
+                None => build_board_console_image_for(drive.as_deref())?,
             };
             let log =
                 std::env::temp_dir().join(format!("stiffdrive-board-{}.defmt", std::process::id()));

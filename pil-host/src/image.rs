@@ -106,8 +106,19 @@ pub fn build_pil_image_with(features: &[&str]) -> Result<PathBuf> {
 /// Builds the firmware's `board` image (the board console in QEMU) and returns the ELF
 /// path, `images/board`.
 pub fn build_board_console_image() -> Result<PathBuf> {
-    build_locked(&["--bin", "board"], None, |release| {
-        copy_out(release, "board", "board")
+    build_board_console_image_for(None)
+}
+
+/// Builds the `board` image carrying the drive of the machine file `drive` (an absolute
+/// path; `None`: Table 1's) and returns the ELF path, `images/board` or
+/// `images/board-<file stem>`.
+pub fn build_board_console_image_for(drive: Option<&Path>) -> Result<PathBuf> {
+    let name = drive.and_then(Path::file_stem).map_or_else(
+        || "board".to_string(),
+        |s| format!("board-{}", s.to_string_lossy()),
+    );
+    build_locked(&["--bin", "board"], drive, |release| {
+        copy_out(release, "board", &name)
     })
 }
 

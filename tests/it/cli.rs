@@ -384,3 +384,14 @@ fn the_bandwidth_is_searched_unless_a_target_is_given() {
         assert!(Cli::try_parse_from(both).is_err());
     }
 }
+
+/// `board --config` picks the drive the QEMU image carries: it goes with `--qemu` only.
+#[test]
+fn board_config_goes_with_qemu_only() {
+    use clap::Parser;
+    use hil_harness::cli::Cli;
+    let parse = |args: &[&str]| Cli::try_parse_from([&["stiffdrive", "board"], args].concat());
+    assert!(parse(&["--qemu", "--config", "table1", "status"]).is_ok());
+    assert!(parse(&["--port", "/dev/ttyACM0", "--config", "table1", "status"]).is_err());
+    assert!(parse(&["--qemu", "--elf", "x", "--config", "table1", "status"]).is_err());
+}
