@@ -17,6 +17,11 @@
 //!    (`firmware::drive::baked`). The file's path and a checksum of the settings go into
 //!    `$OUT_DIR/drive_name.txt`, which the image logs at boot. No field of the drive is
 //!    spelled out here.
+//! 4. The machine behind the QEMU `board` image's virtual motor: the same file's `[plant]`
+//!    as plant-host derives its constants (`MechanicsConfig::derived`: K, D, g, ω_b), with
+//!    the motor inertia and the two viscous frictions, into `$OUT_DIR/virtual_machine.rs`
+//!    (`firmware::drive::coupling`). Always the dead zone; the file's sensors' noise and
+//!    the computational delay are not modelled there.
 use std::{env, fs, path::PathBuf};
 
 use controller_core::DriveConfig;
@@ -84,6 +89,31 @@ fn main() {
     println!("cargo:rustc-link-arg=-Tboard-check.x");
 }
 
+/// The `[plant]` of the machine file as the virtual motor's coupling: a Rust expression
+/// `(motor inertia, Coupling { .. })` for `include!`.
+fn write_coupling(plant: &plant_host::PlantConfig, out: &std::path::Path) -> Result<(), String> {
+    let m = &plant.mechanics;
+    let d = m.derived();
+    let fields = [
+        ("load_inertia_s", m.load_inertia_s),
+        ("stiffness_pu_per_rad", d.stiffness_pu_per_rad),
+        ("damping_pu", d.damping_pu),
+        ("half_gap_rad", d.half_gap_rad),
+        ("base_speed_rad_s", d.base_speed_rad_s),
+        ("motor_viscous_pu", m.motor_viscous_pu),
+        ("load_viscous_pu", m.load_viscous_pu),
+    ];
+    let mut text = format!(
+        "({:?}_f32, crate::virtual_motor::Coupling {{\n",
+        m.motor_inertia_s as f32
+    );
+    for (name, v) in fields {
+        text.push_str(&format!("    {name}: {:?}_f32,\n", v as f32));
+    }
+    text.push_str("})\n");
+    fs::write(out.join("virtual_machine.rs"), text).map_err(|e| e.to_string())
+}
+
 /// Compose, validate and encode the drive of `toml_path` into `drive_settings.bin`, and its
 /// name (path below `root`, settings checksum) into `drive_name.txt`; the drive as the image
 /// will decode it.
@@ -92,9 +122,9 @@ fn bake_drive(
     root: &std::path::Path,
     out: &std::path::Path,
 ) -> Result<DriveConfig, String> {
-    let cfg = machine_file::load(toml_path)
-        .map_err(|e| e.to_string())?
-        .drive;
+    let machine = machine_file::load(toml_path).map_err(|e| e.to_string())?;
+    write_coupling(&machine.plant, out)?;
+    let cfg = machine.drive;
     controller_core::design(&cfg).map_err(|e| format!("drive.{}: {e}", e.param()))?;
     let mut w = pil_link::wire::Writer::new();
     pil_link::settings::encode(&cfg, &mut w).map_err(|e| format!("encode: {e:?}"))?;

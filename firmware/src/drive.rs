@@ -22,3 +22,10 @@ pub static NAME: &str = include_str!(concat!(env!("OUT_DIR"), "/drive_name.txt")
 pub fn baked() -> Result<DriveConfig, LinkError> {
     pil_link::settings::decode(BAKED)
 }
+
+/// The machine behind the `board` image's virtual motor: the baked machine file's motor
+/// inertia \[s\] and its load behind the shaft (`build.rs`, from the file's `[plant]`).
+#[must_use]
+pub fn coupling() -> (f32, crate::virtual_motor::Coupling) {
+    include!(concat!(env!("OUT_DIR"), "/virtual_machine.rs"))
+}

@@ -10,6 +10,8 @@
 //!   interrupts; the handler bodies).
 //! * [`trace`]: the trend buffer (fixed-size capture of chosen signals, dumped on request).
 //! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU).
+//! * [`identify`]: the board console's measurement record (`Identify`), written per current
+//!   tick, streamed from thread mode.
 //! * [`drive`]: the drive settings baked at build time (`STIFFDRIVE_DRIVE`, else `configs/machines/table1.toml`).
 //! * [`lil`]: the loop-in-the-loop record format and its reference run.
 //! * [`ring`]: the UART receive ring of the link images; [`console`]: the board console's
@@ -24,6 +26,7 @@ pub mod app;
 pub mod board;
 pub mod console;
 pub mod drive;
+pub mod identify;
 pub mod isr;
 pub mod lil;
 pub mod ring;

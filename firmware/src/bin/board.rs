@@ -12,24 +12,33 @@
 //! Thread mode serves the console (`BoardSession`), records each fault latch in the fault
 //! history, and while the scope runs sends the samples the current-loop interrupt tapped
 //! from the trend buffer (`console::ScopeTap`), eight to a frame.
+//!
+//! The motor is the virtual one with the baked machine file's load behind a shaft with lost
+//! motion (`firmware::drive::coupling`). `Identify` (`pil_link::board::identify`) runs a
+//! measurement as its own enable: the current-loop interrupt sets the rig's load torque on
+//! the virtual machine, runs the tick and records it (`firmware::identify::Recorder`);
+//! thread mode streams the record and, after its last tick, puts the running settings back.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(all(target_os = "none", feature = "board-qemu"))]
 mod target {
     use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
-    use controller_core::{ConfigError, DriveConfig, Setpoint};
+    use controller_core::{ConfigError, CurrentOutputs, DriveConfig, Pu, Setpoint};
     use cortex_m_rt::entry;
     use firmware::app::{fault_code, App, AppError, DEFAULT_TRACE};
-    use firmware::board::EncoderCounter;
+    use firmware::board::{CurrentLoopIo, EncoderCounter};
     use firmware::boards::qemu::{self as board, PeriodicTimer, Uart0};
     use firmware::console::{channel_names, ticks_to_ms, FaultTracker, ScopeTap};
+    use firmware::identify::{Recorder, RECORD_CAPACITY};
     use firmware::isr::{Loops, Shared};
     use firmware::ring::ByteRing;
     use firmware::rt::exit;
     use firmware::trace::TraceState;
+    use firmware::virtual_motor::VirtualMotor;
     use heapless::Deque;
     use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
+    use pil_link::board::identify::{IdentifyError, IdentifyRun, CHANNELS, EXCITATION_NAMES};
     use pil_link::board::message::Origin;
     use pil_link::board::scope::{ScopeChunk, ScopeInfo, ScopeSample, CHUNK_SAMPLES};
     use pil_link::board::session::{settings_crc, BoardSession, Drive};
@@ -45,9 +54,22 @@ mod target {
     /// Scope samples from the current-loop interrupt to thread mode (a full queue drops
     /// the sample, which the stream's counter then shows as a gap).
     static SCOPE: Shared<(ScopeTap, Deque<(u32, ScopeSample), 256>)> = Shared::new();
+    /// The record of an `Identify` run.
+    static RECORD: Recorder<RECORD_CAPACITY> = Recorder::new();
 
     fn current_loop() {
-        let _ = LOOPS.current_isr();
+        // During a measurement: the rig's load torque for this tick, and the inputs the
+        // tick reads (the virtual sensors, read again: nothing changes them in between).
+        let inputs = RECORD.load_now().and_then(|load| {
+            LOOPS.with_current_io(|io| {
+                io.pwm.motor_mut().set_load_torque_pu(load);
+                (io.encoder_count(), io.current_pu())
+            })
+        });
+        let out = LOOPS.current_isr();
+        if let (Some((counts, current)), Some(out)) = (inputs, out) {
+            record_tick(counts, current, &out);
+        }
         BOOT_TICKS.fetch_add(1, Ordering::Relaxed);
         if SCOPE_ON.load(Ordering::Relaxed) {
             let newest = LOOPS.with_app(|app| app.trace().newest()).flatten();
@@ -58,6 +80,20 @@ mod target {
                     }
                 })
             });
+        }
+    }
+
+    /// One tick of a measurement into the record; after its last, the drive off.
+    fn record_tick(counts: u32, current: Option<Pu>, out: &CurrentOutputs) {
+        let excitation = LOOPS.with_app(|app| app.excitation_pu().to_bits());
+        let values = [
+            excitation.unwrap_or(0),
+            current.map_or(0, |i| i.to_bits()),
+            out.current_ref_pu.to_bits(),
+            counts as i32,
+        ];
+        if RECORD.record(values) {
+            LOOPS.with_app(|app| app.set_enable_request(false));
         }
     }
 
@@ -82,6 +118,10 @@ mod target {
         history: FaultHistory,
         tracker: FaultTracker,
         channels: heapless::String<128>,
+        /// During a measurement: the running settings to put back after it.
+        restore: Option<DriveConfig>,
+        /// Samples of the record sent.
+        record_sent: u32,
     }
 
     impl BoardDrive {
@@ -103,6 +143,34 @@ mod target {
                     app.trace_mut().rearm();
                 }
             });
+            if self.restore.is_some() && !RECORD.active() {
+                self.end_run();
+            }
+        }
+
+        /// After a measurement (or to end it): the running settings' app back, disabled;
+        /// the rig's load torque off.
+        fn end_run(&mut self) {
+            RECORD.abort();
+            if let Some(cfg) = self.restore.take() {
+                if let Ok(app) = App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+                    LOOPS.with_app(|slot| *slot = app);
+                }
+                LOOPS.with_current_io(|io| io.pwm.motor_mut().set_load_torque_pu(0.0));
+            }
+            self.enabled = false;
+            defmt::info!("console: measurement over, running settings back");
+        }
+
+        /// Sends the record's samples written so far, up to eight frames a pass.
+        fn send_record(&mut self, seq: &mut u16) {
+            for _ in 0..8 {
+                let Some(chunk) = RECORD.chunk(self.record_sent) else {
+                    return;
+                };
+                self.record_sent = self.record_sent.wrapping_add(u32::from(chunk.len));
+                send_chunk(&chunk, seq);
+            }
         }
     }
 
@@ -146,6 +214,10 @@ mod target {
         }
 
         fn set_enabled(&mut self, on: bool) {
+            if !on && self.restore.is_some() {
+                self.end_run();
+                return;
+            }
             LOOPS.with_app(|app| app.set_enable_request(on));
             self.enabled = on;
             defmt::info!(
@@ -175,6 +247,37 @@ mod target {
                 rate_hz: self.rates_hz.0 / u32::from(DEFAULT_TRACE.decimation.max(1)),
                 channels: self.channels.as_str(),
             }
+        }
+
+        fn identify(
+            &mut self,
+            cfg: &DriveConfig,
+            running: &DriveConfig,
+            run: &IdentifyRun,
+        ) -> Result<ScopeInfo<'_>, IdentifyError> {
+            let refused = |e| IdentifyError::Config(app_error(e));
+            let mut app =
+                App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE).map_err(refused)?;
+            if let Some(e) = run.excitation() {
+                app = app.with_excitation(&e, EXCITATION_NAMES).map_err(refused)?;
+            }
+            app.set_enable_request(true);
+            // One critical section: the run's first tick is the next one, on a machine at
+            // rest (the rig's brake released), the excitation at its first sample.
+            critical_section::with(|_| {
+                RECORD.start(run)?;
+                LOOPS.with_current_io(|io| io.pwm.motor_mut().stop());
+                LOOPS.with_app(|slot| *slot = app);
+                Ok::<(), IdentifyError>(())
+            })?;
+            self.restore = Some(*running);
+            self.record_sent = 0;
+            self.enabled = true;
+            defmt::info!("console: measurement of {=u32} ticks", run.ticks);
+            Ok(ScopeInfo {
+                rate_hz: self.rates_hz.0,
+                channels: CHANNELS,
+            })
         }
 
         fn enter_safe_state(&mut self) {
@@ -294,7 +397,11 @@ mod target {
                 }
             }
         };
-        let b = board::init(&mut core, &cfg);
+        let mut b = board::init(&mut core, &cfg);
+        let (motor_inertia_s, coupling) = firmware::drive::coupling();
+        *b.current_io.pwm.motor_mut() = VirtualMotor::new(
+            board::virtual_motor_config(&cfg).with_coupling(motor_inertia_s, coupling),
+        );
         LOOPS.install(app, b.current_io, b.velocity_io, Setpoint::default());
         let mut drive = BoardDrive {
             enabled: false,
@@ -302,6 +409,8 @@ mod target {
             history: FaultHistory::new(),
             tracker: FaultTracker::new(),
             channels: channel_names(&DEFAULT_TRACE),
+            restore: None,
+            record_sent: 0,
         };
         let mut session =
             BoardSession::new(cfg, origin, firmware::version(), firmware::drive::NAME);
@@ -326,6 +435,7 @@ mod target {
             if SCOPE_ON.load(Ordering::Relaxed) {
                 send_scope(&mut scope_seq);
             }
+            drive.send_record(&mut scope_seq);
             cortex_m::interrupt::free(|_| {
                 if RX.is_empty() {
                     cortex_m::asm::wfi();

@@ -297,6 +297,14 @@ pub struct VirtualPwm {
     motor: VirtualMotor,
 }
 
+impl VirtualPwm {
+    /// The virtual machine behind the bridge (thread mode, under the loops' critical
+    /// section): another machine, the rig's load torque, the rig's brake.
+    pub fn motor_mut(&mut self) -> &mut VirtualMotor {
+        &mut self.motor
+    }
+}
+
 impl embedded_hal::pwm::ErrorType for VirtualPwm {
     type Error = Infallible;
 }

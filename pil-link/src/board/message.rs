@@ -14,10 +14,12 @@
 //! | `Disable`     |                          |                                             |
 //! | `ScopeStart`  |                          | [`ScopeInfo`]; then `ScopeData` frames      |
 //! | `ScopeStop`   |                          |                                             |
+//! | `Identify`    | [`IdentifyRun`]          | [`ScopeInfo`]; then the record in `ScopeData` frames |
 //!
 //! A `ScopeData` frame is a [`ScopeChunk`]. Values travel as raw bits (`f64::to_bits`).
 
 use super::BOARD_VERSION;
+use super::identify::IdentifyRun;
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 
@@ -45,6 +47,8 @@ pub enum Op {
     ScopeStart = 9,
     /// Stop streaming scope samples.
     ScopeStop = 10,
+    /// Run a measurement and stream its record ([`super::identify`]).
+    Identify = 11,
 }
 
 impl Op {
@@ -62,6 +66,7 @@ impl Op {
             8 => Self::Disable,
             9 => Self::ScopeStart,
             10 => Self::ScopeStop,
+            11 => Self::Identify,
             _ => return None,
         })
     }
@@ -90,6 +95,8 @@ pub enum Request<'a> {
     ScopeStart,
     /// See [`Op::ScopeStop`].
     ScopeStop,
+    /// See [`Op::Identify`].
+    Identify(IdentifyRun),
 }
 
 /// Why a request was refused (the reply's status byte).
@@ -147,6 +154,7 @@ impl<'a> Request<'a> {
             Self::Disable => Op::Disable,
             Self::ScopeStart => Op::ScopeStart,
             Self::ScopeStop => Op::ScopeStop,
+            Self::Identify(_) => Op::Identify,
         }
     }
 
@@ -164,6 +172,7 @@ impl<'a> Request<'a> {
                 w.bytes(&value.to_bits().to_le_bytes())?
                     .bytes(key.as_bytes())?;
             }
+            Self::Identify(run) => run.encode(w)?,
             _ => {}
         }
         Ok(())
@@ -201,6 +210,7 @@ impl<'a> Request<'a> {
             Op::Disable => Self::Disable,
             Op::ScopeStart => Self::ScopeStart,
             Op::ScopeStop => Self::ScopeStop,
+            Op::Identify => Self::Identify(IdentifyRun::decode(&mut r).map_err(|_| bad)?),
         };
         r.finish().map_err(|_| bad)?;
         Ok(request)

@@ -6,12 +6,14 @@
 //! * [`keys`]: the settings by their machine-file key (`drive.velocity_bandwidth_rad_s`),
 //!   with controller-core's ranges;
 //! * [`message`]: requests and replies; [`scope`]: the scope stream; [`faults`]: the fault
-//!   history; [`store`]: the saved-settings record;
+//!   history; [`store`]: the saved-settings record; [`identify`]: a measurement run on the
+//!   board, streamed as the scope is;
 //! * [`session`]: the firmware side, host-testable; with `std`, [`client`]: the host side.
 
 #[cfg(feature = "std")]
 pub mod client;
 pub mod faults;
+pub mod identify;
 pub mod keys;
 pub mod message;
 pub mod scope;

@@ -13,6 +13,7 @@
 //! is no longer trusted. A corrupt frame never changes a setting, enabled or not.
 
 use super::faults::FaultHistory;
+use super::identify::{IdentifyError, IdentifyRun};
 use super::keys::{self, KeyError};
 use super::message::{Origin, Refusal, Request, StatusReport, put_f64, reply_head};
 use super::scope::ScopeInfo;
@@ -44,6 +45,23 @@ pub trait Drive {
     fn scope(&mut self, on: bool) -> ScopeInfo<'_>;
     /// Power stage off after a link fault, recorded in the fault history.
     fn enter_safe_state(&mut self);
+    /// Starts the measurement `run` on the settings `cfg` (the running settings changed
+    /// as [`IdentifyRun::drive_config`] says, `design` passed; only called while disabled
+    /// and without a latched fault), the power stage on for its ticks; back to `running`
+    /// after them. Returns the record's rate and channels.
+    ///
+    /// # Errors
+    /// What the board cannot run (too long, no measurements on this board, the
+    /// excitation refused).
+    fn identify(
+        &mut self,
+        cfg: &DriveConfig,
+        running: &DriveConfig,
+        run: &IdentifyRun,
+    ) -> Result<ScopeInfo<'_>, IdentifyError> {
+        let _ = (cfg, running, run);
+        Err(IdentifyError::Unsupported)
+    }
 }
 
 /// The firmware's console session.
@@ -86,6 +104,10 @@ pub enum ConsoleError<'a> {
     Faulted(u8),
     /// The settings sector failed.
     Storage,
+    /// `Identify` while the drive is enabled.
+    RunWhileEnabled,
+    /// `Identify` refused by the settings or the board.
+    Identify(IdentifyError),
 }
 
 impl ConsoleError<'_> {
@@ -101,6 +123,8 @@ impl ConsoleError<'_> {
             Self::OutOfRange(_) | Self::Invalid { .. } => Refusal::Invalid,
             Self::Faulted(_) => Refusal::Faulted,
             Self::Storage => Refusal::Storage,
+            Self::RunWhileEnabled => Refusal::Enabled,
+            Self::Identify(_) => Refusal::Invalid,
         }
     }
 }
@@ -134,6 +158,12 @@ impl core::fmt::Display for ConsoleError<'_> {
                 fault_name(code)
             ),
             Self::Storage => write!(f, "the settings sector did not read back what was written"),
+            Self::RunWhileEnabled => write!(
+                f,
+                "identify: refused while the drive is enabled (disable it first; the \
+                 measurement is its own enable)"
+            ),
+            Self::Identify(e) => write!(f, "{e}"),
         }
     }
 }
@@ -264,6 +294,23 @@ impl BoardSession {
             Request::ScopeStop => {
                 drive.scope(false);
                 Ok(())
+            }
+            Request::Identify(run) => {
+                if drive.enabled() {
+                    return Err(ConsoleError::RunWhileEnabled);
+                }
+                match drive.fault_code() {
+                    0 => {}
+                    code => return Err(ConsoleError::Faulted(code)),
+                }
+                let cfg = run
+                    .drive_config(&self.cfg)
+                    .map_err(ConsoleError::Identify)?;
+                drive
+                    .identify(&cfg, &self.cfg, &run)
+                    .map_err(ConsoleError::Identify)?
+                    .encode(out)
+                    .map_err(full)
             }
         }
     }
