@@ -1,5 +1,5 @@
 //! `stiffdrive board` arguments: where the board is (`--qemu` or `--port PATH`) and the
-//! actions, run in order in one session (`pil_host::board`).
+//! actions, run in order in one session (`pil_host::board`); `identify --board`'s.
 
 use pil_host::board::{board_command, parse_actions, BoardTarget};
 use sim_engine::Result;
@@ -73,5 +73,48 @@ impl BoardArgs {
             &actions,
             Duration::from_millis(self.reply_timeout_ms),
         )
+    }
+}
+
+/// `identify --board --qemu | --port PATH` arguments.
+#[derive(Clone, Debug, clap::Args)]
+pub struct IdentifyBoardArgs {
+    /// Measure on the board: the `board` image in QEMU (`--qemu`, built with the machine
+    /// file) or a board's serial device (`--port PATH`).
+    #[arg(long, requires = "board_where")]
+    pub board: bool,
+    /// With `--board`: the `board` image in QEMU.
+    #[arg(long, requires = "board", group = "board_where")]
+    pub qemu: bool,
+    /// With `--board`: a board's serial device, e.g. /dev/ttyACM0.
+    #[arg(long, value_name = "PATH", requires = "board", group = "board_where")]
+    pub port: Option<PathBuf>,
+    /// Baud rate of `--port`.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// With `--qemu`: the QEMU binary.
+    #[arg(long, default_value = "qemu-system-arm")]
+    pub qemu_bin: PathBuf,
+}
+
+impl IdentifyBoardArgs {
+    /// The board to measure on; `None` without `--board`.
+    #[must_use]
+    pub fn target(&self) -> Option<BoardTarget> {
+        if !self.board {
+            return None;
+        }
+        Some(match &self.port {
+            Some(path) => BoardTarget::Port {
+                path: path.clone(),
+                baud: self.baud,
+            },
+            // `identify_board` sets the drive to its machine file.
+            None => BoardTarget::Qemu {
+                elf: None,
+                drive: None,
+                qemu: self.qemu_bin.clone(),
+            },
+        })
     }
 }

@@ -41,12 +41,18 @@ pub enum Command {
     },
     /// Measure the machine in the closed loop (PRBS on the torque reference, H1 with Welch
     /// averaging, lost-motion reversal test) and fit its two-inertia model; writes
-    /// DIR/plant.toml, DIR/identify.json, DIR/identify.md and DIR/bode.png|svg.
+    /// DIR/plant.toml, DIR/identify.json, DIR/identify.md and DIR/bode.png|svg. With
+    /// `--board --qemu | --port PATH` the board runs the measurements in its own loops.
     Identify {
         /// Configuration (path, or name under configs/); its optional `[identify]` table
-        /// holds the measurement settings.
-        #[arg(long)]
-        config: String,
+        /// holds the measurement settings. With `--board` it is the board's machine file
+        /// (default configs/machines/table1.toml, the image's baked one).
+        #[arg(long, required_unless_present = "board")]
+        config: Option<String>,
+        /// Measure on the board (`--qemu` or `--port PATH`) instead of the simulated
+        /// machine.
+        #[command(flatten)]
+        board: crate::board::IdentifyBoardArgs,
         /// Override `section.key=value` (repeatable), e.g. identify.amplitude_pu=0.2.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,

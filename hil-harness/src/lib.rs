@@ -60,7 +60,18 @@ pub fn dispatch(command: cli::Command) -> Result<String> {
             &design.constraints(),
             &out,
         ),
-        Command::Identify { config, set, out } => identify::identify(&config, &set, &out),
+        Command::Identify {
+            config,
+            board,
+            set,
+            out,
+        } => {
+            let config = config.unwrap_or_else(|| "configs/machines/table1.toml".into());
+            match board.target() {
+                Some(target) => identify::board::identify_board(&config, &set, &out, &target),
+                None => identify::identify(&config, &set, &out),
+            }
+        }
         Command::Commission {
             config,
             set,

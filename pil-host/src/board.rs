@@ -141,10 +141,24 @@ pub fn board_command(
             sim_engine::output::check_dir_target(&s.out)?;
         }
     }
+    with_board(target, reply_timeout, |client| run_actions(client, actions))
+}
+
+/// Opens a console session with the board at `target` (for `--qemu`: builds the image if
+/// need be and starts QEMU) and runs `f` on it; QEMU ends with it, and its log is printed
+/// when `f` fails (or with `STIFFDRIVE_BOARD_LOG` set).
+///
+/// # Errors
+/// QEMU not there or not starting, the port not opening, and `f`'s.
+pub fn with_board<T>(
+    target: &BoardTarget,
+    reply_timeout: Duration,
+    f: impl FnOnce(&mut BoardClient<Stream>) -> Result<T>,
+) -> Result<T> {
     match target {
         BoardTarget::Port { path, baud } => {
             let stream = open_serial(path, *baud).map_err(|e| HarnessError::io(path, e))?;
-            run_actions(&mut BoardClient::new(stream, reply_timeout), actions)
+            f(&mut BoardClient::new(stream, reply_timeout))
         }
         BoardTarget::Qemu { elf, drive, qemu } => {
             provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
@@ -162,7 +176,7 @@ pub fn board_command(
                 port: LinkPort::Pty,
             })
             .map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
-            let result = run_actions(&mut BoardClient::new(stream, reply_timeout), actions);
+            let result = f(&mut BoardClient::new(stream, reply_timeout));
             vm.finish(Duration::ZERO);
             let lines = firmware_log(&elf, &log);
             let _ = std::fs::remove_file(&log);

@@ -29,6 +29,7 @@
 
 pub mod backend;
 pub mod board;
+pub mod board_identify;
 pub mod board_scope;
 pub mod compare;
 pub mod image;

@@ -27,6 +27,7 @@ use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 mod board;
+mod board_identify;
 mod pil_identify;
 
 /// The processor-in-the-loop cases (this module's and `pil_identify`'s), one after another
@@ -144,6 +145,19 @@ fn board_console() {
     for (name, case) in cases {
         run_case(name, case);
     }
+}
+
+/// `stiffdrive identify --board --qemu` (`board_identify.rs`), one QEMU session at a time
+/// as the others.
+#[test]
+fn board_identify() {
+    let _one_at_a_time = QEMU_TESTS
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    run_case(
+        "board: identify_on_the_board_recovers_the_qemu_machine",
+        crate::board_identify::identify_on_the_board_recovers_the_qemu_machine,
+    );
 }
 
 /// The `pil` ELF, built once per test binary.

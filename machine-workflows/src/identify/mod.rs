@@ -22,6 +22,7 @@
 //! and a soft velocity loop (`identify.velocity_bandwidth_rad_s`); its other settings
 //! (rates, current loop, observer, limits) are the file's.
 
+pub mod board;
 pub mod lost_motion;
 pub mod measure;
 pub mod spec;
@@ -53,6 +54,8 @@ pub struct Identification {
     pub twin: Option<twin::Twin>,
     /// Length of the frequency-response record used \[s\].
     pub record_s: f64,
+    /// Where the two records were taken (the simulated machine, or the board).
+    pub measured_on: String,
 }
 
 /// The machine of `config` (a path or a name under `configs/`) with `sets` applied, as
@@ -84,13 +87,30 @@ pub fn load(config: &str, sets: &[String]) -> Result<(RunConfig, IdentifySpec)> 
     Ok((base, spec))
 }
 
+/// What [`identify_machine`] names its source.
+pub const SIMULATED: &str = "the simulated machine (sim-engine's closed loop)";
+
 /// Measures and fits (module docs).
 pub fn identify_machine(base: &RunConfig, spec: &IdentifySpec) -> Result<Identification> {
-    let rate = f64::from(base.drive.current_rate_hz);
     let rec = measure::frequency_response_run(base, spec)?;
-    let (response, fit) = fit_response(base, spec, &rec)?;
     let reversal = measure::reversal_run(base, spec)?;
-    let lost_motion = fit_lost_motion(base, spec, &fit.fit, &reversal)?;
+    identify_records(base, spec, &rec, &reversal, SIMULATED)
+}
+
+/// The estimation from the two records, whichever backend recorded them: `rec` the
+/// frequency-response record after its settling (as [`measure::frequency_response_run`]
+/// returns it), `reversal` the whole lost-motion test ([`measure::reversal_run`]);
+/// `measured_on` says where they were taken.
+pub fn identify_records(
+    base: &RunConfig,
+    spec: &IdentifySpec,
+    rec: &measure::Record,
+    reversal: &measure::Record,
+    measured_on: &str,
+) -> Result<Identification> {
+    let rate = f64::from(base.drive.current_rate_hz);
+    let (response, fit) = fit_response(base, spec, rec)?;
+    let lost_motion = fit_lost_motion(base, spec, &fit.fit, reversal)?;
     let twin = twin::check(base, spec, &fit.fit, &lost_motion);
     let (corrected, corrected_lm) = match &twin {
         Some(t) => twin::corrected(&fit, &lost_motion, t, base.drive.encoder_cpr),
@@ -103,6 +123,7 @@ pub fn identify_machine(base: &RunConfig, spec: &IdentifySpec) -> Result<Identif
         raw: (fit, lost_motion),
         twin,
         record_s: rec.counts.len() as f64 / rate,
+        measured_on: measured_on.to_string(),
     })
 }
 
@@ -139,10 +160,15 @@ pub fn identify(config: &str, sets: &[String], out: &Path) -> Result<String> {
     let ident = identify_machine(&base, &spec)?;
     write::write_all(staging.dir(), &base, &spec, &ident)?;
     staging.commit()?;
+    Ok(summary(&base, &ident, out))
+}
+
+/// The line `identify` prints.
+fn summary(base: &RunConfig, ident: &Identification, out: &Path) -> String {
     let f = &ident.fit.fit;
-    Ok(format!(
+    format!(
         "identify {}: Jm = {:.4} s, Jl = {:.4} s, anti-resonance {:.2} Hz, resonance {:.2} Hz, \
-         damping {:.3}, viscous {:.4} pu, lost motion {:.4} deg -> {}",
+         damping {:.3}, viscous {:.4} pu, lost motion {:.4} deg (measured on {}) -> {}",
         base.config_path.display(),
         f.motor_inertia_s,
         f.load_inertia_s,
@@ -151,6 +177,7 @@ pub fn identify(config: &str, sets: &[String], out: &Path) -> Result<String> {
         f.shaft_damping_ratio,
         f.viscous_pu,
         ident.lost_motion.backlash_deg,
+        ident.measured_on,
         out.display()
-    ))
+    )
 }

@@ -32,6 +32,8 @@ pub struct Estimate {
 pub struct Report<'a> {
     /// The machine file.
     pub config: String,
+    /// Where the records were taken: the simulated machine, or the board.
+    pub measured_on: &'a str,
     /// The estimates.
     pub estimates: Vec<Estimate>,
     /// The fit's weighted RMS residual (about 1 when the model explains the data).
@@ -199,6 +201,7 @@ fn markdown(
 ) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Identification of {}\n", base.config_path.display());
+    let _ = writeln!(md, "Measured on {}.\n", ident.measured_on);
     let _ = writeln!(
         md,
         "Frequency response θm/Tm from a PRBS of ±{} pu on the torque reference ({} bits, \
@@ -295,6 +298,7 @@ pub fn write_all(
     put("plant.toml", &plant_toml(base, ident)?)?;
     let report = Report {
         config: base.config_path.display().to_string(),
+        measured_on: &ident.measured_on,
         estimates: est.clone(),
         fit_weighted_rms: ident.fit.weighted_rms,
         fit_bins: ident.fit.bins,
