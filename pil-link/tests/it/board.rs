@@ -12,6 +12,7 @@
 use crate::common::table1;
 use controller_core::{ConfigError, DriveConfig};
 use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
+use pil_link::board::identify::{CHANNELS, IdentifyError, IdentifyRun};
 use pil_link::board::message::{Origin, Refusal, Reply, Request, get_f64};
 use pil_link::board::scope::ScopeInfo;
 use pil_link::board::session::{BoardSession, Drive};
@@ -28,6 +29,7 @@ struct MockDrive {
     saved: Option<[u8; RECORD_LEN]>,
     history: FaultHistory,
     scope_on: bool,
+    identified: Option<(DriveConfig, IdentifyRun)>,
 }
 
 impl Drive for MockDrive {
@@ -57,6 +59,19 @@ impl Drive for MockDrive {
             rate_hz: 1000,
             channels: "a,b,c,d",
         }
+    }
+    fn identify(
+        &mut self,
+        cfg: &DriveConfig,
+        _running: &DriveConfig,
+        run: &IdentifyRun,
+    ) -> Result<ScopeInfo<'_>, IdentifyError> {
+        self.identified = Some((*cfg, *run));
+        self.enabled = true;
+        Ok(ScopeInfo {
+            rate_hz: cfg.current_rate_hz,
+            channels: CHANNELS,
+        })
     }
     fn enter_safe_state(&mut self) {
         self.enabled = false;
@@ -423,4 +438,130 @@ fn fault_names_cover_the_link_the_drive_none_and_unknown_codes() {
     assert_eq!(fault_name(fault_code(Some(Fault::Stall))), "stall");
     assert_eq!(fault_name(fault_code(None)), "none");
     assert_eq!(fault_name(0xF0), "unknown");
+}
+
+/// identify's frequency-response run: ±0.3 pu PRBS of 13 bits, 0.8 pu preload.
+const RUN: IdentifyRun = IdentifyRun {
+    amplitude_pu: 0.3,
+    prbs_bits: 13,
+    prbs_hold_ticks: 1,
+    prbs_periods: 2,
+    velocity_bandwidth_rad_s: 15.0,
+    load_pu: 0.8,
+    reverse_every_ticks: 0,
+    ticks: 16_382,
+};
+
+#[test]
+fn identify_runs_the_measurement_loop_and_answers_the_record_s_rate_and_channels() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let running = *s.settings();
+    let body = ask(&mut s, &mut d, &Request::Identify(RUN)).unwrap();
+    let info = ScopeInfo::decode(&body).unwrap();
+    assert_eq!((info.rate_hz, info.channels), (4000, CHANNELS));
+    let (cfg, run) = d.identified.unwrap();
+    // The request arrived whole, and the drive runs identify's loop on the running drive.
+    assert_eq!(run, RUN);
+    assert_eq!(cfg.position_bandwidth_rad_s, 0.0);
+    assert_eq!(cfg.accel_feedback.mode, controller_core::AfbMode::Off);
+    assert_eq!(cfg.velocity_bandwidth_rad_s, 15.0);
+    assert_eq!(cfg.current_bandwidth_rad_s, running.current_bandwidth_rad_s);
+    assert_eq!(*s.settings(), running, "the running settings stay");
+    // The run is its own enable: nothing else runs beside it.
+    let (code, msg) = ask(&mut s, &mut d, &Request::Identify(RUN)).unwrap_err();
+    assert_eq!(code, Refusal::Enabled);
+    assert!(msg.contains("identify"), "{msg}");
+}
+
+#[test]
+fn identify_is_refused_while_enabled_faulted_or_out_of_range_naming_the_key() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    ask(&mut s, &mut d, &Request::Enable).unwrap();
+    let (code, _) = ask(&mut s, &mut d, &Request::Identify(RUN)).unwrap_err();
+    assert_eq!(code, Refusal::Enabled);
+    let mut d = MockDrive {
+        fault: 3,
+        ..MockDrive::default()
+    };
+    let (code, _) = ask(&mut s, &mut d, &Request::Identify(RUN)).unwrap_err();
+    assert_eq!(code, Refusal::Faulted);
+    let mut d = MockDrive::default();
+    for (run, key) in [
+        (
+            IdentifyRun {
+                prbs_bits: 3,
+                ..RUN
+            },
+            "identify.prbs_bits",
+        ),
+        (
+            IdentifyRun {
+                amplitude_pu: 5.0,
+                ..RUN
+            },
+            "identify.amplitude_pu",
+        ),
+        (
+            IdentifyRun {
+                load_pu: f32::NAN,
+                ..RUN
+            },
+            "identify.load_pu",
+        ),
+        (
+            IdentifyRun {
+                velocity_bandwidth_rad_s: -1.0,
+                ..RUN
+            },
+            "velocity_bandwidth_rad_s",
+        ),
+    ] {
+        let (code, msg) = ask(&mut s, &mut d, &Request::Identify(run)).unwrap_err();
+        assert_eq!(code, Refusal::Invalid, "{msg}");
+        assert!(msg.contains(key), "{key}: {msg}");
+        assert!(d.identified.is_none() && !d.enabled);
+    }
+}
+
+#[test]
+fn a_board_without_measurements_refuses_identify() {
+    /// The trait's own `identify`.
+    struct Plain(MockDrive);
+    impl Drive for Plain {
+        fn apply(&mut self, cfg: &DriveConfig) -> Result<(), ConfigError> {
+            self.0.apply(cfg)
+        }
+        fn enabled(&self) -> bool {
+            self.0.enabled()
+        }
+        fn set_enabled(&mut self, on: bool) {
+            self.0.set_enabled(on);
+        }
+        fn fault_code(&self) -> u8 {
+            self.0.fault_code()
+        }
+        fn save(&mut self, record: &[u8; RECORD_LEN]) -> bool {
+            self.0.save(record)
+        }
+        fn fault_history(&self) -> FaultHistory {
+            self.0.fault_history()
+        }
+        fn scope(&mut self, on: bool) -> ScopeInfo<'_> {
+            self.0.scope(on)
+        }
+        fn enter_safe_state(&mut self) {
+            self.0.enter_safe_state();
+        }
+    }
+    let mut s = session();
+    let mut d = Plain(MockDrive::default());
+    let replies: Vec<_> = wire(&Request::Identify(RUN), 3)
+        .iter()
+        .filter_map(|&b| s.on_byte(b, &mut d))
+        .collect();
+    let reply = Reply::decode(replies[0].payload()).unwrap();
+    let (code, msg) = reply.result.unwrap_err();
+    assert_eq!(code, Refusal::Invalid);
+    assert!(msg.contains("does not run measurements"), "{msg}");
+    assert!(!d.0.enabled);
 }
