@@ -137,7 +137,7 @@ impl<const N: usize> Recorder<N> {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used)]
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
 
     fn run(ticks: u32) -> IdentifyRun {

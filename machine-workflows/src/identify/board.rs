@@ -213,7 +213,7 @@ mod tests {
             rec.counts,
             [65_534.0, 65_535.0, 65_536.0, 65_538.0, 65_533.0, 65_537.0]
         );
-        assert_eq!(rec.excitation[0], 1.0);
+        assert_eq!(rec.excitation.first(), Some(&1.0));
     }
 
     #[test]

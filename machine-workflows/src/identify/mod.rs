@@ -21,6 +21,15 @@
 //! measurement the drive runs in speed mode at zero speed with acceleration feedback off
 //! and a soft velocity loop (`identify.velocity_bandwidth_rad_s`); its other settings
 //! (rates, current loop, observer, limits) are the file's.
+//!
+//! `identify --board --qemu | --port PATH` ([`board`]) takes the two records from the
+//! board instead: the board runs each measurement in its own loops (the console's
+//! `Identify`, `pil_link::board::identify`) with controller-core's PRBS, the one
+//! [`measure`] adds on the host, and streams every current tick; [`identify_records`] then
+//! does steps 1 to 5 on them, as on the simulated records. With `--qemu` the board is the
+//! `board` image built with the machine file, whose virtual machine is the file's `[plant]`
+//! (two inertias, shaft, dead-zone lost motion, viscous friction; `firmware/build.rs`).
+//! The twin of step 4 is still simulated on the host.
 
 pub mod board;
 pub mod lost_motion;

@@ -105,7 +105,7 @@ impl IdentifyRun {
     #[must_use]
     pub fn load_at(&self, tick: u32) -> f32 {
         let reversals = tick.checked_div(self.reverse_every_ticks).unwrap_or(0);
-        if reversals % 2 == 0 {
+        if reversals.is_multiple_of(2) {
             self.load_pu
         } else {
             -self.load_pu
