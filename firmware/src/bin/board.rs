@@ -13,6 +13,15 @@
 //! history, and while the scope runs sends the samples the current-loop interrupt tapped
 //! from the trend buffer (`console::ScopeTap`), eight to a frame.
 //!
+//! The velocity tick runs in the current-loop interrupt, after every
+//! `current_rate_hz / velocity_rate_hz`-th current tick (TIMER1 stays stopped): QEMU runs
+//! the timers on the host's clock, so two timers drift apart when it runs late, and an
+//! overdue current tick would run before a pended velocity tick; one tick source keeps the
+//! loops in step as a board's synchronous timers do, the velocity tick reading the encoder
+//! the next current tick reads and running first, as the host loop orders them. A late QEMU
+//! then loses whole ticks of both loops alike, and a measurement is the same in tick time
+//! however the host is loaded.
+//!
 //! The motor is the virtual one with the baked machine file's load behind a shaft with lost
 //! motion (`firmware::drive::coupling`). `Identify` (`pil_link::board::identify`) runs a
 //! measurement as its own enable: the current-loop interrupt sets the rig's load torque on
@@ -54,6 +63,9 @@ mod target {
     /// Scope samples from the current-loop interrupt to thread mode (a full queue drops
     /// the sample, which the stream's counter then shows as a gap).
     static SCOPE: Shared<(ScopeTap, Deque<(u32, ScopeSample), 256>)> = Shared::new();
+    /// Current ticks per velocity tick, and the current ticks since the last velocity tick.
+    static VELOCITY_EVERY: AtomicU32 = AtomicU32::new(1);
+    static PHASE: AtomicU32 = AtomicU32::new(0);
     /// The record of an `Identify` run.
     static RECORD: Recorder<RECORD_CAPACITY> = Recorder::new();
 
@@ -71,6 +83,13 @@ mod target {
             record_tick(counts, current, &out);
         }
         BOOT_TICKS.fetch_add(1, Ordering::Relaxed);
+        let since = PHASE.load(Ordering::Relaxed).wrapping_add(1);
+        if since >= VELOCITY_EVERY.load(Ordering::Relaxed) {
+            PHASE.store(0, Ordering::Relaxed);
+            velocity_loop();
+        } else {
+            PHASE.store(since, Ordering::Relaxed);
+        }
         if SCOPE_ON.load(Ordering::Relaxed) {
             let newest = LOOPS.with_app(|app| app.trace().newest()).flatten();
             critical_section::with(|cs| {
@@ -197,9 +216,8 @@ mod target {
                 App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE).map_err(app_error)?;
             LOOPS.with_app(|slot| *slot = app);
             if (cfg.current_rate_hz, cfg.velocity_rate_hz) != self.rates_hz {
-                // Both at once, as `board::start` does, so their ticks stay aligned.
-                PeriodicTimer::TIMER1.start(cfg.velocity_rate_hz);
                 PeriodicTimer::TIMER0.start(cfg.current_rate_hz);
+                lock_velocity_to_current(cfg);
             }
             self.rates_hz = (cfg.current_rate_hz, cfg.velocity_rate_hz);
             defmt::info!(
@@ -266,7 +284,9 @@ mod target {
             // rest (the rig's brake released), the excitation at its first sample.
             critical_section::with(|_| {
                 RECORD.start(run)?;
-                LOOPS.with_current_io(|io| io.pwm.motor_mut().stop());
+                // The run's velocity ticks before its ticks `every`, 2·`every`, ...
+                PHASE.store(0, Ordering::Relaxed);
+                LOOPS.with_current_io(|io| io.pwm.brake());
                 LOOPS.with_app(|slot| *slot = app);
                 Ok::<(), IdentifyError>(())
             })?;
@@ -289,6 +309,13 @@ mod target {
             });
             defmt::warn!("console: corrupt frame while enabled: drive disabled");
         }
+    }
+
+    /// The velocity tick from the current tick (module docs): TIMER1 stopped, the ratio set.
+    fn lock_velocity_to_current(cfg: &DriveConfig) {
+        PeriodicTimer::TIMER1.stop();
+        let every = cfg.current_rate_hz / cfg.velocity_rate_hz.max(1);
+        VELOCITY_EVERY.store(every.max(1), Ordering::Relaxed);
     }
 
     fn send(frame: &Frame) {
@@ -415,6 +442,7 @@ mod target {
         let mut session =
             BoardSession::new(cfg, origin, firmware::version(), firmware::drive::NAME);
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+        lock_velocity_to_current(&cfg);
         serve(&mut session, &mut drive)
     }
 

@@ -303,6 +303,14 @@ impl VirtualPwm {
     pub fn motor_mut(&mut self) -> &mut VirtualMotor {
         &mut self.motor
     }
+
+    /// The rig's brake ([`VirtualMotor::stop`]), the current and encoder the next tick
+    /// samples published at once (not only after the next step).
+    pub fn brake(&mut self) {
+        self.motor.stop();
+        MOTOR_CURRENT_BITS.store(pu_bits(self.motor.current_pu()), Ordering::Relaxed);
+        MOTOR_COUNTS.store(self.motor.counts(), Ordering::Relaxed);
+    }
 }
 
 impl embedded_hal::pwm::ErrorType for VirtualPwm {
