@@ -395,3 +395,62 @@ fn board_config_goes_with_qemu_only() {
     assert!(parse(&["--port", "/dev/ttyACM0", "--config", "table1", "status"]).is_err());
     assert!(parse(&["--qemu", "--elf", "x", "--config", "table1", "status"]).is_err());
 }
+
+/// `identify --board`: where the board is must be said, once; `--set` may change only the
+/// `identify.` keys (the board carries its own machine and drive), refused before any board
+/// is opened; a port that is not there is named; nothing is written; without `--board`,
+/// `--qemu` and `--port` are refused.
+#[test]
+fn identify_board_arguments_are_checked_before_any_board_is_opened() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("id");
+    let out_s = out.to_str().unwrap();
+    for (args, says) in [
+        (vec!["identify", "--board", "--out", out_s], "--qemu|--port"),
+        (
+            vec![
+                "identify",
+                "--board",
+                "--qemu",
+                "--port",
+                "/dev/null",
+                "--out",
+                out_s,
+            ],
+            "cannot be used with",
+        ),
+        (
+            vec!["identify", "--qemu", "--config", "table1", "--out", out_s],
+            "--board",
+        ),
+        (
+            vec![
+                "identify",
+                "--board",
+                "--port",
+                "/nonexistent/tty",
+                "--set",
+                "plant.motor_inertia_s=1",
+                "--out",
+                out_s,
+            ],
+            "only identify.* keys",
+        ),
+        (
+            vec![
+                "identify",
+                "--board",
+                "--port",
+                "/nonexistent/tty",
+                "--out",
+                out_s,
+            ],
+            "/nonexistent/tty",
+        ),
+    ] {
+        let o = stiffdrive(&args);
+        assert!(!o.status.success(), "{args:?} ran");
+        assert!(stderr(&o).contains(says), "{args:?}: {}", stderr(&o));
+        assert!(empty_or_missing(&out), "{args:?} wrote {}", out.display());
+    }
+}
