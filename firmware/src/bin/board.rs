@@ -218,6 +218,11 @@ mod target {
             if (cfg.current_rate_hz, cfg.velocity_rate_hz) != self.rates_hz {
                 PeriodicTimer::TIMER0.start(cfg.current_rate_hz);
                 lock_velocity_to_current(cfg);
+                // The machine stepped at the new period, at rest where it was.
+                LOOPS.with_current_io(|io| {
+                    let counts = io.pwm.motor_mut().counts();
+                    *io.pwm.motor_mut() = machine(cfg).with_counts(counts);
+                });
             }
             self.rates_hz = (cfg.current_rate_hz, cfg.velocity_rate_hz);
             defmt::info!(
@@ -316,6 +321,13 @@ mod target {
         PeriodicTimer::TIMER1.stop();
         let every = cfg.current_rate_hz / cfg.velocity_rate_hz.max(1);
         VELOCITY_EVERY.store(every.max(1), Ordering::Relaxed);
+    }
+
+    /// The virtual machine behind the bridge: the drive's winding and encoder stepped at its
+    /// current-loop period, the baked machine file's inertias and shaft, at rest.
+    fn machine(cfg: &DriveConfig) -> VirtualMotor {
+        let (motor_inertia_s, coupling) = firmware::drive::coupling();
+        VirtualMotor::new(board::virtual_motor_config(cfg).with_coupling(motor_inertia_s, coupling))
     }
 
     fn send(frame: &Frame) {
@@ -425,10 +437,7 @@ mod target {
             }
         };
         let mut b = board::init(&mut core, &cfg);
-        let (motor_inertia_s, coupling) = firmware::drive::coupling();
-        *b.current_io.pwm.motor_mut() = VirtualMotor::new(
-            board::virtual_motor_config(&cfg).with_coupling(motor_inertia_s, coupling),
-        );
+        *b.current_io.pwm.motor_mut() = machine(&cfg);
         LOOPS.install(app, b.current_io, b.velocity_io, Setpoint::default());
         let mut drive = BoardDrive {
             enabled: false,
