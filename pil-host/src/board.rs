@@ -90,11 +90,21 @@ pub fn parse_actions(words: &[String]) -> Result<Vec<Action>> {
                 let (key, value) = arg
                     .split_once('=')
                     .ok_or_else(|| bad(format!("set {arg}: expected KEY=VALUE")))?;
-                let value: f64 = value
-                    .trim()
-                    .parse()
-                    .map_err(|_| bad(format!("set {key}: {value:?} is not a number")))?;
-                Action::Set(key.trim().to_string(), value)
+                let (key, value) = (key.trim(), value.trim());
+                let value = match keys::choice(key) {
+                    // An enumerated setting by the name of its value, as the machine file
+                    // spells it; the wire carries the name's index.
+                    Some(c) => c.index(value).map(|i| i as f64).ok_or_else(|| {
+                        bad(format!(
+                            "set {key}: {value:?} is not one of {}",
+                            c.names.join(", ")
+                        ))
+                    })?,
+                    None => value
+                        .parse()
+                        .map_err(|_| bad(format!("set {key}: {value:?} is not a number")))?,
+                };
+                Action::Set(key.to_string(), value)
             }
             "scope" => {
                 let (mut seconds, mut out) = (None, None);
@@ -230,12 +240,16 @@ fn run_action(client: &mut BoardClient<Stream>, action: &Action) -> Result<Strin
                 )
             })
             .map_err(link)?,
-        Action::Get(key) => format!("{} = {}", shown(key), client.get(key).map_err(link)?),
+        Action::Get(key) => format!(
+            "{} = {}",
+            shown(key),
+            value_text(key, client.get(key).map_err(link)?)
+        ),
         Action::Set(key, value) => {
             format!(
                 "{} = {} (set)",
                 shown(key),
-                client.set(key, *value).map_err(link)?
+                value_text(key, client.set(key, *value).map_err(link)?)
             )
         }
         Action::Save => {
@@ -270,10 +284,48 @@ fn run_action(client: &mut BoardClient<Stream>, action: &Action) -> Result<Strin
 }
 
 /// A key as the machine file spells it (`drive.` prefixed).
+/// `value` of `key` as the machine file writes it: the name of an enumerated setting's
+/// value, the number otherwise.
+fn value_text(key: &str, value: f64) -> String {
+    keys::choice(key)
+        .and_then(|c| c.name(value))
+        .map_or_else(|| value.to_string(), str::to_string)
+}
+
 fn shown(key: &str) -> String {
     if key.starts_with(keys::PREFIX) {
         key.to_string()
     } else {
         format!("{}{key}", keys::PREFIX)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn words(w: &[&str]) -> Vec<String> {
+        w.iter().map(ToString::to_string).collect()
+    }
+
+    #[test]
+    fn an_enumerated_setting_is_set_by_its_name_and_shown_by_it() {
+        let a = parse_actions(&words(&["set", "drive.accel_feedback.mode=plain"])).unwrap();
+        assert_eq!(
+            a,
+            vec![Action::Set("drive.accel_feedback.mode".into(), 1.0)]
+        );
+        assert_eq!(value_text("drive.accel_feedback.mode", 2.0), "error");
+        assert_eq!(value_text("drive.velocity_bandwidth_rad_s", 50.0), "50");
+        let e = parse_actions(&words(&["set", "drive.accel_feedback.mode=sideways"]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.accel_feedback.mode") && e.contains("off, plain, error"),
+            "{e}"
+        );
+        // A number is not a name: the index is the wire's business, not the operator's.
+        assert!(parse_actions(&words(&["set", "drive.accel_feedback.mode=1"])).is_err());
     }
 }

@@ -44,7 +44,20 @@ fn board(args: &[&str]) -> Output {
 }
 
 pub fn set_save_reset_get_prints_the_saved_value() {
-    let out = board(&["set", &format!("{KEY}=50"), "save", "reset", "get", KEY]);
+    // An enumerated setting goes by the name of its value, and is saved with the rest.
+    let mode = "drive.accel_feedback.mode";
+    let out = board(&[
+        "set",
+        &format!("{KEY}=50"),
+        "set",
+        &format!("{mode}=plain"),
+        "save",
+        "reset",
+        "get",
+        KEY,
+        "get",
+        mode,
+    ]);
     assert!(out.status.success());
     let stdout = String::from_utf8_lossy(&out.stdout);
     let lines: Vec<&str> = stdout.lines().collect();
@@ -53,6 +66,7 @@ pub fn set_save_reset_get_prints_the_saved_value() {
         .position(|l| l.starts_with("board reset"))
         .unwrap();
     assert_eq!(lines[reset + 1], format!("{KEY} = 50"), "{stdout}");
+    assert_eq!(lines[reset + 2], format!("{mode} = plain"), "{stdout}");
     // The boot after the reset ran the saved settings and said so.
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -287,14 +287,14 @@ impl BoardSession {
         value: f64,
         drive: &mut D,
     ) -> Result<f64, ConsoleError<'r>> {
-        let range = keys::range(key).ok_or(ConsoleError::UnknownKey(key))?;
+        let static_key = keys::static_key(key).ok_or(ConsoleError::UnknownKey(key))?;
         if drive.enabled() {
-            return Err(ConsoleError::Enabled(range.key));
+            return Err(ConsoleError::Enabled(static_key));
         }
         let mut next = self.cfg;
         keys::set(&mut next, key, value).map_err(|e| key_error(key, e))?;
         let invalid = |error| ConsoleError::Invalid {
-            key: range.key,
+            key: static_key,
             value,
             error,
         };
