@@ -28,8 +28,9 @@ pub struct BoardArgs {
     /// With `--qemu`: the machine. `mps2-an386` runs the `board` image (UART0);
     /// `netduinoplus2` (STM32F405) runs the STM32F4 image (USART2), where QEMU models no
     /// loop timers (no `enable`, no `scope`) and no flash controller (`save` fails).
-    #[arg(long, value_enum, default_value_t = QemuMachine::Mps2An386, requires = "qemu")]
-    pub machine: QemuMachine,
+    /// Default: mps2-an386.
+    #[arg(long, value_enum, conflicts_with = "port")]
+    pub machine: Option<QemuMachine>,
     /// A board's serial device, e.g. /dev/ttyACM0.
     #[arg(long, value_name = "PATH")]
     pub port: Option<PathBuf>,
@@ -78,8 +79,8 @@ impl BoardArgs {
             },
             None => BoardTarget::Qemu {
                 machine: match self.machine {
-                    QemuMachine::Mps2An386 => Machine::Mps2An386,
-                    QemuMachine::Netduinoplus2 => Machine::Netduinoplus2,
+                    None | Some(QemuMachine::Mps2An386) => Machine::Mps2An386,
+                    Some(QemuMachine::Netduinoplus2) => Machine::Netduinoplus2,
                 },
                 elf: self.elf.clone(),
                 drive: self
