@@ -1,10 +1,11 @@
 //! `stiffdrive board`: a console session with the drive firmware, on a board's serial port
-//! or on the `board` image in QEMU (its UART0 on a pseudo-terminal opened as a serial
-//! device, the board's code path). The actions run in order in one session; the first one
+//! or in QEMU: the `board` image on mps2-an386 (UART0), or the STM32F4 image on
+//! netduinoplus2 (USART2), its port on a pseudo-terminal opened as a serial device (the
+//! board's code path). The actions run in order in one session; the first one
 //! that fails or is refused ends the command with an error that names the key.
 
 use crate::board_scope::{scope, Scope};
-use crate::image::build_board_console_image_for;
+use crate::image::{build_board_console_image_for, build_stm32_image_for};
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
 use pil_link::board::client::{BoardClient, BoardError};
@@ -12,6 +13,7 @@ use pil_link::board::keys;
 use pil_link::board::message::Request;
 use pil_link::board::session::fault_name;
 use pil_link::host::{open_serial, Stream};
+pub use pil_link::qemu::Machine;
 use pil_link::qemu::{LinkPort, Qemu, QemuOptions};
 use sim_engine::error::{HarnessError, Result};
 use std::path::PathBuf;
@@ -43,8 +45,11 @@ pub enum Action {
 /// Where the board is.
 #[derive(Clone, Debug)]
 pub enum BoardTarget {
-    /// The `board` image in QEMU (`elf`, or built with cargo), run with `qemu`.
+    /// A board console image in QEMU (`elf`, or built with cargo: the `board` image for
+    /// mps2-an386, the STM32F4 image for netduinoplus2), run with `qemu`.
     Qemu {
+        /// The QEMU machine.
+        machine: Machine,
         /// Image to run instead of building it.
         elf: Option<PathBuf>,
         /// The machine file (absolute path) whose drive the built image carries; `None`:
@@ -156,11 +161,17 @@ pub fn board_command(
             let stream = open_serial(path, *baud).map_err(|e| HarnessError::io(path, e))?;
             run_actions(&mut BoardClient::new(stream, reply_timeout), actions)
         }
-        BoardTarget::Qemu { elf, drive, qemu } => {
+        BoardTarget::Qemu {
+            machine,
+            elf,
+            drive,
+            qemu,
+        } => {
             provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
-            let elf = match elf {
-                Some(e) => e.clone(),
-                None => build_board_console_image_for(drive.as_deref())?,
+            let elf = match (elf, machine) {
+                (Some(e), _) => e.clone(),
+                (None, Machine::Mps2An386) => build_board_console_image_for(drive.as_deref())?,
+                (None, Machine::Netduinoplus2) => build_stm32_image_for(drive.as_deref())?,
             };
             let log =
                 std::env::temp_dir().join(format!("stiffdrive-board-{}.defmt", std::process::id()));
@@ -170,11 +181,18 @@ pub fn board_command(
                 log: log.clone(),
                 connect_timeout: Duration::from_secs(20),
                 port: LinkPort::Pty,
+                machine: *machine,
             })
             .map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
             let result = run_actions(&mut BoardClient::new(stream, reply_timeout), actions);
             vm.finish(Duration::ZERO);
-            let lines = firmware_log(&elf, &log);
+            let lines = match machine {
+                Machine::Mps2An386 => firmware_log(&elf, &log),
+                // The STM32F4 image logs over RTT, which QEMU does not carry.
+                Machine::Netduinoplus2 => {
+                    vec!["(the STM32F4 image logs over RTT: no log in QEMU)".into()]
+                }
+            };
             let _ = std::fs::remove_file(&log);
             if result.is_err() || std::env::var_os("STIFFDRIVE_BOARD_LOG").is_some() {
                 for line in lines {

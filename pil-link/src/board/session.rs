@@ -16,7 +16,7 @@ use super::faults::FaultHistory;
 use super::keys::{self, KeyError};
 use super::message::{Origin, Refusal, Request, StatusReport, put_f64, reply_head};
 use super::scope::ScopeInfo;
-use super::store::{self, RECORD_LEN};
+use super::store::{self, RECORD_LEN, SaveError};
 use crate::wire::Writer;
 use crate::{Decoder, Frame, FrameKind, crc32, settings};
 use controller_core::{ConfigError, DriveConfig};
@@ -36,8 +36,11 @@ pub trait Drive {
     fn set_enabled(&mut self, on: bool);
     /// The latched fault's code (controller-core's `fault_code`; 0 none).
     fn fault_code(&self) -> u8;
-    /// Writes a settings record to the settings sector; false if it did not read back.
-    fn save(&mut self, record: &[u8; RECORD_LEN]) -> bool;
+    /// Writes a settings record to the settings sector and reads it back.
+    ///
+    /// # Errors
+    /// Why the sector does not hold the record.
+    fn save(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError>;
     /// The fault history.
     fn fault_history(&self) -> FaultHistory;
     /// Starts or stops the scope stream; returns its rate and channels.
@@ -85,7 +88,7 @@ pub enum ConsoleError<'a> {
     /// Enable with a latched fault (its code).
     Faulted(u8),
     /// The settings sector failed.
-    Storage,
+    Storage(SaveError),
 }
 
 impl ConsoleError<'_> {
@@ -100,7 +103,7 @@ impl ConsoleError<'_> {
             Self::Enabled(_) => Refusal::Enabled,
             Self::OutOfRange(_) | Self::Invalid { .. } => Refusal::Invalid,
             Self::Faulted(_) => Refusal::Faulted,
-            Self::Storage => Refusal::Storage,
+            Self::Storage(_) => Refusal::Storage,
         }
     }
 }
@@ -133,7 +136,7 @@ impl core::fmt::Display for ConsoleError<'_> {
                 "fault latched ({}): reset the board to clear it",
                 fault_name(code)
             ),
-            Self::Storage => write!(f, "the settings sector did not read back what was written"),
+            Self::Storage(e) => write!(f, "save failed: {e}"),
         }
     }
 }
@@ -306,10 +309,9 @@ impl BoardSession {
     }
 
     fn save<D: Drive>(&mut self, drive: &mut D) -> Result<(), ConsoleError<'static>> {
-        let record = store::encode(&self.cfg).map_err(|_| ConsoleError::Storage)?;
-        if !drive.save(&record) {
-            return Err(ConsoleError::Storage);
-        }
+        let record =
+            store::encode(&self.cfg).map_err(|_| ConsoleError::Storage(SaveError::Encode))?;
+        drive.save(&record).map_err(ConsoleError::Storage)?;
         self.origin = Origin::Saved;
         Ok(())
     }

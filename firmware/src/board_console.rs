@@ -1,0 +1,387 @@
+//! The board console image, whichever board runs it: the drive firmware as a board runs it,
+//! the current and velocity loop interrupts started disabled and held at rest, with the
+//! board console of `stiffdrive board` on the board's serial port (pil-link's board
+//! frames, `pil_link::board`). The QEMU `board` image (`src/bin/board.rs`) and the STM32F4
+//! image (`src/main.rs` with `board-stm32f4`) are this module bound to their board: each
+//! binds [`current_loop`], [`velocity_loop`] and [`uart_rx`] to its interrupts and calls
+//! [`run`] with its [`ConsoleBoard`] (the serial port, the settings sector, the loop
+//! timers).
+//!
+//! At boot [`run`] reads the settings sector: a record that passes its checks
+//! (`pil_link::board::store`) and `design` is the drive it runs; otherwise the baked
+//! drive, and the boot log says why. `Save` writes the running settings there (refused
+//! while the drive is enabled); `Reset` answers, then resets the system (`SCB::sys_reset`).
+//!
+//! Thread mode serves the console (`BoardSession`), records each fault latch in the fault
+//! history, and while the scope runs sends the samples the current-loop interrupt tapped
+//! from the trend buffer (`console::ScopeTap`), eight to a frame.
+
+use core::fmt::Write as _;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+use controller_core::{ConfigError, DriveConfig, Setpoint};
+use heapless::Deque;
+use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
+use pil_link::board::message::Origin;
+use pil_link::board::scope::{ScopeChunk, ScopeInfo, ScopeSample, CHUNK_SAMPLES};
+use pil_link::board::session::{settings_crc, BoardSession, Drive};
+use pil_link::board::store::{self, SaveError, StoreError, RECORD_LEN};
+use pil_link::wire::Writer;
+use pil_link::{Frame, FrameKind, MAX_FRAME};
+
+use crate::app::{fault_code, App, AppError, DEFAULT_TRACE};
+use crate::board::EncoderCounter;
+use crate::boards::active as board;
+use crate::console::{channel_names, ticks_to_ms, FaultTracker, ScopeTap};
+use crate::isr::{Loops, Shared};
+use crate::ring::ByteRing;
+use crate::rt::exit;
+use crate::trace::TraceState;
+
+/// What the console needs of a board besides its drive I/O (`boards::active::init`).
+pub trait ConsoleBoard {
+    /// The serial port's name, for the boot log (`UART0`, `USART2`).
+    const PORT: &'static str;
+    /// Sends `bytes` on the console's serial port, waiting while it is busy.
+    fn send(&mut self, bytes: &[u8]);
+    /// Reads the start of the settings sector into `record`.
+    fn read_settings(&mut self, record: &mut [u8; RECORD_LEN]);
+    /// Writes `record` at the start of the settings sector and reads it back.
+    ///
+    /// # Errors
+    /// Why the sector does not hold the record.
+    fn write_settings(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError>;
+    /// Runs the loop timers at new rates [Hz], both restarted together.
+    fn set_loop_rates(&mut self, current_hz: u32, velocity_hz: u32);
+    /// Called once the board is set up, with the boot's word on the settings it runs
+    /// (`note`), before the loops start: a board whose log cannot be read over its serial
+    /// port says it there.
+    fn booted(&mut self, _note: &str) {}
+}
+
+static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, Setpoint> = Loops::new();
+static RX: ByteRing = ByteRing::new();
+/// Current-loop interrupts since boot: the clock of the fault history.
+static BOOT_TICKS: AtomicU32 = AtomicU32::new(0);
+static SCOPE_ON: AtomicBool = AtomicBool::new(false);
+/// Scope samples from the current-loop interrupt to thread mode (a full queue drops
+/// the sample, which the stream's counter then shows as a gap).
+static SCOPE: Shared<(ScopeTap, Deque<(u32, ScopeSample), 256>)> = Shared::new();
+
+/// The current-loop interrupt's body.
+pub fn current_loop() {
+    let _ = LOOPS.current_isr();
+    BOOT_TICKS.fetch_add(1, Ordering::Relaxed);
+    if SCOPE_ON.load(Ordering::Relaxed) {
+        let newest = LOOPS.with_app(|app| app.trace().newest()).flatten();
+        critical_section::with(|cs| {
+            SCOPE.with(cs, |(tap, queue)| {
+                if let Some(item) = tap.offer(newest) {
+                    let _ = queue.push_back(item);
+                }
+            })
+        });
+    }
+}
+
+/// The velocity-loop interrupt's body.
+pub fn velocity_loop() {
+    let _ = LOOPS.velocity_isr();
+}
+
+/// The serial port's receive interrupt: every byte there into the ring thread mode reads.
+pub fn uart_rx() {
+    while let Some(b) = board::read_command() {
+        RX.push(b);
+    }
+}
+
+/// The drive behind the console: the app in `LOOPS`, the power stage, the settings
+/// sector, the fault history, the scope.
+struct BoardDrive<H> {
+    hw: H,
+    enabled: bool,
+    /// Current and velocity loop rates the timers run at [Hz].
+    rates_hz: (u32, u32),
+    history: FaultHistory,
+    tracker: FaultTracker,
+    channels: heapless::String<128>,
+}
+
+impl<H: ConsoleBoard> BoardDrive<H> {
+    fn now_ms(&self) -> u32 {
+        ticks_to_ms(
+            u64::from(BOOT_TICKS.load(Ordering::Relaxed)),
+            self.rates_hz.0,
+        )
+    }
+
+    /// Thread mode, each pass: a new fault latch into the history; a trend buffer a
+    /// fault froze armed again, so the scope goes on.
+    fn poll(&mut self) {
+        let record = LOOPS.with_app(|app| app.fault_record()).flatten();
+        let now = self.now_ms();
+        self.tracker.poll(record, now, &mut self.history);
+        LOOPS.with_app(|app| {
+            if matches!(app.trace().state(), TraceState::Frozen { .. }) {
+                app.trace_mut().rearm();
+            }
+        });
+    }
+
+    fn send(&mut self, frame: &Frame) {
+        let mut wire = [0_u8; MAX_FRAME];
+        if let Ok(n) = frame.encode(&mut wire) {
+            self.hw.send(wire.get(..n).unwrap_or(&[]));
+        }
+    }
+
+    /// Sends the queued scope samples, [`CHUNK_SAMPLES`] to a frame, once that many wait.
+    fn send_scope(&mut self, seq: &mut u16) {
+        loop {
+            let mut chunk: Option<ScopeChunk> = None;
+            let ready = critical_section::with(|cs| {
+                SCOPE.with(cs, |(_, queue)| queue.len() >= CHUNK_SAMPLES)
+            });
+            if ready != Some(true) {
+                return;
+            }
+            for _ in 0..CHUNK_SAMPLES {
+                let Some((n, s)) =
+                    critical_section::with(|cs| SCOPE.with(cs, |(_, queue)| queue.pop_front()))
+                        .flatten()
+                else {
+                    break;
+                };
+                let c = chunk.get_or_insert_with(|| ScopeChunk::new(n));
+                // A gap (a dropped sample) ends the chunk; the next one starts after it.
+                if n != c.first.wrapping_add(u32::from(c.len)) || !c.push(s) {
+                    self.send_chunk(c, seq);
+                    let mut next = ScopeChunk::new(n);
+                    next.push(s);
+                    chunk = Some(next);
+                }
+            }
+            if let Some(c) = chunk {
+                self.send_chunk(&c, seq);
+            }
+        }
+    }
+
+    fn send_chunk(&mut self, chunk: &ScopeChunk, seq: &mut u16) {
+        let mut w = Writer::new();
+        if chunk.encode(&mut w).is_ok() {
+            if let Ok(frame) = Frame::new(FrameKind::ScopeData, *seq, w.as_slice()) {
+                self.send(&frame);
+            }
+        }
+        *seq = seq.wrapping_add(1);
+    }
+}
+
+/// The board's refusal of settings `design` accepted, as the core's error.
+fn app_error(e: AppError) -> ConfigError {
+    match e {
+        AppError::Config(e) => e,
+        AppError::CounterBits { board, config } => ConfigError::OutOfRange {
+            param: "counter_bits",
+            value: f32::from(config),
+            min: f32::from(board),
+            max: f32::from(board),
+            min_exclusive: false,
+        },
+        // Neither happens: the trace setup is the constant DEFAULT_TRACE and the settings
+        // are already decoded. Named as the trace, should one ever.
+        AppError::Trace(_) | AppError::Settings(_) => ConfigError::NotFinite { param: "trace" },
+    }
+}
+
+impl<H: ConsoleBoard> Drive for BoardDrive<H> {
+    fn apply(&mut self, cfg: &DriveConfig) -> Result<(), ConfigError> {
+        let app = App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE).map_err(app_error)?;
+        LOOPS.with_app(|slot| *slot = app);
+        if (cfg.current_rate_hz, cfg.velocity_rate_hz) != self.rates_hz {
+            self.hw
+                .set_loop_rates(cfg.current_rate_hz, cfg.velocity_rate_hz);
+        }
+        self.rates_hz = (cfg.current_rate_hz, cfg.velocity_rate_hz);
+        defmt::info!(
+            "console: settings applied (settings crc {=u32:08x})",
+            settings_crc(cfg)
+        );
+        Ok(())
+    }
+
+    fn enabled(&self) -> bool {
+        self.enabled
+    }
+
+    fn set_enabled(&mut self, on: bool) {
+        LOOPS.with_app(|app| app.set_enable_request(on));
+        self.enabled = on;
+        defmt::info!(
+            "console: drive {=str}",
+            if on { "enabled" } else { "disabled" }
+        );
+    }
+
+    fn fault_code(&self) -> u8 {
+        LOOPS.with_app(|app| fault_code(app.fault())).unwrap_or(0)
+    }
+
+    fn save(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError> {
+        if self.enabled {
+            return Err(SaveError::Enabled);
+        }
+        let result = self.hw.write_settings(record);
+        if let Err(e) = result {
+            defmt::warn!("console: save failed: {}", defmt::Display2Format(&e));
+        }
+        result
+    }
+
+    fn fault_history(&self) -> FaultHistory {
+        self.history
+    }
+
+    fn scope(&mut self, on: bool) -> ScopeInfo<'_> {
+        critical_section::with(|cs| {
+            SCOPE.with_slot(cs, |slot| *slot = Some((ScopeTap::new(), Deque::new())))
+        });
+        SCOPE_ON.store(on, Ordering::Relaxed);
+        ScopeInfo {
+            rate_hz: self.rates_hz.0 / u32::from(DEFAULT_TRACE.decimation.max(1)),
+            channels: self.channels.as_str(),
+        }
+    }
+
+    fn enter_safe_state(&mut self) {
+        self.set_enabled(false);
+        let ms = self.now_ms();
+        self.history.push(FaultEntry {
+            ms,
+            code: LINK_FAULT_CODE,
+        });
+        defmt::warn!("console: corrupt frame while enabled: drive disabled");
+    }
+}
+
+/// What the boot says of the settings it runs.
+type Note = heapless::String<128>;
+
+/// The settings to run: the sector's record if it passes its checks and `design`, else
+/// the baked drive; the boot log (and the note) says which and why.
+fn boot_settings<H: ConsoleBoard>(hw: &mut H, baked: DriveConfig) -> (DriveConfig, Origin, Note) {
+    let mut sector = [0_u8; RECORD_LEN];
+    hw.read_settings(&mut sector);
+    let mut note = Note::new();
+    match store::decode(&sector) {
+        Ok(cfg) => match controller_core::design(&cfg) {
+            Ok(_) => {
+                defmt::info!(
+                    "drive: saved on the board (settings crc {=u32:08x}), in place of the baked {=str}",
+                    settings_crc(&cfg),
+                    crate::drive::NAME
+                );
+                let _ = write!(
+                    note,
+                    "saved on the board (settings crc {:08x})",
+                    settings_crc(&cfg)
+                );
+                return (cfg, Origin::Saved, note);
+            }
+            Err(e) => {
+                defmt::warn!(
+                    "saved settings refused (drive.{=str}): running the baked drive",
+                    e.param()
+                );
+                let _ = write!(note, "saved settings refused (drive.{}): baked", e.param());
+            }
+        },
+        Err(StoreError::Empty) => {
+            defmt::info!("no saved settings on the board");
+            let _ = write!(note, "baked (no saved settings on the board)");
+        }
+        Err(e) => {
+            defmt::warn!("{}: running the baked drive", defmt::Display2Format(&e));
+            let _ = write!(note, "baked ({e})");
+        }
+    }
+    defmt::info!("drive: {=str}", crate::drive::NAME);
+    (baked, Origin::Baked, note)
+}
+
+/// The board console image's `main`: the settings, the app, the board and its loops, then
+/// the console session for good.
+pub fn run<H: ConsoleBoard>(mut hw: H) -> ! {
+    let Some(mut core) = cortex_m::Peripherals::take() else {
+        exit(false)
+    };
+    let Ok(baked) = crate::drive::baked() else {
+        defmt::error!("baked drive settings do not decode");
+        exit(false)
+    };
+    defmt::info!(
+        "stiffdrive firmware {=str} on {=str}: board console on {=str} (board protocol {=u8})",
+        env!("CARGO_PKG_VERSION"),
+        board::NAME,
+        H::PORT,
+        pil_link::board::BOARD_VERSION
+    );
+    let (mut cfg, mut origin, mut note) = boot_settings(&mut hw, baked);
+    let app = match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+        Ok(app) => app,
+        Err(e) => {
+            defmt::warn!(
+                "settings refused by the board ({}): baked drive",
+                defmt::Debug2Format(&e)
+            );
+            (cfg, origin) = (baked, Origin::Baked);
+            note.clear();
+            let _ = write!(note, "baked (saved settings refused by the board)");
+            match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+                Ok(app) => app,
+                Err(_) => exit(false),
+            }
+        }
+    };
+    let b = board::init(&mut core, &cfg);
+    hw.booted(&note);
+    LOOPS.install(app, b.current_io, b.velocity_io, Setpoint::default());
+    let mut drive = BoardDrive {
+        hw,
+        enabled: false,
+        rates_hz: (cfg.current_rate_hz, cfg.velocity_rate_hz),
+        history: FaultHistory::new(),
+        tracker: FaultTracker::new(),
+        channels: channel_names(&DEFAULT_TRACE),
+    };
+    let mut session = BoardSession::new(cfg, origin, crate::version(), crate::drive::NAME);
+    board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+    serve(&mut session, &mut drive)
+}
+
+fn serve<H: ConsoleBoard>(session: &mut BoardSession, drive: &mut BoardDrive<H>) -> ! {
+    let mut scope_seq = 0_u16;
+    loop {
+        while let Some(byte) = RX.pop() {
+            if let Some(frame) = session.on_byte(byte, drive) {
+                drive.send(&frame);
+            }
+            if session.reset_requested() {
+                defmt::info!("console: system reset");
+                board::stop();
+                cortex_m::peripheral::SCB::sys_reset();
+            }
+        }
+        drive.poll();
+        if SCOPE_ON.load(Ordering::Relaxed) {
+            drive.send_scope(&mut scope_seq);
+        }
+        cortex_m::interrupt::free(|_| {
+            if RX.is_empty() {
+                cortex_m::asm::wfi();
+            }
+        });
+    }
+}
