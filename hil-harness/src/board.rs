@@ -40,7 +40,9 @@ pub struct BoardArgs {
     /// With `--qemu`: the image to run; default: build the machine's image with cargo
     /// (`cargo build -p firmware --release --target thumbv7em-none-eabihf --bin board`;
     /// on netduinoplus2 `cargo fw-build-stm32`).
-    #[arg(long, requires = "qemu")]
+    // `requires = "qemu"` would always hold (a flag is present as its default, false);
+    // one of --qemu and --port is required, so conflicting with --port is the same rule.
+    #[arg(long, conflicts_with = "port")]
     pub elf: Option<PathBuf>,
     /// With `--qemu`: the machine file (path, or name under configs/) whose `[drive]` the
     /// built image carries, e.g. a `drive.toml` from `tune` or `commission`; default

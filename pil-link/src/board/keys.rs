@@ -132,7 +132,9 @@ pub fn choice(key: &str) -> Option<&'static Choice> {
 /// either kind; `None` for no setting.
 #[must_use]
 pub fn static_key(key: &str) -> Option<&'static str> {
-    choice(key).map(|c| c.key).or_else(|| range(key).map(|r| r.key))
+    choice(key)
+        .map(|c| c.key)
+        .or_else(|| range(key).map(|r| r.key))
 }
 
 /// The index of the enumerated setting `c` in `cfg`.
