@@ -16,6 +16,8 @@
 //! * [`lil`]: the loop-in-the-loop record format and its reference run.
 //! * [`ring`]: the UART receive ring of the link images; [`console`]: the board console's
 //!   drive (settings sector, fault history, scope tap) of the `board` image.
+//! * `board_console`: the board console image on any board (session loop, loop interrupt
+//!   bodies, settings sector behind a trait), target builds only.
 //! * `boards::qemu` / `boards::stm32f4`, `rt`: the hardware edge, target builds only.
 //!
 //! The library builds on the host too (`cargo test -p firmware`), where the hardware
@@ -34,6 +36,8 @@ pub mod synthetic;
 pub mod trace;
 pub mod virtual_motor;
 
+#[cfg(target_os = "none")]
+pub mod board_console;
 #[cfg(target_os = "none")]
 pub mod boards;
 #[cfg(target_os = "none")]

@@ -1,19 +1,34 @@
 //! stiffdrive firmware: controller-core in a 4 kHz current-loop interrupt and a 2 kHz
 //! velocity-loop interrupt, driven by hardware timers, the current loop at the higher
-//! priority. Console commands (one byte on the UART, handled by its RX interrupt):
-//! `e` enable the power stage and start the move, `x` disable, `r` reset a latched fault,
-//! `d` dump the trend buffer. A dump request (or a fault) triggers the trend buffer; once it
-//! has frozen, thread mode writes its samples to the UART as CSV.
+//! priority.
 //!
-//! Under QEMU (`cargo fw-run`) the drive enables itself, runs the Table 1 controller on the
-//! virtual motor for a 1 s move, asks for one dump itself, checks the loops ran at their
-//! rates without a fault, and exits 0 (1 on any failure, panic or HardFault). On the
-//! STM32F4 board it starts disabled, holding position, and waits for `e`; it runs until
-//! reset. On the host this binary is an empty `main` (so `cargo test` and
-//! `cargo clippy --workspace` work without the ARM target).
+//! On the STM32F4 board (`board-stm32f4`) this is the board console image
+//! (`firmware::board_console`): it starts disabled, holding position, and serves
+//! `stiffdrive board --port` on USART2 until reset.
+//!
+//! Under QEMU (`cargo fw-run`) it is the demo run: the drive enables itself, runs the
+//! Table 1 controller on the virtual motor for a 1 s move, asks for a dump of the trend
+//! buffer (written to the UART as CSV once it froze), checks the loops ran at their rates
+//! without a fault, and exits 0 (1 on any failure, panic or HardFault). On the host this
+//! binary is an empty `main` (so `cargo test` and `cargo clippy --workspace` work without
+//! the ARM target).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
-#[cfg(target_os = "none")]
+#[cfg(all(target_os = "none", feature = "board-stm32f4"))]
+mod stm32 {
+    use cortex_m_rt::entry;
+    use firmware::board_console::{current_loop, run, uart_rx, velocity_loop};
+    use firmware::boards::stm32f4::BoardConsole;
+
+    firmware::bind_interrupts!(current: current_loop, velocity: velocity_loop, command: uart_rx);
+
+    #[entry]
+    fn main() -> ! {
+        run(BoardConsole)
+    }
+}
+
+#[cfg(all(target_os = "none", not(feature = "board-stm32f4")))]
 mod target {
     use core::fmt::Write;
     use core::sync::atomic::{AtomicBool, Ordering};
@@ -107,15 +122,12 @@ mod target {
         start_delay_s: 0.01,
     };
     /// QEMU run length [current ticks]: 1.2 s at 4 kHz.
-    #[cfg(not(feature = "board-stm32f4"))]
     const RUN_TICKS: u32 = 4800;
     /// How close to the move's end position the virtual motor must stop, as a fraction of a
     /// revolution (1/512 rev = 0.70°: 8 counts of Table 1's 4096), so that a drive with a finer
     /// encoder is held to the same angle.
-    #[cfg(not(feature = "board-stm32f4"))]
     const END_TOLERANCE_PER_REV: u32 = 512;
     /// Tick at which the QEMU run asks for a dump itself (0.5 s, at speed).
-    #[cfg(not(feature = "board-stm32f4"))]
     const SELF_DUMP_TICK: u32 = 2000;
 
     #[entry]
@@ -141,26 +153,9 @@ mod target {
             mem.static_ram_bytes
         );
         LOOPS.install(app, b.current_io, b.velocity_io, motion);
-        // Written to before `run` only by the STM32 board's banner below.
-        #[allow(unused_mut)]
-        let mut console = b.console;
-        // QEMU demo: enable at once. The real board waits for `e` on the console.
-        #[cfg(not(feature = "board-stm32f4"))]
+        let console = b.console;
+        // The demo enables at once.
         enable(true);
-        // The real board says on its serial port what it runs and on which clock (the QEMU
-        // image's UART shares QEMU's stdout with the defmt log, so it stays silent there).
-        #[cfg(feature = "board-stm32f4")]
-        {
-            use core::fmt::Write as _;
-            let _ = write!(
-                console,
-                "stiffdrive firmware {} on {}: drive {}; clock: {}\r\n",
-                env!("CARGO_PKG_VERSION"),
-                board::NAME,
-                firmware::drive::NAME,
-                board::Clocks::now().source.describe()
-            );
-        }
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
         run(console)
     }
@@ -207,7 +202,6 @@ mod target {
     /// one dump itself and finish the run after `RUN_TICKS`).
     fn run(mut console: board::Console) -> ! {
         let mut dumps = 0_u32;
-        #[cfg(not(feature = "board-stm32f4"))]
         let mut self_dump_asked = false;
         let (mut fault_logged, mut warning_logged) = (false, false);
         loop {
@@ -235,7 +229,6 @@ mod target {
                 );
             }
             warning_logged = warm;
-            #[cfg(not(feature = "board-stm32f4"))]
             if ticks >= SELF_DUMP_TICK && !self_dump_asked {
                 self_dump_asked = true;
                 DUMP_REQUESTED.store(true, Ordering::Relaxed);
@@ -252,7 +245,6 @@ mod target {
                     n
                 );
             }
-            #[cfg(not(feature = "board-stm32f4"))]
             if ticks >= RUN_TICKS {
                 board::stop();
                 finish(dumps);
@@ -294,7 +286,6 @@ mod target {
     }
 
     /// QEMU: check the run and exit with its status.
-    #[cfg(not(feature = "board-stm32f4"))]
     fn finish(dumps: u32) -> ! {
         let status = LOOPS.with_app(|app| (app.ticks(), app.fault()));
         let Some((ticks, fault)) = status else {

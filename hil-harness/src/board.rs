@@ -1,27 +1,48 @@
 //! `stiffdrive board` arguments: where the board is (`--qemu` or `--port PATH`) and the
 //! actions, run in order in one session (`pil_host::board`); `identify --board`'s.
 
+use pil_host::board::Machine;
 use pil_host::board::{board_command, parse_actions, BoardTarget};
 use sim_engine::Result;
 use std::path::PathBuf;
 use std::time::Duration;
 
+/// The QEMU machines `board --qemu` runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum QemuMachine {
+    /// mps2-an386 (Cortex-M4F): the `board` image.
+    #[value(name = "mps2-an386")]
+    Mps2An386,
+    /// netduinoplus2 (STM32F405): the STM32F4 image.
+    Netduinoplus2,
+}
+
 /// `stiffdrive board` arguments.
 #[derive(Clone, Debug, clap::Args)]
 #[command(group = clap::ArgGroup::new("where").required(true).args(["qemu", "port"]))]
 pub struct BoardArgs {
-    /// The `board` image in QEMU, its UART on a pseudo-terminal (opened as a serial device).
+    /// A board console image in QEMU, its serial port on a pseudo-terminal (opened as a
+    /// serial device).
     #[arg(long)]
     pub qemu: bool,
+    /// With `--qemu`: the machine. `mps2-an386` runs the `board` image (UART0);
+    /// `netduinoplus2` (STM32F405) runs the STM32F4 image (USART2), where QEMU models no
+    /// loop timers (no `enable`, no `scope`) and no flash controller (`save` fails).
+    /// Default: mps2-an386.
+    #[arg(long, value_enum, conflicts_with = "port")]
+    pub machine: Option<QemuMachine>,
     /// A board's serial device, e.g. /dev/ttyACM0.
     #[arg(long, value_name = "PATH")]
     pub port: Option<PathBuf>,
     /// Baud rate of `--port`.
     #[arg(long, default_value_t = 115_200)]
     pub baud: u32,
-    /// With `--qemu`: the image to run; default: build the `board` image with cargo
-    /// (`cargo build -p firmware --release --target thumbv7em-none-eabihf --bin board`).
-    #[arg(long, requires = "qemu")]
+    /// With `--qemu`: the image to run; default: build the machine's image with cargo
+    /// (`cargo build -p firmware --release --target thumbv7em-none-eabihf --bin board`;
+    /// on netduinoplus2 `cargo fw-build-stm32`).
+    // `requires = "qemu"` would always hold (a flag is present as its default, false);
+    // one of --qemu and --port is required, so conflicting with --port is the same rule.
+    #[arg(long, conflicts_with = "port")]
     pub elf: Option<PathBuf>,
     /// With `--qemu`: the machine file (path, or name under configs/) whose `[drive]` the
     /// built image carries, e.g. a `drive.toml` from `tune` or `commission`; default
@@ -59,6 +80,10 @@ impl BoardArgs {
                 baud: self.baud,
             },
             None => BoardTarget::Qemu {
+                machine: match self.machine {
+                    None | Some(QemuMachine::Mps2An386) => Machine::Mps2An386,
+                    Some(QemuMachine::Netduinoplus2) => Machine::Netduinoplus2,
+                },
                 elf: self.elf.clone(),
                 drive: self
                     .config
@@ -111,6 +136,7 @@ impl IdentifyBoardArgs {
             },
             // `identify_board` sets the drive to its machine file.
             None => BoardTarget::Qemu {
+                machine: Machine::Mps2An386,
                 elf: None,
                 drive: None,
                 qemu: self.qemu_bin.clone(),

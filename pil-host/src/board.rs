@@ -1,10 +1,11 @@
 //! `stiffdrive board`: a console session with the drive firmware, on a board's serial port
-//! or on the `board` image in QEMU (its UART0 on a pseudo-terminal opened as a serial
-//! device, the board's code path). The actions run in order in one session; the first one
+//! or in QEMU: the `board` image on mps2-an386 (UART0), or the STM32F4 image on
+//! netduinoplus2 (USART2), its port on a pseudo-terminal opened as a serial device (the
+//! board's code path). The actions run in order in one session; the first one
 //! that fails or is refused ends the command with an error that names the key.
 
 use crate::board_scope::{scope, Scope};
-use crate::image::build_board_console_image_for;
+use crate::image::{build_board_console_image_for, build_stm32_image_for};
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
 use pil_link::board::client::{BoardClient, BoardError};
@@ -12,6 +13,7 @@ use pil_link::board::keys;
 use pil_link::board::message::Request;
 use pil_link::board::session::fault_name;
 use pil_link::host::{open_serial, Stream};
+pub use pil_link::qemu::Machine;
 use pil_link::qemu::{LinkPort, Qemu, QemuOptions};
 use sim_engine::error::{HarnessError, Result};
 use std::path::PathBuf;
@@ -43,8 +45,11 @@ pub enum Action {
 /// Where the board is.
 #[derive(Clone, Debug)]
 pub enum BoardTarget {
-    /// The `board` image in QEMU (`elf`, or built with cargo), run with `qemu`.
+    /// A board console image in QEMU (`elf`, or built with cargo: the `board` image for
+    /// mps2-an386, the STM32F4 image for netduinoplus2), run with `qemu`.
     Qemu {
+        /// The QEMU machine.
+        machine: Machine,
         /// Image to run instead of building it.
         elf: Option<PathBuf>,
         /// The machine file (absolute path) whose drive the built image carries; `None`:
@@ -90,11 +95,21 @@ pub fn parse_actions(words: &[String]) -> Result<Vec<Action>> {
                 let (key, value) = arg
                     .split_once('=')
                     .ok_or_else(|| bad(format!("set {arg}: expected KEY=VALUE")))?;
-                let value: f64 = value
-                    .trim()
-                    .parse()
-                    .map_err(|_| bad(format!("set {key}: {value:?} is not a number")))?;
-                Action::Set(key.trim().to_string(), value)
+                let (key, value) = (key.trim(), value.trim());
+                let value = match keys::choice(key) {
+                    // An enumerated setting by the name of its value, as the machine file
+                    // spells it; the wire carries the name's index.
+                    Some(c) => c.index(value).map(|i| i as f64).ok_or_else(|| {
+                        bad(format!(
+                            "set {key}: {value:?} is not one of {}",
+                            c.names.join(", ")
+                        ))
+                    })?,
+                    None => value
+                        .parse()
+                        .map_err(|_| bad(format!("set {key}: {value:?} is not a number")))?,
+                };
+                Action::Set(key.to_string(), value)
             }
             "scope" => {
                 let (mut seconds, mut out) = (None, None);
@@ -160,11 +175,17 @@ pub fn with_board<T>(
             let stream = open_serial(path, *baud).map_err(|e| HarnessError::io(path, e))?;
             f(&mut BoardClient::new(stream, reply_timeout))
         }
-        BoardTarget::Qemu { elf, drive, qemu } => {
+        BoardTarget::Qemu {
+            machine,
+            elf,
+            drive,
+            qemu,
+        } => {
             provision::ensure_qemu().map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
-            let elf = match elf {
-                Some(e) => e.clone(),
-                None => build_board_console_image_for(drive.as_deref())?,
+            let elf = match (elf, machine) {
+                (Some(e), _) => e.clone(),
+                (None, Machine::Mps2An386) => build_board_console_image_for(drive.as_deref())?,
+                (None, Machine::Netduinoplus2) => build_stm32_image_for(drive.as_deref())?,
             };
             let log =
                 std::env::temp_dir().join(format!("stiffdrive-board-{}.defmt", std::process::id()));
@@ -174,11 +195,18 @@ pub fn with_board<T>(
                 log: log.clone(),
                 connect_timeout: Duration::from_secs(20),
                 port: LinkPort::Pty,
+                machine: *machine,
             })
             .map_err(|e| HarnessError::Backend(format!("board: {e}")))?;
             let result = f(&mut BoardClient::new(stream, reply_timeout));
             vm.finish(Duration::ZERO);
-            let lines = firmware_log(&elf, &log);
+            let lines = match machine {
+                Machine::Mps2An386 => firmware_log(&elf, &log),
+                // The STM32F4 image logs over RTT, which QEMU does not carry.
+                Machine::Netduinoplus2 => {
+                    vec!["(the STM32F4 image logs over RTT: no log in QEMU)".into()]
+                }
+            };
             let _ = std::fs::remove_file(&log);
             if result.is_err() || std::env::var_os("STIFFDRIVE_BOARD_LOG").is_some() {
                 for line in lines {
@@ -244,12 +272,16 @@ fn run_action(client: &mut BoardClient<Stream>, action: &Action) -> Result<Strin
                 )
             })
             .map_err(link)?,
-        Action::Get(key) => format!("{} = {}", shown(key), client.get(key).map_err(link)?),
+        Action::Get(key) => format!(
+            "{} = {}",
+            shown(key),
+            value_text(key, client.get(key).map_err(link)?)
+        ),
         Action::Set(key, value) => {
             format!(
                 "{} = {} (set)",
                 shown(key),
-                client.set(key, *value).map_err(link)?
+                value_text(key, client.set(key, *value).map_err(link)?)
             )
         }
         Action::Save => {
@@ -284,10 +316,48 @@ fn run_action(client: &mut BoardClient<Stream>, action: &Action) -> Result<Strin
 }
 
 /// A key as the machine file spells it (`drive.` prefixed).
+/// `value` of `key` as the machine file writes it: the name of an enumerated setting's
+/// value, the number otherwise.
+fn value_text(key: &str, value: f64) -> String {
+    keys::choice(key)
+        .and_then(|c| c.name(value))
+        .map_or_else(|| value.to_string(), str::to_string)
+}
+
 fn shown(key: &str) -> String {
     if key.starts_with(keys::PREFIX) {
         key.to_string()
     } else {
         format!("{}{key}", keys::PREFIX)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn words(w: &[&str]) -> Vec<String> {
+        w.iter().map(ToString::to_string).collect()
+    }
+
+    #[test]
+    fn an_enumerated_setting_is_set_by_its_name_and_shown_by_it() {
+        let a = parse_actions(&words(&["set", "drive.accel_feedback.mode=plain"])).unwrap();
+        assert_eq!(
+            a,
+            vec![Action::Set("drive.accel_feedback.mode".into(), 1.0)]
+        );
+        assert_eq!(value_text("drive.accel_feedback.mode", 2.0), "error");
+        assert_eq!(value_text("drive.velocity_bandwidth_rad_s", 50.0), "50");
+        let e = parse_actions(&words(&["set", "drive.accel_feedback.mode=sideways"]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("drive.accel_feedback.mode") && e.contains("off, plain, error"),
+            "{e}"
+        );
+        // A number is not a name: the index is the wire's business, not the operator's.
+        assert!(parse_actions(&words(&["set", "drive.accel_feedback.mode=1"])).is_err());
     }
 }

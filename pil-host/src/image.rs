@@ -145,10 +145,17 @@ fn copy_out(release: &Path, bin: &str, name: &str) -> Result<PathBuf> {
 /// carrying the drive of the machine file `drive` and returns the ELF path,
 /// `images/stm32f4-<file stem>`.
 pub fn build_board_image(drive: &Path) -> Result<PathBuf> {
-    let stem = drive
-        .file_stem()
-        .map_or_else(|| "drive".into(), |s| s.to_string_lossy().into_owned());
-    let name = format!("stm32f4-{stem}");
+    build_stm32_image_for(Some(drive))
+}
+
+/// Builds the STM32F4 board's image carrying the drive of the machine file `drive` (an
+/// absolute path; `None`: Table 1's) and returns the ELF path, `images/stm32f4` or
+/// `images/stm32f4-<file stem>`.
+pub fn build_stm32_image_for(drive: Option<&Path>) -> Result<PathBuf> {
+    let name = drive.and_then(Path::file_stem).map_or_else(
+        || "stm32f4".to_string(),
+        |s| format!("stm32f4-{}", s.to_string_lossy()),
+    );
     let args = [
         "--bin",
         "firmware",
@@ -156,9 +163,7 @@ pub fn build_board_image(drive: &Path) -> Result<PathBuf> {
         "--features",
         "board-stm32f4",
     ];
-    build_locked(&args, Some(drive), |release| {
-        copy_out(release, "firmware", &name)
-    })
+    build_locked(&args, drive, |release| copy_out(release, "firmware", &name))
 }
 
 /// Builds every firmware binary for the QEMU board (default features) and calls `check`

@@ -10,7 +10,7 @@ use controller_core::excitation::ExcitationConfig;
 use fw_runner::defmt_log::{LineFormat, LogDecoder};
 use fw_runner::provision;
 use pil_link::host::{FaultPlan, HostError, HostLink, Stream};
-use pil_link::qemu::{Qemu, QemuOptions};
+use pil_link::qemu::{Machine, Qemu, QemuOptions};
 use pil_link::wire::Writer;
 use pil_link::{FaultReport, HelloAck};
 use serde::{Deserialize, Serialize};
@@ -162,6 +162,7 @@ impl Session {
             log: log.to_path_buf(),
             connect_timeout: Duration::from_secs(20),
             port: args.port,
+            machine: Machine::default(),
         })
         .map_err(|e| HarnessError::Backend(format!("PIL: {e}")))?;
         let mut link = HostLink::new(stream, Duration::from_millis(args.reply_timeout_ms));

@@ -1,7 +1,7 @@
-//! Starts the firmware's PIL image in QEMU (mps2-an386, Cortex-M4F) with UART0 on a Unix
-//! socket the harness listens on (loopback only, no network) or on a pseudo-terminal the
-//! harness opens as a serial device ([`LinkPort`]), and its semihosting output (the defmt
-//! log) in a file. Needs `std`.
+//! Starts a firmware image in QEMU (mps2-an386, Cortex-M4F; or netduinoplus2, STM32F405:
+//! [`Machine`]) with its link UART on a Unix socket the harness listens on (loopback only,
+//! no network) or on a pseudo-terminal the harness opens as a serial device
+//! ([`LinkPort`]), and its semihosting output (the defmt log) in a file. Needs `std`.
 
 use crate::host::{Stream, open_serial};
 use std::fs::File;
@@ -35,6 +35,36 @@ impl core::str::FromStr for LinkPort {
     }
 }
 
+/// The QEMU machine, and so which of its serial ports is the link.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Machine {
+    /// mps2-an386 (Cortex-M4F): the link on UART0, QEMU's first serial port.
+    #[default]
+    Mps2An386,
+    /// netduinoplus2 (STM32F405): the link on USART2, QEMU's second serial port. QEMU 7.2
+    /// models its USARTs but not its clock controller, TIM1/6/7 nor its flash controller.
+    Netduinoplus2,
+}
+
+impl Machine {
+    /// QEMU's name of the machine.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Mps2An386 => "mps2-an386",
+            Self::Netduinoplus2 => "netduinoplus2",
+        }
+    }
+
+    /// Serial ports ahead of the link's (`-serial null` each).
+    const fn ports_before_link(self) -> usize {
+        match self {
+            Self::Mps2An386 => 0,
+            Self::Netduinoplus2 => 1,
+        }
+    }
+}
+
 /// How to start QEMU.
 #[derive(Clone, Debug)]
 pub struct QemuOptions {
@@ -46,8 +76,10 @@ pub struct QemuOptions {
     pub log: PathBuf,
     /// How long QEMU may take to connect to the socket (or to name its pseudo-terminal).
     pub connect_timeout: Duration,
-    /// Where UART0 goes.
+    /// Where the link UART goes.
     pub port: LinkPort,
+    /// The machine.
+    pub machine: Machine,
 }
 
 /// Why QEMU could not be started or connected.
@@ -163,7 +195,11 @@ impl Qemu {
             }
             LinkPort::Pty => None,
         };
-        let serial: Vec<String> = match opts.port {
+        let mut serial: Vec<String> = Vec::new();
+        for _ in 0..opts.machine.ports_before_link() {
+            serial.extend(["-serial".into(), "null".into()]);
+        }
+        serial.extend::<Vec<String>>(match opts.port {
             LinkPort::Socket => vec![
                 "-chardev".into(),
                 format!("socket,id=pil,path={}", sock.display()),
@@ -171,10 +207,15 @@ impl Qemu {
                 "chardev:pil".into(),
             ],
             LinkPort::Pty => vec!["-serial".into(), "pty".into()],
+        });
+        let cpu: &[&str] = match opts.machine {
+            Machine::Mps2An386 => &["-cpu", "cortex-m4"],
+            Machine::Netduinoplus2 => &[],
         };
         let stderr_path = dir.join("qemu.stderr");
         let spawned = Command::new(&opts.qemu)
-            .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+            .args(["-machine", opts.machine.name()])
+            .args(cpu)
             .args(["-nographic", "-monitor", "none"])
             .args(["-semihosting-config", "enable=on,target=native"])
             .args(&serial)

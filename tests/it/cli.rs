@@ -394,6 +394,17 @@ fn board_config_goes_with_qemu_only() {
     assert!(parse(&["--qemu", "--config", "table1", "status"]).is_ok());
     assert!(parse(&["--port", "/dev/ttyACM0", "--config", "table1", "status"]).is_err());
     assert!(parse(&["--qemu", "--elf", "x", "--config", "table1", "status"]).is_err());
+    // `--elf` and `--machine` are QEMU's: refused with `--port`.
+    assert!(parse(&["--qemu", "--elf", "x", "status"]).is_ok());
+    assert!(parse(&["--port", "/dev/ttyACM0", "--elf", "x", "status"]).is_err());
+    assert!(parse(&[
+        "--port",
+        "/dev/ttyACM0",
+        "--machine",
+        "netduinoplus2",
+        "status"
+    ])
+    .is_err());
 }
 
 /// `identify --board`: where the board is must be said, once; `--set` may change only the

@@ -1,12 +1,13 @@
 //! `stiffdrive board --qemu`: the board console against the `board` image in QEMU, through
 //! the real binary (set, save, reset, get; refusals; the scope) and through the client
-//! library where a test must look at the drive between refusals.
+//! library where a test must look at the drive between refusals; and against the STM32F4
+//! image on QEMU's netduinoplus2 (`--machine netduinoplus2`).
 
-use pil_host::image::build_board_console_image;
+use pil_host::image::{build_board_console_image, build_stm32_image_for};
 use pil_link::board::client::{BoardClient, BoardError};
 use pil_link::board::message::{Refusal, Request};
 use pil_link::host::Stream;
-use pil_link::qemu::{LinkPort, Qemu, QemuOptions};
+use pil_link::qemu::{LinkPort, Machine, Qemu, QemuOptions};
 use pil_link::{Frame, FrameKind, MAX_FRAME};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -25,11 +26,26 @@ fn board_elf() -> PathBuf {
     .clone()
 }
 
+/// The STM32F4 image (Table 1's drive), built once per test binary.
+fn stm32_elf() -> PathBuf {
+    static ELF: OnceLock<PathBuf> = OnceLock::new();
+    ELF.get_or_init(|| {
+        fw_runner::provision::ensure_qemu().unwrap();
+        build_stm32_image_for(None).unwrap_or_else(|e| panic!("cannot build the STM32 image: {e}"))
+    })
+    .clone()
+}
+
 /// `stiffdrive board --qemu --elf <board image> ARGS...`
 fn board(args: &[&str]) -> Output {
+    board_on("mps2-an386", &board_elf(), args)
+}
+
+/// `stiffdrive board --qemu --machine MACHINE --elf ELF ARGS...`
+fn board_on(machine: &str, elf: &Path, args: &[&str]) -> Output {
     let out = Command::new(env!("CARGO_BIN_EXE_stiffdrive"))
-        .args(["board", "--qemu", "--elf"])
-        .arg(board_elf())
+        .args(["board", "--qemu", "--machine", machine, "--elf"])
+        .arg(elf)
         .args(args)
         .env("STIFFDRIVE_BOARD_LOG", "1")
         .output()
@@ -44,7 +60,20 @@ fn board(args: &[&str]) -> Output {
 }
 
 pub fn set_save_reset_get_prints_the_saved_value() {
-    let out = board(&["set", &format!("{KEY}=50"), "save", "reset", "get", KEY]);
+    // An enumerated setting goes by the name of its value, and is saved with the rest.
+    let mode = "drive.accel_feedback.mode";
+    let out = board(&[
+        "set",
+        &format!("{KEY}=50"),
+        "set",
+        &format!("{mode}=plain"),
+        "save",
+        "reset",
+        "get",
+        KEY,
+        "get",
+        mode,
+    ]);
     assert!(out.status.success());
     let stdout = String::from_utf8_lossy(&out.stdout);
     let lines: Vec<&str> = stdout.lines().collect();
@@ -53,6 +82,7 @@ pub fn set_save_reset_get_prints_the_saved_value() {
         .position(|l| l.starts_with("board reset"))
         .unwrap();
     assert_eq!(lines[reset + 1], format!("{KEY} = 50"), "{stdout}");
+    assert_eq!(lines[reset + 2], format!("{mode} = plain"), "{stdout}");
     // The boot after the reset ran the saved settings and said so.
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -85,6 +115,7 @@ fn session(log: &Path) -> (Qemu, BoardClient<Stream>) {
         log: log.to_path_buf(),
         connect_timeout: Duration::from_secs(20),
         port: LinkPort::Pty,
+        machine: Machine::default(),
     })
     .unwrap();
     let mut client = BoardClient::new(stream, Duration::from_secs(3));
@@ -191,4 +222,45 @@ pub fn scope_writes_a_second_of_samples_at_the_trace_rate_without_gaps() {
         "mine"
     );
     assert_eq!(std::fs::read_dir(&foreign).unwrap().count(), 1);
+}
+
+/// The STM32F4 image on netduinoplus2: the console on USART2 answers status, set, get and
+/// faults; an out-of-range set is refused naming the key; and `save` says it failed, since
+/// QEMU 7.2 models no flash controller (its registers read 0, flash ignores writes).
+pub fn netduinoplus2_serves_the_console_and_save_reports_the_missing_flash_controller() {
+    let elf = stm32_elf();
+    let on_stm32 = |args: &[&str]| board_on("netduinoplus2", &elf, args);
+    let out = on_stm32(&[
+        "status",
+        "set",
+        &format!("{KEY}=50"),
+        "get",
+        KEY,
+        "faults",
+        "save",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert!(
+        lines[0].contains("(the baked drive); baked drive configs/machines/table1.toml")
+            && lines[0].ends_with("disabled; fault: none"),
+        "{stdout}"
+    );
+    assert_eq!(lines[1], format!("{KEY} = 50 (set)"));
+    assert_eq!(lines[2], format!("{KEY} = 50"));
+    assert_eq!(lines[3], "faults since boot: 0");
+    assert_eq!(lines.len(), 4, "save must not claim success: {stdout}");
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("board refused: save failed: erase: the sector is not blank at byte 0"),
+        "{stderr}"
+    );
+    let out = on_stm32(&["set", "drive.velocity_damping=50"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("drive.velocity_damping = 50: allowed range is [0.1, 10]"),
+        "{stderr}"
+    );
 }

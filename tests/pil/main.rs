@@ -20,7 +20,7 @@
 
 use pil_host::{build_pil_image, build_pil_image_with, pil_command, run_pil, PilRun};
 use pil_link::host::{HostError, HostLink, Stream};
-use pil_link::qemu::{LinkPort, Qemu, QemuOptions};
+use pil_link::qemu::{LinkPort, Machine, Qemu, QemuOptions};
 use pil_link::FaultCode;
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -117,14 +117,15 @@ fn run_case(name: &str, case: fn()) {
     );
 }
 
-/// The board console (`stiffdrive board --qemu`, `board.rs`), case by case, after or before
+/// The board console (`stiffdrive board --qemu`, on mps2-an386 and netduinoplus2,
+/// `board.rs`), case by case, after or before
 /// the processor-in-the-loop cases (never beside them).
 #[test]
 fn board_console() {
     let _one_at_a_time = QEMU_TESTS
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let cases: [(&str, fn()); 4] = [
+    let cases: [(&str, fn()); 5] = [
         (
             "board: set_save_reset_get_prints_the_saved_value",
             crate::board::set_save_reset_get_prints_the_saved_value,
@@ -140,6 +141,10 @@ fn board_console() {
         (
             "board: scope_writes_a_second_of_samples_at_the_trace_rate_without_gaps",
             crate::board::scope_writes_a_second_of_samples_at_the_trace_rate_without_gaps,
+        ),
+        (
+            "board: netduinoplus2_serves_the_console_and_save_reports_the_missing_flash_controller",
+            crate::board::netduinoplus2_serves_the_console_and_save_reports_the_missing_flash_controller,
         ),
     ];
     for (name, case) in cases {
@@ -405,6 +410,7 @@ fn raw_session(elf: &std::path::Path, log: &std::path::Path) -> (Qemu, HostLink<
         log: log.to_path_buf(),
         connect_timeout: Duration::from_secs(20),
         port: LinkPort::Socket,
+        machine: Machine::default(),
     })
     .unwrap();
     (qemu, HostLink::new(stream, Duration::from_secs(3)))

@@ -22,6 +22,8 @@ use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
 use controller_core::per_unit::Pu;
 use cortex_m::peripheral::NVIC;
 
+use pil_link::board::store::{SaveError, RECORD_LEN};
+
 use crate::board::{CurrentIo, CurrentSense, EncoderCounter, VelocityIo};
 use crate::virtual_motor::{VirtualMotor, VirtualMotorConfig};
 
@@ -457,22 +459,55 @@ pub fn read_settings_sector(buf: &mut [u8]) {
     }
 }
 
-/// Writes `bytes` at the start of the settings sector; true if they read back.
-pub fn write_settings_sector(bytes: &[u8]) -> bool {
-    for (i, &b) in bytes.iter().take(SETTINGS_SECTOR_LEN).enumerate() {
-        // SAFETY: as in `read_settings_sector`: a byte of the SETTINGS region, written volatile.
+/// Writes `record` at the start of the settings sector and reads it back.
+///
+/// # Errors
+/// [`SaveError::Verify`] with the first byte that did not read back.
+pub fn write_settings_sector(record: &[u8; RECORD_LEN]) -> Result<(), SaveError> {
+    for (i, &b) in record.iter().enumerate() {
+        // SAFETY: as in `read_settings_sector`: a byte of the SETTINGS region (the record
+        // fits in it, asserted below), written volatile.
         #[allow(unsafe_code)]
         unsafe {
             core::ptr::write_volatile((SETTINGS_SECTOR + i) as *mut u8, b);
         }
     }
-    let mut back = [0_u8; 256];
-    let n = bytes.len().min(back.len());
-    let Some(back) = back.get_mut(..n) else {
-        return false;
-    };
-    read_settings_sector(back);
-    bytes.len() <= SETTINGS_SECTOR_LEN && bytes.get(..n) == Some(&*back)
+    let mut back = [0_u8; RECORD_LEN];
+    read_settings_sector(&mut back);
+    match record.iter().zip(back).position(|(w, r)| *w != r) {
+        Some(i) => Err(SaveError::Verify {
+            offset: u32::try_from(i).unwrap_or(u32::MAX),
+        }),
+        None => Ok(()),
+    }
+}
+
+const _: () = assert!(RECORD_LEN <= SETTINGS_SECTOR_LEN);
+
+/// The board console's hardware on this board: UART0, the SRAM settings sector, TIMER0/1.
+#[derive(Debug, Default)]
+pub struct BoardConsole;
+
+impl crate::board_console::ConsoleBoard for BoardConsole {
+    const PORT: &'static str = "UART0";
+
+    fn send(&mut self, bytes: &[u8]) {
+        Uart0.write_bytes(bytes);
+    }
+
+    fn read_settings(&mut self, record: &mut [u8; RECORD_LEN]) {
+        read_settings_sector(record);
+    }
+
+    fn write_settings(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError> {
+        write_settings_sector(record)
+    }
+
+    fn set_loop_rates(&mut self, current_hz: u32, velocity_hz: u32) {
+        // Both at once, as `start` does, so their ticks stay aligned.
+        PeriodicTimer::TIMER1.start(velocity_hz);
+        PeriodicTimer::TIMER0.start(current_hz);
+    }
 }
 
 /// A command byte from the console, if one arrived.

@@ -211,6 +211,11 @@ macro_rules! register_block {
     };
 }
 
+mod flash;
+pub use flash::{
+    read_settings_sector, write_settings_sector, SETTINGS_SECTOR, SETTINGS_SECTOR_LEN,
+};
+
 // SAFETY: TIM1 is configured once in `init`; afterwards the current loop's `Tim1Pwm`
 // writes CCR1 and only `emergency_stop` (fault handlers) writes BDTR: a shared reference
 // to the MMIO block is sound (vcell).
@@ -227,7 +232,8 @@ register_block!(gpiod: GPIOD => gpioi);
 // SAFETY: after `init`, GPIOE is only read (IDR).
 register_block!(gpioe: GPIOE => gpioi);
 // SAFETY: the watchdog is started in `start` and afterwards only refreshed (KR writes) by
-// the current loop.
+// the current loop, and reloaded with a longer timeout by a settings save (thread mode,
+// loop timers stopped).
 register_block!(iwdg: IWDG => iwdg);
 // SAFETY: after `init`, TIM6 SR is cleared only by its own interrupt.
 register_block!(tim6: TIM6 => tim6);
@@ -325,19 +331,70 @@ impl embedded_hal::digital::InputPin for FaultPin {
     }
 }
 
-/// USART2 console (dump text out, commands in).
+/// USART2 console (the board console's frames, the boot line).
 #[derive(Clone, Copy)]
 pub struct Usart2;
 
-impl core::fmt::Write for Usart2 {
-    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+impl Usart2 {
+    /// Send bytes, waiting while the transmit register is full.
+    pub fn write_bytes(self, bytes: &[u8]) {
         let u = usart2();
-        for b in s.bytes() {
+        for &b in bytes {
             // SR.TXE (bit 7): data register empty.
             while u.sr().read().bits() & (1 << 7) == 0 {}
             wr!(u.dr(), u16::from(b));
         }
+    }
+}
+
+impl core::fmt::Write for Usart2 {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        self.write_bytes(s.as_bytes());
         Ok(())
+    }
+}
+
+/// The board console's hardware on this board: USART2, flash sector 11, TIM6/TIM7.
+#[derive(Debug, Default)]
+pub struct BoardConsole;
+
+impl crate::board_console::ConsoleBoard for BoardConsole {
+    const PORT: &'static str = "USART2";
+
+    fn send(&mut self, bytes: &[u8]) {
+        Usart2.write_bytes(bytes);
+    }
+
+    fn read_settings(&mut self, record: &mut [u8; pil_link::board::store::RECORD_LEN]) {
+        read_settings_sector(record);
+    }
+
+    fn write_settings(
+        &mut self,
+        record: &[u8; pil_link::board::store::RECORD_LEN],
+    ) -> Result<(), pil_link::board::store::SaveError> {
+        write_settings_sector(record)
+    }
+
+    fn set_loop_rates(&mut self, current_hz: u32, velocity_hz: u32) {
+        set_loop_rates(current_hz, velocity_hz);
+    }
+
+    /// The boot line on USART2 (defmt goes over RTT, which needs a probe): what the board
+    /// runs, on which clock, and where its settings come from.
+    fn booted(&mut self, note: &str) {
+        use core::fmt::Write as _;
+        let _ = write!(
+            Usart2,
+            "stiffdrive firmware {} on {}: drive {}; clock: {}; settings: {}; board console on \
+             USART2 (board protocol {})\r\n",
+            env!("CARGO_PKG_VERSION"),
+            NAME,
+            crate::drive::NAME,
+            Clocks::now().source.describe(),
+            note,
+            pil_link::board::BOARD_VERSION
+        );
     }
 }
 
@@ -351,10 +408,10 @@ pub struct Board {
     pub console: Console,
 }
 
-/// Configure TIM6/TIM7 for the loop rates, set priorities, unmask, start (TIM6 first, so
-/// at every shared instant the current loop's update comes first).
-pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
+/// Configure TIM6/TIM7 for the loop rates (stopped; started by the caller).
+fn configure_loop_timers(current_rate_hz: u32, velocity_rate_hz: u32) {
     for (tim, rate) in [(tim6(), current_rate_hz), (tim7(), velocity_rate_hz)] {
+        wr!(tim.cr1(), 0);
         wr!(tim.psc(), 0);
         wr!(
             tim.arr(),
@@ -364,7 +421,21 @@ pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
         wr!(tim.sr(), 0);
         wr!(tim.dier(), 1); // UIE
     }
-    start_watchdog();
+}
+
+/// Runs the loop timers at new rates, restarted together (TIM6 first, as in [`start`]).
+pub fn set_loop_rates(current_rate_hz: u32, velocity_rate_hz: u32) {
+    configure_loop_timers(current_rate_hz, velocity_rate_hz);
+    wr!(tim6().cr1(), 1);
+    wr!(tim7().cr1(), 1);
+}
+
+/// Configure TIM6/TIM7 for the loop rates, set priorities, unmask, start (TIM6 first, so
+/// at every shared instant the current loop's update comes first).
+pub fn start(nvic: &mut NVIC, current_rate_hz: u32, velocity_rate_hz: u32) {
+    configure_loop_timers(current_rate_hz, velocity_rate_hz);
+    wr!(iwdg().kr(), 0xCCCC); // start the watchdog
+    set_watchdog(WATCHDOG_DRIVE);
     // SAFETY: priorities are set before unmasking; the handlers share data only through
     // `critical_section::Mutex` cells, atomics and `TaskLocal`s.
     #[allow(unsafe_code)]
@@ -396,16 +467,34 @@ pub fn stop() {
     wr!(gpiod().bsrr(), 1 << (12 + 16));
 }
 
-/// Independent watchdog: if the current loop stops refreshing it for ≈ 5 ms (nominal
-/// LSI 32 kHz / 4, reload 40; the LSI may run 17–47 kHz, so 3.4–9.4 ms), the MCU resets and
-/// the PWM pins fall back to their reset state (inputs: the gate driver's pulls hold the
-/// bridge off). It stops while a debugger halts the core.
-fn start_watchdog() {
+/// A watchdog timeout: prescaler code (PR: 0 = /4 … 6 = /256) and reload (RLR).
+#[derive(Clone, Copy, Debug)]
+pub struct Watchdog {
+    prescaler: u16,
+    reload: u16,
+}
+
+/// Independent watchdog while the loops run: if the current loop stops refreshing it for
+/// ≈ 5 ms (nominal LSI 32 kHz / 4, reload 40; the LSI may run 17–47 kHz, so 3.4–9.4 ms),
+/// the MCU resets and the PWM pins fall back to their reset state (inputs: the gate
+/// driver's pulls hold the bridge off). It stops while a debugger halts the core.
+pub const WATCHDOG_DRIVE: Watchdog = Watchdog {
+    prescaler: 0,
+    reload: 40,
+};
+/// While a settings save erases flash (the core stalls up to 2 s): /256, reload 4095,
+/// 22 s at the LSI's fastest 47 kHz.
+pub const WATCHDOG_SAVE: Watchdog = Watchdog {
+    prescaler: 6,
+    reload: 4095,
+};
+
+/// Loads a watchdog timeout (the watchdog runs on if started) and refreshes it.
+pub fn set_watchdog(t: Watchdog) {
     let w = iwdg();
-    wr!(w.kr(), 0xCCCC); // start
     wr!(w.kr(), 0x5555); // unlock PR and RLR
-    wr!(w.pr(), 0); // /4
-    wr!(w.rlr(), 40);
+    wr!(w.pr(), t.prescaler);
+    wr!(w.rlr(), t.reload);
     // SR.PVU / SR.RVU: wait until the new values reached the LSI domain.
     let _ = wait(|| w.sr().read().bits() & 0b11 == 0);
     wr!(w.kr(), 0xAAAA); // refresh

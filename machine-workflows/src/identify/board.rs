@@ -22,7 +22,7 @@
 
 use super::measure::{frequency_response_setup, frequency_response_tail, reversal_load, Record};
 use super::{identify_records, load, spec::IdentifySpec, write};
-use pil_host::board::{with_board, BoardTarget};
+use pil_host::board::{with_board, BoardTarget, Machine};
 use pil_host::board_identify::{run_identify, BoardRecord};
 use pil_link::board::client::BoardClient;
 use pil_link::board::identify::IdentifyRun;
@@ -175,7 +175,9 @@ pub fn identify_board(
     let (base, spec) = load(config, sets)?;
     let staging = Staging::new(out)?;
     let target = match target {
+        // The `board` image on mps2-an386: the QEMU board with a rig.
         BoardTarget::Qemu { elf, qemu, .. } => BoardTarget::Qemu {
+            machine: Machine::Mps2An386,
             elf: elf.clone(),
             drive: Some(crate::flash::drive_file(config)?),
             qemu: qemu.clone(),

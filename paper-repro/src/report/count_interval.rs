@@ -18,13 +18,13 @@ pub const HALF_WIDTH_COUNTS: f32 = 0.5;
 
 /// One pair: its label, the AFB scenario (its run without AFB is `<scenario>-no-afb`) and
 /// the machine file instead of the scenario's own.
-struct Pair {
-    label: &'static str,
-    scenario: &'static str,
-    config: Option<&'static str>,
+pub(super) struct Pair {
+    pub(super) label: &'static str,
+    pub(super) scenario: &'static str,
+    pub(super) config: Option<&'static str>,
 }
 
-const PAIRS: [Pair; 6] = [
+pub(super) const PAIRS: [Pair; 6] = [
     Pair {
         label: "`shock` (dyno)",
         scenario: "shock",
@@ -59,7 +59,7 @@ const PAIRS: [Pair; 6] = [
 
 /// A criterion on the ratios with AFB / without of one pair: (pair index, figure, largest
 /// ratio).
-const CRITERIA: [(usize, Figure, f64); 10] = [
+pub(super) const CRITERIA: [(usize, Figure, f64); 10] = [
     (0, Figure::ShaftRipple, 1.0),
     (0, Figure::PeakShaftTorque, 1.0),
     (1, Figure::ShaftRipple, 1.0),
@@ -74,14 +74,14 @@ const CRITERIA: [(usize, Figure, f64); 10] = [
 
 /// The figures compared.
 #[derive(Clone, Copy)]
-enum Figure {
+pub(super) enum Figure {
     ShaftRipple,
     PeakShaftTorque,
     TorqueNoise,
 }
 
 impl Figure {
-    fn of(self, m: &Metrics) -> f64 {
+    pub(super) fn of(self, m: &Metrics) -> f64 {
         match self {
             Self::ShaftRipple => m.shaft_torque_ripple_rms_pu,
             Self::PeakShaftTorque => m.peak_shaft_torque_pu.unwrap_or(f64::NAN),
@@ -89,7 +89,7 @@ impl Figure {
         }
     }
 
-    fn name(self) -> &'static str {
+    pub(super) fn name(self) -> &'static str {
         match self {
             Self::ShaftRipple => "shaft ripple",
             Self::PeakShaftTorque => "peak shaft torque",

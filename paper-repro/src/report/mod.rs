@@ -20,6 +20,7 @@ pub mod runs;
 pub mod saturation;
 pub mod sec2;
 pub mod section;
+pub mod step_timing;
 pub mod stiffness;
 pub mod sweep;
 pub mod tune;
@@ -179,6 +180,7 @@ fn sections(r: &Results, elapsed_s: f64) -> Result<Vec<Section>> {
         load::shock_30(runs)?,
         saturation::section(runs)?,
         count_interval::section()?,
+        step_timing::section()?,
         sweep::section(&r.sweep_points, &r.sweep)?,
         tune::section(&r.tunes, &Constraints::default())?,
         stiffness::section(&r.stiffness)?,

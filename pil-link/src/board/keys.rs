@@ -2,9 +2,17 @@
 //! ranges of controller-core's one range table ([`controller_core::ranges::RANGES`]). Both
 //! sides look a key up here; the wire carries the key as text, so an error names it as the
 //! operator typed it. A key is a field of [`DriveConfig`] reached through [`field`].
+//!
+//! The enumerated settings are keys too ([`CHOICES`]): on the wire their value is the index
+//! of the value's name in [`Choice::names`], which are spelled as in the machine file. The
+//! kind of a filter and the presence of the notch are not keys: a change of kind needs its
+//! corner (and Q) with it, which is a machine-file edit, not one setting.
 
 use controller_core::ranges::{self, Range};
-use controller_core::{ConfigError, DriveConfig, FilterConfig};
+use controller_core::{
+    AfbMode, AfbRate, ConfigError, DriveConfig, Estimator, FilterConfig, ObserverInertia,
+    ObserverTorque, PiInertia,
+};
 
 /// How the machine file spells a key of its `[drive]` table: `drive.` + the range key.
 pub const PREFIX: &str = "drive.";
@@ -36,6 +44,168 @@ pub enum KeyError {
     NotPresent(&'static Range),
     /// Outside its range (or not whole for a whole-number key).
     Invalid(ConfigError),
+}
+
+/// An enumerated setting: its key below `[drive]` and the names of its values, as the
+/// machine file spells them, in the order of their index on the wire.
+#[derive(Debug, PartialEq, Eq)]
+pub struct Choice {
+    /// Dotted path below `[drive]`, e.g. `"accel_feedback.mode"`.
+    pub key: &'static str,
+    /// The values' names; a value's index here is its number on the wire.
+    pub names: &'static [&'static str],
+}
+
+impl Choice {
+    /// The index of the value called `name`.
+    #[must_use]
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| *n == name)
+    }
+
+    /// The name of the value with index `value` (a whole number below `names.len()`).
+    #[must_use]
+    pub fn name(&self, value: f64) -> Option<&'static str> {
+        let i = value as usize;
+        (i as f64 == value)
+            .then(|| self.names.get(i).copied())
+            .flatten()
+    }
+
+    /// `value` as an index of a value (a whole number below `names.len()`).
+    fn index_of_value(&self, value: f64) -> Option<usize> {
+        self.name(value).map(|_| value as usize)
+    }
+
+    /// The error for an index that names no value: out of `[0, names.len() − 1]`.
+    fn out_of_range(&self, value: f64) -> ConfigError {
+        ConfigError::OutOfRange {
+            param: self.key,
+            value: value as f32,
+            min: 0.0,
+            max: self.names.len().saturating_sub(1) as f32,
+            min_exclusive: false,
+        }
+    }
+}
+
+/// The enumerated settings of the console.
+pub static CHOICES: [Choice; 7] = [
+    Choice {
+        key: "accel_feedback.mode",
+        names: &["off", "plain", "error"],
+    },
+    Choice {
+        key: "accel_feedback.rate",
+        names: &["current", "velocity"],
+    },
+    Choice {
+        key: "accel_feedback.source",
+        names: &["differentiation", "observer"],
+    },
+    Choice {
+        key: "velocity_estimator",
+        names: &["differentiation", "observer"],
+    },
+    Choice {
+        key: "velocity_pi_inertia",
+        names: &["total", "total_plus_afb"],
+    },
+    Choice {
+        key: "observer.model_inertia",
+        names: &["total", "motor"],
+    },
+    Choice {
+        key: "observer.torque_input",
+        names: &["command", "measured_current"],
+    },
+];
+
+/// The enumerated setting `key` (`drive.accel_feedback.mode`, or without the prefix).
+#[must_use]
+pub fn choice(key: &str) -> Option<&'static Choice> {
+    let key = key.strip_prefix(PREFIX).unwrap_or(key);
+    CHOICES.iter().find(|c| c.key == key)
+}
+
+/// The key as the range table or [`CHOICES`] spell it (without the prefix), for a key of
+/// either kind; `None` for no setting.
+#[must_use]
+pub fn static_key(key: &str) -> Option<&'static str> {
+    choice(key)
+        .map(|c| c.key)
+        .or_else(|| range(key).map(|r| r.key))
+}
+
+/// The index of the enumerated setting `c` in `cfg`.
+fn choice_get(cfg: &DriveConfig, c: &Choice) -> usize {
+    let estimator = |e: Estimator| match e {
+        Estimator::Differentiation => 0,
+        Estimator::Observer => 1,
+    };
+    match c.key {
+        "accel_feedback.mode" => match cfg.accel_feedback.mode {
+            AfbMode::Off => 0,
+            AfbMode::Plain => 1,
+            AfbMode::Error => 2,
+        },
+        "accel_feedback.rate" => usize::from(cfg.accel_feedback.rate == AfbRate::Velocity),
+        "accel_feedback.source" => estimator(cfg.accel_feedback.source),
+        "velocity_estimator" => estimator(cfg.velocity_estimator),
+        "velocity_pi_inertia" => usize::from(cfg.velocity_pi_inertia == PiInertia::TotalPlusAfb),
+        "observer.model_inertia" => {
+            usize::from(cfg.observer.model_inertia == ObserverInertia::Motor)
+        }
+        _ => usize::from(cfg.observer.torque_input == ObserverTorque::MeasuredCurrent),
+    }
+}
+
+/// Sets the enumerated setting `c` of `cfg` to the value with index `i` (< `names.len()`).
+fn choice_set(cfg: &mut DriveConfig, c: &Choice, i: usize) {
+    let estimator = if i == 0 {
+        Estimator::Differentiation
+    } else {
+        Estimator::Observer
+    };
+    match c.key {
+        "accel_feedback.mode" => {
+            cfg.accel_feedback.mode = match i {
+                0 => AfbMode::Off,
+                1 => AfbMode::Plain,
+                _ => AfbMode::Error,
+            }
+        }
+        "accel_feedback.rate" => {
+            cfg.accel_feedback.rate = if i == 0 {
+                AfbRate::Current
+            } else {
+                AfbRate::Velocity
+            }
+        }
+        "accel_feedback.source" => cfg.accel_feedback.source = estimator,
+        "velocity_estimator" => cfg.velocity_estimator = estimator,
+        "velocity_pi_inertia" => {
+            cfg.velocity_pi_inertia = if i == 0 {
+                PiInertia::Total
+            } else {
+                PiInertia::TotalPlusAfb
+            }
+        }
+        "observer.model_inertia" => {
+            cfg.observer.model_inertia = if i == 0 {
+                ObserverInertia::Total
+            } else {
+                ObserverInertia::Motor
+            }
+        }
+        _ => {
+            cfg.observer.torque_input = if i == 0 {
+                ObserverTorque::Command
+            } else {
+                ObserverTorque::MeasuredCurrent
+            }
+        }
+    }
 }
 
 /// The field of `cfg` the range `r` belongs to; `None` when this drive lacks it.
@@ -120,6 +290,9 @@ fn q(f: &mut FilterConfig) -> Option<Field<'_>> {
 /// # Errors
 /// [`KeyError::Unknown`] or [`KeyError::NotPresent`].
 pub fn get(cfg: &DriveConfig, key: &str) -> Result<f64, KeyError> {
+    if let Some(c) = choice(key) {
+        return Ok(choice_get(cfg, c) as f64);
+    }
     let r = range(key).ok_or(KeyError::Unknown)?;
     let mut copy = *cfg;
     Ok(match field(&mut copy, r).ok_or(KeyError::NotPresent(r))? {
@@ -136,6 +309,13 @@ pub fn get(cfg: &DriveConfig, key: &str) -> Result<f64, KeyError> {
 /// # Errors
 /// [`KeyError`]; `cfg` is then unchanged.
 pub fn set(cfg: &mut DriveConfig, key: &str, value: f64) -> Result<(), KeyError> {
+    if let Some(c) = choice(key) {
+        let i = c
+            .index_of_value(value)
+            .ok_or(KeyError::Invalid(c.out_of_range(value)))?;
+        choice_set(cfg, c, i);
+        return Ok(());
+    }
     let r = range(key).ok_or(KeyError::Unknown)?;
     // f32 is the type of every real setting; whole ones are exact in f32 up to 2^24 and
     // every whole bound of the table is a power of two.

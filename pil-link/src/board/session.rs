@@ -17,7 +17,7 @@ use super::identify::{IdentifyError, IdentifyRun};
 use super::keys::{self, KeyError};
 use super::message::{Origin, Refusal, Request, StatusReport, put_f64, reply_head};
 use super::scope::ScopeInfo;
-use super::store::{self, RECORD_LEN};
+use super::store::{self, RECORD_LEN, SaveError};
 use crate::wire::Writer;
 use crate::{Decoder, Frame, FrameKind, crc32, settings};
 use controller_core::{ConfigError, DriveConfig};
@@ -37,8 +37,11 @@ pub trait Drive {
     fn set_enabled(&mut self, on: bool);
     /// The latched fault's code (controller-core's `fault_code`; 0 none).
     fn fault_code(&self) -> u8;
-    /// Writes a settings record to the settings sector; false if it did not read back.
-    fn save(&mut self, record: &[u8; RECORD_LEN]) -> bool;
+    /// Writes a settings record to the settings sector and reads it back.
+    ///
+    /// # Errors
+    /// Why the sector does not hold the record.
+    fn save(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError>;
     /// The fault history.
     fn fault_history(&self) -> FaultHistory;
     /// Starts or stops the scope stream; returns its rate and channels.
@@ -103,7 +106,7 @@ pub enum ConsoleError<'a> {
     /// Enable with a latched fault (its code).
     Faulted(u8),
     /// The settings sector failed.
-    Storage,
+    Storage(SaveError),
     /// `Identify` while the drive is enabled.
     RunWhileEnabled,
     /// `Identify` refused by the settings or the board.
@@ -122,7 +125,7 @@ impl ConsoleError<'_> {
             Self::Enabled(_) => Refusal::Enabled,
             Self::OutOfRange(_) | Self::Invalid { .. } => Refusal::Invalid,
             Self::Faulted(_) => Refusal::Faulted,
-            Self::Storage => Refusal::Storage,
+            Self::Storage(_) => Refusal::Storage,
             Self::RunWhileEnabled => Refusal::Enabled,
             Self::Identify(_) => Refusal::Invalid,
         }
@@ -157,7 +160,7 @@ impl core::fmt::Display for ConsoleError<'_> {
                 "fault latched ({}): reset the board to clear it",
                 fault_name(code)
             ),
-            Self::Storage => write!(f, "the settings sector did not read back what was written"),
+            Self::Storage(e) => write!(f, "save failed: {e}"),
             Self::RunWhileEnabled => write!(
                 f,
                 "identify: refused while the drive is enabled (disable it first; the \
@@ -334,14 +337,14 @@ impl BoardSession {
         value: f64,
         drive: &mut D,
     ) -> Result<f64, ConsoleError<'r>> {
-        let range = keys::range(key).ok_or(ConsoleError::UnknownKey(key))?;
+        let static_key = keys::static_key(key).ok_or(ConsoleError::UnknownKey(key))?;
         if drive.enabled() {
-            return Err(ConsoleError::Enabled(range.key));
+            return Err(ConsoleError::Enabled(static_key));
         }
         let mut next = self.cfg;
         keys::set(&mut next, key, value).map_err(|e| key_error(key, e))?;
         let invalid = |error| ConsoleError::Invalid {
-            key: range.key,
+            key: static_key,
             value,
             error,
         };
@@ -353,10 +356,9 @@ impl BoardSession {
     }
 
     fn save<D: Drive>(&mut self, drive: &mut D) -> Result<(), ConsoleError<'static>> {
-        let record = store::encode(&self.cfg).map_err(|_| ConsoleError::Storage)?;
-        if !drive.save(&record) {
-            return Err(ConsoleError::Storage);
-        }
+        let record =
+            store::encode(&self.cfg).map_err(|_| ConsoleError::Storage(SaveError::Encode))?;
+        drive.save(&record).map_err(ConsoleError::Storage)?;
         self.origin = Origin::Saved;
         Ok(())
     }

@@ -61,6 +61,63 @@ impl core::fmt::Display for StoreError {
     }
 }
 
+/// Why writing the settings sector failed: the board's answer to `Save`, which the
+/// console reports as `save failed: ...`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SaveError {
+    /// Settings cannot be saved while the drive is enabled (writing the sector may hold up
+    /// the control loops).
+    Enabled,
+    /// The record could not be encoded.
+    Encode,
+    /// The flash controller stayed locked after its unlock keys.
+    Locked,
+    /// The flash controller stayed busy past the bounded wait (in the step named).
+    Timeout(&'static str),
+    /// The flash controller flagged an error (in the step named; its status register).
+    Flash {
+        /// `erase` or `program`.
+        step: &'static str,
+        /// The status register's error flags.
+        status: u32,
+    },
+    /// The erase did not leave the sector blank: the first offset that is not.
+    NotBlank {
+        /// Byte offset into the sector.
+        offset: u32,
+    },
+    /// The sector did not read back what was written: the first offset that differs.
+    Verify {
+        /// Byte offset into the sector.
+        offset: u32,
+    },
+}
+
+impl core::fmt::Display for SaveError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::Enabled => write!(f, "refused while the drive is enabled (disable it first)"),
+            Self::Encode => write!(f, "the settings record does not encode"),
+            Self::Locked => write!(f, "the flash controller stays locked after its unlock keys"),
+            Self::Timeout(step) => write!(f, "{step}: the flash controller stays busy"),
+            Self::Flash { step, status } => {
+                write!(
+                    f,
+                    "{step}: the flash controller flags an error (status {status:#010x})"
+                )
+            }
+            Self::NotBlank { offset } => write!(
+                f,
+                "erase: the sector is not blank at byte {offset} after its erase"
+            ),
+            Self::Verify { offset } => write!(
+                f,
+                "the settings sector does not read back what was written (byte {offset})"
+            ),
+        }
+    }
+}
+
 /// The record of `cfg`.
 ///
 /// # Errors

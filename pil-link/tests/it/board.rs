@@ -16,7 +16,7 @@ use pil_link::board::identify::{CHANNELS, IdentifyError, IdentifyRun};
 use pil_link::board::message::{Origin, Refusal, Reply, Request, get_f64};
 use pil_link::board::scope::ScopeInfo;
 use pil_link::board::session::{BoardSession, Drive};
-use pil_link::board::store::{self, RECORD_LEN, StoreError};
+use pil_link::board::store::{self, RECORD_LEN, SaveError, StoreError};
 use pil_link::wire::Writer;
 use pil_link::{Frame, FrameKind, MAX_FRAME};
 
@@ -30,6 +30,8 @@ struct MockDrive {
     history: FaultHistory,
     scope_on: bool,
     identified: Option<(DriveConfig, IdentifyRun)>,
+    /// What `save` answers instead of storing the record.
+    save_error: Option<SaveError>,
 }
 
 impl Drive for MockDrive {
@@ -46,9 +48,12 @@ impl Drive for MockDrive {
     fn fault_code(&self) -> u8 {
         self.fault
     }
-    fn save(&mut self, record: &[u8; RECORD_LEN]) -> bool {
+    fn save(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError> {
+        if let Some(e) = self.save_error {
+            return Err(e);
+        }
         self.saved = Some(*record);
-        true
+        Ok(())
     }
     fn fault_history(&self) -> FaultHistory {
         self.history
@@ -204,6 +209,30 @@ fn save_writes_a_record_the_boot_reads_back_and_a_damaged_one_is_refused() {
         store::decode(&other),
         Err(StoreError::BadVersion { found: 9 })
     );
+}
+
+#[test]
+fn a_failed_save_is_refused_with_the_boards_reason_and_the_settings_stay_unsaved() {
+    let (mut s, mut d) = (session(), MockDrive::default());
+    ask(&mut s, &mut d, &Request::Set(KEY, 50.0)).unwrap();
+    d.save_error = Some(SaveError::Verify { offset: 0 });
+    let (code, msg) = ask(&mut s, &mut d, &Request::Save).unwrap_err();
+    assert_eq!(code, Refusal::Storage);
+    assert_eq!(
+        msg,
+        "save failed: the settings sector does not read back what was written (byte 0)"
+    );
+    assert_eq!(
+        s.origin(),
+        Origin::Changed,
+        "a failed save is not a saved drive"
+    );
+    d.save_error = Some(SaveError::Flash {
+        step: "erase",
+        status: 0x10,
+    });
+    let (_, msg) = ask(&mut s, &mut d, &Request::Save).unwrap_err();
+    assert!(msg.contains("erase") && msg.contains("0x00000010"), "{msg}");
 }
 
 #[test]
@@ -540,7 +569,7 @@ fn a_board_without_measurements_refuses_identify() {
         fn fault_code(&self) -> u8 {
             self.0.fault_code()
         }
-        fn save(&mut self, record: &[u8; RECORD_LEN]) -> bool {
+        fn save(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError> {
             self.0.save(record)
         }
         fn fault_history(&self) -> FaultHistory {

@@ -14,6 +14,7 @@ mod common {
 
 mod board;
 mod frames;
+mod keys;
 mod run_config;
 // The socket pair needs the harness side of the link (`pil_link::host`).
 #[cfg(feature = "std")]
