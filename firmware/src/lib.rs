@@ -40,6 +40,8 @@ pub mod virtual_motor;
 pub mod board_console;
 #[cfg(target_os = "none")]
 pub mod boards;
+#[cfg(all(target_os = "none", feature = "board-qemu"))]
+pub mod rig;
 #[cfg(target_os = "none")]
 pub mod rt;
 

@@ -8,7 +8,7 @@
 //! The record is shortened for QEMU, which runs the loops in real time: 4 PRBS periods
 //! of 8191 ticks (8.2 s at 4 kHz) at ±0.6 pu, Welch segments of 4096 samples, then the
 //! 1.5 s lost-motion test; the command takes about 11 s with the image built. The board
-//! runs both loops from one tick source (`firmware/src/bin/board.rs`), so the records, and
+//! runs both loops from one tick source (`firmware/src/rig.rs`), so the records, and
 //! the estimates, are the same on every run however loaded the host is.
 
 use plant_host::MechanicsConfig;
