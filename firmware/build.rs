@@ -43,7 +43,7 @@ fn main() {
     let root = manifest.join("..");
     let drive_file = match env::var_os("STIFFDRIVE_DRIVE") {
         Some(p) if !p.is_empty() => root.join(p),
-        _ => root.join("configs/machines/table1.toml"),
+        _ => root.join(machine_file::TABLE1_PATH),
     };
     println!("cargo:rerun-if-changed={}", drive_file.display());
     let cfg = match bake_drive(&drive_file, &root, &out) {

@@ -19,6 +19,10 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
+/// Where the paper's Table 1 machine file lies below the workspace root: the drive an image
+/// carries when no other is named.
+pub const TABLE1_PATH: &str = "configs/machines/table1.toml";
+
 /// The text of `configs/machines/table1.toml`: the paper's Table 1 machine and drive, the drive a
 /// firmware image carries unless its build is given another file.
 pub const TABLE1_TOML: &str = include_str!("../../configs/machines/table1.toml");

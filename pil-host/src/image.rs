@@ -33,9 +33,6 @@ pub fn firmware_target_dir() -> PathBuf {
         .join("firmware")
 }
 
-/// The machine file an image carries when no other is named (`firmware/build.rs`'s default).
-const DEFAULT_DRIVE: &str = "configs/machines/table1.toml";
-
 fn backend(what: &str, e: impl std::fmt::Display) -> HarnessError {
     HarnessError::Backend(format!("firmware build: {what}: {e}"))
 }
@@ -67,7 +64,7 @@ fn build_locked<T>(
     // The default file named by its path is the default: the build script reruns when
     // STIFFDRIVE_DRIVE changes, so spelling Table 1 two ways would rebuild the firmware at
     // every switch between them.
-    let default = root.join(DEFAULT_DRIVE).canonicalize().ok();
+    let default = root.join(machine_file::TABLE1_PATH).canonicalize().ok();
     match drive.filter(|f| f.canonicalize().ok() != default) {
         Some(file) => cmd.env("STIFFDRIVE_DRIVE", file),
         None => cmd.env_remove("STIFFDRIVE_DRIVE"),
