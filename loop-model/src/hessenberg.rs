@@ -40,18 +40,11 @@ impl HessenbergResponse {
         // a = zI − H (upper Hessenberg, by rows), x = Qᵀ·B; reduced to upper triangular in
         // place. The entries left of the diagonal are never read again once their column
         // is eliminated, so each step works on its two rows from the pivot's column on.
-        let mut a: Vec<Complex<f64>> = self
-            .h
-            .iter()
-            .enumerate()
-            .map(|(at, &h)| {
-                if at % (n + 1) == 0 {
-                    z - h
-                } else {
-                    Complex::new(-h, 0.0)
-                }
-            })
-            .collect();
+        let mut a: Vec<Complex<f64>> = self.h.iter().map(|&h| Complex::new(-h, 0.0)).collect();
+        // The diagonal, every (n + 1)-th entry: z − h (−h + z is the same sum, bit for bit).
+        for d in a.iter_mut().step_by(n + 1) {
+            *d += z;
+        }
         let mut x: Vec<Complex<f64>> = self.b.iter().map(|&b| Complex::from(b)).collect();
         for k in 0..n.saturating_sub(1) {
             let (upper, lower) = a.split_at_mut((k + 1) * n);
