@@ -18,7 +18,7 @@ use super::spec::IdentifySpec;
 use controller_core::excitation::{ExcitationConfig, ExcitationParams, Injection, Waveform};
 use sim_engine::config::scenario::{LoadStep, MetricSpec, ProfileSpec, ScenarioSpec};
 use sim_engine::config::RunConfig;
-use sim_engine::engine::runner::{controller, run_recorded, ControlBackend, TickRecord};
+use sim_engine::engine::runner::{controller, run_ticks, ControlBackend, TickRecord};
 use sim_engine::error::{HarnessError, Result};
 use std::collections::BTreeMap;
 
@@ -106,8 +106,8 @@ pub fn record<B: ControlBackend>(cfg: &RunConfig, backend: &mut B, what: &str) -
         torque_ref: Vec::with_capacity(n),
         counts: Vec::with_capacity(n),
     };
-    let out = run_recorded(cfg, backend, |t| rec.push(t))?;
-    if out.metrics.faulted {
+    let run = run_ticks(cfg, backend, |t| rec.push(t))?;
+    if run.trace.faulted() {
         return Err(HarnessError::Backend(format!(
             "identify: the drive faulted during the {what}; lower identify.amplitude_pu or \
              identify.reversal_torque_pu"

@@ -108,8 +108,8 @@ pub fn speed(runs: &Runs, elapsed_s: f64) -> Result<Section> {
             "The {} scenario runs simulated {sim:.1} s of closed loop ({} Hz current / {} Hz \
              velocity ticks, exact plant integration between events) in {wall:.3} s of loop \
              time on one core each: {:.0}x real time. The whole reproduction took \
-             {elapsed_s:.1} s. The criterion benchmark (`cargo bench -p hil-harness`) measures \
-             the same loop.",
+             {elapsed_s:.1} s. The criterion benchmark (`cargo bench -p host-bench --bench \
+             closed_loop`) measures the same loop.",
             SCENARIOS.len(),
             c6.drive.current_rate_hz,
             c6.drive.velocity_rate_hz,

@@ -379,8 +379,45 @@ pub fn run_with_backend<B: ControlBackend + ?Sized>(
 pub fn run_recorded<B: ControlBackend + ?Sized>(
     cfg: &RunConfig,
     backend: &mut B,
-    mut record: impl FnMut(&TickRecord),
+    record: impl FnMut(&TickRecord),
 ) -> Result<RunOutput> {
+    let run = run_ticks(cfg, backend, record)?;
+    let metrics = compute(&run.trace, &cfg.metric_windows());
+    Ok(RunOutput {
+        fault: run.fault,
+        protection: run.protection,
+        trace: run.trace,
+        metrics,
+        sim_time_s: run.sim_time_s,
+        wall_time_s: run.wall_time_s,
+        ticks: run.ticks,
+    })
+}
+
+/// A run before its metrics: what [`run_ticks`] returns.
+#[derive(Debug, Clone)]
+pub struct TickRun {
+    /// Recorded signals, one row per velocity tick.
+    pub trace: Trace,
+    /// Simulated time (s).
+    pub sim_time_s: f64,
+    /// Wall-clock time of the closed loop (s).
+    pub wall_time_s: f64,
+    /// Current ticks executed.
+    pub ticks: u64,
+    /// The fault the drive latched first, if it did.
+    pub fault: Option<FaultRecord>,
+    /// The protections' figures of the run.
+    pub protection: ProtectionSummary,
+}
+
+/// The closed loop of [`run_recorded`] without the metrics (their spectra cost as much as
+/// the loop): for a caller that reads only the records, such as identification.
+pub fn run_ticks<B: ControlBackend + ?Sized>(
+    cfg: &RunConfig,
+    backend: &mut B,
+    mut record: impl FnMut(&TickRecord),
+) -> Result<TickRun> {
     use crate::engine::plant::{f, pu};
     let mut plant = plant_of(cfg);
     let current_rate_hz = f64::from(cfg.drive.current_rate_hz);
@@ -440,18 +477,14 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     }
     backend.finished();
     let wall_time_s = start.elapsed().as_secs_f64();
-    let trace = Trace { rows };
-    let windows = cfg.metric_windows();
-    let metrics = compute(&trace, &windows);
     let (fault, protection) = watch.finish();
-    Ok(RunOutput {
-        fault,
-        protection,
-        trace,
-        metrics,
+    Ok(TickRun {
+        trace: Trace { rows },
         sim_time_s: ticks_run as f64 * tm.tc_s,
         wall_time_s,
         ticks: ticks_run,
+        fault,
+        protection,
     })
 }
 

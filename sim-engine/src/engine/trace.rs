@@ -108,6 +108,12 @@ pub struct Trace {
 }
 
 impl Trace {
+    /// Whether any row records a latched fault (the metrics' `faulted`).
+    #[must_use]
+    pub fn faulted(&self) -> bool {
+        self.rows.iter().any(|r| r.fault != 0.0)
+    }
+
     /// Writes the trace as CSV with a header of [`COLUMNS`].
     pub fn write_csv(&self, path: &Path) -> Result<()> {
         let file = std::fs::File::create(path).map_err(|e| HarnessError::io(path, e))?;

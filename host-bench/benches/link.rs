@@ -1,6 +1,6 @@
 //! Host cost of the link per frame: encoding, decoding (byte at a time, CRC-32 included) and
 //! the firmware session's handling of a `Sensors` frame. Figures are reported in
-//! `docs/benchmarks.md`, not asserted. `cargo bench -p pil-link --features std`
+//! `docs/benchmarks.md`, not asserted. `cargo bench -p host-bench --bench link`
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,

@@ -2,7 +2,7 @@
 //! pair of periods (two current ticks and one velocity tick); divide by two for one period.
 //! The motor turns at 2 counts per current tick and the setpoint follows it, so
 //! every regulator, the observer and the AFB path run (no fault short-cut).
-//! `cargo bench -p controller-core`
+//! `cargo bench -p host-bench --bench period`
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, missing_docs)]
 
 use std::hint::black_box;

@@ -1,4 +1,4 @@
-//! Cost of the plant per simulated second (`cargo bench -p plant-host`).
+//! Cost of the plant per simulated second (`cargo bench -p host-bench --bench plant`).
 //! - mechanics: 4000 steps of 250 µs under a torque profile that crosses the gap ~40 times.
 //! - drive: winding + mechanics in the harness's pattern, a new voltage the computational
 //!   delay after each 250 µs tick (8000 `advance` calls per simulated second), plus the

@@ -4,7 +4,7 @@
 //! factor (simulated seconds per wall-clock second).
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use sim_engine::{resolve, run_scenario};
 
 fn closed_loop(c: &mut Criterion) {
