@@ -23,7 +23,7 @@
 //! fixed at zero for that step, [`NON_NEGATIVE`]). Their standard errors come from the
 //! covariance s²·(JᵀJ)⁻¹ at the optimum.
 
-use super::frf::MeasuredResponse;
+use super::MeasuredResponse;
 use nalgebra::{Complex, DMatrix, DVector};
 use std::f64::consts::PI;
 

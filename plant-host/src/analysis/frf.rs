@@ -13,22 +13,9 @@
 //! instrument: G = H1(r → y) / H1(r → u). Noise that enters anywhere in the loop is
 //! uncorrelated with r, so it averages out of both.
 
+use super::MeasuredResponse;
 use nalgebra::Complex;
 use std::f64::consts::PI;
-
-/// A measured frequency response.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MeasuredResponse {
-    /// Frequencies \[Hz\], bins 1 .. segment_len/2 (DC left out).
-    pub freq_hz: Vec<f64>,
-    /// The response at each frequency.
-    pub h: Vec<Complex<f64>>,
-    /// Coherence γ² in [0, 1]. For [`closed_loop_response`], the smaller of γ²(r, y) and
-    /// γ²(r, u).
-    pub coherence: Vec<f64>,
-    /// Number of averaged segments.
-    pub segments: usize,
-}
 
 /// Why a response could not be estimated.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -1,18 +1,23 @@
 //! Linear analysis of the plant with nalgebra: the engaged plant's state-space model and
 //! modes, its sampled forms, the PI stiffness of Eq. 1 (Fig. 2), and the frequency-response
-//! measurement and two-inertia fit of identification. This crate does not depend on the
-//! controller: the closed loop's one linear model (poles, margins, stability, the model
-//! `tune` designs on) is the harness's, which mirrors the controller's tick.
+//! measurement (feature `frf`, on by default) and two-inertia fit of identification. This
+//! crate does not depend on the controller: the closed loop's one linear model (poles,
+//! margins, stability, the model `tune` designs on) is the harness's, which mirrors the
+//! controller's tick.
 
 mod engaged;
 mod fit;
+#[cfg(feature = "frf")]
 mod frf;
+mod response;
 mod sampled;
 mod stiffness;
 
 pub use engaged::{EngagedPlant, Modes, PlantResponse};
 pub use fit::{FitError, FitResult, TwoInertiaFit, fit_two_inertia};
-pub use frf::{FrfError, MeasuredResponse, closed_loop_response, h1};
+#[cfg(feature = "frf")]
+pub use frf::{FrfError, closed_loop_response, h1};
+pub use response::MeasuredResponse;
 pub use sampled::{Gears, SampledPlant, continuous, state};
 pub use stiffness::{PiStiffness, StiffnessPoint};
 
