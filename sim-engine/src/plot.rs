@@ -267,9 +267,29 @@ pub fn save(fig: &Figure, stem: &Path) -> Result<(PathBuf, PathBuf)> {
 pub fn save_sized(fig: &Figure, stem: &Path, size: (u32, u32)) -> Result<(PathBuf, PathBuf)> {
     let png = stem.with_extension("png");
     let svg = stem.with_extension("svg");
-    draw_figure(BitMapBackend::new(&png, size).into_drawing_area(), fig)
-        .map_err(|e| HarnessError::Plot(format!("{}: {e}", png.display())))?;
+    // Drawn into an RGB buffer and encoded by `png` (plotters' own encoder would pull in the
+    // whole `image` crate for one format).
+    let mut rgb = vec![0_u8; 3 * size.0 as usize * size.1 as usize];
+    draw_figure(
+        BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(),
+        fig,
+    )
+    .and_then(|()| write_png(&png, size, &rgb))
+    .map_err(|e| HarnessError::Plot(format!("{}: {e}", png.display())))?;
     draw_figure(SVGBackend::new(&svg, size).into_drawing_area(), fig)
         .map_err(|e| HarnessError::Plot(format!("{}: {e}", svg.display())))?;
     Ok((png, svg))
+}
+
+/// Writes an 8-bit RGB image of `size` (width, height) as a PNG file.
+fn write_png(path: &Path, size: (u32, u32), rgb: &[u8]) -> std::result::Result<(), String> {
+    let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), size.0, size.1);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    // Per-row filter choice: plots are flat colour with thin lines, which it packs well.
+    encoder.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    writer.write_image_data(rgb).map_err(|e| e.to_string())?;
+    writer.finish().map_err(|e| e.to_string())
 }
