@@ -30,17 +30,22 @@ mod board;
 mod board_identify;
 mod pil_identify;
 
-/// The processor-in-the-loop cases (this module's and `pil_identify`'s), one after another
-/// in one test: one QEMU session at a time, since the fault cases use a 500 ms link watchdog
-/// that two lock-step runs side by side on a loaded 2-core machine could starve towards.
-/// This binary holds nothing else, and cargo runs test binaries one after another, so no
-/// other test shares the cores with it. A failing case is named in the test's output.
+/// Every QEMU case of this binary, in one test that sets its own concurrency, in three
+/// phases:
+///
+/// 1. the two long bit-for-bit runs side by side (each a QEMU and a host thread in lock
+///    step: about one core each, with the default 1 s link watchdog);
+/// 2. the other processor-in-the-loop cases one after another, alone on the machine (the
+///    fault cases use a 500 ms link watchdog);
+/// 3. the board console's cases one after another, beside `identify --board` (neither in
+///    lock step with the host: the console waits for replies, and the board records its
+///    identification from its own tick source, the same record however loaded the host is).
+///
+/// So at most two QEMU sessions run at once, and no other test binary runs meanwhile (cargo
+/// runs test binaries one after another). A failing case is named in the test's output.
 #[test]
-fn processor_in_the_loop() {
-    let _one_at_a_time = QEMU_TESTS
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let cases: [(&str, fn()); 10] = [
+fn qemu_sessions() {
+    let pil_cases: [(&str, fn()); 10] = [
         (
             "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
             fig6_through_the_firmware_is_bit_identical_to_the_host_run,
@@ -82,50 +87,7 @@ fn processor_in_the_loop() {
             crate::pil_identify::the_firmware_refuses_a_bad_excitation_with_a_config_fault,
         ),
     ];
-    let run = |(name, case): (&str, fn())| run_case(name, case);
-    // The two long bit-for-bit runs side by side (each one QEMU and one host thread in lock
-    // step: about one core each, with the default 1 s watchdog), then the rest one after
-    // another (the fault cases' 500 ms watchdog alone on the machine).
-    let long = [
-        "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
-        "pil_identify: the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for_bit",
-    ];
-    let (side_by_side, one_by_one): (Vec<_>, Vec<_>) =
-        cases.into_iter().partition(|(name, _)| long.contains(name));
-    assert_eq!(side_by_side.len(), long.len());
-    std::thread::scope(|s| {
-        for c in side_by_side {
-            s.spawn(move || run(c));
-        }
-    });
-    for c in one_by_one {
-        run(c);
-    }
-}
-
-/// The QEMU tests of this binary run one at a time (cargo runs the tests of a binary side
-/// by side): each holds this lock.
-static QEMU_TESTS: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn run_case(name: &str, case: fn()) {
-    let t0 = Instant::now();
-    eprintln!("processor in the loop: {name}");
-    case();
-    eprintln!(
-        "processor in the loop: {name} passed in {:.1} s",
-        t0.elapsed().as_secs_f64()
-    );
-}
-
-/// The board console (`stiffdrive board --qemu`, on mps2-an386 and netduinoplus2,
-/// `board.rs`), case by case, after or before
-/// the processor-in-the-loop cases (never beside them).
-#[test]
-fn board_console() {
-    let _one_at_a_time = QEMU_TESTS
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let cases: [(&str, fn()); 5] = [
+    let board_cases: [(&str, fn()); 5] = [
         (
             "board: set_save_reset_get_prints_the_saved_value",
             crate::board::set_save_reset_get_prints_the_saved_value,
@@ -147,21 +109,40 @@ fn board_console() {
             crate::board::netduinoplus2_serves_the_console_and_save_reports_the_missing_flash_controller,
         ),
     ];
-    for (name, case) in cases {
+    let long = [
+        "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
+        "pil_identify: the_frequency_response_record_through_the_firmware_is_the_host_record_bit_for_bit",
+    ];
+    let (side_by_side, one_by_one): (Vec<_>, Vec<_>) = pil_cases
+        .into_iter()
+        .partition(|(name, _)| long.contains(name));
+    assert_eq!(side_by_side.len(), long.len());
+    std::thread::scope(|s| {
+        for (name, case) in side_by_side {
+            s.spawn(move || run_case(name, case));
+        }
+    });
+    for (name, case) in one_by_one {
         run_case(name, case);
     }
+    std::thread::scope(|s| {
+        s.spawn(move || board_cases.into_iter().for_each(|(n, c)| run_case(n, c)));
+        s.spawn(|| {
+            run_case(
+                "board: identify_on_the_board_recovers_the_qemu_machine",
+                crate::board_identify::identify_on_the_board_recovers_the_qemu_machine,
+            );
+        });
+    });
 }
 
-/// `stiffdrive identify --board --qemu` (`board_identify.rs`), one QEMU session at a time
-/// as the others.
-#[test]
-fn board_identify() {
-    let _one_at_a_time = QEMU_TESTS
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    run_case(
-        "board: identify_on_the_board_recovers_the_qemu_machine",
-        crate::board_identify::identify_on_the_board_recovers_the_qemu_machine,
+fn run_case(name: &str, case: fn()) {
+    let t0 = Instant::now();
+    eprintln!("processor in the loop: {name}");
+    case();
+    eprintln!(
+        "processor in the loop: {name} passed in {:.1} s",
+        t0.elapsed().as_secs_f64()
     );
 }
 

@@ -5,7 +5,7 @@
 //! and the record (excitation, torque reference, measured current, encoder counts) is the
 //! host loop's bit for bit, tick for tick; so are every controller output and the fitted
 //! estimates. Like the `pil` module, this builds the ARM image and runs QEMU (never skipped); its
-//! cases run in `processor_in_the_loop` (`cargo test --test pil`), one QEMU session at a time.
+//! cases run in `qemu_sessions` (`cargo test --test pil`), with the binary's other QEMU cases.
 #![allow(
     clippy::unwrap_used,
     clippy::expect_used,
