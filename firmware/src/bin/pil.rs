@@ -51,6 +51,19 @@ mod target {
     /// Milliseconds of virtual time since boot (advanced by SysTick in 10 ms steps).
     static NOW_MS: AtomicU32 = AtomicU32::new(0);
     const SYSTICK_MS: u32 = 10;
+    /// How long the image stays up after its last reply, before it ends QEMU. On a serial
+    /// device (QEMU's UART on a pseudo-terminal) QEMU's exit hangs the line up, and a hang-up
+    /// discards the bytes the harness has not read yet: the `Stop` reply among them. A
+    /// socket keeps them. The harness is already waiting for the reply when it is sent.
+    const STOP_LINGER_MS: u32 = 200;
+
+    /// Waits `ms` on the SysTick clock, asleep between ticks.
+    fn linger(ms: u32) {
+        let start = NOW_MS.load(Ordering::Relaxed);
+        while NOW_MS.load(Ordering::Relaxed).wrapping_sub(start) < ms {
+            cortex_m::asm::wfi();
+        }
+    }
 
     fn current_loop() {
         let out = LOOPS.current_isr();
@@ -240,6 +253,7 @@ mod target {
                         faulted,
                         RX.overflows()
                     );
+                    linger(STOP_LINGER_MS);
                     exit(!faulted);
                 }
             }
