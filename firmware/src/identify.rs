@@ -60,6 +60,7 @@ impl<const N: usize> Recorder<N> {
             return Err(IdentifyError::TooLong {
                 ticks: run.ticks,
                 max,
+                prbs_period_ticks: run.prbs_period_ticks(),
             });
         }
         self.written.store(0, Ordering::Relaxed);

@@ -68,6 +68,8 @@ pub enum IdentifyError {
         ticks: u32,
         /// The most the board records.
         max: u32,
+        /// The run's PRBS period in ticks; `None` for the lost-motion test.
+        prbs_period_ticks: Option<u32>,
     },
     /// This board does not run measurements.
     Unsupported,
@@ -77,9 +79,25 @@ impl core::fmt::Display for IdentifyError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Config(e) => write!(f, "identify: {e}"),
-            Self::TooLong { ticks, max } => write!(
+            Self::TooLong {
+                ticks,
+                max,
+                prbs_period_ticks: Some(period),
+            } => write!(
                 f,
-                "identify: {ticks} ticks asked, the board records at most {max}"
+                "identify: {ticks} ticks asked, the board records at most {max}: \
+                 identify.prbs_periods at most {} with this identify.prbs_bits and \
+                 identify.prbs_hold_ticks",
+                max / (*period).max(1)
+            ),
+            Self::TooLong {
+                ticks,
+                max,
+                prbs_period_ticks: None,
+            } => write!(
+                f,
+                "identify: {ticks} ticks asked, the board records at most {max}: a shorter \
+                 identify.reversal_hold_s"
             ),
             Self::Unsupported => write!(f, "identify: this board does not run measurements"),
         }
@@ -98,6 +116,18 @@ impl IdentifyRun {
             },
             amplitude_pu: self.amplitude_pu,
             injection: Injection::TorqueReference,
+        })
+    }
+
+    /// Ticks in one PRBS period, `(2^prbs_bits - 1) * prbs_hold_ticks` (saturating); `None`
+    /// for a run without excitation.
+    #[must_use]
+    pub fn prbs_period_ticks(&self) -> Option<u32> {
+        self.excitation().map(|_| {
+            let states = 1_u32
+                .checked_shl(u32::from(self.prbs_bits))
+                .map_or(u32::MAX, |n| n - 1);
+            states.saturating_mul(u32::from(self.prbs_hold_ticks))
         })
     }
 

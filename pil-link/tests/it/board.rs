@@ -18,7 +18,7 @@ use pil_link::board::scope::ScopeInfo;
 use pil_link::board::session::{BoardSession, Drive};
 use pil_link::board::store::{self, RECORD_LEN, SaveError, StoreError};
 use pil_link::wire::Writer;
-use pil_link::{Frame, FrameKind, MAX_FRAME};
+use pil_link::{Frame, FrameKind, MAX_FRAME, MAX_PAYLOAD};
 
 /// A drive that records what the session asked of it.
 #[derive(Default)]
@@ -550,6 +550,53 @@ fn identify_is_refused_while_enabled_faulted_or_out_of_range_naming_the_key() {
         assert!(msg.contains(key), "{key}: {msg}");
         assert!(d.identified.is_none() && !d.enabled);
     }
+}
+
+#[test]
+fn a_run_longer_than_the_record_names_the_key_that_sets_its_length() {
+    // 13 bits held 1 tick: 8191 ticks a period.
+    assert_eq!(RUN.prbs_period_ticks(), Some(8_191));
+    let reversal = IdentifyRun {
+        amplitude_pu: 0.0,
+        reverse_every_ticks: 4_000,
+        ..RUN
+    };
+    assert_eq!(reversal.prbs_period_ticks(), None);
+    let too_long = |run: &IdentifyRun, max| {
+        IdentifyError::TooLong {
+            ticks: run.ticks,
+            max,
+            prbs_period_ticks: run.prbs_period_ticks(),
+        }
+        .to_string()
+    };
+    let msg = too_long(&RUN, 10_000);
+    assert!(
+        msg.contains("16382 ticks asked, the board records at most 10000")
+            && msg.contains("identify.prbs_periods at most 1 "),
+        "{msg}"
+    );
+    let msg = too_long(&reversal, 10_000);
+    assert!(msg.contains("identify.reversal_hold_s"), "{msg}");
+    // Both fit a reply whole, with the widest numbers.
+    for run in [RUN, reversal] {
+        let msg = too_long(
+            &IdentifyRun {
+                ticks: u32::MAX,
+                ..run
+            },
+            u32::MAX,
+        );
+        // The reply's head is 3 bytes: version, op, refusal.
+        assert!(msg.len() + 3 <= MAX_PAYLOAD, "{} bytes: {msg}", msg.len());
+    }
+    // The widest register saturates instead of overflowing.
+    let wide = IdentifyRun {
+        prbs_bits: 32,
+        prbs_hold_ticks: u16::MAX,
+        ..RUN
+    };
+    assert_eq!(wide.prbs_period_ticks(), Some(u32::MAX));
 }
 
 #[test]
