@@ -23,6 +23,7 @@ pub mod section;
 pub mod step_timing;
 pub mod stiffness;
 pub mod sweep;
+pub mod torque_limit;
 pub mod tune;
 
 use machine_workflows::tune::machines::{tune_into, Bandwidth, MachineTune, MACHINES};
@@ -181,6 +182,7 @@ fn sections(r: &Results, elapsed_s: f64) -> Result<Vec<Section>> {
         saturation::section(runs)?,
         count_interval::section()?,
         step_timing::section()?,
+        torque_limit::section()?,
         sweep::section(&r.sweep_points, &r.sweep)?,
         tune::section(&r.tunes, &Constraints::default())?,
         stiffness::section(&r.stiffness)?,
