@@ -45,7 +45,7 @@ mod pil_identify;
 /// runs test binaries one after another). A failing case is named in the test's output.
 #[test]
 fn qemu_sessions() {
-    let pil_cases: [(&str, fn()); 10] = [
+    let pil_cases: [(&str, fn()); 11] = [
         (
             "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
             fig6_through_the_firmware_is_bit_identical_to_the_host_run,
@@ -53,6 +53,10 @@ fn qemu_sessions() {
         (
             "the_link_over_a_serial_device_is_bit_identical_too",
             the_link_over_a_serial_device_is_bit_identical_too,
+        ),
+        (
+            "a_late_reader_on_a_serial_device_still_gets_the_stop_reply",
+            a_late_reader_on_a_serial_device_still_gets_the_stop_reply,
         ),
         (
             "link_faults_latch_the_safe_state_on_both_sides",
@@ -385,12 +389,20 @@ fn the_command_fails_loudly_on_a_link_fault() {
 /// QEMU with the `pil` image and the raw link to it, for tests that speak the protocol
 /// themselves (below the harness's own argument checks).
 fn raw_session(elf: &std::path::Path, log: &std::path::Path) -> (Qemu, HostLink<Stream>) {
+    raw_session_on(elf, log, LinkPort::Socket)
+}
+
+fn raw_session_on(
+    elf: &std::path::Path,
+    log: &std::path::Path,
+    port: LinkPort,
+) -> (Qemu, HostLink<Stream>) {
     let (qemu, stream) = Qemu::spawn(&QemuOptions {
         qemu: PathBuf::from("qemu-system-arm"),
         elf: elf.to_path_buf(),
         log: log.to_path_buf(),
         connect_timeout: Duration::from_secs(20),
-        port: LinkPort::Socket,
+        port,
         machine: Machine::default(),
     })
     .unwrap();
@@ -481,6 +493,27 @@ fn a_second_config_while_running_is_a_protocol_fault() {
     }
     drop(link);
     qemu.finish(Duration::from_secs(1));
+}
+
+/// On a serial device QEMU's exit hangs the line up, and a hang-up discards what the
+/// harness has not read yet. A harness that reads the `Stop` reply 100 ms late still gets
+/// it: the image stays up after its last reply before it ends QEMU.
+fn a_late_reader_on_a_serial_device_still_gets_the_stop_reply() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut qemu, mut link) = raw_session_on(&elf(), &dir.path().join("fw.defmt"), LinkPort::Pty);
+    link.hello(500).unwrap();
+    let mut w = pil_link::wire::Writer::new();
+    pil_link::run_config::encode(&table1_drive(), None, &mut w).unwrap();
+    link.configure(w.as_slice()).unwrap();
+    let seq = link.send_next(pil_link::FrameKind::Stop, &[]).unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    let reply = link
+        .receive(Instant::now() + Duration::from_secs(3))
+        .unwrap_or_else(|e| panic!("no Stop reply read 100 ms late: {e}"));
+    assert_eq!((reply.kind, reply.seq), (pil_link::FrameKind::Stop, seq));
+    drop(link);
+    let status = qemu.finish(Duration::from_secs(5));
+    assert_eq!(status.and_then(|s| s.code()), Some(0), "a clean stop");
 }
 
 fn qemu_ends_by_itself_when_the_harness_goes_silent() {
