@@ -37,26 +37,19 @@ mod pil_identify;
 ///    step: about one core each, with the default 1 s link watchdog);
 /// 2. the other processor-in-the-loop cases one after another, alone on the machine (the
 ///    fault cases use a 500 ms link watchdog);
-/// 3. the board console's cases one after another, beside `identify --board` (neither in
-///    lock step with the host: the console waits for replies, and the board records its
-///    identification from its own tick source, the same record however loaded the host is).
+/// 3. beside `identify --board` (which records from the board's own tick source, the same
+///    record however loaded the host is), one after another: the two serial-device cases
+///    (lock step with the default 1 s watchdog, as in phase 1) and the board console's
+///    cases (the console waits for replies).
 ///
 /// So at most two QEMU sessions run at once, and no other test binary runs meanwhile (cargo
 /// runs test binaries one after another). A failing case is named in the test's output.
 #[test]
 fn qemu_sessions() {
-    let pil_cases: [(&str, fn()); 11] = [
+    let pil_cases: [(&str, fn()); 9] = [
         (
             "fig6_through_the_firmware_is_bit_identical_to_the_host_run",
             fig6_through_the_firmware_is_bit_identical_to_the_host_run,
-        ),
-        (
-            "the_link_over_a_serial_device_is_bit_identical_too",
-            the_link_over_a_serial_device_is_bit_identical_too,
-        ),
-        (
-            "a_late_reader_on_a_serial_device_still_gets_the_stop_reply",
-            a_late_reader_on_a_serial_device_still_gets_the_stop_reply,
         ),
         (
             "link_faults_latch_the_safe_state_on_both_sides",
@@ -91,7 +84,15 @@ fn qemu_sessions() {
             crate::pil_identify::the_firmware_refuses_a_bad_excitation_with_a_config_fault,
         ),
     ];
-    let board_cases: [(&str, fn()); 5] = [
+    let beside_identify: [(&str, fn()); 7] = [
+        (
+            "the_link_over_a_serial_device_is_bit_identical_too",
+            the_link_over_a_serial_device_is_bit_identical_too,
+        ),
+        (
+            "a_late_reader_on_a_serial_device_still_gets_the_stop_reply",
+            a_late_reader_on_a_serial_device_still_gets_the_stop_reply,
+        ),
         (
             "board: set_save_reset_get_prints_the_saved_value",
             crate::board::set_save_reset_get_prints_the_saved_value,
@@ -130,7 +131,11 @@ fn qemu_sessions() {
         run_case(name, case);
     }
     std::thread::scope(|s| {
-        s.spawn(move || board_cases.into_iter().for_each(|(n, c)| run_case(n, c)));
+        s.spawn(move || {
+            beside_identify
+                .into_iter()
+                .for_each(|(n, c)| run_case(n, c))
+        });
         s.spawn(|| {
             run_case(
                 "board: identify_on_the_board_recovers_the_qemu_machine",
