@@ -157,7 +157,7 @@ impl AccelerationFeedback {
         c: PuPerS,
         predict: impl Fn(Pu) -> PuPerS,
     ) -> Pu {
-        self.update_closed_torque(s, p, c, predict, self.abs_limit())
+        self.update_closed_torque::<false>(s, p, c, predict, self.abs_limit())
             .0
     }
 
@@ -171,9 +171,10 @@ impl AccelerationFeedback {
     /// [`AccelerationFeedback::update_closed_from`], returning with the AFB term the torque
     /// T = clamp(p + afb, ±|limit|) the filter step was completed with; `lim` is
     /// [`AccelerationFeedback::abs_limit`], resolved by the caller (the controller, at
-    /// configuration).
+    /// configuration). With `HOLD` the filter keeps its state on a step whose torque is
+    /// clamped ([`crate::AfbFilterAtLimit::Hold`]).
     #[inline(always)]
-    pub(crate) fn update_closed_torque(
+    pub(crate) fn update_closed_torque<const HOLD: bool>(
         &self,
         s: &mut LowPassState,
         p: Pu,
@@ -184,15 +185,15 @@ impl AccelerationFeedback {
         // One branch on the filter kind: inside each arm the kind is a constant, so the
         // filter's own dispatch in begin, add_feedthrough and finish folds away.
         match self.filter {
-            f @ LowPass::None => self.closed_step(f, s, p, c, predict, lim),
-            f @ LowPass::FirstOrder { .. } => self.closed_step(f, s, p, c, predict, lim),
-            f @ LowPass::SecondOrder { .. } => self.closed_step(f, s, p, c, predict, lim),
+            f @ LowPass::None => self.closed_step::<HOLD>(f, s, p, c, predict, lim),
+            f @ LowPass::FirstOrder { .. } => self.closed_step::<HOLD>(f, s, p, c, predict, lim),
+            f @ LowPass::SecondOrder { .. } => self.closed_step::<HOLD>(f, s, p, c, predict, lim),
         }
     }
 
     /// The closed-form step for the filter `filter` (= `self.filter`).
     #[inline(always)]
-    fn closed_step(
+    fn closed_step<const HOLD: bool>(
         &self,
         filter: LowPass,
         s: &mut LowPassState,
@@ -208,9 +209,66 @@ impl AccelerationFeedback {
         let inner46 = filter.add_feedthrough(h46, x_p);
         let inner = Pu::from_bits(sat_round_shr::<30>(inner46));
         let afb = mul_gain(inner, self.ka_closed).max(-lim).min(lim);
-        // Complete the filter step with the input for the torque actually applied.
-        let t = p.saturating_add(afb).max(-lim).min(lim);
-        filter.finish(s, h46, c.saturating_sub(predict(t)));
+        // Complete the filter step with the input for the torque actually applied, or,
+        // with `HOLD`, leave the state as it was when that torque is clamped.
+        let u = p.saturating_add(afb);
+        let t = u.max(-lim).min(lim);
+        if !HOLD || t == u {
+            filter.finish(s, h46, c.saturating_sub(predict(t)));
+        }
         (afb, t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::per_unit::Coef;
+
+    /// First-order filter (α = 0.25), g·Ka = 0.4, limit 1 pu; the tests' observer model
+    /// predicts an acceleration of twice the torque.
+    fn afb() -> AccelerationFeedback {
+        let alpha = Coef::from_num(0.25);
+        AccelerationFeedback {
+            mode: AfbMode::Plain,
+            ka: Gain::from_num(0.5),
+            filter: LowPass::FirstOrder { alpha },
+            limit: Pu::ONE,
+            ka_closed: Gain::from_num(0.4),
+        }
+    }
+
+    fn step(s: &mut LowPassState, p: f32, hold: bool) -> (Pu, Pu) {
+        let (a, p) = (afb(), Pu::from_num(p));
+        let predict = |t: Pu| t * 2;
+        if hold {
+            a.update_closed_torque::<true>(s, p, PuPerS::ZERO, predict, Pu::ONE)
+        } else {
+            a.update_closed_torque::<false>(s, p, PuPerS::ZERO, predict, Pu::ONE)
+        }
+    }
+
+    #[test]
+    fn a_held_filter_keeps_its_state_only_while_the_torque_is_clamped() {
+        // Wind the filter up off the limit: the held and the tracking forms are one.
+        let (mut held, mut tracked) = (LowPassState::default(), LowPassState::default());
+        for p in [0.3, 0.5, -0.2, 0.4] {
+            assert_eq!(step(&mut held, p, true), step(&mut tracked, p, false));
+            assert_eq!(held, tracked);
+        }
+        assert_ne!(held, LowPassState::default());
+        // At the limit (p far beyond it) the tracking filter moves on, the held one stays.
+        let before = held;
+        for _ in 0..3 {
+            let (_, t_held) = step(&mut held, 5.0, true);
+            let (_, t_tracked) = step(&mut tracked, 5.0, false);
+            assert_eq!((t_held, t_tracked), (Pu::ONE, Pu::ONE));
+        }
+        assert_eq!(held, before);
+        assert_ne!(tracked, before);
+        // Back off the limit, the held filter resumes from the state it had entering it.
+        let mut fresh = before;
+        assert_eq!(step(&mut held, 0.1, true), step(&mut fresh, 0.1, false));
+        assert_eq!(held, fresh);
     }
 }

@@ -99,6 +99,28 @@ pub struct AccelFeedbackConfig {
     /// (0.1 to 0.2) in which the dyno's saturated acceleration has less shaft ripple with
     /// AFB than without; `configs/machines/dyno.toml` sets it.
     pub limit_headroom_fraction: f32,
+    /// What the AFB filter does on a current tick whose torque reference is at its limit
+    /// (observer source only).
+    pub filter_at_limit: AfbFilterAtLimit,
+}
+
+/// The AFB filter on a tick whose torque reference is clamped at the limit. The AFB term is
+/// solved in closed form through the observer's model, so the filter step is completed
+/// with the acceleration the applied torque predicts; at the limit that prediction stays
+/// put while the machine's estimate keeps moving, so the filter winds up on the difference
+/// and releases it as a torque swing when the drive leaves the limit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+pub enum AfbFilterAtLimit {
+    /// Complete the filter step with the clamped torque, as on any tick (the default).
+    Track,
+    /// Hold the filter's state while the torque is clamped: the AFB term still follows the
+    /// estimate through the filter's feed-through, and the filter resumes from where it was
+    /// when the torque leaves the limit. With `source = "differentiation"` the filter's
+    /// input holds no torque, and the two are the same.
+    Hold,
 }
 
 /// Inertia the observer's model uses to turn the torque command into acceleration.
@@ -345,8 +367,8 @@ pub mod defaults {
     //! observer at 75 Hz with the motor-inertia model). They are design choices, not machine
     //! data: the machine and loop-rate keys have no default.
     use super::{
-        AccelFeedbackConfig, AfbMode, AfbRate, Estimator, FaultLimits, FilterConfig,
-        ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
+        AccelFeedbackConfig, AfbFilterAtLimit, AfbMode, AfbRate, Estimator, FaultLimits,
+        FilterConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
     };
 
     /// Acceleration feedback: error form, Ka = 0.5·J_total, first order at 100 Hz, every
@@ -358,6 +380,7 @@ pub mod defaults {
         rate: AfbRate::Current,
         source: Estimator::Observer,
         limit_headroom_fraction: 0.0,
+        filter_at_limit: AfbFilterAtLimit::Track,
     };
     /// Observer: 75 Hz, motor-inertia model, driven by the torque command, the plain
     /// innovation.

@@ -35,8 +35,8 @@ mod validate;
 pub mod words;
 
 pub use config::{
-    AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
-    NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
+    AccelFeedbackConfig, AfbFilterAtLimit, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits,
+    FilterConfig, NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
 };
 pub use controller::{
     Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs,

@@ -11,8 +11,8 @@
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 use controller_core::{
-    AccelFeedbackConfig, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits, FilterConfig,
-    NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
+    AccelFeedbackConfig, AfbFilterAtLimit, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits,
+    FilterConfig, NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
 };
 
 /// Payload bytes of a [`DriveConfig`].
@@ -91,7 +91,7 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 167;
+pub const LEN: usize = 168;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -261,6 +261,7 @@ fn put_accel_feedback(w: &mut Writer, afb: AccelFeedbackConfig) -> Result<(), Li
         rate,
         source,
         limit_headroom_fraction,
+        filter_at_limit,
     } = afb;
     w.u8(match mode {
         AfbMode::Off => 0,
@@ -274,7 +275,11 @@ fn put_accel_feedback(w: &mut Writer, afb: AccelFeedbackConfig) -> Result<(), Li
         AfbRate::Velocity => 1,
     })?
     .u8(estimator_byte(source))?
-    .u32(limit_headroom_fraction.to_bits())?;
+    .u32(limit_headroom_fraction.to_bits())?
+    .u8(match filter_at_limit {
+        AfbFilterAtLimit::Track => 0,
+        AfbFilterAtLimit::Hold => 1,
+    })?;
     Ok(())
 }
 
@@ -297,6 +302,11 @@ fn get_accel_feedback(
     };
     let source = get_estimator(r, bad)?;
     let limit_headroom_fraction = f(r)?;
+    let filter_at_limit = match r.u8()? {
+        0 => AfbFilterAtLimit::Track,
+        1 => AfbFilterAtLimit::Hold,
+        _ => return Err(bad),
+    };
     Ok(AccelFeedbackConfig {
         mode,
         gain_fraction,
@@ -304,6 +314,7 @@ fn get_accel_feedback(
         rate,
         source,
         limit_headroom_fraction,
+        filter_at_limit,
     })
 }
 

@@ -24,12 +24,12 @@ impl Controller {
     /// Returns the clamped torque the step completed its filter with (`None` when faulted:
     /// the step did not run).
     #[inline(always)]
-    pub(super) fn afb_closed_step(&mut self, c: PuPerS) -> Option<Pu> {
+    pub(super) fn afb_closed_step<const HOLD: bool>(&mut self, c: PuPerS) -> Option<Pu> {
         if self.state.fault.is_none() {
             let obs = &self.coef.observer;
             let os = &self.state.observer;
             let base = self.state.i_vel.saturating_add(self.torque_excitation());
-            let (afb, t) = self.coef.afb.update_closed_torque(
+            let (afb, t) = self.coef.afb.update_closed_torque::<HOLD>(
                 &mut self.state.afb_filter,
                 base,
                 c,
@@ -66,9 +66,26 @@ impl Controller {
                 } else {
                     PuPerS::ZERO
                 };
-                self.afb_closed_step(c)
+                self.afb_closed_step::<false>(c)
             }
+            AfbStep::ClosedPlainHold | AfbStep::ClosedErrorHold => self.afb_hold_step(step),
         }
+    }
+
+    /// [`AfbStep::ClosedPlainHold`] and [`AfbStep::ClosedErrorHold`]: the closed form with
+    /// the filter held while the torque is clamped. Out of line and marked cold so that the
+    /// tracking form (the default, the baked drive's) keeps its place in the tick: inlined,
+    /// a run-time hold flag cost the baked drive's period 12 instructions (`cargo fw-bench`),
+    /// out of line 4 to 8.
+    #[cold]
+    #[inline(never)]
+    pub(super) fn afb_hold_step(&mut self, step: AfbStep) -> Option<Pu> {
+        let c = if step == AfbStep::ClosedErrorHold {
+            self.state.accel_cmd
+        } else {
+            PuPerS::ZERO
+        };
+        self.afb_closed_step::<true>(c)
     }
 
     /// [`AfbStep::Measured`]: differentiate (`a_meas`), then the plain AFB update.

@@ -3,7 +3,7 @@
 //! [`quantize`], whose error names the Q-format of the coefficient's own type.
 
 use crate::accel_feedback::AccelerationFeedback;
-use crate::config::{AfbMode, AfbRate, DriveConfig, Estimator, ObserverTorque};
+use crate::config::{AfbFilterAtLimit, AfbMode, AfbRate, DriveConfig, Estimator, ObserverTorque};
 use crate::design::Gains;
 use crate::differentiator::Differentiator;
 use crate::error::ConfigError;
@@ -101,6 +101,11 @@ pub(super) enum AfbStep {
     ClosedPlain,
     /// The closed form on the observer, error form (filter input a_cmd − â).
     ClosedError,
+    /// [`AfbStep::ClosedPlain`] with the filter held while the torque is clamped
+    /// (`accel_feedback.filter_at_limit = "hold"`).
+    ClosedPlainHold,
+    /// [`AfbStep::ClosedError`] with the filter held while the torque is clamped.
+    ClosedErrorHold,
 }
 
 impl AfbStep {
@@ -109,11 +114,14 @@ impl AfbStep {
         if afb.rate != rate {
             return Self::None;
         }
-        match (afb.mode, afb.source) {
-            (AfbMode::Off, _) => Self::None,
-            (_, Estimator::Differentiation) => Self::Measured,
-            (AfbMode::Plain, Estimator::Observer) => Self::ClosedPlain,
-            (AfbMode::Error, Estimator::Observer) => Self::ClosedError,
+        let hold = afb.filter_at_limit == AfbFilterAtLimit::Hold;
+        match (afb.mode, afb.source, hold) {
+            (AfbMode::Off, _, _) => Self::None,
+            (_, Estimator::Differentiation, _) => Self::Measured,
+            (AfbMode::Plain, Estimator::Observer, false) => Self::ClosedPlain,
+            (AfbMode::Error, Estimator::Observer, false) => Self::ClosedError,
+            (AfbMode::Plain, Estimator::Observer, true) => Self::ClosedPlainHold,
+            (AfbMode::Error, Estimator::Observer, true) => Self::ClosedErrorHold,
         }
     }
 }

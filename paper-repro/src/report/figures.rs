@@ -54,12 +54,14 @@ const SHOCK_50: &[(&str, &str)] = &[
     ("AFB on", "shock-50"),
 ];
 const DYNO_SAT: &[(&str, &str)] = &[
-    ("AFB, headroom", "dyno-accel"),
+    ("AFB, headroom, filter held", "dyno-accel"),
+    ("AFB, headroom, filter tracks", "dyno-accel-filter-track"),
     ("AFB, plain clamp", "dyno-accel-no-headroom"),
     ("no AFB", "dyno-accel-no-afb"),
 ];
 const SHOCK_SAT: &[(&str, &str)] = &[
-    ("AFB, headroom", "shock"),
+    ("AFB, headroom, filter held", "shock"),
+    ("AFB, headroom, filter tracks", "shock-filter-track"),
     ("AFB, plain clamp", "shock-no-headroom"),
     ("no AFB", "shock-no-afb"),
 ];

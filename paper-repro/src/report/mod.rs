@@ -40,7 +40,7 @@ use std::path::Path;
 use std::time::Instant;
 
 /// Scenarios `reproduce` runs, in report order.
-pub const SCENARIOS: [&str; 16] = [
+pub const SCENARIOS: [&str; 18] = [
     "fig4",
     "fig6",
     "fig6-no-afb",
@@ -50,9 +50,11 @@ pub const SCENARIOS: [&str; 16] = [
     "dyno-accel-no-afb",
     "dyno-accel",
     "dyno-accel-no-headroom",
+    "dyno-accel-filter-track",
     "shock-no-afb",
     "shock",
     "shock-no-headroom",
+    "shock-filter-track",
     "shock-50-no-afb",
     "shock-50",
     "shock-30-no-afb",

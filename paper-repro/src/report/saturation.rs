@@ -1,9 +1,11 @@
 //! Where the shaft ripple of the saturated runs comes from: each run's ripple window split
 //! into the part the scenario's event excites and the rest, for the shaft torque, the
 //! torque reference and the AFB term, with the share of the window at the torque limit.
-//! Three runs per scenario at the same gains: AFB with the velocity regulator's headroom
-//! (`accel_feedback.limit_headroom_fraction`, set in the dyno's machine file), AFB with the plain clamp
-//! (`<name>-no-headroom`), and no AFB (`<name>-no-afb`).
+//! Four runs per scenario at the same gains: AFB as the dyno's machine file sets it (the
+//! velocity regulator's headroom `accel_feedback.limit_headroom_fraction`, and the AFB filter
+//! held at the limit, `accel_feedback.filter_at_limit`), AFB with the filter running on at
+//! the limit (`<name>-filter-track`), AFB with the plain clamp (`<name>-no-headroom`), and
+//! no AFB (`<name>-no-afb`).
 
 use super::section::Section;
 use super::{get, Runs};
@@ -22,9 +24,13 @@ pub const SCENARIOS: [&str; 2] = ["dyno-accel", "shock"];
 const FIRST_PART_S: f64 = 0.2;
 
 /// The run names of `scenario`: (label, run).
-fn variants(scenario: &str) -> [(String, String); 3] {
+fn variants(scenario: &str) -> [(String, String); 4] {
     [
-        ("AFB, headroom".into(), scenario.to_string()),
+        ("AFB, headroom, filter held".into(), scenario.to_string()),
+        (
+            "AFB, headroom, filter tracks".into(),
+            format!("{scenario}-filter-track"),
+        ),
         ("AFB, plain clamp".into(), format!("{scenario}-no-headroom")),
         ("no AFB".into(), format!("{scenario}-no-afb")),
     ]
@@ -76,7 +82,7 @@ pub fn section(runs: &Runs) -> Result<Section> {
          at the limit is given with its name). Ripple: the metrics' high-passed \
          RMS (pu) of the shaft torque, the torque reference and the AFB term, each with the \
          frequency of its spectral peak (Hz); \"at limit\": the share of the part with the \
-         torque reference at the torque limit. The three runs of a scenario run at the same \
+         torque reference at the torque limit. The four runs of a scenario run at the same \
          regulator gains; they differ only in `drive.accel_feedback`.\n"
     );
     for scenario in SCENARIOS {
@@ -115,7 +121,11 @@ pub fn section(runs: &Runs) -> Result<Section> {
          limit only during the step itself; the plain clamp ends that sooner, and the shaft \
          ring that follows is in the first part. The AFB term's own noise, at the \
          estimate's count-rate tones, stays in the torque reference outside the limit (the \
-         rest of `shock`): the headroom does not change it.\n",
+         rest of `shock`): the headroom does not change it. The first two rows of each \
+         scenario differ only in the AFB filter while the torque is clamped: held (the \
+         dyno's setting) it does not wind up on the part of the estimate the clamped torque \
+         cannot answer, which the tracking filter hands to the torque when the drive leaves \
+         the limit (`docs/design.md`, \"The AFB filter at the limit\").\n",
     );
     let mut s = Section::text("Saturated runs: where the shaft ripple comes from", body);
     s.plots = vec!["saturation-compare.png".into()];

@@ -10,8 +10,8 @@
 
 use controller_core::ranges::{self, Range};
 use controller_core::{
-    AfbMode, AfbRate, ConfigError, DriveConfig, Estimator, FilterConfig, ObserverInertia,
-    ObserverTorque, PiInertia,
+    AfbFilterAtLimit, AfbMode, AfbRate, ConfigError, DriveConfig, Estimator, FilterConfig,
+    ObserverInertia, ObserverTorque, PiInertia,
 };
 
 /// How the machine file spells a key of its `[drive]` table: `drive.` + the range key.
@@ -90,7 +90,7 @@ impl Choice {
 }
 
 /// The enumerated settings of the console.
-pub static CHOICES: [Choice; 7] = [
+pub static CHOICES: [Choice; 8] = [
     Choice {
         key: "accel_feedback.mode",
         names: &["off", "plain", "error"],
@@ -102,6 +102,10 @@ pub static CHOICES: [Choice; 7] = [
     Choice {
         key: "accel_feedback.source",
         names: &["differentiation", "observer"],
+    },
+    Choice {
+        key: "accel_feedback.filter_at_limit",
+        names: &["track", "hold"],
     },
     Choice {
         key: "velocity_estimator",
@@ -151,6 +155,9 @@ fn choice_get(cfg: &DriveConfig, c: &Choice) -> usize {
         },
         "accel_feedback.rate" => usize::from(cfg.accel_feedback.rate == AfbRate::Velocity),
         "accel_feedback.source" => estimator(cfg.accel_feedback.source),
+        "accel_feedback.filter_at_limit" => {
+            usize::from(cfg.accel_feedback.filter_at_limit == AfbFilterAtLimit::Hold)
+        }
         "velocity_estimator" => estimator(cfg.velocity_estimator),
         "velocity_pi_inertia" => usize::from(cfg.velocity_pi_inertia == PiInertia::TotalPlusAfb),
         "observer.model_inertia" => {
@@ -183,6 +190,13 @@ fn choice_set(cfg: &mut DriveConfig, c: &Choice, i: usize) {
             }
         }
         "accel_feedback.source" => cfg.accel_feedback.source = estimator,
+        "accel_feedback.filter_at_limit" => {
+            cfg.accel_feedback.filter_at_limit = if i == 0 {
+                AfbFilterAtLimit::Track
+            } else {
+                AfbFilterAtLimit::Hold
+            }
+        }
         "velocity_estimator" => cfg.velocity_estimator = estimator,
         "velocity_pi_inertia" => {
             cfg.velocity_pi_inertia = if i == 0 {
