@@ -171,8 +171,8 @@ impl AccelerationFeedback {
     /// [`AccelerationFeedback::update_closed_from`], returning with the AFB term the torque
     /// T = clamp(p + afb, ±|limit|) the filter step was completed with; `lim` is
     /// [`AccelerationFeedback::abs_limit`], resolved by the caller (the controller, at
-    /// configuration). With `HOLD` the filter keeps its state on a step whose torque is
-    /// clamped ([`crate::AfbFilterAtLimit::Hold`]).
+    /// configuration). With `HOLD` the filter keeps its state on a step whose torque is at
+    /// the limit ([`crate::AfbFilterAtLimit::Hold`]).
     #[inline(always)]
     pub(crate) fn update_closed_torque<const HOLD: bool>(
         &self,
@@ -210,10 +210,10 @@ impl AccelerationFeedback {
         let inner = Pu::from_bits(sat_round_shr::<30>(inner46));
         let afb = mul_gain(inner, self.ka_closed).max(-lim).min(lim);
         // Complete the filter step with the input for the torque actually applied, or,
-        // with `HOLD`, leave the state as it was when that torque is clamped.
-        let u = p.saturating_add(afb);
-        let t = u.max(-lim).min(lim);
-        if !HOLD || t == u {
+        // with `HOLD`, leave the state as it was when that torque is at the limit (clamped,
+        // or the AFB term itself at it).
+        let t = p.saturating_add(afb).max(-lim).min(lim);
+        if !HOLD || (t != lim && t != -lim) {
             filter.finish(s, h46, c.saturating_sub(predict(t)));
         }
         (afb, t)

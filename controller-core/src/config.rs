@@ -104,11 +104,11 @@ pub struct AccelFeedbackConfig {
     pub filter_at_limit: AfbFilterAtLimit,
 }
 
-/// The AFB filter on a tick whose torque reference is clamped at the limit. The AFB term is
-/// solved in closed form through the observer's model, so the filter step is completed
-/// with the acceleration the applied torque predicts; at the limit that prediction stays
-/// put while the machine's estimate keeps moving, so the filter winds up on the difference
-/// and releases it as a torque swing when the drive leaves the limit.
+/// The AFB filter on a tick whose torque reference is at its limit. The AFB term is
+/// solved in closed form through the observer's model, and the filter step is completed
+/// with the acceleration the applied torque predicts. At the limit the torque no longer
+/// follows the AFB term, and a tracking filter keeps running on an input the torque cannot
+/// act on (`docs/design.md`, "The AFB filter at the limit").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
@@ -116,9 +116,9 @@ pub struct AccelFeedbackConfig {
 pub enum AfbFilterAtLimit {
     /// Complete the filter step with the clamped torque, as on any tick (the default).
     Track,
-    /// Hold the filter's state while the torque is clamped: the AFB term still follows the
-    /// estimate through the filter's feed-through, and the filter resumes from where it was
-    /// when the torque leaves the limit. With `source = "differentiation"` the filter's
+    /// Hold the filter's state while the torque is at the limit: the AFB term still follows
+    /// the estimate through the filter's feed-through, and the filter resumes from where it
+    /// was when the torque leaves the limit. With `source = "differentiation"` the filter's
     /// input holds no torque, and the two are the same.
     Hold,
 }

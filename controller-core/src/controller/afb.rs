@@ -73,7 +73,7 @@ impl Controller {
     }
 
     /// [`AfbStep::ClosedPlainHold`] and [`AfbStep::ClosedErrorHold`]: the closed form with
-    /// the filter held while the torque is clamped. Out of line and marked cold so that the
+    /// the filter held while the torque is at the limit. Out of line and marked cold so that the
     /// tracking form (the default, the baked drive's) keeps its place in the tick: inlined,
     /// a run-time hold flag cost the baked drive's period 12 instructions (`cargo fw-bench`),
     /// out of line 4 to 8.

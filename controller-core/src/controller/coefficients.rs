@@ -101,10 +101,10 @@ pub(super) enum AfbStep {
     ClosedPlain,
     /// The closed form on the observer, error form (filter input a_cmd − â).
     ClosedError,
-    /// [`AfbStep::ClosedPlain`] with the filter held while the torque is clamped
+    /// [`AfbStep::ClosedPlain`] with the filter held while the torque is at the limit
     /// (`accel_feedback.filter_at_limit = "hold"`).
     ClosedPlainHold,
-    /// [`AfbStep::ClosedError`] with the filter held while the torque is clamped.
+    /// [`AfbStep::ClosedError`] with the filter held while the torque is at the limit.
     ClosedErrorHold,
 }
 

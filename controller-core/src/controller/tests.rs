@@ -1,6 +1,7 @@
 //! The controller's ticks against their general paths.
 #![allow(clippy::indexing_slicing, clippy::unwrap_used)]
 
+use super::coefficients::AfbStep;
 use super::*;
 use crate::config::AfbMode;
 
@@ -60,6 +61,80 @@ fn closed_form_torque_is_the_total_reference() {
         assert!(
             at_limit > 100,
             "{mode:?}: {at_limit} ticks at the torque limit"
+        );
+    }
+}
+
+/// `accel_feedback.filter_at_limit`: the tick runs the held AFB step only when the setting
+/// asks for it, in either form. Driven into the torque limit both ways, the held step is
+/// the tracking one bit for bit (output and state) on every tick whose torque is not at
+/// the limit; on the ticks at the limit the held filter's state does not move, where the
+/// tracking step, from the same state and inputs, moves it.
+#[test]
+fn a_held_afb_filter_moves_only_off_the_limit() {
+    use crate::config::AfbFilterAtLimit;
+    for (mode, track, hold) in [
+        (
+            AfbMode::Plain,
+            AfbStep::ClosedPlain,
+            AfbStep::ClosedPlainHold,
+        ),
+        (
+            AfbMode::Error,
+            AfbStep::ClosedError,
+            AfbStep::ClosedErrorHold,
+        ),
+    ] {
+        let mut cfg = drive();
+        cfg.accel_feedback.mode = mode;
+        assert_eq!(cfg.accel_feedback.filter_at_limit, AfbFilterAtLimit::Track);
+        assert_eq!(Controller::new(&cfg).unwrap().coef.afb_current, track);
+        cfg.accel_feedback.filter_at_limit = AfbFilterAtLimit::Hold;
+        let mut held = Controller::new(&cfg).unwrap();
+        assert_eq!(held.coef.afb_current, hold, "{mode:?}");
+        let lim = held.coef.torque_limit;
+        let (mut raw, mut seed) = (0u32, 777u32);
+        let (mut at_limit, mut tracking_moved, mut off_limit) = (0u32, 0u32, 0u32);
+        for k in 0..20_000u32 {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let step = ((seed >> 8) % 81) as i32 - 40 + if k % 4000 < 2000 { 9 } else { -9 };
+            raw = raw.wrapping_add_signed(step);
+            let ci = CurrentInputs {
+                encoder_count: raw,
+                current_pu: Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18)),
+            };
+            let mut tracking = held;
+            tracking.coef.afb_current = track;
+            let before = held.state.afb_filter;
+            let out = held.current_tick(ci);
+            let out_tracking = tracking.current_tick(ci);
+            if out.current_ref_pu.abs() == lim {
+                at_limit += 1;
+                assert_eq!(held.state.afb_filter, before, "{mode:?} {k}");
+                tracking_moved += u32::from(tracking.state.afb_filter != before);
+            } else {
+                off_limit += 1;
+                assert_eq!(out, out_tracking, "{mode:?} {k}");
+                assert_eq!(held.state, tracking.state, "{mode:?} {k}");
+            }
+            if k % 2 == 0 {
+                held.velocity_tick(VelocityInputs {
+                    encoder_count: raw,
+                    setpoint: Setpoint {
+                        acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),
+                        ..Setpoint::default()
+                    },
+                    fault_input: false,
+                });
+            }
+            if held.fault().is_some() {
+                held.reset();
+            }
+        }
+        assert!(
+            at_limit > 100 && tracking_moved > at_limit / 2 && off_limit > 1000,
+            "{mode:?}: {at_limit} ticks at the limit ({tracking_moved} moved by the \
+             tracking step), {off_limit} off it"
         );
     }
 }
