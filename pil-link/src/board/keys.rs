@@ -54,6 +54,30 @@ pub struct Choice {
     pub key: &'static str,
     /// The values' names; a value's index here is its number on the wire.
     pub names: &'static [&'static str],
+    /// The [`DriveConfig`] field it reads and writes.
+    pub field: ChoiceField,
+}
+
+/// The [`DriveConfig`] field of a [`Choice`]: a match on it names every field, so an entry
+/// added to [`CHOICES`] cannot fall through to another field's arm.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChoiceField {
+    /// `accel_feedback.mode`.
+    AfbMode,
+    /// `accel_feedback.rate`.
+    AfbRate,
+    /// `accel_feedback.source`.
+    AfbSource,
+    /// `accel_feedback.filter_at_limit`.
+    AfbFilterAtLimit,
+    /// `velocity_estimator`.
+    VelocityEstimator,
+    /// `velocity_pi_inertia`.
+    VelocityPiInertia,
+    /// `observer.model_inertia`.
+    ObserverModelInertia,
+    /// `observer.torque_input`.
+    ObserverTorqueInput,
 }
 
 impl Choice {
@@ -94,34 +118,42 @@ pub static CHOICES: [Choice; 8] = [
     Choice {
         key: "accel_feedback.mode",
         names: &["off", "plain", "error"],
+        field: ChoiceField::AfbMode,
     },
     Choice {
         key: "accel_feedback.rate",
         names: &["current", "velocity"],
+        field: ChoiceField::AfbRate,
     },
     Choice {
         key: "accel_feedback.source",
         names: &["differentiation", "observer"],
+        field: ChoiceField::AfbSource,
     },
     Choice {
         key: "accel_feedback.filter_at_limit",
         names: &["track", "hold"],
+        field: ChoiceField::AfbFilterAtLimit,
     },
     Choice {
         key: "velocity_estimator",
         names: &["differentiation", "observer"],
+        field: ChoiceField::VelocityEstimator,
     },
     Choice {
         key: "velocity_pi_inertia",
         names: &["total", "total_plus_afb"],
+        field: ChoiceField::VelocityPiInertia,
     },
     Choice {
         key: "observer.model_inertia",
         names: &["total", "motor"],
+        field: ChoiceField::ObserverModelInertia,
     },
     Choice {
         key: "observer.torque_input",
         names: &["command", "measured_current"],
+        field: ChoiceField::ObserverTorqueInput,
     },
 ];
 
@@ -147,23 +179,27 @@ fn choice_get(cfg: &DriveConfig, c: &Choice) -> usize {
         Estimator::Differentiation => 0,
         Estimator::Observer => 1,
     };
-    match c.key {
-        "accel_feedback.mode" => match cfg.accel_feedback.mode {
+    match c.field {
+        ChoiceField::AfbMode => match cfg.accel_feedback.mode {
             AfbMode::Off => 0,
             AfbMode::Plain => 1,
             AfbMode::Error => 2,
         },
-        "accel_feedback.rate" => usize::from(cfg.accel_feedback.rate == AfbRate::Velocity),
-        "accel_feedback.source" => estimator(cfg.accel_feedback.source),
-        "accel_feedback.filter_at_limit" => {
+        ChoiceField::AfbRate => usize::from(cfg.accel_feedback.rate == AfbRate::Velocity),
+        ChoiceField::AfbSource => estimator(cfg.accel_feedback.source),
+        ChoiceField::AfbFilterAtLimit => {
             usize::from(cfg.accel_feedback.filter_at_limit == AfbFilterAtLimit::Hold)
         }
-        "velocity_estimator" => estimator(cfg.velocity_estimator),
-        "velocity_pi_inertia" => usize::from(cfg.velocity_pi_inertia == PiInertia::TotalPlusAfb),
-        "observer.model_inertia" => {
+        ChoiceField::VelocityEstimator => estimator(cfg.velocity_estimator),
+        ChoiceField::VelocityPiInertia => {
+            usize::from(cfg.velocity_pi_inertia == PiInertia::TotalPlusAfb)
+        }
+        ChoiceField::ObserverModelInertia => {
             usize::from(cfg.observer.model_inertia == ObserverInertia::Motor)
         }
-        _ => usize::from(cfg.observer.torque_input == ObserverTorque::MeasuredCurrent),
+        ChoiceField::ObserverTorqueInput => {
+            usize::from(cfg.observer.torque_input == ObserverTorque::MeasuredCurrent)
+        }
     }
 }
 
@@ -174,45 +210,45 @@ fn choice_set(cfg: &mut DriveConfig, c: &Choice, i: usize) {
     } else {
         Estimator::Observer
     };
-    match c.key {
-        "accel_feedback.mode" => {
+    match c.field {
+        ChoiceField::AfbMode => {
             cfg.accel_feedback.mode = match i {
                 0 => AfbMode::Off,
                 1 => AfbMode::Plain,
                 _ => AfbMode::Error,
             }
         }
-        "accel_feedback.rate" => {
+        ChoiceField::AfbRate => {
             cfg.accel_feedback.rate = if i == 0 {
                 AfbRate::Current
             } else {
                 AfbRate::Velocity
             }
         }
-        "accel_feedback.source" => cfg.accel_feedback.source = estimator,
-        "accel_feedback.filter_at_limit" => {
+        ChoiceField::AfbSource => cfg.accel_feedback.source = estimator,
+        ChoiceField::AfbFilterAtLimit => {
             cfg.accel_feedback.filter_at_limit = if i == 0 {
                 AfbFilterAtLimit::Track
             } else {
                 AfbFilterAtLimit::Hold
             }
         }
-        "velocity_estimator" => cfg.velocity_estimator = estimator,
-        "velocity_pi_inertia" => {
+        ChoiceField::VelocityEstimator => cfg.velocity_estimator = estimator,
+        ChoiceField::VelocityPiInertia => {
             cfg.velocity_pi_inertia = if i == 0 {
                 PiInertia::Total
             } else {
                 PiInertia::TotalPlusAfb
             }
         }
-        "observer.model_inertia" => {
+        ChoiceField::ObserverModelInertia => {
             cfg.observer.model_inertia = if i == 0 {
                 ObserverInertia::Total
             } else {
                 ObserverInertia::Motor
             }
         }
-        _ => {
+        ChoiceField::ObserverTorqueInput => {
             cfg.observer.torque_input = if i == 0 {
                 ObserverTorque::Command
             } else {
