@@ -1,9 +1,10 @@
 //! The built Cortex-M images (the QEMU board's and the STM32F4 board's) hold no `RefCell`
 //! panic path (`panic_already_borrowed`): the interrupt glue shares the app through
-//! `isr::Shared`, which refuses a second borrower instead of panicking. The test builds the firmware's release images itself (installing
-//! the ARM target if it is missing, as the PIL tests do) into `target/firmware`, the
-//! directory every host-side firmware build shares, and reads their symbol tables. The same
-//! check by hand: `llvm-nm -C target/thumbv7em-none-eabihf/release/fw-bench | grep borrowed`.
+//! `isr::Shared`, which refuses a second borrower instead of panicking. The test builds the
+//! firmware's release images itself (installing the ARM target if it is missing, as the PIL
+//! tests do) into `target/firmware`, the directory every host-side firmware build shares,
+//! and reads their symbol tables. The same check by hand:
+//! `llvm-nm -C target/thumbv7em-none-eabihf/release/fw-bench | grep borrowed`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 /// Symbol names that must not be linked into a firmware image.

@@ -7,7 +7,7 @@
 
 use super::section::Section;
 use rayon::prelude::*;
-use sim_engine::config::resolve;
+use sim_engine::config::{resolve, RunConfig};
 use sim_engine::engine::metrics::Metrics;
 use sim_engine::engine::runner::run_scenario;
 use sim_engine::error::Result;
@@ -22,6 +22,23 @@ pub(super) struct Pair {
     pub(super) label: &'static str,
     pub(super) scenario: &'static str,
     pub(super) config: Option<&'static str>,
+}
+
+impl Pair {
+    /// The pair's metrics, (with AFB, without), each run's configuration passed through
+    /// `edit` first: the run without AFB is `<scenario>-no-afb` on the same machine file.
+    pub(super) fn run_with(
+        &self,
+        edit: impl Fn(RunConfig) -> RunConfig,
+    ) -> Result<(Metrics, Metrics)> {
+        let run = |scenario: &str| -> Result<Metrics> {
+            Ok(run_scenario(&edit(resolve(scenario, self.config, &[])?))?.metrics)
+        };
+        Ok((
+            run(self.scenario)?,
+            run(&format!("{}-no-afb", self.scenario))?,
+        ))
+    }
 }
 
 pub(super) const PAIRS: [Pair; 6] = [
@@ -98,13 +115,6 @@ impl Figure {
     }
 }
 
-/// The metrics of `scenario` on `config` with the count interval `h`.
-fn run(scenario: &str, config: Option<&str>, h: f32) -> Result<Metrics> {
-    let mut cfg = resolve(scenario, config, &[])?;
-    cfg.drive.observer.count_interval_counts = h;
-    Ok(run_scenario(&cfg)?.metrics)
-}
-
 /// Per half-width (0, then [`HALF_WIDTH_COUNTS`]) and pair: the metrics with AFB and
 /// without.
 type Grid = Vec<Vec<(Metrics, Metrics)>>;
@@ -116,9 +126,10 @@ fn run_grid() -> Result<Grid> {
             PAIRS
                 .par_iter()
                 .map(|p| {
-                    let with = run(p.scenario, p.config, h)?;
-                    let without = run(&format!("{}-no-afb", p.scenario), p.config, h)?;
-                    Ok((with, without))
+                    p.run_with(|mut cfg| {
+                        cfg.drive.observer.count_interval_counts = h;
+                        cfg
+                    })
                 })
                 .collect()
         })

@@ -122,10 +122,10 @@ pub fn section(runs: &Runs) -> Result<Section> {
          ring that follows is in the first part. The AFB term's own noise, at the \
          estimate's count-rate tones, stays in the torque reference outside the limit (the \
          rest of `shock`): the headroom does not change it. The first two rows of each \
-         scenario differ only in the AFB filter while the torque is clamped: held (the \
-         dyno's setting) it does not wind up on the part of the estimate the clamped torque \
-         cannot answer, which the tracking filter hands to the torque when the drive leaves \
-         the limit (`docs/design.md`, \"The AFB filter at the limit\").\n",
+         scenario differ only in the AFB filter while the torque is at the limit: held (the \
+         dyno's setting) its state stays as it was when the torque reached the limit; \
+         tracking, it keeps running on the estimate while its output cannot reach the \
+         machine (`docs/design.md`, \"The AFB filter at the limit\").\n",
     );
     let mut s = Section::text("Saturated runs: where the shaft ripple comes from", body);
     s.plots = vec!["saturation-compare.png".into()];

@@ -10,9 +10,8 @@
 use super::count_interval::{CRITERIA, PAIRS};
 use super::section::Section;
 use rayon::prelude::*;
-use sim_engine::config::{resolve, RunConfig};
+use sim_engine::config::RunConfig;
 use sim_engine::engine::metrics::Metrics;
-use sim_engine::engine::runner::run_scenario;
 use sim_engine::error::Result;
 use std::fmt::Write as _;
 
@@ -45,17 +44,6 @@ fn shifted(mut cfg: RunConfig, dt: f64) -> RunConfig {
     cfg
 }
 
-/// The metrics of the pair `(scenario, config)` with its events `dt` later: (with AFB,
-/// without).
-fn pair_at(scenario: &str, config: Option<&str>, dt: f64) -> Result<(Metrics, Metrics)> {
-    let with = shifted(resolve(scenario, config, &[])?, dt);
-    let without = shifted(resolve(&format!("{scenario}-no-afb"), config, &[])?, dt);
-    Ok((
-        run_scenario(&with)?.metrics,
-        run_scenario(&without)?.metrics,
-    ))
-}
-
 /// Per pair, per offset: the metrics with AFB and without.
 fn run_grid() -> Result<Vec<Vec<(Metrics, Metrics)>>> {
     PAIRS
@@ -63,7 +51,7 @@ fn run_grid() -> Result<Vec<Vec<(Metrics, Metrics)>>> {
         .map(|p| {
             OFFSETS_S
                 .par_iter()
-                .map(|&dt| pair_at(p.scenario, p.config, dt))
+                .map(|&dt| p.run_with(|cfg| shifted(cfg, dt)))
                 .collect()
         })
         .collect()

@@ -10,21 +10,11 @@ use super::section::Section;
 use rayon::prelude::*;
 use sim_engine::config::resolve;
 use sim_engine::engine::metrics::Metrics;
-use sim_engine::engine::runner::run_scenario;
 use sim_engine::error::Result;
 use std::fmt::Write as _;
 
 /// The raised limit, as a multiple of the machine file's.
 pub const RAISED_FACTOR: f32 = 2.0;
-
-/// The metrics of `scenario` on `config` with the torque limit scaled by `factor`, and the
-/// limit used \[pu\].
-fn run(scenario: &str, config: Option<&str>, factor: f32) -> Result<(Metrics, f32)> {
-    let mut cfg = resolve(scenario, config, &[])?;
-    cfg.drive.torque_limit_pu *= factor;
-    let limit = cfg.drive.torque_limit_pu;
-    Ok((run_scenario(&cfg)?.metrics, limit))
-}
 
 /// One pair at one limit: with AFB, without, and the limit \[pu\].
 struct Runs {
@@ -73,13 +63,16 @@ fn run_grid() -> Result<Vec<(Runs, Runs)>> {
     PAIRS
         .par_iter()
         .map(|p| {
+            let shipped_pu = resolve(p.scenario, p.config, &[])?.drive.torque_limit_pu;
             let at = |factor: f32| -> Result<Runs> {
-                let (with, limit_pu) = run(p.scenario, p.config, factor)?;
-                let (without, _) = run(&format!("{}-no-afb", p.scenario), p.config, factor)?;
+                let (with, without) = p.run_with(|mut cfg| {
+                    cfg.drive.torque_limit_pu *= factor;
+                    cfg
+                })?;
                 Ok(Runs {
                     with,
                     without,
-                    limit_pu,
+                    limit_pu: shipped_pu * factor,
                 })
             };
             Ok((at(1.0)?, at(RAISED_FACTOR)?))
