@@ -13,6 +13,51 @@ fn drive() -> DriveConfig {
     .unwrap()
 }
 
+/// Inputs that drive the example drive's references into the torque limit both ways: the
+/// position swings by up to ±40 counts a tick around a ramp that reverses every 2000 ticks,
+/// with current noise, and each velocity tick (every second current tick) asks a random
+/// setpoint acceleration. Per current tick: its inputs, and the velocity tick's after it.
+struct LimitInputs {
+    k: u32,
+    raw: u32,
+    seed: u32,
+}
+
+impl LimitInputs {
+    fn new(seed: u32) -> Self {
+        Self { k: 0, raw: 0, seed }
+    }
+}
+
+impl Iterator for LimitInputs {
+    type Item = (CurrentInputs, Option<VelocityInputs>);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let k = self.k;
+        self.k += 1;
+        let seed = self
+            .seed
+            .wrapping_mul(1_664_525)
+            .wrapping_add(1_013_904_223);
+        self.seed = seed;
+        let step = ((seed >> 8) % 81) as i32 - 40 + if k % 4000 < 2000 { 9 } else { -9 };
+        self.raw = self.raw.wrapping_add_signed(step);
+        let current = CurrentInputs {
+            encoder_count: self.raw,
+            current_pu: Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18)),
+        };
+        let velocity = (k % 2 == 0).then(|| VelocityInputs {
+            encoder_count: self.raw,
+            setpoint: Setpoint {
+                acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),
+                ..Setpoint::default()
+            },
+            fault_input: false,
+        });
+        Some((current, velocity))
+    }
+}
+
 /// The current tick with the closed-form AFB step's torque taken as the total torque
 /// reference equals the tick that forms the sum again (`total_ref`), bit for bit, on
 /// inputs that drive the references into the torque limit both ways.
@@ -26,31 +71,14 @@ fn closed_form_torque_is_the_total_reference() {
         let mut general = fast;
         general.closed_total = false;
         let mut fast = fast;
-        let (mut raw, mut seed, mut at_limit) = (0u32, 12345u32, 0u32);
-        for k in 0..20_000u32 {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            // Position swinging by up to ±40 counts a tick around a ramp, current noise.
-            let step = ((seed >> 8) % 81) as i32 - 40 + if k % 4000 < 2000 { 9 } else { -9 };
-            raw = raw.wrapping_add_signed(step);
-            let current = Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18));
-            let ci = CurrentInputs {
-                encoder_count: raw,
-                current_pu: current,
-            };
+        let mut at_limit = 0u32;
+        for (k, (ci, vi)) in LimitInputs::new(12345).take(20_000).enumerate() {
             let out = fast.current_tick(ci);
             assert_eq!(out, general.current_tick(ci), "{mode:?} {k}");
             if out.current_ref_pu.abs() == fast.coef.torque_limit {
                 at_limit += 1;
             }
-            if k % 2 == 0 {
-                let vi = VelocityInputs {
-                    encoder_count: raw,
-                    setpoint: Setpoint {
-                        acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),
-                        ..Setpoint::default()
-                    },
-                    fault_input: false,
-                };
+            if let Some(vi) = vi {
                 assert_eq!(fast.velocity_tick(vi), general.velocity_tick(vi));
             }
             if fast.fault().is_some() {
@@ -93,16 +121,8 @@ fn a_held_afb_filter_moves_only_off_the_limit() {
         let mut held = Controller::new(&cfg).unwrap();
         assert_eq!(held.coef.afb_current, hold, "{mode:?}");
         let lim = held.coef.torque_limit;
-        let (mut raw, mut seed) = (0u32, 777u32);
         let (mut at_limit, mut tracking_moved, mut off_limit) = (0u32, 0u32, 0u32);
-        for k in 0..20_000u32 {
-            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            let step = ((seed >> 8) % 81) as i32 - 40 + if k % 4000 < 2000 { 9 } else { -9 };
-            raw = raw.wrapping_add_signed(step);
-            let ci = CurrentInputs {
-                encoder_count: raw,
-                current_pu: Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18)),
-            };
+        for (k, (ci, vi)) in LimitInputs::new(777).take(20_000).enumerate() {
             let mut tracking = held;
             tracking.coef.afb_current = track;
             let before = held.state.afb_filter;
@@ -117,15 +137,8 @@ fn a_held_afb_filter_moves_only_off_the_limit() {
                 assert_eq!(out, out_tracking, "{mode:?} {k}");
                 assert_eq!(held.state, tracking.state, "{mode:?} {k}");
             }
-            if k % 2 == 0 {
-                held.velocity_tick(VelocityInputs {
-                    encoder_count: raw,
-                    setpoint: Setpoint {
-                        acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),
-                        ..Setpoint::default()
-                    },
-                    fault_input: false,
-                });
+            if let Some(vi) = vi {
+                held.velocity_tick(vi);
             }
             if held.fault().is_some() {
                 held.reset();
