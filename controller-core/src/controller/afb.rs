@@ -61,12 +61,7 @@ impl Controller {
                 None
             }
             AfbStep::ClosedPlain | AfbStep::ClosedError => {
-                let c = if step == AfbStep::ClosedError {
-                    self.state.accel_cmd
-                } else {
-                    PuPerS::ZERO
-                };
-                self.afb_closed_step::<false>(c)
+                self.afb_closed_step::<false>(self.filter_command(step == AfbStep::ClosedError))
             }
             AfbStep::ClosedPlainHold | AfbStep::ClosedErrorHold => self.afb_hold_step(step),
         }
@@ -80,12 +75,18 @@ impl Controller {
     #[cold]
     #[inline(never)]
     pub(super) fn afb_hold_step(&mut self, step: AfbStep) -> Option<Pu> {
-        let c = if step == AfbStep::ClosedErrorHold {
+        self.afb_closed_step::<true>(self.filter_command(step == AfbStep::ClosedErrorHold))
+    }
+
+    /// The command part c of the closed-form filter input x = c − â: a_cmd in the error
+    /// form, 0 in the plain form.
+    #[inline(always)]
+    fn filter_command(&self, error_form: bool) -> PuPerS {
+        if error_form {
             self.state.accel_cmd
         } else {
             PuPerS::ZERO
-        };
-        self.afb_closed_step::<true>(c)
+        }
     }
 
     /// [`AfbStep::Measured`]: differentiate (`a_meas`), then the plain AFB update.
