@@ -46,7 +46,7 @@ impl Iterator for LimitInputs {
             encoder_count: self.raw,
             current_pu: Pu::from_bits(((seed >> 3) % (1 << 19)) as i32 - (1 << 18)),
         };
-        let velocity = (k % 2 == 0).then(|| VelocityInputs {
+        let velocity = k.is_multiple_of(2).then(|| VelocityInputs {
             encoder_count: self.raw,
             setpoint: Setpoint {
                 acceleration_pu_s: Pu::from_bits((seed % (1 << 22)) as i32 - (1 << 21)),

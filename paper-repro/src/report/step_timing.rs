@@ -196,6 +196,7 @@ pub fn section() -> Result<Section> {
 #[allow(clippy::panic)]
 mod tests {
     use super::*;
+    use sim_engine::config::resolve;
 
     #[test]
     fn a_shift_moves_the_steps_a_late_start_the_windows_and_the_end_only() {
