@@ -24,6 +24,7 @@ pub mod error;
 pub mod excitation;
 pub mod fault;
 pub mod filter;
+pub mod foc;
 pub mod notch;
 pub mod observer;
 pub mod per_unit;

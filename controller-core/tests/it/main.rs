@@ -18,6 +18,7 @@ mod afb_skeleton;
 mod blocks;
 mod controller;
 mod estimator;
+mod foc;
 mod gains;
 mod notch;
 mod pinned;

@@ -1,0 +1,99 @@
+//! Space-vector modulation by min-max (zero-sequence) injection: the three phase voltages of
+//! (α, β), shifted together by −(max + min)/2 so that they use the whole DC bus, become
+//! three duties of the PWM period.
+//!
+//! ```text
+//! v_a = α,  v_b = −α/2 + (√3/2)·β,  v_c = −α/2 − (√3/2)·β
+//! v_0 = −(max(v) + min(v))/2
+//! duty_x = period·(1/2 + (v_x + v_0)/V_dc), clamped to [0, period]
+//! ```
+//! The linear range is the circle |(α, β)| ≤ V_dc/√3; [`super::VoltageCircle`] keeps the
+//! vector inside it, and the clamp holds the duties in `[0, period]` whatever the input.
+
+use super::transforms::AlphaBeta;
+use crate::error::ConfigError;
+
+/// √3/2 in Q1.31.
+const SQRT3_2_Q31: i64 = 1_859_775_393;
+
+/// The modulator's coefficients.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Svpwm {
+    /// Timer counts of a whole PWM period (the largest duty).
+    period: u16,
+    /// V_dc/2, Q16.16 raw: the largest phase voltage about the bus midpoint.
+    half_bus: i64,
+    /// period/V_dc as Q32.32 counts per pu (raw i64).
+    counts_per_pu: i64,
+}
+
+impl Svpwm {
+    /// A modulator for a bus of `dc_bus_pu` and a period of `period` timer counts.
+    ///
+    /// ```
+    /// use controller_core::foc::{Svpwm, transforms::AlphaBeta};
+    /// use controller_core::per_unit::Pu;
+    /// let m = Svpwm::new(1.8, 1000).unwrap();
+    /// assert_eq!(m.duties(AlphaBeta::default()), [500, 500, 500]);
+    /// ```
+    pub fn new(dc_bus_pu: f32, period: u16) -> Result<Self, ConfigError> {
+        if !(dc_bus_pu.is_finite() && (0.01..=1000.0).contains(&dc_bus_pu)) {
+            return Err(ConfigError::OutOfRange {
+                param: "dc_bus_pu",
+                value: dc_bus_pu,
+                min: 0.01,
+                max: 1000.0,
+                min_exclusive: false,
+            });
+        }
+        if period < 2 {
+            return Err(ConfigError::OutOfRange {
+                param: "pwm period (timer counts)",
+                value: f32::from(period),
+                min: 2.0,
+                max: 65535.0,
+                min_exclusive: false,
+            });
+        }
+        let bus = f64::from(dc_bus_pu);
+        Ok(Self {
+            period,
+            half_bus: (bus / 2.0 * 65_536.0) as i64,
+            // Positive: + 0.5 then truncation rounds to nearest.
+            counts_per_pu: (f64::from(period) / bus * 65_536.0 + 0.5) as i64,
+        })
+    }
+
+    /// The timer counts of a whole period.
+    #[must_use]
+    pub fn period(&self) -> u16 {
+        self.period
+    }
+
+    /// The three duties (timer counts, each in `[0, period]`) of the voltage vector `v`.
+    #[inline]
+    #[must_use]
+    pub fn duties(&self, v: AlphaBeta) -> [u16; 3] {
+        let a = i64::from(v.alpha.to_bits());
+        let b = i64::from(v.beta.to_bits());
+        let half_a = a >> 1;
+        let sb = (b * SQRT3_2_Q31 + (1 << 30)) >> 31;
+        let va = a;
+        let vb = sb - half_a;
+        let vc = -sb - half_a;
+        let max = va.max(vb).max(vc);
+        let min = va.min(vb).min(vc);
+        let zero = -((max + min) >> 1);
+        [va, vb, vc].map(|x| self.duty(x + zero))
+    }
+
+    /// One phase's duty for a voltage `v` (Q16.16 raw) about the bus midpoint.
+    #[inline(always)]
+    fn duty(&self, v: i64) -> u16 {
+        // Within ±V_dc/2 the product is at most period/2·2^32 < 2^47.
+        let v = v.clamp(-self.half_bus, self.half_bus);
+        let half = i64::from(self.period) << 31;
+        let d = (half + v * self.counts_per_pu + (1 << 31)) >> 32;
+        d.clamp(0, i64::from(self.period)) as u16
+    }
+}
