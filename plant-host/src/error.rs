@@ -166,6 +166,11 @@ pub enum PlantError {
         /// The offending value.
         value: f64,
     },
+    /// The inverter cannot be built (bus, dead time or PWM frequency).
+    BadInverter {
+        /// Which setting, its value and what is allowed.
+        message: String,
+    },
 }
 
 impl fmt::Display for PlantError {
@@ -185,6 +190,7 @@ impl fmt::Display for PlantError {
                 write!(f, "load time series point {index}: {message}")
             }
             Self::BadInput { value } => write!(f, "plant input {value} must be finite"),
+            Self::BadInverter { message } => write!(f, "inverter: {message}"),
         }
     }
 }

@@ -5,6 +5,8 @@
 //!
 //! - [`TwoInertiaPlant`]: the mechanics and sensors, torque in, or with the winding in
 //!   front, voltage in.
+//! - [`PmsmPlant`]: the same mechanics driven by a permanent-magnet synchronous motor
+//!   (`electrics.motor = "pmsm"`) behind an averaged [`Inverter`], duties in.
 //! - [`LoadTorque`]: load disturbances.
 //! - [`PlantConfig`]: the `[plant]`, `[electrics]`, `[sensors]`, `[lost_motion]` TOML
 //!   tables, their range table [`RANGES`] and [`PlantConfig::validate`].
@@ -25,6 +27,7 @@ mod load;
 mod model;
 mod parse;
 mod piecewise;
+mod pmsm;
 mod replay;
 pub mod rounding;
 pub mod sensors;
@@ -33,11 +36,15 @@ mod validate;
 
 pub use config::{
     Allowed, BacklashModel, ElectricsConfig, KeyRange, LostMotionConfig, MechanicsConfig,
-    MechanicsDerived, PlantConfig, RANGES, Reading, SensorsConfig, range_of,
+    MechanicsDerived, MotorKind, PlantConfig, RANGES, Reading, SensorsConfig, range_of,
 };
 pub use error::{ConfigError, PlantError};
 pub use load::{LoadTorque, SMOOTH_LOAD_STEP_S, TimeSeries, for_each_load_piece};
 pub use model::{Contact, Winding};
+pub use pmsm::{
+    Inverter, MAX_DEAD_TIME_FRACTION, PmsmParams, PmsmPlant, clarke, inverse_clarke, inverse_park,
+    park,
+};
 pub use replay::{
     COLUMN_RANGES, MAX_SPAN_S, REPLAY_INPUT_HEADER, REPLAY_OUTPUT_HEADER, ReplaySummary, StateRow,
     TorqueRow, parse_torque_csv, replay, simulate, write_atomically,

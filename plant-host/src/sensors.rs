@@ -57,6 +57,10 @@ impl CurrentAdc {
 pub(crate) enum Channel {
     MotorEncoder = 1,
     Current = 2,
+    /// A PMSM's phase a current.
+    PhaseA = 3,
+    /// A PMSM's phase b current.
+    PhaseB = 4,
 }
 
 /// Deterministic Gaussian noise N(0, 1) for (seed, channel, time).
@@ -149,6 +153,24 @@ impl Sensors {
             current_pu
         };
         self.adc.sample(noisy)
+    }
+
+    /// A PMSM's two sampled phase currents, a and b, through the same ADC (each with its
+    /// own noise stream, if any) at `time_s`, pu. The drive takes c = −a − b.
+    #[inline]
+    pub fn phase_currents(&self, [a, b]: [f64; 2], time_s: f64) -> [f64; 2] {
+        let c = &self.config;
+        let noise = |channel| {
+            if c.current_noise_pu > 0.0 {
+                c.current_noise_pu * gaussian(c.noise_seed, channel, time_s)
+            } else {
+                0.0
+            }
+        };
+        [
+            self.adc.sample(a + noise(Channel::PhaseA)),
+            self.adc.sample(b + noise(Channel::PhaseB)),
+        ]
     }
 }
 

@@ -2,7 +2,7 @@
 //! against [`RANGES`], the two cross-key rules of the sensors, and the speed of the
 //! dynamics the integrator must follow.
 
-use crate::config::{Allowed, KeyRange, PlantConfig, RANGES, Reading, range_of};
+use crate::config::{Allowed, KeyRange, MotorKind, PlantConfig, RANGES, Reading, range_of};
 use crate::error::ConfigError;
 use crate::model::{Model, Winding};
 
@@ -33,7 +33,63 @@ impl PlantConfig {
             });
         }
         self.check_counts_per_rev()?;
+        self.check_motor_keys()?;
         self.check_speed_of_dynamics()
+    }
+
+    /// The PMSM's keys belong to `electrics.motor = "pmsm"`: there, `pole_pairs`,
+    /// `d_inductance_pu_s`, `q_inductance_pu_s`, `dc_bus_pu` and `encoder_offset_elec_deg`
+    /// are required (`flux_linkage_pu` defaults to 1, `dead_time_s` to 0); with `"dc"` every
+    /// one of them is refused, naming it, rather than silently ignored.
+    fn check_motor_keys(&self) -> Result<(), ConfigError> {
+        let e = &self.electrics;
+        let keys: [(&'static str, bool, bool); 7] = [
+            ("electrics.pole_pairs", e.pole_pairs.is_some(), true),
+            (
+                "electrics.d_inductance_pu_s",
+                e.d_inductance_pu_s.is_some(),
+                true,
+            ),
+            (
+                "electrics.q_inductance_pu_s",
+                e.q_inductance_pu_s.is_some(),
+                true,
+            ),
+            (
+                "electrics.flux_linkage_pu",
+                e.flux_linkage_pu.is_some(),
+                false,
+            ),
+            ("electrics.dc_bus_pu", e.dc_bus_pu.is_some(), true),
+            (
+                "electrics.encoder_offset_elec_deg",
+                e.encoder_offset_elec_deg.is_some(),
+                true,
+            ),
+            ("electrics.dead_time_s", e.dead_time_s.is_some(), false),
+        ];
+        for (key, set, required) in keys {
+            match e.motor {
+                MotorKind::Dc if set => {
+                    return Err(ConfigError::Inconsistent {
+                        keys: vec![key, "electrics.motor"],
+                        message: format!(
+                            "`{key}` describes a PMSM and is refused with electrics.motor = \"dc\" \
+                             (the default); set electrics.motor = \"pmsm\" or remove the key"
+                        ),
+                    });
+                }
+                MotorKind::Pmsm if required && !set => {
+                    let allowed = range_of(key).map_or_else(String::new, KeyRange::describe);
+                    return Err(ConfigError::Missing {
+                        key: key.into(),
+                        allowed: format!("{allowed}; required with electrics.motor = \"pmsm\""),
+                    });
+                }
+                _ => {}
+            }
+        }
+        Ok(())
     }
 
     fn check_counts_per_rev(&self) -> Result<(), ConfigError> {
@@ -65,7 +121,7 @@ impl PlantConfig {
     /// (e.g. a tiny motor inertia under a stiff, heavy load). The integrator sub-steps at
     /// ‖A‖·h ≤ 0.5, so ‖A‖ is capped at [`MAX_RATE_PER_S`] (sub-steps ≥ 0.5 µs).
     pub fn check_speed_of_dynamics(&self) -> Result<(), ConfigError> {
-        let winding = Winding::from(&self.electrics);
+        let winding = self.rate_winding();
         let rate = Model::new(&self.mechanics, self.backlash(), Some(winding)).fastest_rate_per_s();
         if rate <= MAX_RATE_PER_S && rate.is_finite() {
             return Ok(());
@@ -79,7 +135,10 @@ impl PlantConfig {
             "plant.anti_resonance_hz",
             "plant.base_speed_rpm",
         ];
-        let inductance = "electrics.winding_inductance_pu_s";
+        let inductance = match self.electrics.motor {
+            MotorKind::Dc => "electrics.winding_inductance_pu_s",
+            MotorKind::Pmsm => "electrics.d_inductance_pu_s",
+        };
         // The key most to blame first: the faster of the two rates.
         let keys = if winding_rate > shaft_rate {
             std::iter::once(inductance).chain(mechanics).collect()
@@ -91,10 +150,26 @@ impl PlantConfig {
             message: format!(
                 "the plant's fastest rate ‖A‖ = {rate:.3e} 1/s exceeds {MAX_RATE_PER_S:e} 1/s \
                  (K/Jm = {shaft_rate:.3e}, (1 + R)/L = {winding_rate:.3e}); raise \
-                 motor_inertia_s or winding_inductance_pu_s, or lower anti_resonance_hz or \
-                 load_inertia_s"
+                 motor_inertia_s or {}, or lower anti_resonance_hz or load_inertia_s",
+                inductance.trim_start_matches("electrics.")
             ),
         })
+    }
+}
+
+impl PlantConfig {
+    /// The winding whose rate [`Self::check_speed_of_dynamics`] bounds: the DC winding, or
+    /// for a PMSM the phase resistance over the smaller of Ld and Lq.
+    fn rate_winding(&self) -> Winding {
+        let e = &self.electrics;
+        let dc = Winding::from(e);
+        match (e.motor, e.d_inductance_pu_s, e.q_inductance_pu_s) {
+            (MotorKind::Pmsm, Some(ld), Some(lq)) => Winding {
+                r_pu: e.winding_resistance_pu,
+                l_pu_s: ld.min(lq),
+            },
+            _ => dc,
+        }
     }
 }
 

@@ -64,6 +64,64 @@ pub struct ElectricsConfig {
     /// Current ADC full scale: codes span ±full scale, in pu. Default 4 pu.
     #[serde(default = "ElectricsConfig::default_full_scale")]
     pub current_full_scale_pu: f64,
+    /// Which motor: `"dc"` (the winding above, the default) or `"pmsm"` (a three-phase
+    /// permanent-magnet synchronous motor behind an averaged inverter, [`crate::PmsmPlant`]).
+    /// For a PMSM, `winding_resistance_pu` is the phase resistance and
+    /// `winding_inductance_pu_s` is not used.
+    #[serde(default, skip_serializing_if = "MotorKind::is_dc")]
+    pub motor: MotorKind,
+    /// PMSM: pole pairs p (electrical angle = p × mechanical angle). Required for a PMSM,
+    /// refused for a DC motor, as every key below.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pole_pairs: Option<u32>,
+    /// PMSM: d-axis inductance Ld in pu·s (pu voltage per pu current per second).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub d_inductance_pu_s: Option<f64>,
+    /// PMSM: q-axis inductance Lq in pu·s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub q_inductance_pu_s: Option<f64>,
+    /// PMSM: flux linkage λ in pu: the back-EMF (peak phase voltage) at base speed, which
+    /// is also the torque per pu of q current. Default 1 pu.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flux_linkage_pu: Option<f64>,
+    /// PMSM: the inverter's DC-bus voltage in the voltage base where the back-EMF at base
+    /// speed is λ = 1 pu (peak phase voltage); the linear (space-vector) limit of the
+    /// voltage vector is `dc_bus_pu/√3`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dc_bus_pu: Option<f64>,
+    /// PMSM: the machine's true electrical angle at encoder count 0, degrees (the d axis
+    /// on the phase-a axis is 0). The plant's truth; a drive measures it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoder_offset_elec_deg: Option<f64>,
+    /// PMSM: the inverter's dead time per switching edge, seconds. Default 0 (none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dead_time_s: Option<f64>,
+}
+
+/// The motor kind of `electrics.motor`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "schema", derive(schemars::JsonSchema))]
+#[serde(rename_all = "snake_case")]
+pub enum MotorKind {
+    /// One DC winding: L·di/dt = v − R·i − ωm ([`crate::TwoInertiaPlant::voltage_driven`]).
+    #[default]
+    Dc,
+    /// A permanent-magnet synchronous motor in d/q with its inverter ([`crate::PmsmPlant`]).
+    Pmsm,
+}
+
+impl MotorKind {
+    /// The word of the config file.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Dc => "dc",
+            Self::Pmsm => "pmsm",
+        }
+    }
+    /// The default, DC (not written out).
+    pub fn is_dc(&self) -> bool {
+        *self == Self::Dc
+    }
 }
 
 impl ElectricsConfig {
@@ -76,6 +134,14 @@ impl ElectricsConfig {
             computational_delay_s,
             current_adc_bits: Self::default_adc_bits(),
             current_full_scale_pu: Self::default_full_scale(),
+            motor: MotorKind::Dc,
+            pole_pairs: None,
+            d_inductance_pu_s: None,
+            q_inductance_pu_s: None,
+            flux_linkage_pu: None,
+            dc_bus_pu: None,
+            encoder_offset_elec_deg: None,
+            dead_time_s: None,
         }
     }
     fn default_resistance() -> f64 {

@@ -34,6 +34,14 @@ pub enum Reading {
     Integer(i128),
     /// A word key.
     Word(&'static str),
+    /// A key of the other motor kind, not set (`electrics.pole_pairs` of a DC motor).
+    Unset,
+}
+
+impl<T: Into<Reading>> From<Option<T>> for Reading {
+    fn from(v: Option<T>) -> Self {
+        v.map_or(Self::Unset, Into::into)
+    }
 }
 
 impl From<f64> for Reading {
@@ -153,6 +161,17 @@ pub const RANGES: &[KeyRange] = &[
     KeyRange::new("electrics.computational_delay_s", real(0.0, 0.01), "s", |c| c.electrics.computational_delay_s.into()),
     KeyRange::new("electrics.current_adc_bits", integer(4, 24), "bits", |c| c.electrics.current_adc_bits.into()).optional(),
     KeyRange::new("electrics.current_full_scale_pu", real(0.1, 100.0), "pu", |c| c.electrics.current_full_scale_pu.into()).optional(),
+    KeyRange::new("electrics.motor", Allowed::Words(&["dc", "pmsm"]), "", |c| Reading::Word(c.electrics.motor.as_str())).optional(),
+    // The PMSM's keys: required with motor = "pmsm" (flux_linkage_pu and dead_time_s have
+    // defaults), refused with "dc" (PlantConfig::validate).
+    KeyRange::new("electrics.pole_pairs", integer(1, 64), "pole pairs", |c| c.electrics.pole_pairs.into()).optional(),
+    KeyRange::new("electrics.d_inductance_pu_s", real(1e-6, 1.0), "pu*s", |c| c.electrics.d_inductance_pu_s.into()).optional(),
+    KeyRange::new("electrics.q_inductance_pu_s", real(1e-6, 1.0), "pu*s", |c| c.electrics.q_inductance_pu_s.into()).optional(),
+    KeyRange::new("electrics.flux_linkage_pu", real(0.01, 10.0), "pu", |c| c.electrics.flux_linkage_pu.into()).optional(),
+    KeyRange::new("electrics.dc_bus_pu", real(0.1, 100.0), "pu", |c| c.electrics.dc_bus_pu.into()).optional(),
+    KeyRange::new("electrics.encoder_offset_elec_deg", real(-360.0, 360.0), "deg", |c| c.electrics.encoder_offset_elec_deg.into()).optional(),
+    // Up to 10 µs; with the PWM frequency (PmsmPlant::new) t_d·f_pwm is at most 0.1.
+    KeyRange::new("electrics.dead_time_s", real(0.0, 1e-5), "s", |c| c.electrics.dead_time_s.into()).optional(),
     // 1 (a square-wave encoder) up to 4096, a 12-bit interpolator.
     KeyRange::new("sensors.encoder_interpolation", integer(1, 4096), "interpolated counts per encoder count", |c| c.sensors.encoder_interpolation.into()).optional(),
     KeyRange::new("sensors.load_encoder_cpr", integer(0, 1 << 31), "counts/rev (0 = no load encoder)", |c| c.sensors.load_encoder_cpr.into()).optional(),

@@ -15,5 +15,7 @@ mod fixed_step;
 mod identify;
 mod long_random;
 mod lost_motion_width;
+mod pmsm;
+mod pmsm_reference;
 mod replay_bounds;
 mod sampled;
