@@ -19,9 +19,11 @@
 //!    while the circle limits, the integral keeps the part of the voltage the
 //!    feed-forward lacks (the resistive drop) instead of stopping wherever it was when
 //!    the limit came, so the regulator leaves the limit where the new demand needs it;
-//! 6. inverse Park at θe + ω_e·t_delay, then space-vector modulation into three duties.
+//! 6. inverse Park at θe + ω_e·t_delay, then space-vector modulation into three duties;
+//! 7. the commutation check ([`CommutationCheck`]) on the back-EMF the drive sees.
 
 use super::angle::{AngleCoefficients, AngleState};
+use super::commutation::{CommutationCheck, CommutationState};
 use super::svpwm::Svpwm;
 use super::transforms::{CosSin, Dq, clarke, inverse_park, park};
 use super::voltage_limit::VoltageCircle;
@@ -68,6 +70,10 @@ pub struct FocSettings {
     pub current_limit_pu: f32,
     /// Timer counts of a PWM period.
     pub pwm_period: u16,
+    /// The speed \[pu\] above which the commutation check judges the angle, > 0.
+    pub commutation_min_speed_pu: f32,
+    /// How long \[s\] the angle must look more than 30° off before the check latches.
+    pub commutation_trip_s: f32,
 }
 
 /// The quantized coefficients of the FOC current loop.
@@ -93,6 +99,8 @@ pub struct FocCoefficients {
     pub circle: VoltageCircle,
     /// The modulator.
     pub svpwm: Svpwm,
+    /// The commutation check.
+    pub commutation: CommutationCheck,
 }
 
 /// The FOC current loop's state.
@@ -104,6 +112,8 @@ pub struct FocState {
     pub d: PiState,
     /// q-axis integrator.
     pub q: PiState,
+    /// The commutation check's residual and count.
+    pub commutation: CommutationState,
 }
 
 /// One current tick's inputs.
@@ -132,6 +142,8 @@ pub struct FocOutputs {
     pub voltage: Dq,
     /// The electrical phase of the sample (2^32 per turn).
     pub phase: u32,
+    /// The commutation check has judged the angle more than 30° off for its trip time.
+    pub commutation_off: bool,
 }
 
 /// `x` checked against `[min, max]` for the key `param`.
@@ -217,6 +229,29 @@ impl FocCoefficients {
             })
         };
         let w_e_base = s.pole_pairs as f32 * rpm * core::f32::consts::TAU / 60.0;
+        let min_speed: Pu = quantize(
+            in_range(
+                "commutation_min_speed_pu",
+                s.commutation_min_speed_pu,
+                0.001,
+                10.0,
+            )?,
+            "commutation_min_speed_pu",
+        )?;
+        let trip = in_range("commutation_trip_s", s.commutation_trip_s, 1e-4, 1.0)?;
+        // The residual's filter: a time constant of about 2 ms, 2^k ticks.
+        let mut shift = 0;
+        while shift < 15 && ((1u32 << shift) as f32) < 0.002 * rate {
+            shift += 1;
+        }
+        let wl_d = quantize(
+            w_e_base * ld,
+            "ω_e·L_d (pole_pairs, base_speed_rpm, d_inductance_pu_s)",
+        )?;
+        let wl_q = quantize(
+            w_e_base * lq,
+            "ω_e·L_q (pole_pairs, base_speed_rpm, q_inductance_pu_s)",
+        )?;
         Ok(Self {
             angle,
             d: pi(
@@ -242,6 +277,14 @@ impl FocCoefficients {
             current_limit: quantize(i_max, "current_limit_pu")?,
             circle,
             svpwm,
+            commutation: CommutationCheck {
+                resistance: quantize(r, "winding_resistance_pu")?,
+                wl_d,
+                wl_q,
+                min_speed: min_speed.to_bits(),
+                shift,
+                trip_ticks: (trip * rate) as u32,
+            },
         })
     }
 
@@ -292,12 +335,16 @@ impl FocCoefficients {
         );
         let voltage = Dq { d: v_d, q: v_q };
         let applied = CosSin::of(self.angle.advanced(phase, w));
+        let commutation_off = self
+            .commutation
+            .update(&mut state.commutation, current, w, voltage);
         FocOutputs {
             duties: self.svpwm.duties(inverse_park(voltage, applied)),
             current,
             current_ref,
             voltage,
             phase,
+            commutation_off,
         }
     }
 }

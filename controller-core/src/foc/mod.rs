@@ -22,12 +22,14 @@
 //! (a table with interpolation: at most 9e-6 error).
 
 pub mod angle;
+pub mod commutation;
 pub mod current_loop;
 pub mod svpwm;
 pub mod transforms;
 pub mod voltage_limit;
 
 pub use angle::{AngleCoefficients, AngleState};
+pub use commutation::{CommutationCheck, CommutationState};
 pub use current_loop::{FocCoefficients, FocInputs, FocOutputs, FocSettings, FocState};
 pub use svpwm::Svpwm;
 pub use transforms::{AlphaBeta, CosSin, Dq, clarke, inverse_park, park};

@@ -201,6 +201,8 @@ fn settings() -> FocSettings {
         delay_ticks: 1.5,
         current_limit_pu: 2.0,
         pwm_period: 4200,
+        commutation_min_speed_pu: 0.05,
+        commutation_trip_s: 0.02,
     }
 }
 
@@ -208,6 +210,11 @@ fn settings() -> FocSettings {
 /// one tick act, delayed by one tick (the next period), for one tick.
 struct Motor {
     s: FocSettings,
+    /// The machine's own pole pairs and electrical angle at count 0 \[rad\].
+    pole_pairs: f64,
+    offset: f64,
+    /// With an inertia \[s\] the speed follows the motor's torque; without, `accel`.
+    inertia_s: Option<f64>,
     /// Stationary-frame currents (α, β) \[pu\].
     i: [f64; 2],
     /// Mechanical angle \[rad\] and speed \[pu\].
@@ -222,6 +229,9 @@ impl Motor {
         let half = s.pwm_period / 2;
         Self {
             s,
+            pole_pairs: f64::from(s.pole_pairs),
+            offset: f64::from(s.encoder_offset_elec_deg).to_radians(),
+            inertia_s: None,
             i: [0.0; 2],
             theta_m: 0.0,
             speed: 0.0,
@@ -232,7 +242,7 @@ impl Motor {
         f64::from(self.s.base_speed_rpm) * TAU / 60.0
     }
     fn theta_e(&self) -> f64 {
-        f64::from(self.s.pole_pairs) * self.theta_m
+        self.pole_pairs * self.theta_m + self.offset
     }
     /// (d, q) currents at the present angle.
     fn dq(&self) -> (f64, f64) {
@@ -267,11 +277,13 @@ impl Motor {
             f64::from(self.s.q_inductance_pu_s),
             f64::from(self.s.flux_linkage_pu),
         );
-        let pp = f64::from(self.s.pole_pairs);
+        let pp = self.pole_pairs;
+        let offset = self.offset;
+        let inertia = self.inertia_s;
         let wb = self.w_base();
         // State (iα, iβ, θm, ω); RK4 with 20 sub-steps.
         let deriv = |x: [f64; 4]| -> [f64; 4] {
-            let th = pp * x[2];
+            let th = pp * x[2] + offset;
             let (c, s) = (th.cos(), th.sin());
             let (id, iq) = (x[0] * c + x[1] * s, -x[0] * s + x[1] * c);
             let (vd, vq) = (v_ab[0] * c + v_ab[1] * s, -v_ab[0] * s + v_ab[1] * c);
@@ -281,7 +293,10 @@ impl Motor {
             let diq = (vq - r * iq - we * ld * id - x[3] * flux) / lq;
             let dal = did * c - diq * s - we * (id * s + iq * c);
             let dbe = did * s + diq * c + we * (id * c - iq * s);
-            [dal, dbe, wb * x[3], accel_pu_s]
+            let accel = inertia.map_or(accel_pu_s, |j| {
+                (flux * iq + pp * wb * (ld - lq) * id * iq) / j
+            });
+            [dal, dbe, wb * x[3], accel]
         };
         let mut x = [self.i[0], self.i[1], self.theta_m, self.speed];
         let h = dt / 20.0;
@@ -309,6 +324,9 @@ impl Motor {
     }
 }
 
+/// One tick of a run: the motor's (i_d, i_q), the drive's i_q* and v_q.
+type Row = (f64, f64, f64, Pu);
+
 /// Runs the loop for `ticks`; `torque(k)` and `accel(k)` give the torque reference and the
 /// prescribed acceleration; returns (i_d, i_q, i_q*) of each tick from the motor itself.
 fn run(
@@ -317,9 +335,22 @@ fn run(
     ticks: usize,
     torque: impl Fn(usize) -> f64,
     accel: impl Fn(usize) -> f64,
-) -> Vec<(f64, f64, f64, Pu)> {
+) -> Vec<Row> {
+    run_on(s, Motor::new(s), speed0, ticks, torque, accel).0
+}
+
+/// [`run`] on the motor `m`, which may differ from the drive's settings; also returns the
+/// first tick at which the commutation check latched.
+fn run_on(
+    s: FocSettings,
+    mut m: Motor,
+    speed0: f64,
+    ticks: usize,
+    torque: impl Fn(usize) -> f64,
+    accel: impl Fn(usize) -> f64,
+) -> (Vec<Row>, Option<usize>) {
     let c = FocCoefficients::new(&s).expect("valid FOC settings");
-    let mut m = Motor::new(s);
+    let mut tripped = None;
     m.speed = speed0;
     let mut st = c.state_at(m.count());
     let mut last = m.count();
@@ -337,11 +368,14 @@ fn run(
             },
         );
         last = count;
+        if o.commutation_off && tripped.is_none() {
+            tripped = Some(k);
+        }
         m.step(o.duties, accel(k));
         let (d, q) = m.dq();
         out.push((d, q, f(o.current_ref.q), o.voltage.q));
     }
-    out
+    (out, tripped)
 }
 
 /// A q-current step at standstill rises as the set bandwidth asks: the time to 63 % of the
@@ -437,6 +471,83 @@ fn the_voltage_circle_limits_without_windup() {
         overshoot <= 0.1 * step && (q_end - 0.2).abs() < 0.01,
         "after the drop from {q_before}: {overshoot} pu past 0.2 pu, ending at {q_end}"
     );
+}
+
+/// The commutation check stays quiet on the right angle: through a full-speed reversal at
+/// 1 pu torque, and on a free inertia run up to the voltage limit and back.
+#[test]
+fn the_commutation_check_passes_the_right_angle() {
+    let s = settings();
+    let (_, tripped) = run_on(
+        s,
+        Motor::new(s),
+        1.0,
+        2_400,
+        |_| 1.0,
+        |k| {
+            if (200..2_200).contains(&k) {
+                -20.0
+            } else {
+                0.0
+            }
+        },
+    );
+    assert_eq!(tripped, None, "latched on the right angle in the reversal");
+    let mut m = Motor::new(s);
+    m.inertia_s = Some(0.05);
+    let (out, tripped) = run_on(
+        s,
+        m,
+        0.0,
+        10_000,
+        |k| if k < 5_000 { 1.0 } else { -1.0 },
+        |_| 0.0,
+    );
+    assert_eq!(
+        tripped, None,
+        "latched on the right angle on a free inertia"
+    );
+    assert!(out.len() == 10_000);
+}
+
+/// An angle more than 30° off (a wrong encoder offset, or a wrong pole-pair count)
+/// latches the commutation check within 0.5 s of a 0.5 pu torque step from standstill on a
+/// free inertia; an offset 20° off does not.
+#[test]
+fn a_wrong_angle_latches_the_commutation_check() {
+    let s = settings();
+    let rate = f64::from(s.current_rate_hz);
+    let ticks = (0.5 * rate) as usize;
+    for (true_pp, offset_error_deg) in [
+        (4.0, 40.0),
+        (4.0, -40.0),
+        (4.0, 60.0),
+        (4.0, 120.0),
+        (4.0, 180.0),
+        (4.0, -150.0),
+        (5.0, 0.0),
+        (3.0, 0.0),
+        (7.0, 25.0),
+    ] {
+        let mut m = Motor::new(s);
+        m.inertia_s = Some(0.05);
+        m.pole_pairs = true_pp;
+        m.offset += f64::to_radians(offset_error_deg);
+        let (_, tripped) = run_on(s, m, 0.0, ticks, |_| 0.5, |_| 0.0);
+        let at = tripped.map(|k| k as f64 / rate);
+        eprintln!(
+            "pole pairs {true_pp} (drive 4), offset {offset_error_deg}° off: latched at {at:?} s"
+        );
+        assert!(
+            at.is_some(),
+            "pole pairs {true_pp}, offset {offset_error_deg}°: no latch in 0.5 s"
+        );
+    }
+    let mut m = Motor::new(s);
+    m.inertia_s = Some(0.05);
+    m.offset += f64::to_radians(20.0);
+    let (_, tripped) = run_on(s, m, 0.0, ticks, |_| 0.5, |_| 0.0);
+    assert_eq!(tripped, None, "20° off latched");
 }
 
 /// Every bad setting is an error naming its key, never a panic.
