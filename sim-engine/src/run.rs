@@ -2,6 +2,7 @@
 //! `DIR/trace.png|svg`.
 
 use crate::config::{resolve, RunConfig};
+use crate::engine::protection::FaultRecord;
 use crate::engine::runner::{run_scenario, RunOutput};
 use crate::engine::trace::Trace;
 use crate::error::{HarnessError, Result};
@@ -9,52 +10,69 @@ use crate::output::Staging;
 use crate::plot::{save, Figure, Panel, Series};
 use std::path::Path;
 
-/// The standard three-panel figure of a run: speeds, torques, position differences.
-pub fn trace_figure(trace: &Trace, title: &str) -> Figure {
+/// The standard figure of a run: speeds, torques, position differences. The first panel's
+/// title names the run (wrapped to the figure's width); a trip is a labelled vertical line
+/// at its time on every panel.
+pub fn trace_figure(trace: &Trace, title: &str, fault: Option<&FaultRecord>) -> Figure {
+    let with_trip = |mut series: Vec<Series>| {
+        if let Some(f) = fault {
+            series.push(Series::vertical(trip_label(f), f.t_s));
+        }
+        series
+    };
+    let heading = match fault {
+        Some(f) => format!("{title}; tripped: {} at {:.4} s", f.kind, f.t_s),
+        None => title.to_string(),
+    };
     Figure {
         x_label: "time (s)".into(),
         panels: vec![
             Panel {
-                title: format!("{title}: speed"),
+                title: format!("{heading}\nSpeed"),
                 y_label: "speed (pu)".into(),
-                series: vec![
+                series: with_trip(vec![
                     Series::line("command", trace.series(|r| r.vel_cmd_pu)),
                     Series::line("motor", trace.series(|r| r.motor_vel_pu)),
                     Series::line("load", trace.series(|r| r.load_vel_pu)),
-                ],
+                ]),
                 ..Default::default()
             },
             Panel {
-                title: format!("{title}: torque"),
+                title: "Torque".into(),
                 y_label: "torque (pu)".into(),
-                series: vec![
+                series: with_trip(vec![
                     Series::line("torque command", trace.series(|r| r.torque_cmd_pu)),
                     Series::line("shaft torque", trace.series(|r| r.shaft_torque_pu)),
                     Series::line("acceleration feedback", trace.series(|r| r.accel_fb_pu)),
                     Series::line("load torque", trace.series(|r| r.load_torque_pu)),
-                ],
+                ]),
                 ..Default::default()
             },
             Panel {
-                title: format!("{title}: command - motor position"),
+                title: "Command − motor position".into(),
                 y_label: "counts".into(),
-                series: vec![Series::line(
-                    "command - motor",
+                series: with_trip(vec![Series::line(
+                    "command − motor",
                     trace.series(|r| r.cmd_minus_motor_counts()),
-                )],
+                )]),
                 ..Default::default()
             },
             Panel {
-                title: format!("{title}: motor - load position (lost motion and twist)"),
+                title: "Motor − load position (lost motion and twist)".into(),
                 y_label: "counts".into(),
-                series: vec![Series::line(
-                    "motor - load",
+                series: with_trip(vec![Series::line(
+                    "motor − load",
                     trace.series(|r| r.motor_minus_load_counts()),
-                )],
+                )]),
                 ..Default::default()
             },
         ],
     }
+}
+
+/// The label of a trip's line: "tripped: overcurrent at 0.0021 s".
+pub fn trip_label(f: &FaultRecord) -> String {
+    format!("tripped: {} at {:.4} s", f.kind, f.t_s)
 }
 
 /// Writes a run's files into `dir` (a staging directory or a subdirectory of one).
@@ -67,7 +85,7 @@ pub fn write_run(dir: &Path, cfg: &RunConfig, out: &RunOutput) -> Result<()> {
     let path = dir.join("summary.json");
     std::fs::write(&path, json + "\n").map_err(|e| HarnessError::io(&path, e))?;
     save(
-        &trace_figure(&out.trace, &summary.title),
+        &trace_figure(&out.trace, &summary.title, out.fault.as_ref()),
         &dir.join("trace"),
     )?;
     Ok(())
@@ -83,10 +101,17 @@ pub fn run(scenario: &str, config: Option<&str>, sets: &[String], out: &Path) ->
     write_run(staging.dir(), &cfg, &result)?;
     staging.commit()?;
     let m = &result.metrics;
+    let trip = result.fault.as_ref().map_or_else(String::new, |f| {
+        format!(
+            "TRIPPED: {} at {:.4} s (current tick {}); ",
+            f.kind, f.t_s, f.tick
+        )
+    });
     Ok(format!(
-        "{scenario}: stable={} ripple={:.4} pu droop={} overshoot={} settling={} saturated={:.3} s; \
+        "{scenario}: {trip}stable={} verdict={} ripple={:.4} pu droop={} overshoot={} settling={} saturated={:.3} s; \
          {:.2} s simulated in {:.3} s ({:.0}x real time) -> {}",
         m.stable,
+        m.oscillation.kind.verdict(),
         m.torque_ripple_rms_pu,
         fmt_opt(m.load_step_droop_pu),
         fmt_opt(m.overshoot_pu),

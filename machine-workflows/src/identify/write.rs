@@ -128,25 +128,80 @@ fn plant_toml(base: &RunConfig, ident: &Identification) -> Result<String> {
     ))
 }
 
+/// `deg` made continuous: each value moved by whole turns to within 180° of the one before.
+fn unwrapped(deg: impl IntoIterator<Item = f64>) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::new();
+    for d in deg {
+        let v = match out.last() {
+            Some(&prev) => nearest_turn(d, prev),
+            None => d,
+        };
+        out.push(v);
+    }
+    out
+}
+
+/// `deg` moved by whole turns to the one nearest `near`.
+fn nearest_turn(deg: f64, near: f64) -> f64 {
+    deg + 360.0 * ((near - deg) / 360.0).round()
+}
+
+/// Points of the fitted curve on each decade between the measured bins' extremes.
+const FIT_POINTS_PER_DECADE: f64 = 200.0;
+
 /// The Bode plot: measured |θm/Tm| and phase (bins with γ² ≥ min_coherence as markers),
-/// the fitted model as a line, and the coherence.
-fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
+/// the fitted model as a line on a fine grid, the coherence, and the fitted anti-resonance
+/// and resonance as labelled vertical lines. The phase is unwrapped: the fitted curve made
+/// continuous along frequency and started in (−360°, 0°] (a position lags its torque), and
+/// each measured point moved by whole turns to the one nearest the fitted curve at its
+/// frequency, so noise never puts a point a turn away from the fit it matches.
+pub fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
     let r = &ident.response;
+    let fit = &ident.fit.fit;
     let used = |i: usize| {
         r.coherence.get(i).is_some_and(|&g| g >= spec.min_coherence)
             && r.freq_hz.get(i).is_some_and(|&f| f <= spec.max_freq_hz)
     };
-    let pick = |g: &dyn Fn(usize, f64) -> f64| -> Vec<(f64, f64)> {
-        r.freq_hz
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| used(*i))
-            .map(|(i, &f)| (f, g(i, f)))
-            .collect()
-    };
-    let model = |_: usize, f: f64| ident.fit.fit.response(f, wb);
-    let meas = |i: usize, _| r.h.get(i).copied().unwrap_or_default();
+    let measured: Vec<(f64, nalgebra::Complex<f64>)> = r
+        .freq_hz
+        .iter()
+        .zip(&r.h)
+        .enumerate()
+        .filter(|(i, (f, _))| used(*i) && **f > 0.0)
+        .map(|(_, (&f, &h))| (f, h))
+        .collect();
     let deg = |h: nalgebra::Complex<f64>| h.arg().to_degrees();
+    // The fitted curve: a log grid from the lowest to the highest bin used.
+    let (lo, hi) = measured
+        .iter()
+        .fold((f64::INFINITY, 0.0_f64), |(a, b), &(f, _)| {
+            (a.min(f), b.max(f))
+        });
+    let grid: Vec<f64> = if lo.is_finite() && hi > lo {
+        let n = ((hi / lo).log10() * FIT_POINTS_PER_DECADE).ceil().max(2.0) as usize;
+        (0..=n)
+            .map(|k| lo * (hi / lo).powf(k as f64 / n as f64))
+            .collect()
+    } else {
+        measured.iter().map(|&(f, _)| f).collect()
+    };
+    let model: Vec<nalgebra::Complex<f64>> = grid.iter().map(|&f| fit.response(f, wb)).collect();
+    let mut fit_phase = unwrapped(model.iter().map(|&h| deg(h)));
+    if let Some(&first) = fit_phase.first() {
+        let shift = -360.0 * (first / 360.0).ceil();
+        fit_phase.iter_mut().for_each(|p| *p += shift);
+    }
+    // The unwrapped fit at `f`: its raw phase there, on the turn of the nearest grid point.
+    let fit_at = |f: f64| {
+        let k = grid.partition_point(|&g| g < f);
+        let near = [k.saturating_sub(1), k]
+            .into_iter()
+            .filter_map(|j| Some((grid.get(j)?, fit_phase.get(j)?)))
+            .min_by(|a, b| (a.0 / f).ln().abs().total_cmp(&(b.0 / f).ln().abs()))
+            .map(|(_, &p)| p);
+        let raw = deg(fit.response(f, wb));
+        near.map_or(raw, |p| nearest_turn(raw, p))
+    };
     let panel = |title: &str, y: &str, series, log_y| Panel {
         title: title.into(),
         y_label: y.into(),
@@ -155,38 +210,74 @@ fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
         log_y,
         legend: Legend::LowerLeft,
     };
+    let marks = || {
+        let f_ar = fit.anti_resonance_hz;
+        let f_r = fit.resonance_hz();
+        [
+            (format!("fitted anti-resonance {f_ar:.2} Hz"), f_ar),
+            (format!("fitted resonance {f_r:.2} Hz"), f_r),
+        ]
+        .into_iter()
+        .filter(|(_, f)| f.is_finite() && *f > 0.0)
+        .map(|(label, f)| Series::vertical(label, f))
+    };
+    let with_marks = |mut v: Vec<Series>| {
+        v.extend(marks());
+        v
+    };
     Figure {
         x_label: "frequency (Hz)".into(),
         panels: vec![
             panel(
-                "motor position / motor torque: magnitude",
+                "Motor position / motor torque: magnitude",
                 "rad per pu torque",
-                vec![
-                    Series::markers("measured", pick(&|i, f| meas(i, f).norm())),
-                    Series::line("fitted", pick(&|i, f| model(i, f).norm())),
-                ],
+                with_marks(vec![
+                    Series::markers(
+                        "measured",
+                        measured.iter().map(|&(f, h)| (f, h.norm())).collect(),
+                    ),
+                    Series::line(
+                        "fitted",
+                        grid.iter()
+                            .zip(&model)
+                            .map(|(&f, h)| (f, h.norm()))
+                            .collect(),
+                    ),
+                ]),
                 true,
             ),
             panel(
-                "phase",
+                "Phase (unwrapped)",
                 "deg",
-                vec![
-                    Series::markers("measured", pick(&|i, f| deg(meas(i, f)))),
-                    Series::line("fitted", pick(&|i, f| deg(model(i, f)))),
-                ],
+                with_marks(vec![
+                    Series::markers(
+                        "measured",
+                        measured
+                            .iter()
+                            .map(|&(f, h)| (f, nearest_turn(deg(h), fit_at(f))))
+                            .collect(),
+                    ),
+                    Series::line(
+                        "fitted",
+                        grid.iter()
+                            .copied()
+                            .zip(fit_phase.iter().copied())
+                            .collect(),
+                    ),
+                ]),
                 false,
             ),
             panel(
+                "Coherence",
                 "coherence",
-                "coherence",
-                vec![Series::markers(
+                with_marks(vec![Series::markers(
                     "coherence",
                     r.freq_hz
                         .iter()
                         .zip(&r.coherence)
                         .map(|(&f, &g)| (f, g))
                         .collect(),
-                )],
+                )]),
                 false,
             ),
         ],

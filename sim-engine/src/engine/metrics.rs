@@ -61,7 +61,7 @@ pub struct MachineBands {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Metrics {
     /// Stable: [`Metrics::stable_by_speed`] and the oscillation verdict neither
-    /// `limit_cycle` nor `diverging`.
+    /// `limit_cycle`, `diverging` nor `tripped`.
     pub stable: bool,
     /// The criterion of [`MetricWindows`] alone, without the oscillation verdict (the
     /// `stable` of earlier versions): no fault, all signals finite, speed error bounded by
@@ -316,6 +316,13 @@ fn invalid(faulted: bool, bad_t_s: f64, fig: Metrics) -> Metrics {
 }
 
 impl Metrics {
+    /// The verdict of a run whose drive latched the fault named `fault` (the `oscillation`
+    /// module's step 6): `tripped`, naming it, and not stable.
+    pub fn tripped(&mut self, fault: &'static str) {
+        self.oscillation.kind = OscillationKind::Tripped { fault };
+        self.stable = false;
+    }
+
     /// A `limit_cycle` verdict checked against the same run with the encoder interpolated
     /// (`again`, the `oscillation` module's step 5): if that run has no limit cycle (and
     /// no fault), the oscillation came from the counts and is `quantization`; `stable` is

@@ -11,10 +11,12 @@
 use controller_core::{DriveConfig, Fault};
 use serde::Serialize;
 
-/// The fault a run latched first.
+/// The fault a run latched first: `summary.json`'s `fault` object.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FaultRecord {
-    /// Its stable name (`overload`, `overcurrent`, `stall`, ...).
+    /// What tripped: the fault's stable name, `controller_core::Fault::name` (`overload`,
+    /// `overcurrent`, `stall`, ...); `cause` in `summary.json`.
+    #[serde(rename = "cause")]
     pub kind: &'static str,
     /// Its code in the tick outputs' fault word (1..).
     pub code: u8,

@@ -382,7 +382,10 @@ pub fn run_recorded<B: ControlBackend + ?Sized>(
     record: impl FnMut(&TickRecord),
 ) -> Result<RunOutput> {
     let run = run_ticks(cfg, backend, record)?;
-    let metrics = compute(&run.trace, &cfg.metric_windows());
+    let mut metrics = compute(&run.trace, &cfg.metric_windows());
+    if let Some(f) = &run.fault {
+        metrics.tripped(f.kind);
+    }
     Ok(RunOutput {
         fault: run.fault,
         protection: run.protection,

@@ -21,9 +21,15 @@
 //! the old set that the new one lacks are carried over (hard links, so the old set stays
 //! intact until the swap), and the new manifest lists them too.
 //!
+//! One command writes a target at a time: [`Staging::new`] takes an advisory lock beside it
+//! (`<parent>/.<name>.lock`, see [`lock`]) and holds it until the commit is done, so a second
+//! command on the same target is refused at once, naming the folder and the process that
+//! has it, before it runs or touches anything; the recovery above runs under the lock too.
+//!
 //! Output files (`schema`, `replay`) go through [`write_file`] and [`check_file_target`].
 
 mod file;
+pub mod lock;
 pub mod owner;
 
 pub use file::{check_file_target, write_file, FileMark};
@@ -40,6 +46,9 @@ pub struct Staging {
     dir: PathBuf,
     keep_others: bool,
     committed: bool,
+    /// Held until this value is dropped (after the commit, or on failure after the staging
+    /// directory is removed: fields drop after [`Drop::drop`]).
+    lock: Option<lock::TargetLock>,
 }
 
 /// The steps of a commit, in order (a crash test stops after one of them).
@@ -149,13 +158,16 @@ pub fn staged<T>(target: &Path, write: impl FnOnce(&Path) -> Result<T>) -> Resul
 
 impl Staging {
     /// A staging directory whose commit replaces `target` as a whole. Checks the target
-    /// ([`check_dir_target`]) before anything else, then creates the parent, recovers from
-    /// a crashed earlier commit, and fails with the path named if the location cannot be
-    /// written.
+    /// ([`check_dir_target`]) before anything else, then creates the parent, takes the
+    /// target's lock (refusing if another command holds it, see [`lock`]), checks the
+    /// target again under it, recovers from a crashed earlier commit, and fails with the
+    /// path named if the location cannot be written.
     pub fn new(target: &Path) -> Result<Self> {
         let (parent, name) = split(target)?;
         check_dir_target(target)?;
         std::fs::create_dir_all(&parent).map_err(io(target))?;
+        let lock = lock::TargetLock::acquire(target, &parent, &name)?;
+        check_dir_target(target)?;
         recover(target, &parent, &name)?;
         let dir = sibling(&parent, &name, "staging", std::process::id());
         std::fs::create_dir(&dir).map_err(io(target))?;
@@ -164,6 +176,7 @@ impl Staging {
             dir,
             keep_others: false,
             committed: false,
+            lock: Some(lock),
         })
     }
 
@@ -212,7 +225,9 @@ impl Staging {
             for entry in std::fs::read_dir(&self.target).map_err(io(&self.target))? {
                 let entry = entry.map_err(io(&self.target))?;
                 let dest = self.dir.join(entry.file_name());
-                if !dest.exists() {
+                // A nested target's lock belongs to the command that holds it, not the set.
+                let a_lock = entry.file_name().to_str().is_some_and(lock::is_lock_name);
+                if !dest.exists() && !a_lock {
                     link_tree(&entry.path(), &dest)?;
                 }
             }
@@ -239,8 +254,12 @@ impl Staging {
         Ok(())
     }
 
-    /// Ends here as a killed process would: nothing cleaned up.
-    fn die(self) -> Result<()> {
+    /// Ends here as a killed process would: nothing cleaned up, and the lock let go of (as
+    /// the kernel does for a dead process) with its file left behind.
+    fn die(mut self) -> Result<()> {
+        if let Some(l) = self.lock.take() {
+            l.abandon();
+        }
         std::mem::forget(self);
         Ok(())
     }

@@ -12,7 +12,8 @@
 //!   lists `out/sweep/`'s files, so `sweep --out out/sweep` may follow `reproduce`), and no
 //!   listed path is now a directory. Empty directories hold nothing and are accepted, so
 //!   an empty or absent target needs no manifest. Directories named like stiffdrive's own
-//!   staging leftovers (`.<name>.staging-<pid>`, `.<name>.old-<pid>`) are stiffdrive's.
+//!   staging leftovers (`.<name>.staging-<pid>`, `.<name>.old-<pid>`) and files named like
+//!   its lock files (`.<name>.lock`) are stiffdrive's.
 //!
 //! A symbolic link at the target is refused whatever it points to: the commit renames the
 //! target, so it would replace the link with a directory rather than write where it points.
@@ -195,7 +196,9 @@ fn check_tree(
             }
         } else {
             let own_manifest = pushed && name == MANIFEST;
-            if own_manifest || is_listed(&path, listed) {
+            // A nested target's lock file (`.<name>.lock`) is stiffdrive's.
+            let a_lock = name.to_str().is_some_and(super::lock::is_lock_name);
+            if own_manifest || a_lock || is_listed(&path, listed) {
                 continue;
             }
             return Err(refuse(

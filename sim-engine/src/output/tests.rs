@@ -307,3 +307,67 @@ fn a_subdirectory_of_a_stiffdrive_directory_is_its_own() {
     std::fs::write(out.join("sweep/notes.txt"), "mine").unwrap();
     assert!(refusal(&out.join("sweep")).contains("sweep/notes.txt` was not written"));
 }
+
+#[test]
+fn a_second_staging_of_a_target_in_use_is_refused_naming_it_and_the_holder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    write_set(&out, &[("a.txt", "first")]);
+    let first = Staging::new(&out).unwrap();
+    first.write("a.txt", "second").unwrap();
+    // The lock is per open file: a second staging in this process is a second command.
+    let e = Staging::new(&out).unwrap_err().to_string();
+    assert!(
+        e.contains("o` is in use by another stiffdrive command"),
+        "{e}"
+    );
+    assert!(
+        e.contains(&format!("pid {}", std::process::id())),
+        "no pid: {e}"
+    );
+    assert!(e.contains(".o.lock"), "{e}");
+    // The refusal touched nothing: the old set, the first command's staging, its lock.
+    assert_eq!(std::fs::read_to_string(out.join("a.txt")).unwrap(), "first");
+    assert_eq!(
+        siblings(tmp.path()),
+        [
+            ".o.lock".to_string(),
+            format!(".o.staging-{}", std::process::id())
+        ]
+    );
+    first.commit().unwrap();
+    assert_eq!(
+        std::fs::read_to_string(out.join("a.txt")).unwrap(),
+        "second"
+    );
+    // Let go with the commit: the next command goes ahead, and nothing is left beside.
+    assert!(siblings(tmp.path()).is_empty());
+    write_set(&out, &[("a.txt", "third")]);
+    assert!(siblings(tmp.path()).is_empty());
+}
+
+#[test]
+fn a_failed_command_lets_go_of_the_target() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    drop(Staging::new(&out).unwrap());
+    assert!(siblings(tmp.path()).is_empty());
+    drop(Staging::new(&out).unwrap());
+}
+
+#[test]
+fn the_lock_file_of_a_dead_process_is_taken_over_and_removed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("o");
+    // What a killed command leaves: the file, with its pid, and no lock on it.
+    std::fs::write(
+        tmp.path().join(".o.lock"),
+        format!("{}\nstiffdrive run\n", u32::MAX - 1),
+    )
+    .unwrap();
+    write_set(&out, &[("a.txt", "x")]);
+    assert!(siblings(tmp.path()).is_empty());
+    // A killed command's lock file inside a directory is stiffdrive's, not a foreign file.
+    std::fs::write(out.join(".nested.lock"), "1\n").unwrap();
+    check_dir_target(&out).unwrap();
+}

@@ -49,7 +49,14 @@
 //!    counts: it is `quantization`. `interpolated_amplitude_pu` records the rerun's
 //!    amplitude; `null` on a `limit_cycle` means the verdict is unconfirmed.
 //!
-//! `stable` is false for `diverging` and `limit_cycle`.
+//! 6. **A trip ends the question** (`engine::runner::run_recorded`, after the rest): a run
+//!    whose drive latched a fault is `tripped`, naming the fault (`oscillation.fault`, the
+//!    name `controller_core::Fault::name` gives, as in `summary.json`'s `fault.cause`),
+//!    whatever the window showed: after a trip the drive's torque is off, so the window
+//!    says nothing of the loop, and a run cut short by its protection is neither a limit
+//!    cycle nor diverging.
+//!
+//! `stable` is false for `diverging`, `limit_cycle` and `tripped`.
 //!
 //! Measured on table1 (`summary.json`): the velocity-mode drive at 30 rad/s with error-form
 //! AFB (gain 0.5, 100 Hz 2nd-order filter, differentiated encoder) oscillates at 178 Hz,
@@ -84,9 +91,8 @@ pub const EXCITATION_BINS: f64 = 3.0;
 /// Extra encoder interpolation of the confirming rerun (step 5).
 pub const CONFIRM_INTERPOLATION: u32 = 256;
 
-/// What the loop does at the end of the run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
+/// What the loop does at the end of the run. Written to JSON as its [`word`](Self::word).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OscillationKind {
     /// No torque oscillation above [`A_NOISE_PU`].
     None,
@@ -96,6 +102,11 @@ pub enum OscillationKind {
     LimitCycle,
     /// Growing or unbounded (unstable).
     Diverging,
+    /// The drive latched a fault (step 6): the protection stopped the run.
+    Tripped {
+        /// The fault's name (`controller_core::Fault::name`: `overcurrent`, `overload`, ...).
+        fault: &'static str,
+    },
 }
 
 impl OscillationKind {
@@ -107,12 +118,39 @@ impl OscillationKind {
             Self::Quantization => "quantization",
             Self::LimitCycle => "limit_cycle",
             Self::Diverging => "diverging",
+            Self::Tripped { .. } => "tripped",
+        }
+    }
+
+    /// The fault that ended the run, for a `tripped` verdict.
+    #[must_use]
+    pub const fn fault(self) -> Option<&'static str> {
+        match self {
+            Self::Tripped { fault } => Some(fault),
+            _ => None,
+        }
+    }
+
+    /// The verdict as a reader sees it: the word, and for a trip its fault
+    /// (`tripped (overcurrent)`).
+    #[must_use]
+    pub fn verdict(self) -> String {
+        match self.fault() {
+            Some(f) => format!("{} ({f})", self.word()),
+            None => self.word().to_string(),
         }
     }
 }
 
-/// `summary.json`'s `oscillation` object: the verdict and its evidence (module docs).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+impl Serialize for OscillationKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.word())
+    }
+}
+
+/// `summary.json`'s `oscillation` object: the verdict and its evidence (module docs). A
+/// `tripped` verdict adds `fault`, the fault's name, after `kind`.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Oscillation {
     /// The verdict.
     pub kind: OscillationKind,
@@ -134,6 +172,27 @@ pub struct Oscillation {
     pub interpolated_amplitude_pu: Option<f64>,
     /// The injected sine's frequency, taken out of the verdict (Hz); `null` without one.
     pub excitation_hz: Option<f64>,
+}
+
+impl Serialize for Oscillation {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let fault = self.kind.fault();
+        let mut o = s.serialize_struct("Oscillation", 9 + usize::from(fault.is_some()))?;
+        o.serialize_field("kind", &self.kind)?;
+        if let Some(f) = fault {
+            o.serialize_field("fault", f)?;
+        }
+        o.serialize_field("freq_hz", &self.freq_hz)?;
+        o.serialize_field("amplitude_pu", &self.amplitude_pu)?;
+        o.serialize_field("narrowband_fraction", &self.narrowband_fraction)?;
+        o.serialize_field("saturated_fraction", &self.saturated_fraction)?;
+        o.serialize_field("tone_hz", &self.tone_hz)?;
+        o.serialize_field("growth", &self.growth)?;
+        o.serialize_field("interpolated_amplitude_pu", &self.interpolated_amplitude_pu)?;
+        o.serialize_field("excitation_hz", &self.excitation_hz)?;
+        o.end()
+    }
 }
 
 /// What the classification needs besides the torque.
