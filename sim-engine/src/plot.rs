@@ -492,7 +492,11 @@ mod tests {
     /// `fig` drawn as SVG text.
     fn svg(fig: &Figure, size: (u32, u32)) -> String {
         let mut s = String::new();
-        draw_figure(SVGBackend::with_string(&mut s, size).into_drawing_area(), fig).unwrap();
+        draw_figure(
+            SVGBackend::with_string(&mut s, size).into_drawing_area(),
+            fig,
+        )
+        .unwrap();
         s
     }
 
@@ -532,9 +536,15 @@ mod tests {
         assert!(lines.len() > 3, "{lines:?}");
         assert!(lines.iter().all(|l| measure(l) <= 200), "{lines:?}");
         assert_eq!(lines.last().map(String::as_str), Some("Speed"));
-        assert_eq!(lines.join(" ").replace("Speed", "").trim(), text.replace("\nSpeed", ""));
+        assert_eq!(
+            lines.join(" ").replace("Speed", "").trim(),
+            text.replace("\nSpeed", "")
+        );
         // A word wider than the width stands alone rather than being cut.
-        assert_eq!(wrap("a bcdefghijkl m", 40, measure), ["a", "bcdefghijkl", "m"]);
+        assert_eq!(
+            wrap("a bcdefghijkl m", 40, measure),
+            ["a", "bcdefghijkl", "m"]
+        );
     }
 
     #[test]
