@@ -233,14 +233,14 @@ pub fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
             == u64::from(fine.plant.mechanics.encoder_cpr)
                 * u64::from(fine.plant.sensors.encoder_interpolation))
     .then(|| {
-        // A limit in counts stays the same angle. A comparison run's gains are designed
-        // from its AFB run's drive: that drive counts the finer counts too, or the gains
-        // would scale the finer counts as the coarse ones.
+        // The fault limits are in revolutions and overspeed multiples: they keep their
+        // angle. A comparison run's gains are designed from its AFB run's drive: that drive
+        // counts the finer counts too, or the gains would scale the finer counts as the
+        // coarse ones.
         for d in
             std::iter::once(&mut fine.drive).chain(fine.gains_of.as_mut().map(|g| &mut g.drive))
         {
             d.encoder_cpr = cpr;
-            d.faults.following_error_counts *= CONFIRM_INTERPOLATION as f32;
         }
         fine
     })
