@@ -209,11 +209,15 @@ pub struct NotchConfig {
 pub struct FaultLimits {
     /// Overspeed trip on the velocity estimate \[pu\], > 0.
     pub overspeed_pu: f32,
-    /// Following-error trip on |commanded − measured position| \[counts\], > 0; only while
-    /// the position loop is on. At most 8,000,000.
-    pub following_error_counts: f32,
+    /// Following-error trip on |commanded − measured position| \[motor revolutions\], > 0;
+    /// only while the position loop is on. The drive compares it in counts
+    /// (× `encoder_cpr`, the counts the drive reads per revolution, after any
+    /// interpolation), held in Q24.8: the limit in counts must stay below 2^23, so the
+    /// range is (0, 2^23 / encoder_cpr] (at most 1000).
+    pub following_error_rev: f32,
     /// Encoder jump trip: a change of counts between two current ticks larger than
-    /// `margin × overspeed_pu × counts per current tick at 1 pu + 2` counts. ≥ 1.
+    /// `margin × overspeed_pu × counts per current tick at 1 pu + 2` counts, ≥ 1: a multiple
+    /// of the motion the overspeed limit allows, so the same on any encoder.
     pub encoder_jump_margin: f32,
     /// Overcurrent trip level as a multiple of `torque_limit_pu` (so always above the
     /// torque limit), 1 < ratio ≤ 100: |measured current| above
@@ -390,13 +394,14 @@ pub mod defaults {
         torque_input: ObserverTorque::Command,
         count_interval_counts: 0.0,
     };
-    /// Fault limits: overspeed 1.5 pu, following error 4096 counts, encoder-jump margin 2;
+    /// Fault limits: overspeed 1.5 pu, following error a quarter of a motor revolution,
+    /// encoder-jump margin 2;
     /// overcurrent at 1.5 × the torque limit for 3 current ticks; I²t with 1 pu continuous
     /// and the 150 % for 60 s overload class, warning at 80 %; stall below 0.02 pu at the
     /// torque limit for 3 s.
     pub const FAULTS: FaultLimits = FaultLimits {
         overspeed_pu: 1.5,
-        following_error_counts: 4096.0,
+        following_error_rev: 0.25,
         encoder_jump_margin: 2.0,
         overcurrent_ratio: 1.5,
         overcurrent_ticks: 3,

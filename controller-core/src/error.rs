@@ -58,6 +58,23 @@ pub enum ConfigError {
         /// Whether `min` itself is excluded (e.g. strictly positive quantities).
         min_exclusive: bool,
     },
+    /// The value lies outside the range the other settings leave it: a quantity derived from
+    /// it (a gain, a limit in counts) must fit its fixed-point format or the encoder
+    /// counter. `given` names the other settings and what bounds the range.
+    OutOfRangeGiven {
+        /// Field path of the setting.
+        param: &'static str,
+        /// The value given.
+        value: f32,
+        /// Smallest allowed value, given the others.
+        min: f32,
+        /// Largest allowed value, given the others.
+        max: f32,
+        /// Whether `min` itself is excluded.
+        min_exclusive: bool,
+        /// The other settings the range depends on, and why.
+        given: &'static str,
+    },
     /// A frequency at or above its loop's Nyquist limit.
     AboveNyquist {
         /// Field path.
@@ -122,10 +139,37 @@ impl ConfigError {
         match self {
             Self::NotFinite { param }
             | Self::OutOfRange { param, .. }
+            | Self::OutOfRangeGiven { param, .. }
             | Self::AboveNyquist { param, .. }
             | Self::CoefficientOverflow { param, .. }
             | Self::CoefficientUnderflow { param, .. } => param,
             Self::RateRatio { .. } => "velocity_rate_hz",
+        }
+    }
+}
+
+/// `[min, max]`, `(min, max]`, or with an unbounded `max` `[min, ∞)`.
+fn write_range(f: &mut fmt::Formatter<'_>, min: f32, max: f32, min_exclusive: bool) -> fmt::Result {
+    let open = if min_exclusive { '(' } else { '[' };
+    write!(f, "{open}{}, ", Num(min))?;
+    if max == f32::INFINITY {
+        f.write_str("∞)")
+    } else {
+        write!(f, "{}]", Num(max))
+    }
+}
+
+/// A number as a user wrote it: a whole number of 10^7 or more (counts, an encoder's
+/// 2^30) in all its digits, where `f32`'s shortest form would round it (1073741800).
+struct Num(f32);
+
+impl fmt::Display for Num {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v = self.0;
+        if v.is_finite() && v.abs() >= 1e7 && v.abs() < 1e15 && v == (v as i64) as f32 {
+            write!(f, "{}", v as i64)
+        } else {
+            write!(f, "{v}")
         }
     }
 }
@@ -141,8 +185,20 @@ impl fmt::Display for ConfigError {
                 max,
                 min_exclusive,
             } => {
-                let open = if min_exclusive { '(' } else { '[' };
-                write!(f, "{param} = {value}: allowed range is {open}{min}, {max}]")
+                write!(f, "{param} = {}: allowed range is ", Num(value))?;
+                write_range(f, min, max, min_exclusive)
+            }
+            Self::OutOfRangeGiven {
+                param,
+                value,
+                min,
+                max,
+                min_exclusive,
+                given,
+            } => {
+                write!(f, "{param} = {}: allowed range is ", Num(value))?;
+                write_range(f, min, max, min_exclusive)?;
+                write!(f, " given {given}")
             }
             Self::AboveNyquist {
                 param,

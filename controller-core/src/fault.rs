@@ -8,7 +8,8 @@ use core::fmt;
 pub enum Fault {
     /// |velocity estimate| above `faults.overspeed_pu`.
     Overspeed,
-    /// |commanded − measured position| above `faults.following_error_counts`.
+    /// |commanded − measured position| above `faults.following_error_rev` (× `encoder_cpr`
+    /// counts).
     FollowingError,
     /// Encoder counts changed between two ticks by more than the speed allows.
     EncoderJump,

@@ -25,7 +25,7 @@
 use crate::config::DriveConfig;
 use crate::error::ConfigError;
 use crate::fault::Fault;
-use crate::per_unit::{Pu, quantize};
+use crate::per_unit::Pu;
 
 /// The protections' settings, quantized (built once by [`Protection::new`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -84,17 +84,31 @@ impl Protection {
     /// names the setting whose value has no representation.
     pub fn new(cfg: &DriveConfig) -> Result<Self, ConfigError> {
         let f = &cfg.faults;
-        let oc: Pu = quantize(
+        use crate::ranges as r;
+        use crate::validate::{Scales, fit, fit_setting};
+        let of_torque_limit = |range, setting| Scales {
+            cap: f32::INFINITY,
+            range,
+            setting,
+            power: 1.0,
+            given: "torque_limit_pu: the level (× torque_limit_pu) must fit Q16.16 within 1 %",
+        };
+        let q16 = "its format Q16.16 (within 1 %)";
+        let oc: Pu = fit(
             f.overcurrent_ratio * cfg.torque_limit_pu,
-            "faults.overcurrent_ratio × torque_limit_pu",
+            of_torque_limit(&r::OVERCURRENT_RATIO, f.overcurrent_ratio),
         )?;
-        let ic: Pu = quantize(f.continuous_current_pu, "faults.continuous_current_pu")?;
-        let iol: Pu = quantize(f.overload_current_pu, "faults.overload_current_pu")?;
-        let stall_torque: Pu = quantize(
+        let ic: Pu = fit_setting(&r::CONTINUOUS_CURRENT_PU, f.continuous_current_pu, q16)?;
+        let iol: Pu = fit_setting(&r::OVERLOAD_CURRENT_PU, f.overload_current_pu, q16)?;
+        let stall_torque: Pu = fit(
             f.stall_torque_fraction * cfg.torque_limit_pu,
-            "faults.stall_torque_fraction × torque_limit_pu",
+            of_torque_limit(&r::STALL_TORQUE_FRACTION, f.stall_torque_fraction),
         )?;
-        let stall: Pu = quantize(f.stall_speed_pu, "faults.stall_speed_pu")?;
+        let stall: Pu = fit_setting(
+            &r::STALL_SPEED_PU,
+            f.stall_speed_pu,
+            "its format Q16.16 (0, or within 1 %)",
+        )?;
         let sq = |p: Pu| i64::from(p.to_bits()) * i64::from(p.to_bits());
         let continuous_sq = sq(ic);
         // (i_ol² − i_cont²) in Q32.32 × t_ol × ticks per second. At most 2^61, so that a

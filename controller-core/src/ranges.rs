@@ -47,8 +47,10 @@ impl Range {
 
     /// `v` if it is finite and inside the range, else the error naming [`Range::key`].
     pub fn check(&self, v: f32) -> Result<f32, ConfigError> {
+        // NaN fails both comparisons below and ±∞ is outside every range: a value that is
+        // not a finite number is refused with the range, like any other bad number.
         if !v.is_finite() {
-            return Err(ConfigError::NotFinite { param: self.key });
+            return Err(self.out_of_range(v));
         }
         let low_ok = if self.min_exclusive {
             v > self.min
@@ -102,6 +104,12 @@ pub const POSITION_BANDWIDTH_RAD_S: Range =
     Range::real("position_bandwidth_rad_s", 0.0, INF, false);
 /// Velocity bandwidth \[rad/s\] (and below π·velocity_rate_hz).
 pub const VELOCITY_BANDWIDTH_RAD_S: Range = Range::real("velocity_bandwidth_rad_s", 0.0, INF, true);
+/// The current loop is at least this many times as fast as the velocity loop:
+/// `current_bandwidth_rad_s ≥ 1.5 × velocity_bandwidth_rad_s`. 1.5 keeps every shipped
+/// drive and every point of the search grids (`configs/grids.toml`: the sweep reaches
+/// 1000 rad/s on a 1998 rad/s current loop, a ratio of 2) and refuses a velocity loop
+/// faster than its current loop.
+pub const MIN_CURRENT_TO_VELOCITY_BANDWIDTH: f32 = 1.5;
 /// Velocity damping ζ.
 pub const VELOCITY_DAMPING: Range = Range::real("velocity_damping", 0.1, 10.0, false);
 /// Current bandwidth \[rad/s\] (and below π·current_rate_hz).
@@ -140,9 +148,9 @@ pub const OBSERVER_COUNT_INTERVAL_COUNTS: Range =
     Range::real("observer.count_interval_counts", 0.0, 0.5, false);
 /// Overspeed trip \[pu\].
 pub const OVERSPEED_PU: Range = Range::real("faults.overspeed_pu", 0.0, 100.0, true);
-/// Following-error trip \[counts\].
-pub const FOLLOWING_ERROR_COUNTS: Range =
-    Range::real("faults.following_error_counts", 0.0, 8_000_000.0, true);
+/// Following-error trip \[motor revolutions\] (and below 2^23 counts: at most
+/// 2^23 / `encoder_cpr`, the Q24.8 limit of the position error).
+pub const FOLLOWING_ERROR_REV: Range = Range::real("faults.following_error_rev", 0.0, 1000.0, true);
 /// Encoder-jump margin.
 pub const ENCODER_JUMP_MARGIN: Range =
     Range::real("faults.encoder_jump_margin", 1.0, 1000.0, false);
@@ -203,7 +211,7 @@ pub const RANGES: &[Range] = &[
     OBSERVER_BANDWIDTH_HZ,
     OBSERVER_COUNT_INTERVAL_COUNTS,
     OVERSPEED_PU,
-    FOLLOWING_ERROR_COUNTS,
+    FOLLOWING_ERROR_REV,
     ENCODER_JUMP_MARGIN,
     OVERCURRENT_RATIO,
     OVERCURRENT_TICKS,

@@ -3,7 +3,7 @@
 
 use crate::config::{AfbRate, DriveConfig, FilterConfig, NotchConfig};
 use crate::error::ConfigError;
-use crate::per_unit::counts_per_pu_s;
+use crate::per_unit::{counts_per_pu_s, quantize};
 use crate::ranges::{self, Range};
 
 /// `v` if below the (exclusive) Nyquist limit `nyquist` of its loop.
@@ -17,6 +17,21 @@ pub(crate) fn below_nyquist(v: f32, param: &'static str, nyquist: f32) -> Result
             nyquist,
         })
     }
+}
+
+/// `v` against `r` and below the (exclusive) limit `nyquist`. A value that is not a finite
+/// number is refused with its whole range, up to the largest value below the limit.
+pub(crate) fn check_below_nyquist(r: &Range, v: f32, nyquist: f32) -> Result<f32, ConfigError> {
+    if !v.is_finite() {
+        return Err(ConfigError::OutOfRange {
+            param: r.key,
+            value: v,
+            min: r.min,
+            max: nyquist.next_down().min(r.max),
+            min_exclusive: r.min_exclusive,
+        });
+    }
+    below_nyquist(r.check(v)?, r.key, nyquist)
 }
 
 /// A filter's corner against its range and below `rate_hz / 2`, its `q` against its range.
@@ -34,7 +49,7 @@ pub(crate) fn check_filter(
             corner_hz
         }
     };
-    below_nyquist(corner.check(corner_hz)?, corner.key, rate_hz / 2.0)?;
+    check_below_nyquist(corner, corner_hz, rate_hz / 2.0)?;
     Ok(())
 }
 
@@ -42,7 +57,7 @@ pub(crate) fn check_filter(
 /// `rate_hz / 2` and the width at most the centre (the error's range then ends there).
 pub(crate) fn check_notch(n: &NotchConfig, rate_hz: f32) -> Result<(), ConfigError> {
     let (c, w) = (&ranges::NOTCH_CENTRE_HZ, &ranges::NOTCH_WIDTH_HZ);
-    let centre = below_nyquist(c.check(n.centre_hz)?, c.key, rate_hz / 2.0)?;
+    let centre = check_below_nyquist(c, n.centre_hz, rate_hz / 2.0)?;
     let width = w.check(n.width_hz)?;
     if width > centre {
         return Err(ConfigError::OutOfRange {
@@ -67,8 +82,10 @@ pub(crate) fn max_count_step(cfg: &DriveConfig) -> f32 {
 
 impl DriveConfig {
     /// Check every setting: its [`crate::ranges::RANGES`] entry, then the ranges that depend
-    /// on other settings (tick-rate ratio, Nyquist limits, counter width). The error names
-    /// the setting by its dotted key ([`ConfigError::param`]).
+    /// on other settings (tick-rate ratio, Nyquist limits, the current bandwidth against the
+    /// velocity bandwidth, the encoder counts the counter and the count scales hold, the
+    /// following-error limit in counts). The error names the setting by its dotted key
+    /// ([`ConfigError::param`]) and its range (given the others where they bound it).
     ///
     /// ```
     /// # let cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
@@ -79,25 +96,25 @@ impl DriveConfig {
     /// assert_eq!(bad.validate().unwrap_err().param(), "accel_feedback.gain_fraction");
     /// ```
     pub fn validate(&self) -> Result<(), ConfigError> {
-        self.validate_scalars()?;
         let (f_cur, f_vel) = self.validate_rates()?;
+        self.validate_scalars()?;
         let pi = core::f32::consts::PI;
-        let nyq = |v: f32, r: &Range, limit: f32| below_nyquist(v, r.key, limit).map(|_| ());
-        nyq(
-            self.position_bandwidth_rad_s,
+        check_below_nyquist(
             &ranges::POSITION_BANDWIDTH_RAD_S,
+            self.position_bandwidth_rad_s,
             pi * f_vel,
         )?;
-        nyq(
-            self.velocity_bandwidth_rad_s,
+        let w_vel = check_below_nyquist(
             &ranges::VELOCITY_BANDWIDTH_RAD_S,
+            self.velocity_bandwidth_rad_s,
             pi * f_vel,
         )?;
-        nyq(
-            self.current_bandwidth_rad_s,
+        let w_cur = check_below_nyquist(
             &ranges::CURRENT_BANDWIDTH_RAD_S,
+            self.current_bandwidth_rad_s,
             pi * f_cur,
         )?;
+        check_bandwidth_ratio(w_vel, w_cur)?;
         let afb = &self.accel_feedback;
         let afb_rate_hz = match afb.rate {
             AfbRate::Current => f_cur,
@@ -115,12 +132,16 @@ impl DriveConfig {
             &ranges::VELOCITY_FILTER_CORNER_HZ,
             &ranges::VELOCITY_FILTER_Q,
         )?;
-        let obs = ranges::OBSERVER_BANDWIDTH_HZ.check(self.observer.bandwidth_hz)?;
-        nyq(obs, &ranges::OBSERVER_BANDWIDTH_HZ, f_cur / 2.0)?;
+        check_below_nyquist(
+            &ranges::OBSERVER_BANDWIDTH_HZ,
+            self.observer.bandwidth_hz,
+            f_cur / 2.0,
+        )?;
         if let Some(n) = &self.notch {
             check_notch(n, f_cur)?;
         }
-        self.validate_counter_bits()
+        self.validate_encoder_cpr()?;
+        self.validate_following_error()
     }
 
     /// The settings whose range depends on nothing else.
@@ -131,10 +152,7 @@ impl DriveConfig {
             (&r::BASE_SPEED_RPM, self.base_speed_rpm),
             (&r::MOTOR_INERTIA_S, self.motor_inertia_s),
             (&r::LOAD_INERTIA_S, self.load_inertia_s),
-            (&r::POSITION_BANDWIDTH_RAD_S, self.position_bandwidth_rad_s),
-            (&r::VELOCITY_BANDWIDTH_RAD_S, self.velocity_bandwidth_rad_s),
             (&r::VELOCITY_DAMPING, self.velocity_damping),
-            (&r::CURRENT_BANDWIDTH_RAD_S, self.current_bandwidth_rad_s),
             (&r::WINDING_RESISTANCE_PU, self.winding_resistance_pu),
             (&r::WINDING_INDUCTANCE_PU_S, self.winding_inductance_pu_s),
             (&r::TORQUE_LIMIT_PU, self.torque_limit_pu),
@@ -151,7 +169,7 @@ impl DriveConfig {
                 self.observer.count_interval_counts,
             ),
             (&r::OVERSPEED_PU, f.overspeed_pu),
-            (&r::FOLLOWING_ERROR_COUNTS, f.following_error_counts),
+            (&r::FOLLOWING_ERROR_REV, f.following_error_rev),
             (&r::ENCODER_JUMP_MARGIN, f.encoder_jump_margin),
             (&r::OVERCURRENT_RATIO, f.overcurrent_ratio),
             (&r::CONTINUOUS_CURRENT_PU, f.continuous_current_pu),
@@ -194,23 +212,209 @@ impl DriveConfig {
         Ok((f_cur as f32, f_vel as f32))
     }
 
-    /// The counter must not wrap by half its range between two current ticks at the jump
-    /// limit, or a legal motion would read as a jump backwards.
-    fn validate_counter_bits(&self) -> Result<(), ConfigError> {
-        let step = max_count_step(self);
-        let mut bits_needed = 16u32;
-        while bits_needed < 32 && step >= (1u64 << (bits_needed - 1)) as f32 {
-            bits_needed += 1;
+    /// `encoder_cpr` against the range the other settings leave it
+    /// ([`encoder_cpr_range`]).
+    fn validate_encoder_cpr(&self) -> Result<(), ConfigError> {
+        let (min, max, given) = encoder_cpr_range(self);
+        if (min..=max).contains(&self.encoder_cpr) {
+            return Ok(());
         }
-        if u32::from(self.counter_bits) < bits_needed || step >= (1u64 << 31) as f32 {
-            return Err(ConfigError::OutOfRange {
-                param: ranges::COUNTER_BITS.key,
-                value: f32::from(self.counter_bits),
-                min: bits_needed as f32,
-                max: 32.0,
-                min_exclusive: false,
-            });
-        }
-        Ok(())
+        Err(ConfigError::OutOfRangeGiven {
+            param: ranges::ENCODER_CPR.key,
+            value: self.encoder_cpr as f32,
+            min: min as f32,
+            max: max as f32,
+            min_exclusive: false,
+            given,
+        })
     }
+
+    /// The following-error limit in counts (`following_error_rev × encoder_cpr`) must fit
+    /// the position error's format, Q24.8: below 2^23 counts.
+    fn validate_following_error(&self) -> Result<(), ConfigError> {
+        let cpr = self.encoder_cpr as f32;
+        let rev = self.faults.following_error_rev;
+        if rev * cpr < COUNTS_ERR_LIMIT {
+            return Ok(());
+        }
+        let r = &ranges::FOLLOWING_ERROR_REV;
+        let mut max = (COUNTS_ERR_LIMIT / cpr).min(r.max);
+        while max * cpr >= COUNTS_ERR_LIMIT {
+            max = max.next_down();
+        }
+        Err(ConfigError::OutOfRangeGiven {
+            param: r.key,
+            value: rev,
+            min: r.min,
+            max,
+            min_exclusive: r.min_exclusive,
+            given: "encoder_cpr: the limit in counts (following_error_rev × encoder_cpr) must \
+                    stay below 2^23 counts, the range of the position error (Q24.8)",
+        })
+    }
+}
+
+/// 2^23: the position error (Q24.8) holds magnitudes below it \[counts\].
+const COUNTS_ERR_LIMIT: f32 = 8_388_608.0;
+
+/// `current_bandwidth_rad_s ≥ MIN_CURRENT_TO_VELOCITY_BANDWIDTH × velocity_bandwidth_rad_s`:
+/// a velocity loop that is not slower than its current loop is refused, naming both keys.
+fn check_bandwidth_ratio(w_vel: f32, w_cur: f32) -> Result<(), ConfigError> {
+    let n = ranges::MIN_CURRENT_TO_VELOCITY_BANDWIDTH;
+    if w_cur >= n * w_vel {
+        return Ok(());
+    }
+    let r = &ranges::VELOCITY_BANDWIDTH_RAD_S;
+    Err(ConfigError::OutOfRangeGiven {
+        param: r.key,
+        value: w_vel,
+        min: r.min,
+        max: w_cur / n,
+        min_exclusive: r.min_exclusive,
+        given: "current_bandwidth_rad_s: the current loop must be at least 1.5 times as fast \
+                (current_bandwidth_rad_s ≥ 1.5 × velocity_bandwidth_rad_s)",
+    })
+}
+
+/// The text of [`encoder_cpr_range`]'s bounds.
+const ENCODER_CPR_GIVEN: &str = "base_speed_rpm, current_rate_hz, velocity_rate_hz, \
+    motor_inertia_s, counter_bits, faults.overspeed_pu and faults.encoder_jump_margin: the \
+    counter must not wrap by half between two current ticks at the encoder-jump limit (a \
+    wider counter_bits, up to 32, allows more counts), the observer's velocity holds at most \
+    32768 counts per current tick up to overspeed, and the count scales of the estimators \
+    (Q8.24 and Q16.16, within 1 %) and the observer's torque scale (Q8.24) must fit";
+
+/// The encoder counts per revolution the drive's fixed-point scales and its counter hold,
+/// given the other settings: `(min, max, what bounds them)`. With c = counts per pu·s per
+/// count per revolution (`base_speed_rpm / 60`) and Ts the tick length:
+/// * counter: the encoder-jump limit (margin × overspeed × cpr·c·Ts_cur + 2 counts) below
+///   half the counter's range, and below 2^23 (its Q24.8 limit);
+/// * observer velocity (Q16.16 counts per current tick, when the observer estimates the
+///   velocity or the AFB's acceleration): cpr·c·Ts_cur × overspeed below 2^15;
+/// * observer torque scale k_u = Ts_cur²·cpr·c / J_model below 128 (Q8.24);
+/// * count scales 1/(cpr·c·Ts) (Q8.24) and 1/(cpr·c·Ts²) (Q16.16) at both rates: below
+///   their format's maximum and at least 50 of its steps (within 1 %).
+pub(crate) fn encoder_cpr_range(cfg: &DriveConfig) -> (u32, u32, &'static str) {
+    let c = f64::from(cfg.base_speed_rpm) / 60.0;
+    let ts_cur = 1.0 / f64::from(cfg.current_rate_hz);
+    let ts_vel = 1.0 / f64::from(cfg.velocity_rate_hz);
+    let tick_max = 128.0 - 1.0 / 16_777_216.0; // TickGain (Q8.24)
+    let tick_min = 50.0 / 16_777_216.0;
+    let gain_max = 32_768.0 - 1.0 / 65_536.0; // Gain (Q16.16)
+    let gain_min = 50.0 / 65_536.0;
+    // Lower bounds: 1/(cpr·c·Ts) ≤ tick_max and 1/(cpr·c·Ts²) ≤ gain_max at both rates
+    // (the current rate's are the larger).
+    let lo = (1.0 / (tick_max * c * ts_cur)).max(1.0 / (gain_max * c * ts_cur * ts_cur));
+    // Upper bounds: the scales at the velocity rate (the smaller) at least their minimum.
+    let mut hi = (1.0 / (tick_min * c * ts_vel)).min(1.0 / (gain_min * c * ts_vel * ts_vel));
+    let f = &cfg.faults;
+    let jump = f64::from(f.encoder_jump_margin) * f64::from(f.overspeed_pu) * c * ts_cur;
+    let half_counter = (1u64 << (u32::from(cfg.counter_bits.clamp(16, 32)) - 1)) as f64;
+    hi = hi.min((half_counter.min(8_388_608.0) - 2.0) / jump);
+    let j_obs = f64::from(match cfg.observer.model_inertia {
+        crate::config::ObserverInertia::Total => cfg.total_inertia_s(),
+        crate::config::ObserverInertia::Motor => cfg.motor_inertia_s,
+    });
+    hi = hi.min(tick_max * j_obs / (ts_cur * ts_cur * c));
+    let observer_used = cfg.velocity_estimator == crate::config::Estimator::Observer
+        || (cfg.accel_feedback.mode != crate::config::AfbMode::Off
+            && cfg.accel_feedback.source == crate::config::Estimator::Observer);
+    if observer_used {
+        hi = hi.min(32_768.0 / (f64::from(f.overspeed_pu) * c * ts_cur));
+    }
+    let r = &ranges::ENCODER_CPR;
+    // Strict bounds as whole counts: the largest count below `hi`, the smallest above `lo`.
+    // (`as` truncates a non-negative value: its floor, saturated to u32.)
+    let max = hi.next_down().min(f64::from(r.max)).max(0.0) as u32;
+    let min = ((lo.max(0.0) as u32).saturating_add(1)).max(r.min as u32);
+    (min, max, ENCODER_CPR_GIVEN)
+}
+
+/// The error naming `encoder_cpr` with the range [`encoder_cpr_range`] gives: where a count
+/// scale or limit derived from the encoder does not fit its format.
+pub(crate) fn encoder_cpr_error(cfg: &DriveConfig) -> ConfigError {
+    let (min, max, given) = encoder_cpr_range(cfg);
+    ConfigError::OutOfRangeGiven {
+        param: ranges::ENCODER_CPR.key,
+        value: cfg.encoder_cpr as f32,
+        min: min as f32,
+        max: max as f32,
+        min_exclusive: false,
+        given,
+    }
+}
+
+/// The user's setting a derived number scales with: `value = c · setting^power`, the other
+/// settings fixed. A quantization that fails ([`fit`]) is reported as this setting, with
+/// the range of it that fits ([`Scales::bounds`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Scales {
+    /// The setting's range (its key and its own bounds).
+    pub(crate) range: &'static Range,
+    /// The setting's value.
+    pub(crate) setting: f32,
+    /// How the derived number grows with it (1: in proportion, 2: with its square, −1:
+    /// inversely).
+    pub(crate) power: f64,
+    /// The other settings the range depends on, and the format.
+    pub(crate) given: &'static str,
+    /// A bound of the setting's own above the format's (the largest value below its loop's
+    /// Nyquist limit), or ∞.
+    pub(crate) cap: f32,
+}
+
+impl Scales {
+    /// The range of the setting that keeps `value` inside `T`: |value| at most `T`'s
+    /// maximum, and (non-zero) at least 50 of its steps, so that the rounding stays within
+    /// 1 % ([`quantize`]'s rule). Intersected with the setting's own range.
+    pub(crate) fn bounds<T: fixed::traits::Fixed>(&self, value: f32) -> (f32, f32) {
+        let r = self.range;
+        let (v, x) = (f64::from(value).abs(), f64::from(self.setting));
+        if v == 0.0 || x <= 0.0 || !v.is_finite() || self.power == 0.0 {
+            return (r.min, r.max.min(self.cap));
+        }
+        let step: f64 = T::DELTA.to_num();
+        let top: f64 = T::MAX.to_num::<f64>() - step;
+        let at = |target: f64| x * crate::cfgmath::exp(crate::cfgmath::ln(target / v) / self.power);
+        let (a, b) = (at(50.0 * step), at(top));
+        let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+        ((lo as f32).max(r.min), (hi as f32).min(r.max).min(self.cap))
+    }
+
+    /// The error for `value` not fitting `T`: this setting, its value and its range.
+    pub(crate) fn error<T: fixed::traits::Fixed>(&self, value: f32) -> ConfigError {
+        let (min, max) = self.bounds::<T>(value);
+        ConfigError::OutOfRangeGiven {
+            param: self.range.key,
+            value: self.setting,
+            min,
+            max,
+            min_exclusive: self.range.min_exclusive && min <= self.range.min,
+            given: self.given,
+        }
+    }
+}
+
+/// `value` quantized to `T`; if it does not fit, the error names the user's setting `s`
+/// and the range of it that fits.
+pub(crate) fn fit<T: fixed::traits::Fixed>(value: f32, s: Scales) -> Result<T, ConfigError> {
+    quantize::<T>(value, s.range.key).map_err(|_| s.error::<T>(value))
+}
+
+/// A setting quantized as itself (`power` 1) to `T`, whose format bounds it.
+pub(crate) fn fit_setting<T: fixed::traits::Fixed>(
+    range: &'static Range,
+    value: f32,
+    given: &'static str,
+) -> Result<T, ConfigError> {
+    fit(
+        value,
+        Scales {
+            range,
+            setting: value,
+            power: 1.0,
+            given,
+            cap: f32::INFINITY,
+        },
+    )
 }

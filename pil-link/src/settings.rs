@@ -362,7 +362,7 @@ fn get_observer(r: &mut Reader<'_>, bad: LinkError) -> Result<ObserverConfig, Li
 fn put_faults(w: &mut Writer, faults: FaultLimits) -> Result<(), LinkError> {
     let FaultLimits {
         overspeed_pu,
-        following_error_counts,
+        following_error_rev,
         encoder_jump_margin,
         overcurrent_ratio,
         overcurrent_ticks,
@@ -375,7 +375,7 @@ fn put_faults(w: &mut Writer, faults: FaultLimits) -> Result<(), LinkError> {
         stall_time_s,
     } = faults;
     w.u32(overspeed_pu.to_bits())?
-        .u32(following_error_counts.to_bits())?
+        .u32(following_error_rev.to_bits())?
         .u32(encoder_jump_margin.to_bits())?
         .u32(overcurrent_ratio.to_bits())?
         .u32(overcurrent_ticks)?
@@ -392,7 +392,7 @@ fn put_faults(w: &mut Writer, faults: FaultLimits) -> Result<(), LinkError> {
 fn get_faults(r: &mut Reader<'_>) -> Result<FaultLimits, LinkError> {
     Ok(FaultLimits {
         overspeed_pu: f(r)?,
-        following_error_counts: f(r)?,
+        following_error_rev: f(r)?,
         encoder_jump_margin: f(r)?,
         overcurrent_ratio: f(r)?,
         overcurrent_ticks: r.u32()?,

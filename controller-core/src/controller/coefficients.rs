@@ -1,6 +1,9 @@
 //! The quantized coefficients of a [`super::Controller`], built once from [`Gains`] (and the
 //! validated settings they carry). Each coefficient is quantized with
-//! [`quantize`], whose error names the Q-format of the coefficient's own type.
+//! [`crate::validate::fit`]: a value that does not fit its format is reported as the user's
+//! setting it scales with, and the range of that setting that fits given the others
+//! ([`ConfigError::OutOfRangeGiven`]). The count scales and limits derived from the encoder
+//! are bounded by [`DriveConfig::validate`] already (`encoder_cpr`'s range).
 
 use crate::accel_feedback::AccelerationFeedback;
 use crate::config::{AfbFilterAtLimit, AfbMode, AfbRate, DriveConfig, Estimator, ObserverTorque};
@@ -13,6 +16,8 @@ use crate::observer::{CountInterval, Observer};
 use crate::per_unit::{Coef, CountsErr, Gain, PosGain, Pu, TickGain, counter_shift, quantize};
 use crate::pi::PiCoefficients;
 use crate::protection::Protection;
+use crate::ranges as r;
+use crate::validate::{Scales, encoder_cpr_error, fit, fit_setting};
 
 /// A limit L on the magnitude of a raw 32-bit value, |x| > L tested with one add and one
 /// unsigned compare: for L < 2^31, x + L (mod 2^32) is within [0, 2L] exactly when
@@ -129,23 +134,20 @@ impl AfbStep {
 /// The acceleration-feedback block with torque limit `lim`.
 fn accel_feedback(g: &Gains, lim: Pu) -> Result<AccelerationFeedback, ConfigError> {
     let cfg = &g.cfg;
-    let filter = LowPass::quantize(&g.afb_filter, "accel_feedback.filter coefficients")?;
+    let filter = LowPass::quantize(&g.afb_filter, r::AFB_FILTER_CORNER_HZ.key)?;
     // Closed form of the loop through the observer's model (accel_feedback module docs):
     // g·Ka with g = 1/(1 + b0·Ka/J_model); b0 from the quantized filter, so that the
     // solved loop is the one the tick runs.
     let ka_closed = if cfg.accel_feedback.source == Estimator::Observer {
         let b0: f32 = filter.feedthrough().to_num();
         let gain = 1.0 / (1.0 + b0 * g.ka / g.observer_inertia_s);
-        quantize::<Gain>(
-            g.ka * gain,
-            "ka/(1 + b0·Ka/J_model) (accel_feedback.gain_fraction, filter, observer inertia)",
-        )?
+        fit::<Gain>(g.ka * gain, gain_fraction(cfg))?
     } else {
         Gain::ZERO
     };
     Ok(AccelerationFeedback {
         mode: cfg.accel_feedback.mode,
-        ka: quantize(g.ka, "ka (accel_feedback.gain_fraction × total inertia)")?,
+        ka: fit(g.ka, gain_fraction(cfg))?,
         filter,
         limit: lim,
         ka_closed,
@@ -155,41 +157,131 @@ fn accel_feedback(g: &Gains, lim: Pu) -> Result<AccelerationFeedback, ConfigErro
 /// The state observer.
 fn observer(g: &Gains) -> Result<Observer, ConfigError> {
     let [l1, l2, l3] = g.observer_l;
+    let cfg = &g.cfg;
+    // Below the Nyquist limit every gain lies in (0, 1.5): none can overflow Q2.30, and
+    // the smallest, l3 = (1 − θ)³, grows with the cube of the bandwidth at its low end. So a
+    // gain that does not fit is too small: the bandwidth's range starts where l3 keeps 1 %.
+    let bw = Scales {
+        cap: (cfg.current_rate_hz as f32 / 2.0).next_down(),
+        range: &r::OBSERVER_BANDWIDTH_HZ,
+        setting: cfg.observer.bandwidth_hz,
+        power: 3.0,
+        given: "current_rate_hz: the observer's correction gains (Q2.30) must keep 1 %",
+    };
+    let l = |v: f32| {
+        quantize::<Coef>(v, r::OBSERVER_BANDWIDTH_HZ.key).map_err(|_| {
+            let (min, _) = bw.bounds::<Coef>(l3);
+            ConfigError::OutOfRangeGiven {
+                param: bw.range.key,
+                value: bw.setting,
+                min,
+                max: bw.cap,
+                min_exclusive: false,
+                given: bw.given,
+            }
+        })
+    };
+    let cpr = |_| encoder_cpr_error(cfg);
     Ok(Observer {
-        l1: quantize::<Coef>(l1, "observer l1 (observer.bandwidth_hz)")?,
-        l2: quantize::<Coef>(l2, "observer l2 (observer.bandwidth_hz)")?,
-        l3: quantize::<Coef>(l3, "observer l3 (observer.bandwidth_hz)")?,
-        k_u: quantize(
-            g.observer_k_u,
-            "observer k_u (inertia, encoder_cpr, current_rate_hz)",
+        l1: l(l1)?,
+        l2: l(l2)?,
+        l3: l(l3)?,
+        k_u: quantize(g.observer_k_u, r::ENCODER_CPR.key).map_err(cpr)?,
+        k_vel: quantize(g.cur_tick_pu_per_count, r::ENCODER_CPR.key).map_err(cpr)?,
+        k_acc: quantize(g.cur_tick_pu_s_per_count, r::ENCODER_CPR.key).map_err(cpr)?,
+        k_load: fit(
+            -g.observer_inertia_s,
+            Scales {
+                cap: f32::INFINITY,
+                range: &r::MOTOR_INERTIA_S,
+                setting: cfg.motor_inertia_s,
+                power: 1.0,
+                given: "observer.model_inertia: the observer's model inertia (Q16.16) must \
+                        keep 1 %",
+            },
         )?,
-        k_vel: quantize(
-            g.cur_tick_pu_per_count,
-            "pu per count per current tick (encoder_cpr, base_speed_rpm, current_rate_hz)",
-        )?,
-        k_acc: quantize(
-            g.cur_tick_pu_s_per_count,
-            "pu/s per count per current tick² (encoder_cpr, base_speed_rpm, current_rate_hz)",
-        )?,
-        k_load: quantize(-g.observer_inertia_s, "observer model inertia")?,
-        count_interval: CountInterval::of(quantize(
-            g.cfg.observer.count_interval_counts,
-            "observer.count_interval_counts",
+        count_interval: CountInterval::of(fit_setting(
+            &r::OBSERVER_COUNT_INTERVAL_COUNTS,
+            cfg.observer.count_interval_counts,
+            "its format Q16.16 (0, or within 1 %)",
         )?),
     })
 }
 
-/// A differentiator with velocity scale `v` and acceleration scale `a`.
-fn differentiator(
-    v: f32,
-    a: f32,
-    pv: &'static str,
-    pa: &'static str,
-) -> Result<Differentiator, ConfigError> {
+/// `accel_feedback.gain_fraction`, which Ka (and the closed form's gain) scale with.
+fn gain_fraction(cfg: &DriveConfig) -> Scales {
+    Scales {
+        cap: f32::INFINITY,
+        range: &r::AFB_GAIN_FRACTION,
+        setting: cfg.accel_feedback.gain_fraction,
+        power: 1.0,
+        given: "motor_inertia_s + load_inertia_s: Ka = gain_fraction × J_total (and the \
+                closed form's Ka/(1 + b0·Ka/J_model)) must fit Q16.16 within 1 %; 0 or \
+                mode = \"off\" turns the feedback off",
+    }
+}
+
+/// A differentiator with velocity scale `v` and acceleration scale `a` (counts to pu: both
+/// bounded by `encoder_cpr`'s range).
+fn differentiator(cfg: &DriveConfig, v: f32, a: f32) -> Result<Differentiator, ConfigError> {
+    let cpr = |_| encoder_cpr_error(cfg);
     Ok(Differentiator {
-        k_vel: quantize(v, pv)?,
-        k_acc: quantize(a, pa)?,
+        k_vel: quantize(v, r::ENCODER_CPR.key).map_err(cpr)?,
+        k_acc: quantize(a, r::ENCODER_CPR.key).map_err(cpr)?,
     })
+}
+
+/// What the velocity PI's gains depend on besides the bandwidth.
+const VELOCITY_GIVEN: &str = "motor_inertia_s + load_inertia_s (plus Ka with \
+    velocity_pi_inertia = \"total_plus_afb\"), velocity_damping and velocity_rate_hz: \
+    Kp = ω·J (Q16.16) and Ki·Ts = ω²·J/(4ζ²·velocity_rate_hz) (Q8.24) must fit within 1 %";
+
+/// What the current PI's gains depend on besides the bandwidth.
+const CURRENT_GIVEN: &str = "winding_inductance_pu_s, winding_resistance_pu and \
+    current_rate_hz: Kp = L·ω (Q16.16) and Ki·Ts = R·ω/current_rate_hz (Q8.24) must fit \
+    within 1 %";
+
+/// A PI's gains `kp` (∝ ω) and `ki_ts` (∝ ω^`ki_power`) from the bandwidth `range`; if
+/// either does not fit, the error gives the bandwidth's range that fits both.
+fn pi_gains(
+    range: &'static crate::ranges::Range,
+    w: f32,
+    kp: f32,
+    ki_ts: f32,
+    ki_power: f64,
+    given: &'static str,
+    cap: f32,
+) -> Result<(Gain, TickGain), ConfigError> {
+    let p = Scales {
+        cap,
+        range,
+        setting: w,
+        power: 1.0,
+        given,
+    };
+    let i = Scales {
+        power: ki_power,
+        ..p
+    };
+    match (
+        quantize::<Gain>(kp, range.key),
+        quantize::<TickGain>(ki_ts, range.key),
+    ) {
+        (Ok(kp), Ok(ki)) => Ok((kp, ki)),
+        _ => {
+            let (lo_p, hi_p) = p.bounds::<Gain>(kp);
+            let (lo_i, hi_i) = i.bounds::<TickGain>(ki_ts);
+            let min = lo_p.max(lo_i);
+            Err(ConfigError::OutOfRangeGiven {
+                param: range.key,
+                value: w,
+                min,
+                max: hi_p.min(hi_i),
+                min_exclusive: range.min_exclusive && min <= range.min,
+                given,
+            })
+        }
+    }
 }
 
 /// The velocity and current PI regulators (torque limit `lim`, voltage limit `vlim`).
@@ -199,23 +291,32 @@ fn regulators(
     vlim: Pu,
 ) -> Result<(PiCoefficients, PiCoefficients), ConfigError> {
     let cfg = &g.cfg;
+    let (kp, ki_ts) = pi_gains(
+        &r::VELOCITY_BANDWIDTH_RAD_S,
+        cfg.velocity_bandwidth_rad_s,
+        g.kp_vel,
+        g.ki_vel / cfg.velocity_rate_hz as f32,
+        2.0,
+        VELOCITY_GIVEN,
+        (core::f32::consts::PI * cfg.velocity_rate_hz as f32).next_down(),
+    )?;
     let velocity = PiCoefficients {
-        kp: quantize(g.kp_vel, "kp_vel (velocity_bandwidth_rad_s × inertia)")?,
-        ki_ts: quantize::<TickGain>(
-            g.ki_vel / cfg.velocity_rate_hz as f32,
-            "ki_vel·Ts (velocity_bandwidth_rad_s, velocity_damping)",
-        )?,
+        kp,
+        ki_ts,
         limit: lim,
     };
+    let (kp, ki_ts) = pi_gains(
+        &r::CURRENT_BANDWIDTH_RAD_S,
+        cfg.current_bandwidth_rad_s,
+        g.kp_cur,
+        g.ki_cur / cfg.current_rate_hz as f32,
+        1.0,
+        CURRENT_GIVEN,
+        (core::f32::consts::PI * cfg.current_rate_hz as f32).next_down(),
+    )?;
     let current = PiCoefficients {
-        kp: quantize(
-            g.kp_cur,
-            "kp_cur (winding_inductance_pu_s × current_bandwidth_rad_s)",
-        )?,
-        ki_ts: quantize::<TickGain>(
-            g.ki_cur / cfg.current_rate_hz as f32,
-            "ki_cur·Ts (winding_resistance_pu × current_bandwidth_rad_s)",
-        )?,
+        kp,
+        ki_ts,
         limit: vlim,
     };
     Ok((velocity, current))
@@ -224,45 +325,45 @@ fn regulators(
 /// The differentiators at the velocity and at the current rate.
 fn differentiators(g: &Gains) -> Result<[Differentiator; 2], ConfigError> {
     Ok([
-        differentiator(
-            g.vel_tick_pu_per_count,
-            g.vel_tick_pu_s_per_count,
-            "pu per count per velocity tick (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
-            "pu/s per count per velocity tick² (encoder_cpr, base_speed_rpm, velocity_rate_hz)",
-        )?,
-        differentiator(
-            g.cur_tick_pu_per_count,
-            g.cur_tick_pu_s_per_count,
-            "pu per count per current tick (encoder_cpr, base_speed_rpm, current_rate_hz)",
-            "pu/s per count per current tick² (encoder_cpr, base_speed_rpm, current_rate_hz)",
-        )?,
+        differentiator(&g.cfg, g.vel_tick_pu_per_count, g.vel_tick_pu_s_per_count)?,
+        differentiator(&g.cfg, g.cur_tick_pu_per_count, g.cur_tick_pu_s_per_count)?,
     ])
 }
 
-/// The fault limits as raw magnitudes: overspeed, following error, encoder jump.
+/// The fault limits as raw magnitudes: overspeed, following error, encoder jump. The
+/// following error is set in motor revolutions and compared in counts: × `encoder_cpr`,
+/// the counts the drive reads per revolution (after any interpolation).
 fn fault_limits(g: &Gains) -> Result<[MagnitudeLimit; 3], ConfigError> {
     let cfg = &g.cfg;
+    let rev = cfg.faults.following_error_rev;
+    let following = fit::<CountsErr>(
+        rev * cfg.encoder_cpr as f32,
+        Scales {
+            cap: f32::INFINITY,
+            range: &r::FOLLOWING_ERROR_REV,
+            setting: rev,
+            power: 1.0,
+            given: "encoder_cpr: the limit in counts (following_error_rev × encoder_cpr) \
+                    must fit the position error's format Q24.8 (below 2^23 counts, at least \
+                    0.2 count)",
+        },
+    )?;
     Ok([
         MagnitudeLimit::new(
-            quantize::<Pu>(cfg.faults.overspeed_pu, "faults.overspeed_pu")?
-                .to_bits()
-                .unsigned_abs(),
-        ),
-        MagnitudeLimit::new(
-            quantize::<CountsErr>(
-                cfg.faults.following_error_counts,
-                "faults.following_error_counts",
+            fit_setting::<Pu>(
+                &r::OVERSPEED_PU,
+                cfg.faults.overspeed_pu,
+                "its format Q16.16 (within 1 %)",
             )?
             .to_bits()
             .unsigned_abs(),
         ),
+        MagnitudeLimit::new(following.to_bits().unsigned_abs()),
         MagnitudeLimit::new(
-            quantize::<CountsErr>(
-                g.max_count_step,
-                "max count step (faults.encoder_jump_margin × overspeed)",
-            )?
-            .to_num::<i32>()
-            .unsigned_abs(),
+            quantize::<CountsErr>(g.max_count_step, r::ENCODER_CPR.key)
+                .map_err(|_| encoder_cpr_error(cfg))?
+                .to_num::<i32>()
+                .unsigned_abs(),
         ),
     ])
 }
@@ -274,10 +375,17 @@ fn velocity_headroom(cfg: &DriveConfig) -> Result<i32, ConfigError> {
     if cfg.accel_feedback.mode == AfbMode::Off {
         return Ok(0);
     }
-    let h = cfg.accel_feedback.limit_headroom_fraction * cfg.torque_limit_pu;
-    Ok(quantize::<Pu>(
-        h,
-        "accel_feedback.limit_headroom_fraction × torque_limit_pu",
+    let f = cfg.accel_feedback.limit_headroom_fraction;
+    Ok(fit::<Pu>(
+        f * cfg.torque_limit_pu,
+        Scales {
+            cap: f32::INFINITY,
+            range: &r::AFB_LIMIT_HEADROOM_FRACTION,
+            setting: f,
+            power: 1.0,
+            given: "torque_limit_pu: the headroom (fraction × torque_limit_pu) must fit \
+                    Q16.16 within 1 %; 0 for none",
+        },
     )?
     .to_bits())
 }
@@ -286,33 +394,53 @@ impl Coefficients {
     /// Quantize `g` (designed from, and carrying, validated settings).
     pub(super) fn from_gains(g: &Gains) -> Result<Self, ConfigError> {
         let cfg = &g.cfg;
-        let lim: Pu = quantize(cfg.torque_limit_pu, "torque_limit_pu")?;
-        let vlim: Pu = quantize(cfg.voltage_limit_pu, "voltage_limit_pu")?;
+        let q16 = "its format Q16.16 (within 1 %)";
+        let lim: Pu = fit_setting(&r::TORQUE_LIMIT_PU, cfg.torque_limit_pu, q16)?;
+        let vlim: Pu = fit_setting(&r::VOLTAGE_LIMIT_PU, cfg.voltage_limit_pu, q16)?;
         // Quantized in the order of the error precedence: AFB, observer, position, regulators,
         // notch.
         let afb = accel_feedback(g, lim)?;
         let observer = observer(g)?;
         let k_pos = if g.kpp > 0.0 {
-            quantize(
+            fit(
                 g.k_pos_pu_per_count,
-                "k_pos (position_bandwidth_rad_s / counts per pu·s)",
+                Scales {
+                    cap: (core::f32::consts::PI * cfg.velocity_rate_hz as f32).next_down(),
+                    range: &r::POSITION_BANDWIDTH_RAD_S,
+                    setting: cfg.position_bandwidth_rad_s,
+                    power: 1.0,
+                    given: "encoder_cpr and base_speed_rpm: k_pos = position_bandwidth_rad_s \
+                            / counts per pu·s must fit Q1.31 within 1 %; 0 turns the position \
+                            loop off",
+                },
             )?
         } else {
             PosGain::ZERO
         };
-        let velocity_ff = quantize(cfg.velocity_ff_gain, "velocity_ff_gain")?;
-        let k_accel_ff = quantize(g.k_accel_ff, "k_accel_ff (accel_ff_gain × inertia)")?;
+        let velocity_ff = fit_setting(
+            &r::VELOCITY_FF_GAIN,
+            cfg.velocity_ff_gain,
+            "its format Q16.16 (0, or within 1 %)",
+        )?;
+        let k_accel_ff = fit(
+            g.k_accel_ff,
+            Scales {
+                cap: f32::INFINITY,
+                range: &r::ACCEL_FF_GAIN,
+                setting: cfg.accel_ff_gain,
+                power: 1.0,
+                given: "motor_inertia_s + load_inertia_s (plus Ka in the plain form): \
+                        accel_ff_gain × inertia must fit Q16.16 within 1 %; 0 turns it off",
+            },
+        )?;
         let (velocity_regulator, current_regulator) = regulators(g, lim, vlim)?;
         let notch = match &g.notch {
-            Some(d) => Some(Notch::quantize(
-                d,
-                "notch coefficients (notch.centre_hz, notch.width_hz, notch.depth_db)",
-            )?),
+            Some(d) => Some(Notch::quantize(d, r::NOTCH_CENTRE_HZ.key)?),
             None => None,
         };
         // Then the velocity filter, the differentiators and the fault limits.
         let velocity_filter =
-            LowPass::quantize(&g.velocity_filter, "velocity_filter coefficients")?;
+            LowPass::quantize(&g.velocity_filter, r::VELOCITY_FILTER_CORNER_HZ.key)?;
         let [diff_velocity_rate, diff_current_rate] = differentiators(g)?;
         let [overspeed_abs, following_error_abs, max_count_step_abs] = fault_limits(g)?;
         let protection = Protection::new(cfg)?;

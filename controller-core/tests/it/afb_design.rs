@@ -161,7 +161,7 @@ fn high_resolution_encoder_and_the_acceleration_loop_limit() {
         let mut cfg = common::table1();
         cfg.encoder_cpr = 1_000_000;
         cfg.counter_bits = 32;
-        cfg.faults.following_error_counts = 1_000_000.0;
+        cfg.faults.following_error_rev = 1.0;
         cfg.velocity_estimator = vel;
         cfg.accel_feedback.source = afb;
         cfg.accel_feedback.rate = rate;

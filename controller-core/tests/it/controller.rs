@@ -196,11 +196,13 @@ fn overspeed_trips_and_latches() {
 
 #[test]
 fn following_error_trips_and_latches() {
+    // The default limit, a quarter revolution, is 1024 counts on Table 1's 4096-count
+    // encoder.
     let mut c = Controller::new(&common::table1()).unwrap();
-    let v = c.velocity_tick(vel_in(0, 4000, false));
+    let v = c.velocity_tick(vel_in(0, 1000, false));
     assert_eq!(v.fault, None);
-    assert_eq!(v.position_error_counts, 4000);
-    let v = c.velocity_tick(vel_in(0, 4097, false));
+    assert_eq!(v.position_error_counts, 1000);
+    let v = c.velocity_tick(vel_in(0, 1025, false));
     assert_eq!(v.fault, Some(Fault::FollowingError));
     assert_latched(&mut c, Fault::FollowingError);
     // In velocity mode there is no following-error check.

@@ -148,9 +148,10 @@ fn a_following_error_trips_above_the_limit_and_not_at_it() {
         position_counts: controller_core::Counts::from_num(100),
         ..Setpoint::default()
     };
-    let run = |limit: f32| {
+    // The limit in revolutions of Table 1's 4096-count encoder: 100 counts = 100/4096 rev.
+    let run = |limit_counts: f32| {
         let mut cfg = common::table1();
-        cfg.faults.following_error_counts = limit;
+        cfg.faults.following_error_rev = limit_counts / 4096.0;
         let mut c = Controller::new(&cfg).unwrap();
         c.velocity_tick(VelocityInputs {
             encoder_count: 0,

@@ -177,7 +177,7 @@ proptest! {
         c.accel_feedback.gain_fraction = v[7];
         c.accel_feedback.filter = FilterConfig::SecondOrder { corner_hz: v[8], q: v[9] };
         c.observer.bandwidth_hz = v[10];
-        c.faults.following_error_counts = v[11];
+        c.faults.following_error_rev = v[11];
         c.encoder_cpr = cpr;
         c.counter_bits = bits;
         c.current_rate_hz = fc % 200_000;

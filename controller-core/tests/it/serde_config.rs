@@ -54,10 +54,10 @@ fn omitted_keys_take_the_design_defaults() {
     assert_eq!(
         (
             c.faults.overspeed_pu,
-            c.faults.following_error_counts,
+            c.faults.following_error_rev,
             c.faults.encoder_jump_margin
         ),
-        (1.5, 4096.0, 2.0)
+        (1.5, 0.25, 2.0)
     );
     assert!(c.validate().is_ok());
 }

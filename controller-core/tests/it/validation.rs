@@ -39,10 +39,20 @@ fn every_drive_setting_is_validated() {
         expect_err(|c| c.base_speed_rpm = 0.0, "base_speed_rpm"),
         OutOfRange { .. }
     ));
-    assert!(matches!(
-        expect_err(|c| c.base_speed_rpm = nan, "base_speed_rpm"),
-        NotFinite { .. }
-    ));
+    // NaN gets its range like any other bad number; a frequency's range ends below its
+    // loop's Nyquist limit.
+    let e = expect_err(|c| c.base_speed_rpm = nan, "base_speed_rpm");
+    assert!(matches!(e, OutOfRange { .. }), "{e:?}");
+    assert!(e.to_string().contains("(0, 100000]"), "{e}");
+    let e = expect_err(
+        |c| c.velocity_bandwidth_rad_s = nan,
+        "velocity_bandwidth_rad_s",
+    );
+    assert!(
+        matches!(e, OutOfRange { max, .. } if max < 6283.19 && max > 6283.18),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("(0, 6283.18"), "{e}");
     expect_err(|c| c.encoder_cpr = 2, "encoder_cpr");
     expect_err(|c| c.counter_bits = 8, "counter_bits");
     expect_err(|c| c.counter_bits = 33, "counter_bits");
@@ -146,65 +156,123 @@ fn every_drive_setting_is_validated() {
     expect_err(|c| c.observer.bandwidth_hz = -5.0, "observer.bandwidth_hz");
     expect_err(|c| c.faults.overspeed_pu = 0.0, "faults.overspeed_pu");
     expect_err(
-        |c| c.faults.following_error_counts = 1e7,
-        "faults.following_error_counts",
+        |c| c.faults.following_error_rev = 2000.0,
+        "faults.following_error_rev",
     );
+    // The limit in counts must fit Q24.8 (below 2^23): 8 revolutions of a 2^20 encoder.
+    let e = expect_err(
+        |c| {
+            c.encoder_cpr = 1 << 20;
+            c.faults.following_error_rev = 8.0;
+        },
+        "faults.following_error_rev",
+    );
+    assert!(
+        matches!(e, OutOfRangeGiven { max, .. } if max < 8.0 && max > 7.999),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("encoder_cpr"), "{e}");
     expect_err(
         |c| c.faults.encoder_jump_margin = 0.5,
         "faults.encoder_jump_margin",
     );
 }
 
+/// The range of an `OutOfRangeGiven` error, which must hold `ok` and not the value given.
+fn given_range(e: &ConfigError) -> (f32, f32, f32) {
+    match *e {
+        ConfigError::OutOfRangeGiven {
+            value, min, max, ..
+        } => (value, min, max),
+        _ => panic!("expected a range given the other settings: {e:?}"),
+    }
+}
+
 #[test]
-fn derived_coefficients_that_do_not_fit_are_errors() {
-    // Kp = ω·J = 6000 rad/s × 900 s overflows Q16.16.
+fn derived_coefficients_that_do_not_fit_name_the_users_key_and_its_range() {
+    // Kp = ω·J = 6000 rad/s × 900 s overflows Q16.16: the velocity bandwidth, with the range
+    // that fits given the inertia, the damping and the rate.
     let e = expect_err(
         |c| {
             c.motor_inertia_s = 400.0;
             c.load_inertia_s = 500.0;
             c.velocity_bandwidth_rad_s = 6000.0;
+            c.current_bandwidth_rad_s = 12_000.0;
         },
-        "kp_vel",
+        "velocity_bandwidth_rad_s",
     );
-    assert!(
-        matches!(e, ConfigError::CoefficientOverflow { .. }),
-        "{e:?}"
+    let (v, _, max) = given_range(&e);
+    assert!(v > max && max > 0.0, "{e}");
+    assert!(!e.to_string().contains("kp_vel"), "{e}");
+    // At the range's top the same drive is accepted.
+    let mut cfg = common::table1();
+    cfg.motor_inertia_s = 400.0;
+    cfg.load_inertia_s = 500.0;
+    cfg.current_bandwidth_rad_s = 12_000.0;
+    cfg.velocity_bandwidth_rad_s = max * 0.999;
+    assert!(Controller::new(&cfg).is_ok(), "{max}");
+    // Table 1 at 3000 rad/s: Ki·Ts = 1102 does not fit Q8.24; the bandwidth is named.
+    let e = expect_err(
+        |c| {
+            c.velocity_bandwidth_rad_s = 3000.0;
+            c.current_bandwidth_rad_s = 12_000.0;
+        },
+        "velocity_bandwidth_rad_s",
     );
+    let (_, _, max) = given_range(&e);
+    assert!(e.to_string().contains("velocity_damping"), "{e}");
+    let mut cfg = common::table1();
+    cfg.current_bandwidth_rad_s = 12_000.0;
+    cfg.velocity_bandwidth_rad_s = max * 0.999;
+    assert!(Controller::new(&cfg).is_ok(), "{max}");
     let e = expect_err(
         |c| {
             c.winding_inductance_pu_s = 90.0;
             c.current_bandwidth_rad_s = 10_000.0;
         },
-        "kp_cur",
+        "current_bandwidth_rad_s",
     );
-    assert!(
-        matches!(e, ConfigError::CoefficientOverflow { .. }),
-        "{e:?}"
-    );
-    // A position gain of 1.8e-9 pu per count is too fine for Q1.31 (resolution 4.7e-10).
+    let (v, _, max) = given_range(&e);
+    assert!(v > max, "{e}");
+    assert!(e.to_string().contains("winding_inductance_pu_s"), "{e}");
+    // A position gain of 1.8e-9 pu per count is too fine for Q1.31 (resolution 4.7e-10):
+    // the position bandwidth, with its smallest value at this encoder.
     let e = expect_err(
         |c| {
             c.encoder_cpr = 1_000_000;
             c.position_bandwidth_rad_s = 0.03;
         },
-        "k_pos",
+        "position_bandwidth_rad_s",
     );
-    assert!(
-        matches!(e, ConfigError::CoefficientUnderflow { .. }),
-        "{e:?}"
-    );
-    // The observer's torque-to-counts factor overflows Q8.24 at 2^30 counts per rev.
-    let e = expect_err(
-        |c| {
-            c.encoder_cpr = 1 << 30;
-            c.counter_bits = 32;
-        },
-        "observer k_u",
-    );
-    assert!(
-        matches!(e, ConfigError::CoefficientOverflow { .. }),
-        "{e:?}"
-    );
+    let (v, min, max) = given_range(&e);
+    assert!(v < min && max < 6283.19, "{e}");
+    let mut cfg = common::table1();
+    cfg.encoder_cpr = 1_000_000;
+    cfg.position_bandwidth_rad_s = min;
+    assert!(Controller::new(&cfg).is_ok(), "{min}");
+    // 2^30 counts per rev (the static maximum) does not fit the observer's scales nor a
+    // 16-bit counter at Table 1's speed and rates: the encoder is named, with its range.
+    for bits in [16, 32] {
+        let e = expect_err(
+            |c| {
+                c.encoder_cpr = 1 << 30;
+                c.counter_bits = bits;
+            },
+            "encoder_cpr",
+        );
+        let (_, min, max) = given_range(&e);
+        assert!(min <= 4096.0 && max < (1u32 << 30) as f32, "{e}");
+        assert!(e.to_string().contains("counter_bits"), "{e}");
+        let mut cfg = common::table1();
+        cfg.counter_bits = bits;
+        cfg.encoder_cpr = max as u32;
+        assert!(Controller::new(&cfg).is_ok(), "{bits} bits, {max}");
+        cfg.encoder_cpr = max as u32 + 1;
+        assert_eq!(
+            Controller::new(&cfg).map(|_| ()).unwrap_err().param(),
+            "encoder_cpr"
+        );
+    }
     // A 1e6 CPR drive (the printing-press stand) is fine.
     let mut cfg = common::table1();
     cfg.encoder_cpr = 1_000_000;
@@ -214,16 +282,34 @@ fn derived_coefficients_that_do_not_fit_are_errors() {
         "{:?}",
         Controller::new(&cfg).err()
     );
+}
+
+/// The current loop must be at least 1.5 times as fast as the velocity loop; the error
+/// names both bandwidths. Table 1 (94.25 in 1998 rad/s) and the sweep's fastest point
+/// (1000 in 1998) pass.
+#[test]
+fn the_velocity_bandwidth_stays_below_the_current_bandwidth() {
     let e = expect_err(
         |c| {
-            c.encoder_cpr = 1_000_000;
-            c.position_bandwidth_rad_s = 0.03;
+            c.velocity_bandwidth_rad_s = 40.0;
+            c.current_bandwidth_rad_s = 30.0;
         },
-        "k_pos",
+        "velocity_bandwidth_rad_s",
     );
+    assert!(e.to_string().contains("current_bandwidth_rad_s"), "{e}");
     assert!(
-        matches!(e, ConfigError::CoefficientUnderflow { .. }),
+        matches!(e, ConfigError::OutOfRangeGiven { max, .. } if max == 20.0),
         "{e:?}"
+    );
+    let mut cfg = common::table1();
+    cfg.velocity_bandwidth_rad_s = 1000.0;
+    assert!(Controller::new(&cfg).is_ok());
+    cfg.velocity_bandwidth_rad_s = 1330.0;
+    assert!(cfg.validate().is_ok());
+    cfg.velocity_bandwidth_rad_s = 1335.0;
+    assert_eq!(
+        cfg.validate().unwrap_err().param(),
+        "velocity_bandwidth_rad_s"
     );
 }
 

@@ -86,13 +86,11 @@ pub fn base_config(interpolation: u32) -> Result<RunConfig> {
 }
 
 /// The AFB run of a cell: differentiated velocity and acceleration behind first-order
-/// filters at the two corners, the following-error trip kept at the same angle.
+/// filters at the two corners (the following-error trip is in revolutions: the same angle on
+/// any encoder).
 pub fn afb_config(base: &RunConfig, velocity_corner_hz: f64, afb_corner_hz: f64) -> RunConfig {
     let mut cfg = base.clone();
-    let interpolation = cfg.plant.sensors.encoder_interpolation;
     let d = &mut cfg.drive;
-    d.faults.following_error_counts =
-        controller_core::config::defaults::FAULTS.following_error_counts * interpolation as f32;
     d.velocity_estimator = Estimator::Differentiation;
     d.velocity_filter = FilterConfig::FirstOrder {
         corner_hz: velocity_corner_hz as f32,

@@ -295,7 +295,7 @@ pub fn field<'a>(cfg: &'a mut DriveConfig, r: &Range) -> Option<Field<'a>> {
             real(&mut cfg.observer.count_interval_counts)
         }
         _ if key == k::OVERSPEED_PU.key => real(&mut f.overspeed_pu),
-        _ if key == k::FOLLOWING_ERROR_COUNTS.key => real(&mut f.following_error_counts),
+        _ if key == k::FOLLOWING_ERROR_REV.key => real(&mut f.following_error_rev),
         _ if key == k::ENCODER_JUMP_MARGIN.key => real(&mut f.encoder_jump_margin),
         _ if key == k::OVERCURRENT_RATIO.key => real(&mut f.overcurrent_ratio),
         _ if key == k::OVERCURRENT_TICKS.key => Some(Field::Whole(&mut f.overcurrent_ticks)),

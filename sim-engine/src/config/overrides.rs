@@ -40,6 +40,17 @@ pub fn split_assignment(assignment: &str) -> Result<(String, String)> {
     if value.is_empty() {
         return Err(HarnessError::config(key, "empty value"));
     }
+    // One assignment is one line: the value text is parsed as `v = TEXT`, where a newline
+    // would end it and the lines after it would be read as other keys (or dropped).
+    if let Some(c) = value.chars().find(|c| c.is_control()) {
+        return Err(HarnessError::config(
+            key,
+            format!(
+                "the value must be one line (it holds {:?}); give each key its own --set",
+                c
+            ),
+        ));
+    }
     Ok((key.to_string(), value.to_string()))
 }
 
@@ -120,5 +131,12 @@ mod tests {
         assert!(e.to_string().contains("drive.kp"), "{e}");
         let e = apply_all(&mut t, &["drive=3".into()]).unwrap_err();
         assert!(e.to_string().contains("drive"), "{e}");
+        // A value over two lines is refused, naming the key, not cut at the first line.
+        for bad in ["50\ndrive.velocity_damping = 3", "50\r\nx", "1\t2"] {
+            let e = apply_all(&mut t, &[format!("drive.velocity_bandwidth_rad_s={bad}")])
+                .unwrap_err();
+            assert!(e.to_string().contains("drive.velocity_bandwidth_rad_s"), "{e}");
+            assert!(e.to_string().contains("one line"), "{e}");
+        }
     }
 }
