@@ -20,8 +20,10 @@
 //! file's load through a shaft with lost motion (`crate::drive::coupling`), and `Identify`
 //! (`pil_link::board::identify`) runs a measurement as its own enable: the current-loop
 //! interrupt sets the rig's load torque on the virtual machine, runs the tick and records
-//! it (`crate::identify::Recorder`); thread mode streams the record and, after its last
-//! tick, puts the running settings back. There the velocity tick runs in the current-loop
+//! it (`crate::identify::Recorder`, a ring); thread mode streams the record while it is
+//! taken and, after its last tick, puts the running settings back. Should the link fall
+//! a whole ring behind, the run ends there, the stream says so and the fault history
+//! records a console-link fault: never a record with a gap. There the velocity tick runs in the current-loop
 //! interrupt, after every `current_rate_hz / velocity_rate_hz`-th current tick (TIMER1
 //! stays stopped): QEMU runs its timers on the host's clock, so two timers drift apart when
 //! it runs late, and an overdue current tick would run before a pended velocity tick; one
@@ -55,6 +57,8 @@ use crate::ring::ByteRing;
 use crate::rt::exit;
 use crate::trace::TraceState;
 
+#[cfg(feature = "board-qemu")]
+use crate::identify::StreamEnd;
 #[cfg(feature = "board-qemu")]
 use crate::rig::{Rig, RECORD};
 
@@ -137,6 +141,9 @@ struct BoardDrive<H> {
     /// Samples of the record sent (the STM32F4 image records none).
     #[cfg_attr(not(feature = "board-qemu"), allow(dead_code))]
     record_sent: u32,
+    /// A run's stream is not over yet.
+    #[cfg_attr(not(feature = "board-qemu"), allow(dead_code))]
+    record_open: bool,
 }
 
 impl<H: ConsoleBoard> BoardDrive<H> {
@@ -160,6 +167,17 @@ impl<H: ConsoleBoard> BoardDrive<H> {
         });
         #[cfg(feature = "board-qemu")]
         if self.restore.is_some() && !RECORD.active() {
+            if RECORD.overran() {
+                // The link fell a whole ring behind the record: the run stopped there.
+                self.history.push(FaultEntry {
+                    ms: now,
+                    code: LINK_FAULT_CODE,
+                });
+                defmt::warn!(
+                    "console: the link fell {=usize} samples behind the measurement: run ended",
+                    crate::identify::RECORD_CAPACITY
+                );
+            }
             self.end_run();
         }
     }
@@ -180,15 +198,28 @@ impl<H: ConsoleBoard> BoardDrive<H> {
         defmt::info!("console: measurement over, running settings back");
     }
 
-    /// Sends the record's samples written so far, up to eight frames a pass.
+    /// Sends the record's samples written so far, up to eight frames a pass; after the
+    /// last of a run cut short, the empty chunk that says so
+    /// (`pil_link::board::identify::is_cut_end`).
     #[cfg(feature = "board-qemu")]
     fn send_record(&mut self, seq: &mut u16) {
+        if !self.record_open {
+            return;
+        }
         for _ in 0..8 {
             let Some(chunk) = RECORD.chunk(self.record_sent) else {
-                return;
+                break;
             };
             self.record_sent = self.record_sent.wrapping_add(u32::from(chunk.len));
             self.send_chunk(&chunk, seq);
+        }
+        match RECORD.stream_end(self.record_sent) {
+            StreamEnd::Open => {}
+            StreamEnd::Whole => self.record_open = false,
+            StreamEnd::Cut(recorded) => {
+                self.send_chunk(&ScopeChunk::new(recorded), seq);
+                self.record_open = false;
+            }
         }
     }
 
@@ -356,6 +387,7 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
         })?;
         self.restore = Some(*running);
         self.record_sent = 0;
+        self.record_open = true;
         self.enabled = true;
         defmt::info!("console: measurement of {=u32} ticks", run.ticks);
         Ok(ScopeInfo {
@@ -471,6 +503,7 @@ pub fn run<H: ConsoleBoard>(mut hw: H) -> ! {
         channels: channel_names(&DEFAULT_TRACE),
         restore: None,
         record_sent: 0,
+        record_open: false,
     };
     let mut session = BoardSession::new(cfg, origin, crate::version(), crate::drive::NAME);
     board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);

@@ -2,10 +2,13 @@
 //! run on the board, its record collected from the `ScopeData` frames that follow the
 //! reply. The record must be whole: every tick, numbered from 0 without a gap, in the
 //! channels `pil_link::board::identify::CHANNELS`; a fault the board latched during the
-//! run (a new entry in its fault history) fails it.
+//! run (a new entry in its fault history) fails it. The board streams while it records
+//! and holds only what the link is behind; a run it ended early (its buffer overran on a
+//! slow link, or a `Disable`) ends the stream with a mark, and fails at once, saying why.
 
 use pil_link::board::client::{BoardClient, BoardError};
-use pil_link::board::identify::{IdentifyRun, CHANNELS};
+use pil_link::board::faults::LINK_FAULT_CODE;
+use pil_link::board::identify::{is_cut_end, IdentifyRun, CHANNELS};
 use pil_link::board::message::Request;
 use pil_link::board::scope::{ScopeChunk, ScopeInfo, SCOPE_CHANNELS};
 use pil_link::board::session::fault_name;
@@ -53,8 +56,13 @@ pub fn run_identify(client: &mut BoardClient<Stream>, run: &IdentifyRun) -> Resu
     let wanted = run.ticks as usize;
     let mut samples = Vec::with_capacity(wanted);
     let mut broken = false;
+    // The ticks of a run the board ended early.
+    let mut cut: Option<u32> = None;
     let body = client
         .request_with(&Request::Identify(*run), &mut |c| {
+            if is_cut_end(&c, run.ticks) {
+                cut = Some(c.first);
+            }
             broken |= !place(&mut samples, &c, wanted);
         })
         .map_err(link)?;
@@ -69,13 +77,34 @@ pub fn run_identify(client: &mut BoardClient<Stream>, run: &IdentifyRun) -> Resu
     let seconds = f64::from(run.ticks) / f64::from(rate_hz);
     let bar = sim_engine::progress::bar(wanted as u64, "identify (board)");
     let deadline = Instant::now() + Duration::from_secs_f64(4.0 * seconds + 10.0);
-    let received = client.scope_receive(deadline, &mut |c| {
-        broken |= !place(&mut samples, &c, wanted);
-        bar.set_position(samples.len() as u64);
-        !broken && samples.len() < wanted
-    });
+    let received = if cut.is_some() {
+        Ok(())
+    } else {
+        client.scope_receive(deadline, &mut |c| {
+            if is_cut_end(&c, run.ticks) {
+                cut = Some(c.first);
+            }
+            broken |= !place(&mut samples, &c, wanted);
+            bar.set_position(samples.len() as u64);
+            !broken && cut.is_none() && samples.len() < wanted
+        })
+    };
     bar.finish_and_clear();
     received.map_err(link)?;
+    if let Some(recorded) = cut {
+        let history = client.faults().map_err(link)?;
+        let overran = history.total() != faults_before
+            && history.entries().last().map(|e| e.code) == Some(LINK_FAULT_CODE);
+        let why = if overran {
+            "the console link fell behind the record and the board's buffer overran: a \
+             faster link, or fewer identify.prbs_periods"
+        } else {
+            "the drive was disabled or faulted"
+        };
+        return Err(HarnessError::Backend(format!(
+            "board identify: the board ended the run after {recorded} of {wanted} ticks: {why}"
+        )));
+    }
     if broken || samples.len() != wanted {
         return Err(HarnessError::Backend(format!(
             "board identify: the record has a gap ({} of {wanted} samples in order)",

@@ -14,7 +14,12 @@
 //!
 //! The reply is a [`ScopeInfo`](super::scope::ScopeInfo) (the current-loop rate, the
 //! channels [`CHANNELS`]); `ScopeData` frames follow with every recorded tick, numbered
-//! from 0 without a gap.
+//! from 0 without a gap, while the board records: the board holds only what the link is
+//! behind, so a run is as long as the link keeps up with it, not as long as the board's
+//! memory. A run that ends before its ticks (the board's buffer overran on a slow link,
+//! or a `Disable`) ends its stream with an empty chunk numbered with the ticks it
+//! recorded ([`is_cut_end`]); an overrun is in the board's fault history as a
+//! console-link fault.
 
 use crate::LinkError;
 use crate::wire::{Reader, Writer};
@@ -27,6 +32,13 @@ use controller_core::{AfbMode, ConfigError, DriveConfig};
 /// torque (current) reference, Q16.16 bits of per unit; the encoder counter as the drive
 /// read it (its counter width, wrapping).
 pub const CHANNELS: &str = "excitation_pu,current_pu,current_ref_pu,encoder_counts";
+
+/// Whether `chunk` is the mark of a run cut short: no samples, numbered below the run's
+/// `ticks` (the ticks recorded).
+#[must_use]
+pub fn is_cut_end(chunk: &super::scope::ScopeChunk, ticks: u32) -> bool {
+    chunk.len == 0 && chunk.first < ticks
+}
 
 /// The names an excitation error gives its fields.
 pub const EXCITATION_NAMES: ExcitationParams = ExcitationParams {
@@ -62,15 +74,8 @@ pub struct IdentifyRun {
 pub enum IdentifyError {
     /// The run's settings or excitation are refused (the error names the `identify.` key).
     Config(ConfigError),
-    /// More ticks than the board can record.
-    TooLong {
-        /// Ticks asked for.
-        ticks: u32,
-        /// The most the board records.
-        max: u32,
-        /// The run's PRBS period in ticks; `None` for the lost-motion test.
-        prbs_period_ticks: Option<u32>,
-    },
+    /// A run of zero ticks.
+    NoTicks,
     /// This board does not run measurements.
     Unsupported,
 }
@@ -79,25 +84,9 @@ impl core::fmt::Display for IdentifyError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Config(e) => write!(f, "identify: {e}"),
-            Self::TooLong {
-                ticks,
-                max,
-                prbs_period_ticks: Some(period),
-            } => write!(
+            Self::NoTicks => write!(
                 f,
-                "identify: {ticks} ticks asked, the board records at most {max}: \
-                 identify.prbs_periods at most {} with this identify.prbs_bits and \
-                 identify.prbs_hold_ticks",
-                max / (*period).max(1)
-            ),
-            Self::TooLong {
-                ticks,
-                max,
-                prbs_period_ticks: None,
-            } => write!(
-                f,
-                "identify: {ticks} ticks asked, the board records at most {max}: a shorter \
-                 identify.reversal_hold_s"
+                "identify: a run of 0 ticks (identify.prbs_periods, identify.reversal_hold_s)"
             ),
             Self::Unsupported => write!(f, "identify: this board does not run measurements"),
         }

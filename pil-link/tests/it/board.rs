@@ -12,9 +12,9 @@
 use crate::common::table1;
 use controller_core::{ConfigError, DriveConfig};
 use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
-use pil_link::board::identify::{CHANNELS, IdentifyError, IdentifyRun};
+use pil_link::board::identify::{CHANNELS, IdentifyError, IdentifyRun, is_cut_end};
 use pil_link::board::message::{Origin, Refusal, Reply, Request, get_f64};
-use pil_link::board::scope::ScopeInfo;
+use pil_link::board::scope::{ScopeChunk, ScopeInfo, ScopeSample};
 use pil_link::board::session::{BoardSession, Drive};
 use pil_link::board::store::{self, RECORD_LEN, SaveError, StoreError};
 use pil_link::wire::Writer;
@@ -553,7 +553,7 @@ fn identify_is_refused_while_enabled_faulted_or_out_of_range_naming_the_key() {
 }
 
 #[test]
-fn a_run_longer_than_the_record_names_the_key_that_sets_its_length() {
+fn a_run_of_the_host_s_default_length_is_asked_whole_and_a_cut_stream_is_marked() {
     // 13 bits held 1 tick: 8191 ticks a period.
     assert_eq!(RUN.prbs_period_ticks(), Some(8_191));
     let reversal = IdentifyRun {
@@ -562,34 +562,39 @@ fn a_run_longer_than_the_record_names_the_key_that_sets_its_length() {
         ..RUN
     };
     assert_eq!(reversal.prbs_period_ticks(), None);
-    let too_long = |run: &IdentifyRun, max| {
-        IdentifyError::TooLong {
-            ticks: run.ticks,
-            max,
-            prbs_period_ticks: run.prbs_period_ticks(),
-        }
-        .to_string()
+    // identify's default record, 32 periods: four times the board's 65,536-sample ring,
+    // which the board streams while it records.
+    let default_run = IdentifyRun {
+        prbs_periods: 32,
+        ticks: 32 * 8_191,
+        ..RUN
     };
-    let msg = too_long(&RUN, 10_000);
+    let (mut s, mut d) = (session(), MockDrive::default());
+    ask(&mut s, &mut d, &Request::Identify(default_run)).unwrap();
+    assert_eq!(d.identified.map(|(_, r)| r.ticks), Some(262_112));
+    // The request carries the length whole.
+    let mut w = Writer::new();
+    default_run.encode(&mut w).unwrap();
+    let mut r = pil_link::wire::Reader::new(FrameKind::BoardRequest, w.as_slice());
+    assert_eq!(IdentifyRun::decode(&mut r).unwrap(), default_run);
+    // An empty chunk below the run's ticks marks a run the board ended early, through
+    // the wire and back; a chunk with samples, or one at the end, does not.
+    let mut w = Writer::new();
+    ScopeChunk::new(70_000).encode(&mut w).unwrap();
+    let mark = ScopeChunk::decode(w.as_slice()).unwrap();
+    assert!(is_cut_end(&mark, default_run.ticks));
+    assert!(!is_cut_end(&mark, 70_000));
+    let mut with_sample = ScopeChunk::new(0);
+    with_sample.push(ScopeSample::default());
+    assert!(!is_cut_end(&with_sample, default_run.ticks));
+    // A run of no ticks names the keys that set its length, and fits a reply.
+    let msg = IdentifyError::NoTicks.to_string();
     assert!(
-        msg.contains("16382 ticks asked, the board records at most 10000")
-            && msg.contains("identify.prbs_periods at most 1 "),
+        msg.contains("identify.prbs_periods") && msg.contains("identify.reversal_hold_s"),
         "{msg}"
     );
-    let msg = too_long(&reversal, 10_000);
-    assert!(msg.contains("identify.reversal_hold_s"), "{msg}");
-    // Both fit a reply whole, with the widest numbers.
-    for run in [RUN, reversal] {
-        let msg = too_long(
-            &IdentifyRun {
-                ticks: u32::MAX,
-                ..run
-            },
-            u32::MAX,
-        );
-        // The reply's head is 3 bytes: version, op, refusal.
-        assert!(msg.len() + 3 <= MAX_PAYLOAD, "{} bytes: {msg}", msg.len());
-    }
+    // The reply's head is 3 bytes: version, op, refusal.
+    assert!(msg.len() + 3 <= MAX_PAYLOAD, "{} bytes: {msg}", msg.len());
     // The widest register saturates instead of overflowing.
     let wide = IdentifyRun {
         prbs_bits: 32,
