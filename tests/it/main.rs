@@ -15,4 +15,5 @@ mod elf_symbols;
 mod out_paths;
 mod same_gains;
 mod structure;
+mod user_keys;
 mod workflows;

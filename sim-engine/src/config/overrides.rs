@@ -133,9 +133,12 @@ mod tests {
         assert!(e.to_string().contains("drive"), "{e}");
         // A value over two lines is refused, naming the key, not cut at the first line.
         for bad in ["50\ndrive.velocity_damping = 3", "50\r\nx", "1\t2"] {
-            let e = apply_all(&mut t, &[format!("drive.velocity_bandwidth_rad_s={bad}")])
-                .unwrap_err();
-            assert!(e.to_string().contains("drive.velocity_bandwidth_rad_s"), "{e}");
+            let e =
+                apply_all(&mut t, &[format!("drive.velocity_bandwidth_rad_s={bad}")]).unwrap_err();
+            assert!(
+                e.to_string().contains("drive.velocity_bandwidth_rad_s"),
+                "{e}"
+            );
             assert!(e.to_string().contains("one line"), "{e}");
         }
     }
