@@ -46,7 +46,7 @@ mod write;
 use crate::identify::{self, lost_motion::identified_mechanics};
 use crate::tune::objective::better_first;
 use crate::tune::{self, Constraints};
-use controller_core::NotchConfig;
+use controller_core::{DriveConfig, NotchConfig};
 use notch::Decision;
 use sim_engine::config::{config_path, overrides, read_table, resolve, RunConfig};
 use sim_engine::error::{HarnessError, Result};
@@ -67,7 +67,126 @@ pub const CRITERION: &str = "the chosen design (of the two, the one stable witho
     drive in peak droop and peak shaft torque before one that is worse, then the lower \
     objective there, against the machine file's own drive on the machine) is stable without \
     a fault, within the budget, no worse than the file's own drive in peak droop and in peak \
-    shaft torque, and its objective on the machine is lower than the file's own drive's (3)";
+    shaft torque, and its objective on the machine is lower than the file's own drive's (3); \
+    worse means worse beyond the noise: a design is worse than the file's own drive in a \
+    figure only by more than that figure's run-to-run spread, measured as its range over the \
+    file's own drive run with the load step moved by each of STEP_OFFSETS_S";
+
+/// The offsets of the load step \[s\] at which the machine file's own drive runs `fig6` on
+/// the machine, to measure each figure's run-to-run spread (its range over them): every
+/// 20 ms within ±0.1 s of the scenario's step (0 is the scenario itself). With lost motion
+/// and a quantized encoder the machine at speed is never quite at rest, so the state a step
+/// meets depends on when it comes.
+pub const STEP_OFFSETS_S: [f64; 11] = [
+    -0.10, -0.08, -0.06, -0.04, -0.02, 0.0, 0.02, 0.04, 0.06, 0.08, 0.10,
+];
+
+/// The file's own drive's figures over the load step's timing ([`STEP_OFFSETS_S`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Spread {
+    /// The offsets of the load step \[s\].
+    pub offsets_s: Vec<f64>,
+    /// The figures of the file's own drive on the machine at each offset.
+    pub runs: Vec<tune::objective::Figures>,
+    /// The range (largest − smallest) of peak droop \[pu\], peak shaft torque \[pu\],
+    /// recovery time \[s\] and torque noise \[pu RMS\] over the offsets.
+    pub range: [f64; 4],
+}
+
+impl Spread {
+    /// Runs `fig6` (the machine file's own drive on the machine) at each offset.
+    fn measure(fig6: &RunConfig) -> Result<Self> {
+        use rayon::prelude::*;
+        let runs = STEP_OFFSETS_S
+            .par_iter()
+            .map(|&dt| tune::objective::Figures::run(&shifted(fig6.clone(), dt)))
+            .collect::<Result<Vec<_>>>()?;
+        let range = |f: &dyn Fn(&tune::objective::Figures) -> Option<f64>| {
+            let v: Vec<f64> = runs
+                .iter()
+                .filter_map(f)
+                .filter(|x| x.is_finite())
+                .collect();
+            let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+            if hi >= lo {
+                hi - lo
+            } else {
+                0.0
+            }
+        };
+        let range = [
+            range(&|f| f.peak_droop_pu),
+            range(&|f| f.peak_shaft_torque_pu),
+            range(&|f| f.recovery_s),
+            range(&|f| Some(f.torque_noise_rms_pu)),
+        ];
+        Ok(Self {
+            offsets_s: STEP_OFFSETS_S.to_vec(),
+            runs,
+            range,
+        })
+    }
+}
+
+/// `cfg` with its load steps `dt` later (and a profile that starts late, the explicit
+/// metric windows and the run's end with them).
+fn shifted(mut cfg: RunConfig, dt: f64) -> RunConfig {
+    let s = &mut cfg.scenario;
+    for l in &mut s.load {
+        l.t_s += dt;
+    }
+    if s.profile.start_s > 0.0 {
+        s.profile.start_s += dt;
+    }
+    for w in [
+        &mut s.metrics.ripple_window_s,
+        &mut s.metrics.overshoot_window_s,
+        &mut s.metrics.stable_window_s,
+    ]
+    .into_iter()
+    .flatten()
+    {
+        w.iter_mut().for_each(|t| *t += dt);
+    }
+    s.duration_s += dt;
+    cfg
+}
+
+/// A machine file `commission` wrote, with the drive it composes to.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct WrittenFile {
+    /// Its path below the output folder.
+    pub name: String,
+    /// The settings CRC of the drive it composes to, as the board logs it at boot
+    /// (`settings crc …`, 8 hex digits).
+    pub settings_crc: String,
+    /// The file, plant and drive, is the machine's and its drive ran there (section 3).
+    pub verified_on_machine: bool,
+    /// What it is.
+    pub what: String,
+}
+
+impl WrittenFile {
+    fn new(name: &str, drive: &DriveConfig, verified_on_machine: bool, what: String) -> Self {
+        Self {
+            name: name.into(),
+            settings_crc: format!("{:08x}", tune::output::settings_crc(drive)),
+            verified_on_machine,
+            what,
+        }
+    }
+}
+
+/// The machine file's own drive judged on the identified model by the linear constraints
+/// the designs must meet (as `tune` judges each candidate).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ReferenceDrive {
+    /// Its figures on the linear model of the identified machine.
+    pub judged: tune::Judged,
+    /// The constraints it fails, each with its figure and the bound (empty: it meets them).
+    pub fails: Vec<String>,
+}
 
 /// What `commission` found.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -98,35 +217,76 @@ pub struct Commissioning {
     /// the notch's part): the commissioning has no design, as when none meets the
     /// constraints on the model, and `drive.toml` is not written.
     pub no_design: bool,
+    /// The machine file's own drive on the identified model, by the linear constraints.
+    pub reference_drive: ReferenceDrive,
+    /// The run-to-run spread of the file's own drive's figures on the machine, over the
+    /// load step's timing: the noise a design must be worse by to count as worse.
+    pub spread: Spread,
+    /// The chosen design's gains without its AFB, on the machine (when it has AFB): what
+    /// the AFB itself adds on top of the bandwidth.
+    pub same_gains_without_afb: Option<OnMachine>,
+    /// Every machine file written, with its drive's settings CRC.
+    pub files: Vec<WrittenFile>,
 }
 
-/// `DIR/drive.toml` and `DIR/runner-up.toml`: the machine file `config` as given (with
-/// `sets` applied) with the chosen design's `[drive]`, and with the other kind's: what
-/// `run --config` and `flash --config` take on this machine.
-fn write_drives(
-    staging: &Staging,
+/// The files `commission` tells the user about: `drive.toml` and `runner-up.toml`, the
+/// machine file `config` as given (with `sets` applied) with the whole `[drive]` of the
+/// chosen design and of the other kind's ([`tune::output::drive_file`]): what `run
+/// --config` and `flash --config` take on this machine, composing to the drive verified
+/// there. Their names, texts and entries for `commission.md`.
+fn drive_files(
     machine: &Table,
-    base: &RunConfig,
+    config: &Path,
     pair: &tune::pair::Pair,
-) -> Result<()> {
+    passed: bool,
+) -> Result<Vec<(&'static str, String, WrittenFile)>> {
     let (chosen, other) = pair.chosen();
-    for (name, t, what) in [
-        ("drive.toml", chosen, "the chosen design's [drive]"),
+    let label = |t: &tune::Tuned| {
+        let c = &t.result.design.candidate;
+        format!("{} rad/s, {}", c.bandwidth_rad_s, c.afb.label())
+    };
+    let config = config.display();
+    let verdict = if passed {
+        "it passed there: the drive to flash (commission.md)"
+    } else {
+        "it did NOT pass there: do not flash it (commission.md)"
+    };
+    [
+        (
+            "drive.toml",
+            chosen,
+            format!(
+                "Verified on the machine: `hil-harness commission`: {config} as given with \
+                 the whole [drive] of the chosen design ({}); {verdict}.",
+                label(chosen)
+            ),
+            format!(
+                "the machine file with the chosen design ({})",
+                label(chosen)
+            ),
+        ),
         (
             "runner-up.toml",
             other,
-            "the [drive] of the best design of the other kind",
+            format!(
+                "Verified on the machine, not chosen: `hil-harness commission`: {config} as \
+                 given with the whole [drive] of the best design of the other kind ({}); \
+                 commission.md compares it with drive.toml.",
+                label(other)
+            ),
+            format!(
+                "the machine file with the best design of the other kind ({})",
+                label(other)
+            ),
         ),
-    ] {
-        let body = tune::output::merged_doc(machine.clone(), &base.drive, &t.tuned.drive)?;
-        let text = format!(
-            "# `hil-harness commission`: {} with {what} (commission.md says whether to \
-             flash it).\n{body}",
-            base.config_path.display()
-        );
-        staging.write(name, &text)?;
-    }
-    Ok(())
+    ]
+    .into_iter()
+    .map(|(name, t, header, what)| {
+        let drive = &t.tuned.drive;
+        let text = tune::output::drive_file(machine.clone(), drive, &header)?;
+        Ok((name, text, WrittenFile::new(name, drive, true, what)))
+    })
+    .collect()
 }
 
 /// The machine file `config` as given, with `sets` applied.
@@ -151,23 +311,26 @@ fn identified_doc(
     Ok(doc)
 }
 
-/// A machine file's text: the comment line `header`, then `doc`.
-fn render(name: &str, header: &str, doc: &Table) -> Result<String> {
+/// A model's machine file text (not verified on the machine): the comment line `header`,
+/// the settings CRC of its drive, then `doc`; and the drive it composes to.
+fn render(name: &str, header: &str, doc: &Table) -> Result<(String, DriveConfig)> {
     let body = toml::to_string(doc).map_err(|e| HarnessError::Backend(format!("{name}: {e}")))?;
-    Ok(format!("# `hil-harness commission`: {header}\n{body}"))
+    let (_, drive) = sim_engine::config::machine(doc.clone())?;
+    Ok((
+        format!(
+            "# NOT verified on the machine (a model only): `hil-harness commission`: {header}\n\
+             # settings crc {:08x}: the board logs it at boot for the drive it runs.\n{body}",
+            tune::output::settings_crc(&drive)
+        ),
+        drive,
+    ))
 }
 
-/// `doc` with `[drive.notch]` set to `notch`.
-fn with_notch(mut doc: Table, notch: &NotchConfig) -> Result<Table> {
-    let table =
-        Value::try_from(notch).map_err(|e| HarnessError::Backend(format!("notched.toml: {e}")))?;
-    if let Value::Table(d) = doc
-        .entry("drive")
-        .or_insert_with(|| Value::Table(Table::new()))
-    {
-        d.insert("notch".into(), table);
-    }
-    Ok(doc)
+/// `doc` with its whole `[drive]` stated, `[drive.notch]` set to `notch`; and that drive.
+fn with_notch(doc: Table, notch: &NotchConfig) -> Result<(Table, DriveConfig)> {
+    let (_, mut drive) = sim_engine::config::machine(doc.clone())?;
+    drive.notch = Some(*notch);
+    Ok((tune::output::with_drive(doc, &drive)?, drive))
 }
 
 /// The drive of the file it was tuned on (`identified.toml`, or `notched.toml` with a notch
@@ -197,14 +360,25 @@ fn on_machine(
     OnMachine::run(cfg, label, design)
 }
 
+/// What [`identify_into`] gives.
+struct Identified {
+    /// The machine as the identification ran it.
+    base: RunConfig,
+    ident: identify::Identification,
+    /// `identified.toml`'s tree, its staged path and its entry.
+    doc: Table,
+    path: String,
+    file: WrittenFile,
+}
+
 /// Identifies the machine into the staging directory: `identify/` and `identified.toml`
-/// (steps 1 and 2); returns the identification, the file's tree and its path.
+/// (steps 1 and 2).
 fn identify_into(
     staging: &Staging,
     config: &str,
     sets: &[String],
     machine: &Table,
-) -> Result<(RunConfig, identify::Identification, Table, String)> {
+) -> Result<Identified> {
     let (base, spec) = identify::load(config, sets)?;
     let ident = identify::identify_machine(&base, &spec)?;
     let id_md = staging.path("identify/identify.md")?;
@@ -216,12 +390,24 @@ fn identify_into(
     )?;
     let doc = identified_doc(machine.clone(), &base, &ident)?;
     let header = format!(
-        "{} with the [plant] table `identify` measured.",
+        "{} with the [plant] table `identify` measured: the model the designs are tuned on.",
         base.config_path.display()
     );
-    let text = render("identified.toml", &header, &doc)?;
+    let (text, drive) = render("identified.toml", &header, &doc)?;
     let path = staging.write("identified.toml", &text)?;
-    Ok((base, ident, doc, path.display().to_string()))
+    let file = WrittenFile::new(
+        "identified.toml",
+        &drive,
+        false,
+        "the machine file with the identified [plant] (the file's own [drive] on it)".into(),
+    );
+    Ok(Identified {
+        base,
+        ident,
+        doc,
+        path: path.display().to_string(),
+        file,
+    })
 }
 
 /// Designs of each kind tried on the machine: the first this many that the model ranks
@@ -387,29 +573,95 @@ const STAGES: [&str; 5] = ["identify", "judge", "tune", "on the machine", "write
 
 /// The notch decision ([`notch::decide`]) on the identified file and the file both designs
 /// are tuned on: `identified.toml` with the candidates already judged on it, or with a notch
-/// placed `notched.toml` (written) and nothing judged yet.
+/// placed `notched.toml` (written, its entry given) and nothing judged yet.
 fn place_notch(
     staging: &Staging,
-    ident: &identify::Identification,
-    identified: String,
-    doc: Table,
+    id: &Identified,
     judged: Vec<tune::Judged>,
     constraints: &Constraints,
-) -> Result<(Decision, String, &'static str, Option<Vec<tune::Judged>>)> {
-    let fig6 = resolve("fig6", Some(&identified), &[])?;
-    let decision = notch::decide(&fig6, ident.fit.fit.resonance_hz(), &judged, constraints)?;
+) -> Result<Placed> {
+    let fig6 = resolve("fig6", Some(&id.path), &[])?;
+    let decision = notch::decide(&fig6, id.ident.fit.fit.resonance_hz(), &judged, constraints)?;
     Ok(match &decision.notch {
-        None => (decision, identified, "identified.toml", Some(judged)),
+        None => Placed {
+            decision,
+            tuned_on: id.path.clone(),
+            name: "identified.toml",
+            judged: Some(judged),
+            file: None,
+        },
         Some(n) => {
             let header = format!(
-                "identified.toml with the notch commission placed ({}).",
+                "identified.toml with the notch commission placed ({}); every [drive] key \
+                 stated.",
                 decision.reason
             );
-            let text = render("notched.toml", &header, &with_notch(doc, n)?)?;
+            let (doc, drive) = with_notch(id.doc.clone(), n)?;
+            let text = tune::output::drive_file(
+                doc,
+                &drive,
+                &format!("NOT verified on the machine (a model only): `hil-harness commission`: {header}"),
+            )?;
             let path = staging.write("notched.toml", &text)?.display().to_string();
-            (decision, path, "notched.toml", None)
+            let file = WrittenFile::new(
+                "notched.toml",
+                &drive,
+                false,
+                "identified.toml with the notch placed: the model the designs are tuned on".into(),
+            );
+            Placed {
+                decision,
+                tuned_on: path,
+                name: "notched.toml",
+                judged: None,
+                file: Some(file),
+            }
         }
     })
+}
+
+/// What [`place_notch`] decided and where the designs are tuned.
+struct Placed {
+    decision: Decision,
+    /// The file tuned on (staged path) and its name in the output folder.
+    tuned_on: String,
+    name: &'static str,
+    /// The candidates judged on it already (without a notch).
+    judged: Option<Vec<tune::Judged>>,
+    /// `notched.toml`'s entry, when written.
+    file: Option<WrittenFile>,
+}
+
+/// `commission`'s copies of `tune`'s drive files in `DIR/tune/`: the identified model with
+/// each design, named so as not to be taken for the drive to flash.
+pub const MODEL_FILES: tune::PairFiles = tune::PairFiles {
+    chosen: "model-chosen.toml",
+    runner_up: "model-runner-up.toml",
+    model_only: true,
+};
+
+/// The machine file's own drive (`own`) on the identified model the designs were tuned on
+/// (`tuned_on`), judged by `constraints` as each candidate is.
+fn judge_reference(
+    own: &RunConfig,
+    tuned_on: &str,
+    constraints: &Constraints,
+) -> Result<ReferenceDrive> {
+    let mut cfg = resolve("fig6", Some(tuned_on), &[])?;
+    cfg.drive = own.drive;
+    let judged = tune::judge_drive(&cfg, constraints)?;
+    let mut fails: Vec<String> = no_design::misses(&judged, constraints)
+        .into_iter()
+        .map(|(s, _)| s)
+        .collect();
+    if fails.is_empty() && !judged.feasible {
+        fails.push(
+            "damping near the machine's resonance below the machine's own (tune's band \
+             rule)"
+                .into(),
+        );
+    }
+    Ok(ReferenceDrive { judged, fails })
 }
 
 fn run_stages(
@@ -426,15 +678,19 @@ fn run_stages(
     let machine = machine_doc(config, sets)?;
     let staging = Staging::new(out)?;
     stage(0);
-    let (base, ident, doc, identified) = identify_into(&staging, config, sets, &machine)?;
+    let id = identify_into(&staging, config, sets, &machine)?;
     stage(1);
-    let judged = tune::judge_grid(&identified, &tune::candidates(&grid, &bws), constraints)?;
+    let judged = tune::judge_grid(&id.path, &tune::candidates(&grid, &bws), constraints)?;
     let all_judged = judged.clone();
-    let (decision, tuned_on, name, judged) =
-        place_notch(&staging, &ident, identified, doc, judged, constraints)?;
+    let placed = place_notch(&staging, &id, judged, constraints)?;
+    let (base, ident) = (&id.base, &id.ident);
     stage(2);
-    let pair = match tune::pair::design_both_from(&tuned_on, judged, target_bandwidth, constraints)
-    {
+    let pair = match tune::pair::design_both_from(
+        &placed.tuned_on,
+        placed.judged.clone(),
+        target_bandwidth,
+        constraints,
+    ) {
         Ok(p) => p,
         Err(HarnessError::NoDesign(reason)) => {
             // The reason names the file tuned on where it is staged; the user finds it
@@ -461,28 +717,44 @@ fn run_stages(
         Err(e) => return Err(e),
     };
     let mut pair = pair;
-    let m = verification_base(config, sets, &tuned_on)?;
-    let reference = tune::objective::Reference::of(
-        &resolve("fig6", Some(config), sets)?,
-        constraints.max_torque_noise_pu,
-    )?;
+    let m = verification_base(config, sets, &placed.tuned_on)?;
+    let own = resolve("fig6", Some(config), sets)?;
+    let spread = Spread::measure(&own)?;
+    let [droop_spread, shaft_spread, ..] = spread.range;
+    let reference = tune::objective::Reference::of(&own, constraints.max_torque_noise_pu)?
+        .with_spread([droop_spread, shaft_spread]);
+    let reference_drive = judge_reference(&own, &placed.tuned_on, constraints)?;
     stage(3);
-    let tried = try_on_machine(&m, &tuned_on, &mut pair, &reference, constraints)?;
-    pair.with.result.config = name.into();
-    pair.without.result.config = name.into();
+    let tried = try_on_machine(&m, &placed.tuned_on, &mut pair, &reference, constraints)?;
+    pair.with.result.config = placed.name.into();
+    pair.without.result.config = placed.name.into();
     let (runs, objective) = both_on_machine(&m, &mut pair, &reference, &tried)?;
     let tune_md = staging.path("tune/tune.md")?;
-    tune::write_pair(tune_md.parent().unwrap_or(staging.dir()), &pair)?;
+    tune::write_pair_as(
+        tune_md.parent().unwrap_or(staging.dir()),
+        &pair,
+        &MODEL_FILES,
+    )?;
     let afb = pair.afb_chosen();
-    let (chosen_tuned, _) = pair.chosen();
-    let without_notch = match decision.notch {
+    let (chosen_tuned, other_tuned) = pair.chosen();
+    let chosen_design = &chosen_tuned.result.design.candidate;
+    let without_notch = match placed.decision.notch {
         Some(_) => Some(on_machine(
             &m,
             "chosen, notch taken out",
-            &chosen_tuned.result.design.candidate,
+            chosen_design,
             true,
         )?),
         None => None,
+    };
+    let same_gains_without_afb = if afb {
+        Some(OnMachine::run_same_gains_without_afb(
+            m.clone(),
+            "chosen, same gains without AFB",
+            chosen_design,
+        )?)
+    } else {
+        None
     };
     let c_run = if afb { &runs[0] } else { &runs[1] };
     let c_j = if afb { objective[0] } else { objective[1] };
@@ -492,6 +764,31 @@ fn run_stages(
         && without_notch
             .as_ref()
             .is_none_or(|n| c_run.shaft_torque_ripple_rms_pu < n.shaft_torque_ripple_rms_pu);
+    let no_design = !beats_the_file;
+    // Every machine file written, in the order commission.md lists them.
+    let mut files = vec![id.file.clone()];
+    files.extend(placed.file.clone());
+    for (name, t, what) in [
+        (MODEL_FILES.chosen, chosen_tuned, "the chosen design"),
+        (
+            MODEL_FILES.runner_up,
+            other_tuned,
+            "the best design of the other kind",
+        ),
+    ] {
+        files.push(WrittenFile::new(
+            &format!("tune/{name}"),
+            &t.tuned.drive,
+            false,
+            format!("the identified model ({}) with {what}", placed.name),
+        ));
+    }
+    let drives = if no_design {
+        Vec::new()
+    } else {
+        drive_files(&machine, &base.config_path, &pair, passed)?
+    };
+    files.extend(drives.iter().map(|(_, _, f)| f.clone()));
     let c = Commissioning {
         config: base.config_path.display().to_string(),
         tried,
@@ -499,15 +796,19 @@ fn run_stages(
         chosen: if afb { "with AFB" } else { "without AFB" },
         reference,
         objective,
-        notch: decision,
+        notch: placed.decision,
         without_notch,
         passed,
-        no_design: !beats_the_file,
+        no_design,
+        reference_drive,
+        spread,
+        same_gains_without_afb,
+        files,
     };
     stage(4);
-    write::write_all(&staging, &c, &base, &ident, &pair)?;
-    if !c.no_design {
-        write_drives(&staging, &machine, &base, &pair)?;
+    write::write_all(&staging, &c, base, ident, &pair)?;
+    for (name, text, _) in &drives {
+        staging.write(name, text)?;
     }
     staging.commit()?;
     finish(&c, &pair, out)

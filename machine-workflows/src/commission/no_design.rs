@@ -6,7 +6,7 @@ use crate::tune::{Constraints, Judged};
 use std::fmt::Write as _;
 
 /// How far `j` misses each constraint of `k`: (constraint, have, need), relative shortfall.
-fn misses(j: &Judged, k: &Constraints) -> Vec<(String, f64)> {
+pub(super) fn misses(j: &Judged, k: &Constraints) -> Vec<(String, f64)> {
     let mut out = Vec::new();
     let mut check = |name: &str, have: f64, need: f64, at_least: bool| {
         let short = if at_least {
@@ -14,7 +14,7 @@ fn misses(j: &Judged, k: &Constraints) -> Vec<(String, f64)> {
         } else {
             (have - need) / need.abs().max(1e-12)
         };
-        if short > 0.0 || !have.is_finite() {
+        if short > 0.0 || have.is_nan() {
             let cmp = if at_least { "≥" } else { "≤" };
             out.push((format!("{name} {have:.3} (needs {cmp} {need})"), short));
         }

@@ -46,13 +46,8 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
          Chosen {} (J {:.3} on the identified model; {} J {:.3}; the file's own drive \
          3) by the objective on the machine, where both designs ran (section 3): {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin \
          {:.1} deg, gain margin {:.1} dB, quantization torque noise {:.3} pu RMS. \
-         `drive.toml` is the machine file as given with that drive and `runner-up.toml` \
-         with the other (`tune/drive.toml` and `tune/runner-up.toml`: the same drives in the \
-         identified machine file).\n\n\
-         ## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
-         {}\n\n\
-         | {} J on the machine | peak droop (pu) | peak shaft torque (pu) | recovery (s) | \
-         torque noise (pu RMS) |\n|{}---|---|---|---|---|\n",
+         {} The files written, each with the settings CRC of its drive, are listed in \
+         section 4.\n\n",
         notch_text(c),
         c.chosen,
         chosen.result.score.objective,
@@ -73,27 +68,238 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
         d.margins[0],
         d.margins[1],
         d.noise_pu,
+        if c.no_design {
+            format!(
+                "The designs as tuned are in `tune/{}` and `tune/{}`: the identified model \
+                 with each drive, not verified on the machine as files.",
+                super::MODEL_FILES.chosen,
+                super::MODEL_FILES.runner_up
+            )
+        } else {
+            format!(
+                "`drive.toml` is the machine file as given with that drive and \
+                 `runner-up.toml` with the other, each with every `[drive]` key stated \
+                 (`tune/{}` and `tune/{}`: the same drives in the identified model, not \
+                 verified on the machine as files).",
+                super::MODEL_FILES.chosen,
+                super::MODEL_FILES.runner_up
+            )
+        },
+    );
+    reference_drive(&mut md, c, pair);
+    let _ = write!(
+        md,
+        "\n## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
+         {}\n\n\
+         | {} J on the machine | peak droop (pu) | peak shaft torque (pu) | recovery (s) | \
+         torque noise (pu RMS) | torque noise / the file's drive's |\n|{}---|---|---|---|---|---|\n",
         c.reference.describe(),
         super::OnMachine::HEADER,
         super::OnMachine::RULE,
     );
     let f = |x: Option<f64>| x.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
-    for r in c.runs.iter().chain(&c.without_notch) {
+    let own_noise = c.reference.default_drive.torque_noise_rms_pu;
+    for r in c
+        .runs
+        .iter()
+        .chain(&c.without_notch)
+        .chain(&c.same_gains_without_afb)
+    {
         let g = &r.figures;
         let _ = writeln!(
             md,
-            "|{} {:.3} | {} | {} | {} | {:.4} |",
+            "|{} {:.3} | {} | {} | {} | {:.4} | {} |",
             r.row(),
             c.reference.objective(g),
+            f(g.peak_droop_pu),
+            f(g.peak_shaft_torque_pu),
+            f(g.recovery_s),
+            g.torque_noise_rms_pu,
+            ratio(g.torque_noise_rms_pu, own_noise)
+        );
+    }
+    spread_table(&mut md, c);
+    credit(&mut md, c, pair);
+    tried_table(&mut md, c);
+    verdict(&mut md, c, pair);
+    files_table(&mut md, c);
+    md
+}
+
+/// `x / of` as "8.5×", or "-" when `of` is not a positive number.
+fn ratio(x: f64, of: f64) -> String {
+    if of > 0.0 && x.is_finite() {
+        format!("{:.2}×", x / of)
+    } else {
+        "-".into()
+    }
+}
+
+/// The machine file's own drive beside the two designs on the identified model, by the
+/// linear constraints the designs must meet.
+fn reference_drive(md: &mut String, c: &Commissioning, pair: &Pair) {
+    let k = &pair.with.result.constraints;
+    let _ = write!(
+        md,
+        "### The machine file's own drive, judged as the designs are\n\nOn the linear model \
+         of the identified machine, by the constraints every design must meet (smallest \
+         damping ≥ {}, phase margin ≥ {} deg, gain margin ≥ {} dB, quantization torque \
+         noise ≤ {} pu RMS):\n\n| drive | bandwidth (rad/s) | AFB | damping engaged | \
+         damping apart | phase margin (deg) | gain margin (dB) | quantization noise (pu RMS) \
+         | meets the constraints |\n|---|---|---|---|---|---|---|---|---|\n",
+        k.min_damping, k.min_phase_margin_deg, k.min_gain_margin_db, k.max_noise_pu
+    );
+    let (chosen, other) = pair.chosen();
+    let r = &c.reference_drive;
+    for (name, j, meets) in [
+        ("the file's own `[drive]`", &r.judged, r.fails.is_empty()),
+        (
+            "chosen",
+            &chosen.result.design,
+            chosen.result.design.feasible,
+        ),
+        (
+            "runner-up",
+            &other.result.design,
+            other.result.design.feasible,
+        ),
+    ] {
+        let apart = if j.damping[1].is_finite() {
+            format!("{:.3}", j.damping[1])
+        } else {
+            "(no lost motion)".into()
+        };
+        let _ = writeln!(
+            md,
+            "| {name} | {} | {} | {:.3} | {apart} | {:.1} | {:.1} | {:.4} | {} |",
+            j.candidate.bandwidth_rad_s,
+            j.candidate.afb.label(),
+            j.damping[0],
+            j.margins[0],
+            j.margins[1],
+            j.noise_pu,
+            if meets { "yes" } else { "no" }
+        );
+    }
+    if r.fails.is_empty() {
+        let _ = writeln!(
+            md,
+            "\nThe file's own drive meets the constraints the designs must meet."
+        );
+    } else {
+        let _ = writeln!(
+            md,
+            "\n**The file's own drive fails the constraints the designs must meet**: {}. \
+             It stays the reference of the objective (J = 3) all the same.",
+            r.fails.join("; ")
+        );
+    }
+}
+
+/// The file's own drive over the load step's timing: each figure's spread, the noise a
+/// design must be worse by to count as worse.
+fn spread_table(md: &mut String, c: &Commissioning) {
+    let f = |x: Option<f64>| x.map_or_else(|| "-".into(), |v| format!("{v:.4}"));
+    let [d, s, r, n] = c.spread.range;
+    let _ = write!(
+        md,
+        "\n### Worse means worse beyond the noise\n\nThe file's own drive ran `fig6` on the \
+         machine with the load step moved by each offset below. A design counts as worse than \
+         the file's own drive in peak droop or peak shaft torque only by more than that \
+         figure's spread (its range over these runs), a rule fixed before any run.\n\n\
+         | load step offset (s) | peak droop (pu) | peak shaft torque (pu) | recovery (s) | \
+         torque noise (pu RMS) |\n|---|---|---|---|---|\n"
+    );
+    for (dt, g) in c.spread.offsets_s.iter().zip(&c.spread.runs) {
+        let _ = writeln!(
+            md,
+            "| {dt:+.2} | {} | {} | {} | {:.4} |",
             f(g.peak_droop_pu),
             f(g.peak_shaft_torque_pu),
             f(g.recovery_s),
             g.torque_noise_rms_pu
         );
     }
-    tried_table(&mut md, c);
-    verdict(&mut md, c, pair);
-    md
+    let _ = writeln!(
+        md,
+        "| **spread** | **{d:.4}** | **{s:.4}** | {r:.4} | {n:.4} |"
+    );
+}
+
+/// What AFB itself adds to the chosen design, and what its torque noise costs.
+fn credit(md: &mut String, c: &Commissioning, pair: &Pair) {
+    let (chosen, _) = pair.chosen();
+    let bw = chosen.result.design.candidate.bandwidth_rad_s;
+    let own_bw = c.reference_drive.judged.candidate.bandwidth_rad_s;
+    let j = |r: &super::OnMachine| c.reference.objective(&r.figures);
+    let c_run = if pair.afb_chosen() {
+        &c.runs[0]
+    } else {
+        &c.runs[1]
+    };
+    let _ = write!(md, "\n### Credit and price\n\n");
+    match &c.same_gains_without_afb {
+        Some(n) => {
+            let (ja, jn) = (j(c_run), j(n));
+            let _ = writeln!(
+                md,
+                "**Credit.** The chosen design with its AFB turned off at the same gains \
+                 (last row above): J {jn:.3} against {ja:.3} with AFB. AFB itself lowers J by \
+                 {:.3}; the rest of the design's gain over the file's own drive (J 3 → \
+                 {jn:.3}) is its bandwidth's and estimator's ({bw} rad/s against the file's \
+                 {own_bw} rad/s).",
+                jn - ja
+            );
+        }
+        None => {
+            let _ = writeln!(
+                md,
+                "**Credit.** The chosen design has no AFB: all of its gain over the file's own \
+                 drive (J 3 → {:.3}) is its bandwidth's and estimator's ({bw} rad/s against \
+                 the file's {own_bw} rad/s).",
+                j(c_run)
+            );
+        }
+    }
+    let own = c.reference.default_drive.torque_noise_rms_pu;
+    let _ = writeln!(
+        md,
+        "\n**Price.** Its torque noise on the machine: {:.4} pu RMS, {} the file's own \
+         drive's {own:.4} pu (budget {:.4} pu).",
+        c_run.figures.torque_noise_rms_pu,
+        ratio(c_run.figures.torque_noise_rms_pu, own),
+        c.reference.max_torque_noise_pu
+    );
+}
+
+/// Every machine file written, with its drive's settings CRC.
+fn files_table(md: &mut String, c: &Commissioning) {
+    let _ = write!(
+        md,
+        "\n## 4. Files\n\nEach machine file written, with the settings CRC of the drive it \
+         composes to (the board logs `settings crc …` at boot for the drive it runs, so a \
+         user can check what runs). Every drive file states every `[drive]` key. {}\n\n\
+         | file | settings crc | verified on the machine | what |\n|---|---|---|---|\n",
+        if c.passed {
+            "The one to flash is `drive.toml`."
+        } else {
+            "None of them is to be flashed: the commissioning did not pass."
+        }
+    );
+    for f in &c.files {
+        let _ = writeln!(
+            md,
+            "| `{}` | `{}` | {} | {} |",
+            f.name,
+            f.settings_crc,
+            if f.verified_on_machine {
+                "yes"
+            } else {
+                "no (a model only)"
+            },
+            f.what
+        );
+    }
 }
 
 /// The designs tried on the machine: the identified model's prediction beside the machine.
@@ -176,7 +382,7 @@ fn notch_text(c: &Commissioning) -> String {
             s,
             "\n`[drive.notch]`: centre {:.2} Hz, width {:.2} Hz, depth {:.1} dB \
              ([notched.toml](notched.toml); both designs below are tuned on it, and \
-             `tune/drive.toml` carries it). On the machine, the chosen design is also run \
+             `tune/model-chosen.toml` carries it). On the machine, the chosen design is also run \
              with the notch taken out (last row below).\n",
             n.centre_hz, n.width_hz, n.depth_db
         );
@@ -251,8 +457,8 @@ fn verdict(md: &mut String, c: &Commissioning, pair: &Pair) {
              --config DIR/drive.toml`)."
         } else if c.no_design {
             "None of the designs tried beats the machine file's own drive on the machine \
-             (table above): keep that drive. No `drive.toml` is written; `tune/` holds the \
-             designs as tuned on the identified model."
+             (table above): keep that drive. No drive file for the machine is written; \
+             `tune/` holds the designs as tuned on the identified model, models only."
         } else {
             "`drive.toml` did not pass on the machine: do not flash it."
         }

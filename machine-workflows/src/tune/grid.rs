@@ -18,6 +18,23 @@ pub struct Candidate {
 }
 
 impl Candidate {
+    /// The candidate `drive` is: its velocity bandwidth and its AFB design (the observer at
+    /// its own bandwidth).
+    #[must_use]
+    pub fn of(drive: &DriveConfig) -> Self {
+        let afb = &drive.accel_feedback;
+        Self {
+            bandwidth_rad_s: f64::from(drive.velocity_bandwidth_rad_s),
+            afb: AfbDesign {
+                mode: afb.mode,
+                gain_fraction: afb.gain_fraction,
+                filter: afb.filter,
+                source: afb.source,
+                observer_hz: drive.observer.bandwidth_hz,
+            },
+        }
+    }
+
     /// Sets this candidate's fields in `drive` (the velocity PI sized for J_total).
     pub fn apply(&self, drive: &mut DriveConfig) {
         drive.velocity_bandwidth_rad_s = self.bandwidth_rad_s as f32;

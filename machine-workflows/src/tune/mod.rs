@@ -120,19 +120,30 @@ pub struct Judged {
 fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
     let mut cfg = fig6.clone();
     c.apply(&mut cfg.drive);
+    judge_as(&cfg, *c, k)
+}
+
+/// `cfg`'s drive as it is, judged on the linear model of `cfg` by the constraints `k` as
+/// every candidate is (module docs, step 1): e.g. a machine file's own drive, to be set
+/// beside the designs. Its [`Judged::candidate`] is the drive's velocity bandwidth and AFB.
+pub fn judge_drive(cfg: &RunConfig, k: &Constraints) -> Result<Judged> {
+    judge_as(cfg, Candidate::of(&cfg.drive), k)
+}
+
+fn judge_as(cfg: &RunConfig, c: Candidate, k: &Constraints) -> Result<Judged> {
     // The one design of this candidate; both contact states are modelled from it.
-    let gains = regulator_gains(&cfg)?;
-    let engaged = for_gains(&cfg, &gains, Gears::Engaged)?;
-    let (engaged_damping, mut in_band) = damping_of(&cfg, &engaged);
-    let apart = if has_lost_motion(&cfg) {
-        let (d, b) = damping_of(&cfg, &for_gains(&cfg, &gains, Gears::Apart)?);
+    let gains = regulator_gains(cfg)?;
+    let engaged = for_gains(cfg, &gains, Gears::Engaged)?;
+    let (engaged_damping, mut in_band) = damping_of(cfg, &engaged);
+    let apart = if has_lost_motion(cfg) {
+        let (d, b) = damping_of(cfg, &for_gains(cfg, &gains, Gears::Apart)?);
         in_band = in_band.zip(b).map(|(x, y)| x.min(y));
         d
     } else {
         f64::INFINITY
     };
     // Without a notch, the poles near the machine's resonance are held to its own damping.
-    let (engaged_damping, resonance_band_damping) = match resonance_band(&cfg, k.min_damping) {
+    let (engaged_damping, resonance_band_damping) = match resonance_band(cfg, k.min_damping) {
         Some(band) => {
             let (outside, inside) = engaged.smallest_damping_split(band);
             (outside, Some(inside))
@@ -140,7 +151,7 @@ fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
         None => (engaged_damping, None),
     };
     let damping = [engaged_damping, apart];
-    let band_floor = NOTCH_BAND_DAMPING_SHARE * machine_resonance_damping(&cfg);
+    let band_floor = NOTCH_BAND_DAMPING_SHARE * machine_resonance_damping(cfg);
     let m = engaged.margins(Break::VelocityRegulator);
     let noise_pu = engaged.quantization_torque_rms();
     let w = c.bandwidth_rad_s / (2.0 * std::f64::consts::PI);
@@ -151,12 +162,12 @@ fn judge(fig6: &RunConfig, c: &Candidate, k: &Constraints) -> Result<Judged> {
         .fold(f64::INFINITY, f64::min);
     let feasible = damping.iter().all(|d| *d >= k.min_damping)
         && in_band.is_none_or(|d| d >= band_floor)
-        && resonance_band_damping.is_none_or(|d| d >= machine_resonance_damping(&cfg))
+        && resonance_band_damping.is_none_or(|d| d >= machine_resonance_damping(cfg))
         && m.phase_margin_deg >= k.min_phase_margin_deg
         && m.gain_margin_db >= k.min_gain_margin_db
         && noise_pu <= k.max_noise_pu;
     Ok(Judged {
-        candidate: *c,
+        candidate: c,
         damping,
         notch_band_damping: in_band,
         resonance_band_damping,
@@ -397,14 +408,16 @@ pub fn design_from(config: &str, judged: Vec<Judged>, constraints: &Constraints)
 
 /// Writes the design's files into `dir` (module docs, and [`write_files`]).
 pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
-    write_design_with(dir, t, "", serde_json::to_string_pretty)
+    write_design_with(dir, t, "", &TUNE_FILES, serde_json::to_string_pretty)
 }
 
-/// [`write_design`], with `extra` appended to `tune.md` and `tune.json` from `json`.
+/// [`write_design`], with `extra` appended to `tune.md`, the chosen drive file named and
+/// headed by `names`, and `tune.json` from `json`.
 fn write_design_with(
     dir: &Path,
     t: &Tuned,
     extra: &str,
+    names: &PairFiles,
     json: impl Fn(&TuneResult) -> serde_json::Result<String>,
 ) -> Result<()> {
     let gains = regulator_gains(&t.tuned)?;
@@ -420,6 +433,7 @@ fn write_design_with(
         extra,
         base: &t.base,
         tuned: &t.tuned,
+        names,
     };
     write_files(dir, &t.result, &files, &engaged, apart.as_ref())
 }
@@ -430,6 +444,65 @@ struct Files<'a> {
     extra: &'a str,
     base: &'a RunConfig,
     tuned: &'a RunConfig,
+    names: &'a PairFiles,
+}
+
+/// The names of the two drive files of a pair, and what they are.
+#[derive(Clone, Copy, Debug)]
+pub struct PairFiles {
+    /// The chosen design's file.
+    pub chosen: &'static str,
+    /// The runner-up's (the best design of the other kind).
+    pub runner_up: &'static str,
+    /// Written inside `commission`'s folder on the identified model: the files are the
+    /// model with the designs, not verified on the machine (`commission` writes the
+    /// machine file with each drive beside them).
+    pub model_only: bool,
+}
+
+/// `tune`'s own drive files: verified in the nonlinear loop on the file tuned.
+pub const TUNE_FILES: PairFiles = PairFiles {
+    chosen: "drive.toml",
+    runner_up: "runner-up.toml",
+    model_only: false,
+};
+
+impl PairFiles {
+    /// The first lines of the drive file of the design `c` tuned on `config`: the chosen
+    /// design (`chosen`) or the runner-up.
+    #[must_use]
+    pub fn header(&self, config: &Path, c: &Candidate, chosen: bool) -> String {
+        let what = format!(
+            "the whole [drive] of {} ({} rad/s, {})",
+            if chosen {
+                "the chosen design"
+            } else {
+                "the best design of the other kind"
+            },
+            c.bandwidth_rad_s,
+            c.afb.label()
+        );
+        let config = config.display();
+        if self.model_only {
+            format!(
+                "NOT verified on the machine (a model only): `hil-harness commission`'s model of \
+                 the machine, {config}, with {what}.\nThe machine file with this drive, and \
+                 whether it passed on the machine, are in the folder above (commission.md); \
+                 flash nothing from here."
+            )
+        } else {
+            let over = if chosen {
+                String::new()
+            } else {
+                format!("; tune chose {} over it", self.chosen)
+            };
+            format!(
+                "`hil-harness tune`: {config} with {what}, verified in the nonlinear loop on \
+                 this file's plant (fig6, shock, sweep; tune.md{over}).\nEvery [drive] key is \
+                 stated: the file's own [drive] is replaced, not merged."
+            )
+        }
+    }
 }
 
 /// The one-line summary of a design.
@@ -527,10 +600,15 @@ struct PairJson<'a> {
 /// both designs by the objective) and `tune.json`, `drive.toml` (the machine file with the
 /// chosen drive) and `runner-up.toml` (with the other kind's).
 pub fn write_pair(dir: &Path, p: &pair::Pair) -> Result<()> {
+    write_pair_as(dir, p, &TUNE_FILES)
+}
+
+/// [`write_pair`], the two drive files named and headed by `names`.
+pub fn write_pair_as(dir: &Path, p: &pair::Pair, names: &PairFiles) -> Result<()> {
     let (chosen, other) = p.chosen();
     let cmp = output::Comparison::of(p);
-    let text = output::comparison_markdown(p, &cmp);
-    write_design_with(dir, chosen, &text, |r| {
+    let text = output::comparison_markdown(p, &cmp, names);
+    write_design_with(dir, chosen, &text, names, |r| {
         serde_json::to_string_pretty(&PairJson {
             chosen: r,
             chosen_kind: cmp.chosen,
@@ -538,17 +616,21 @@ pub fn write_pair(dir: &Path, p: &pair::Pair) -> Result<()> {
             runner_up: &other.result,
         })
     })?;
-    let path = dir.join("runner-up.toml");
-    let text = output::merged_config(
-        &other.base.config_path,
-        &other.base.drive,
+    let path = dir.join(names.runner_up);
+    let text = output::drive_file(
+        sim_engine::config::read_table(&other.base.config_path)?,
         &other.tuned.drive,
+        &names.header(
+            &other.base.config_path,
+            &other.result.design.candidate,
+            false,
+        ),
     )?;
     std::fs::write(&path, text).map_err(|e| HarnessError::io(&path, e))
 }
 
-/// The figures, `drive.toml` (the machine file with the tuned drive), `tune.md` and
-/// `tune.json` into `dir`.
+/// The figures, the chosen drive file (the machine file with the tuned drive, every
+/// `[drive]` key stated), `tune.md` and `tune.json` into `dir`.
 fn write_files(
     dir: &Path,
     result: &TuneResult,
@@ -566,8 +648,13 @@ fn write_files(
             output::markdown(result, &drive, &images) + f.extra,
         ),
         (
-            "drive.toml",
-            output::merged_config(&base.config_path, &base.drive, &tuned.drive)?,
+            f.names.chosen,
+            output::drive_file(
+                sim_engine::config::read_table(&base.config_path)?,
+                &tuned.drive,
+                &f.names
+                    .header(&base.config_path, &result.design.candidate, true),
+            )?,
         ),
         ("tune.json", json + "\n"),
     ];

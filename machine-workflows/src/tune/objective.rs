@@ -102,6 +102,11 @@ pub struct Reference {
     pub max_torque_noise_pu: f64,
     /// Whether the budget was given (`--max-torque-noise-pu`) or is the default rule.
     pub budget_given: bool,
+    /// The run-to-run spread of the default drive's peak droop and peak shaft torque \[pu\]
+    /// (`commission` measures it over the load step's timing; 0 on the model): a design
+    /// is worse than the default drive in one of them only by more than this
+    /// ([`Reference::worse`]).
+    pub spread: [f64; 2],
 }
 
 fn needed(name: &str, v: Option<f64>) -> Result<f64> {
@@ -163,7 +168,16 @@ impl Reference {
                 (NOISE_FACTOR * default_drive.torque_noise_rms_pu).max(NOISE_FLOOR_PU)
             }),
             budget_given: max_torque_noise_pu.is_some(),
+            spread: [0.0; 2],
         })
+    }
+
+    /// This reference with the measured run-to-run spread of the default drive's peak
+    /// droop and peak shaft torque ([`Reference::spread`]; a negative or NaN one is 0).
+    #[must_use]
+    pub fn with_spread(mut self, spread: [f64; 2]) -> Self {
+        self.spread = spread.map(|x| if x > 0.0 { x } else { 0.0 });
+        self
     }
 
     /// J of `f` (module docs): +∞ when a figure is missing.
@@ -200,23 +214,32 @@ impl Reference {
     }
 
     /// The figures in which `f` is worse than the default drive, in words (empty: no worse
-    /// in peak droop and in peak shaft torque).
+    /// in peak droop and in peak shaft torque). Worse is above the default drive's figure by
+    /// more than its run-to-run spread ([`Reference::spread`]).
     #[must_use]
     pub fn worse(&self, f: &Figures) -> Vec<String> {
         let mut v = Vec::new();
         let d = &self.default_drive;
-        for (name, x, reference) in [
+        for ((name, x, reference), spread) in [
             ("peak droop", f.peak_droop_pu, d.peak_droop_pu),
             (
                 "peak shaft torque",
                 f.peak_shaft_torque_pu,
                 d.peak_shaft_torque_pu,
             ),
-        ] {
+        ]
+        .into_iter()
+        .zip(self.spread)
+        {
             if let (Some(x), Some(r)) = (x, reference) {
-                if x > r {
+                if x > r + spread {
+                    let beyond = if spread > 0.0 {
+                        format!(", beyond its spread of {spread:.4} pu")
+                    } else {
+                        String::new()
+                    };
                     v.push(format!(
-                        "{name} {x:.4} pu > the default drive's {r:.4} pu (+{:.1} %)",
+                        "{name} {x:.4} pu > the default drive's {r:.4} pu (+{:.1} %{beyond})",
                         100.0 * (x / r - 1.0)
                     ));
                 }
@@ -230,6 +253,7 @@ impl Reference {
     pub fn describe(&self) -> String {
         let d = &self.default_drive;
         let [nd, ns, nr] = self.norms;
+        let [sd, ss] = self.spread;
         format!(
             "The objective: after `{SCENARIO}`'s load step, J = peak droop / {nd:.4} pu + peak \
              shaft torque / {ns:.4} pu + recovery time / {nr:.4} s, each divided by the same \
@@ -240,7 +264,7 @@ impl Reference {
              linear constraints below. Of the designs within the budgets, those no worse than \
              the default drive in peak droop ({:.4} pu) and in peak shaft torque ({:.4} pu) \
              are preferred, by J; another is chosen only when none of them passes, and is \
-             reported as worse.",
+             reported as worse{}.",
             if d.recovery_s.is_none() {
                 format!(
                     "; the default drive never recovers within the {nr:.3} s after the step, \
@@ -261,6 +285,15 @@ impl Reference {
             },
             d.peak_droop_pu.unwrap_or(f64::NAN),
             d.peak_shaft_torque_pu.unwrap_or(f64::NAN),
+            if sd + ss > 0.0 {
+                format!(
+                    ". Worse means worse beyond the noise: above the default drive's figure by \
+                     more than that figure's run-to-run spread ({sd:.4} pu in peak droop, \
+                     {ss:.4} pu in peak shaft torque)"
+                )
+            } else {
+                String::new()
+            }
         )
     }
 }
@@ -381,6 +414,27 @@ mod tests {
         assert!(r.worse(&droop)[0].starts_with("peak droop"));
         // Equal to the default drive's is no worse.
         assert!(Score::of(&r, figures(Some(0.01), 0.8, Some(0.1), 0.01)).no_worse);
+    }
+
+    #[test]
+    fn worse_is_worse_beyond_the_spread() {
+        let r = Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.01), None, None)
+            .unwrap()
+            .with_spread([0.0005, 0.01]);
+        // Within the spread of each figure: no worse.
+        let near = figures(Some(0.0105), 0.81, Some(0.2), 0.01);
+        assert!(r.worse(&near).is_empty(), "{:?}", r.worse(&near));
+        let beyond = figures(Some(0.0106), 0.811, Some(0.2), 0.01);
+        let w = r.worse(&beyond);
+        assert_eq!(w.len(), 2, "{w:?}");
+        assert!(w[0].starts_with("peak droop") && w[0].contains("beyond its spread of 0.0005"));
+        assert!(r.describe().contains("worse beyond the noise"));
+        // No spread: any excess is worse, as before.
+        let plain =
+            Reference::from_figures(figures(Some(0.01), 0.8, Some(0.2), 0.01), None, None).unwrap();
+        assert_eq!(plain.worse(&near).len(), 2);
+        assert!(!plain.describe().contains("beyond the noise"));
+        assert_eq!(plain.with_spread([f64::NAN, -1.0]).spread, [0.0, 0.0]);
     }
 
     #[test]

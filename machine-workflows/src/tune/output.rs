@@ -1,14 +1,15 @@
-//! What `tune` writes: `drive.toml`, the input machine file with the `[drive]` keys the
-//! design changed (so `run --config`, `flash --config` and the firmware build's
-//! `STIFFDRIVE_DRIVE` take it as it is), and `tune.md`, which shows the whole tuned
-//! `controller_core::DriveConfig` as its `[drive]` table.
+//! What `tune` and `commission` write: drive files, each the machine file with its whole
+//! `[drive]` table replaced by the design's `controller_core::DriveConfig`, every key stated
+//! (also those that would default from the plant, and no `[drive.notch]` table when the
+//! design has none), so that `run --config`, `flash --config` and the firmware build's
+//! `STIFFDRIVE_DRIVE` compose exactly the drive that was verified, whatever the file's own
+//! `[drive]` said ([`drive_file`]); and `tune.md`, which shows that table.
 
 use super::damping::StepFit;
 use super::TuneResult;
 use controller_core::DriveConfig;
 use sim_engine::error::{HarnessError, Result};
 use std::fmt::Write as _;
-use std::path::Path;
 use toml::{Table, Value};
 
 fn toml_error(e: impl std::fmt::Display) -> HarnessError {
@@ -16,12 +17,17 @@ fn toml_error(e: impl std::fmt::Display) -> HarnessError {
 }
 
 /// Every float of the drive is an `f32`: written in its shortest decimal form (0.1, not
-/// the f64 value of the nearest f32, 0.10000000149011612), which reads back to the same f32.
+/// the f64 value of the nearest f32, 0.10000000149011612) when that reads back to the same
+/// f32 through the f64 a TOML reader makes of it; else as the f32's exact value.
 fn shortest_f32(v: &mut Value) {
     match v {
         Value::Float(f) => {
-            let short = (*f as f32).to_string();
-            *f = short.parse().unwrap_or(*f);
+            let x = *f as f32;
+            if let Ok(short) = x.to_string().parse::<f64>() {
+                if short as f32 == x {
+                    *f = short;
+                }
+            }
         }
         Value::Table(t) => t.iter_mut().for_each(|(_, v)| shortest_f32(v)),
         Value::Array(a) => a.iter_mut().for_each(shortest_f32),
@@ -29,7 +35,7 @@ fn shortest_f32(v: &mut Value) {
     }
 }
 
-/// `drive` as a TOML table, the form `[drive]` is read in.
+/// `drive` as a TOML table, the form `[drive]` is read in: every key, a `None` left out.
 pub fn drive_table(drive: &DriveConfig) -> Result<Table> {
     let mut v = Value::try_from(drive).map_err(toml_error)?;
     shortest_f32(&mut v);
@@ -49,63 +55,36 @@ pub fn drive_toml(drive: &DriveConfig) -> Result<String> {
     toml::to_string(&doc).map_err(toml_error)
 }
 
-/// The keys of `tuned` whose values differ from `base`, recursing into sub-tables
-/// (`accel_feedback`, `observer`); a filter table is one value, replaced whole.
-fn changed(base: &Table, tuned: &Table) -> Table {
-    let mut out = Table::new();
-    for (k, v) in tuned {
-        match (base.get(k), v) {
-            (Some(Value::Table(b)), Value::Table(t)) if !t.contains_key("kind") => {
-                let sub = changed(b, t);
-                if !sub.is_empty() {
-                    out.insert(k.clone(), Value::Table(sub));
-                }
-            }
-            (Some(b), v) if b == v => {}
-            _ => {
-                out.insert(k.clone(), v.clone());
-            }
-        }
-    }
-    out
+/// The settings CRC of `drive`: CRC-32 of its settings record, the number the board logs
+/// at boot (`settings crc …`, `pil_link::board::session::settings_crc`); 0 when the drive
+/// has no settings record.
+#[must_use]
+pub fn settings_crc(drive: &DriveConfig) -> u32 {
+    pil_link::board::session::settings_crc(drive)
 }
 
-/// Sets `keys` into `table`, merging sub-tables that are not filters.
-fn set_keys(table: &mut Table, keys: Table) {
-    for (k, v) in keys {
-        match (table.get_mut(&k), v) {
-            (Some(Value::Table(old)), Value::Table(new)) if !new.contains_key("kind") => {
-                set_keys(old, new);
-            }
-            (_, v) => {
-                table.insert(k, v);
-            }
-        }
-    }
+/// The machine file `doc` with its `[drive]` table replaced whole by `drive` (every key
+/// stated, [`drive_table`]): nothing of the file's own `[drive]` is kept.
+pub fn with_drive(mut doc: Table, drive: &DriveConfig) -> Result<Table> {
+    doc.insert("drive".into(), Value::Table(drive_table(drive)?));
+    Ok(doc)
 }
 
-/// `DIR/drive.toml`: the input machine file with its `[drive]` table's keys set where the
-/// tuned drive differs from the drive the file gives (`base`); it composes to the tuned
-/// drive.
-pub fn merged_config(
-    config_path: &Path,
-    base: &DriveConfig,
-    tuned: &DriveConfig,
-) -> Result<String> {
-    merged_doc(sim_engine::config::read_table(config_path)?, base, tuned)
-}
-
-/// [`merged_config`] on a machine file's tree `doc` already read (e.g. with `--set`
-/// applied), whose drive composes to `base`.
-pub fn merged_doc(mut doc: Table, base: &DriveConfig, tuned: &DriveConfig) -> Result<String> {
-    let keys = changed(&drive_table(base)?, &drive_table(tuned)?);
-    let drive = doc
-        .entry("drive")
-        .or_insert_with(|| Value::Table(Table::new()));
-    if let Value::Table(d) = drive {
-        set_keys(d, keys);
+/// A drive file's text: each line of `header` as a comment (its first line says what the
+/// file is and whether it was verified), the settings CRC, then `doc` with `drive`
+/// ([`with_drive`]). It composes back to `drive` exactly.
+pub fn drive_file(doc: Table, drive: &DriveConfig, header: &str) -> Result<String> {
+    let body = toml::to_string(&with_drive(doc, drive)?).map_err(toml_error)?;
+    let mut s = String::new();
+    for line in header.lines() {
+        let _ = writeln!(s, "# {line}");
     }
-    toml::to_string(&doc).map_err(toml_error)
+    let _ = writeln!(
+        s,
+        "# settings crc {:08x}: the board logs it at boot for the drive it runs.",
+        settings_crc(drive)
+    );
+    Ok(s + &body)
 }
 
 fn damping_text(f: &StepFit, tolerance: f64) -> String {
@@ -316,7 +295,11 @@ fn figures_row(
 /// `tune.md`'s section on the choice: the objective and budgets in words and numbers, the
 /// default drive and both designs, which was chosen and by how much AFB helps.
 #[must_use]
-pub fn comparison_markdown(p: &super::pair::Pair, c: &Comparison) -> String {
+pub fn comparison_markdown(
+    p: &super::pair::Pair,
+    c: &Comparison,
+    names: &super::PairFiles,
+) -> String {
     let r = &c.reference;
     let mut s = format!(
         "\n## Choice by the objective\n\n{}\n\n| design | bandwidth (rad/s) | AFB | J | peak \
@@ -357,9 +340,16 @@ pub fn comparison_markdown(p: &super::pair::Pair, c: &Comparison) -> String {
     let gain = c.afb_gain;
     let _ = writeln!(
         s,
-        "\n**Chosen: {}** (`drive.toml`; the best of the other kind is `runner-up.toml`). {}\n\n\
+        "\n**Chosen: {}** (`{}`; the best of the other kind is `{}`{}). {}\n\n\
          Candidates scored: with AFB {}; without AFB {}.",
         c.chosen,
+        names.chosen,
+        names.runner_up,
+        if names.model_only {
+            ": both on the identified model, not verified on the machine as files"
+        } else {
+            ""
+        },
         if gain > 0.0 {
             format!(
                 "AFB helps on this machine: it lowers J by {gain:.3} ({:.1} % of the no-AFB \

@@ -12,7 +12,7 @@ use super::{candidates, design_from, judge_grid, without_afb, Candidate, Constra
 use super::{Judged, Tuned};
 use controller_core::AfbMode;
 use serde::Serialize;
-use sim_engine::config::{Grid, RunConfig};
+use sim_engine::config::{borrow_gains, Grid, RunConfig};
 use sim_engine::engine::metrics::OscillationKind;
 use sim_engine::engine::runner::run_scenario;
 use sim_engine::error::HarnessError;
@@ -169,11 +169,36 @@ impl LoopRun {
     /// Runs `cfg` (a scenario on a machine) with `design`'s drive settings.
     pub fn run(mut cfg: RunConfig, label: &'static str, design: &Candidate) -> Result<Self> {
         design.apply(&mut cfg.drive);
-        let m = run_scenario(&cfg)?.metrics;
+        Self::measure(&cfg, label, design, design.afb.label())
+    }
+
+    /// Runs `cfg` with `design`'s drive settings and then its AFB turned off, at the same
+    /// regulator gains (the AFB design's, bit for bit: [`borrow_gains`]): the design's
+    /// bandwidth without what the AFB adds. An error when `design` has no AFB.
+    pub fn run_same_gains_without_afb(
+        mut cfg: RunConfig,
+        label: &'static str,
+        design: &Candidate,
+    ) -> Result<Self> {
+        design.apply(&mut cfg.drive);
+        let afb_drive = cfg.drive;
+        cfg.drive.accel_feedback.mode = AfbMode::Off;
+        borrow_gains(&mut cfg, label, &afb_drive)?;
+        let afb = format!("off, at the gains of {}", design.afb.label());
+        Self::measure(&cfg, label, design, afb)
+    }
+
+    fn measure(
+        cfg: &RunConfig,
+        label: &'static str,
+        design: &Candidate,
+        afb: String,
+    ) -> Result<Self> {
+        let m = run_scenario(cfg)?.metrics;
         Ok(Self {
             design: label,
             bandwidth_rad_s: design.bandwidth_rad_s,
-            afb: design.afb.label(),
+            afb,
             stable: m.stable,
             oscillation: m.oscillation.kind,
             oscillation_freq_hz: m.oscillation.freq_hz,

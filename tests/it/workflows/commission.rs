@@ -40,7 +40,7 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
         "commission.json",
         "identified.toml",
         "identify/plant.toml",
-        "tune/drive.toml",
+        "tune/model-chosen.toml",
         "tune/tune.md",
         "drive.toml",
         "runner-up.toml",
@@ -112,14 +112,14 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     // drive.toml is the machine file as given with the drive tuned on the identified one.
     assert_eq!(cfg.plant, own.plant);
     assert_eq!(
-        machine_file::load(&out.join("tune/drive.toml"))
+        machine_file::load(&out.join("tune/model-chosen.toml"))
             .unwrap()
             .drive,
         cfg.drive
     );
 
-    // tune/drive.toml is the chosen design, whichever kind it is, and the chosen one has the
-    // lower objective on the machine too; tune/runner-up.toml is the other kind.
+    // tune/model-chosen.toml is the chosen design, whichever kind it is, and the chosen one has the
+    // lower objective on the machine too; tune/model-runner-up.toml is the other kind.
     let chosen = json["chosen"].as_str().unwrap();
     let objective = &json["objective"];
     let j = |i: usize| objective[i].as_f64().unwrap();
@@ -135,7 +135,7 @@ fn commissioning_an_unseen_machine_passes_with_the_design_the_machine_chooses() 
     );
     let (jc, jo) = if afb { (j(0), j(1)) } else { (j(1), j(0)) };
     assert!(jc <= jo && jc < 3.0, "{json}");
-    let runner = out.join("tune/runner-up.toml");
+    let runner = out.join("tune/model-runner-up.toml");
     let other = machine_file::load(&runner).unwrap();
     assert_eq!(
         other.drive.accel_feedback.mode != controller_core::AfbMode::Off,
@@ -206,7 +206,7 @@ fn commissioning_with_no_design_keeps_the_identification_and_says_what_failed() 
     ] {
         assert!(out.join(f).is_file(), "{f} not written");
     }
-    assert!(!out.join("tune/drive.toml").exists());
+    assert!(!out.join("tune/model-chosen.toml").exists());
     assert!(!out.join("drive.toml").exists());
     let md = std::fs::read_to_string(out.join("commission.md")).unwrap();
     assert!(md.contains("## The designs that came closest"), "{md}");
@@ -234,7 +234,7 @@ fn a_commissioning_that_beats_nothing_keeps_the_file_drive_with_the_no_design_co
         "commission.json",
         "identify/plant.toml",
         "identified.toml",
-        "tune/drive.toml",
+        "tune/model-chosen.toml",
     ] {
         assert!(out.join(f).is_file(), "{f} not written");
     }
@@ -245,6 +245,12 @@ fn a_commissioning_that_beats_nothing_keeps_the_file_drive_with_the_no_design_co
         md.contains("**No design**") && md.contains("keep that drive"),
         "{md}"
     );
+    // It names no drive file it did not write, and lists the ones it did with their CRCs.
+    assert!(
+        !md.contains("`drive.toml`") && !md.contains("`runner-up.toml`"),
+        "{md}"
+    );
+    assert!(md.contains("| `tune/model-chosen.toml` |"), "{md}");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("commission.json")).unwrap())
             .unwrap();

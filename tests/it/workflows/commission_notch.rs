@@ -80,7 +80,7 @@ fn commissioning_a_stiff_machine_places_the_notch_on_its_resonance() {
     );
 
     // The tuned drive carries the notch.
-    let drive: toml::Table = std::fs::read_to_string(out.join("tune/drive.toml"))
+    let drive: toml::Table = std::fs::read_to_string(out.join("tune/model-chosen.toml"))
         .unwrap()
         .parse()
         .unwrap();

@@ -6,6 +6,8 @@ mod common;
 
 mod commission;
 mod commission_notch;
+mod commission_spindle;
+mod drive_files;
 mod identify;
 mod linear_model;
 mod notch;
