@@ -138,8 +138,8 @@ fn qemu_sessions() {
         });
         s.spawn(|| {
             run_case(
-                "board: identify_on_the_board_recovers_the_qemu_machine",
-                crate::board_identify::identify_on_the_board_recovers_the_qemu_machine,
+                "board: identify_on_the_board_with_its_defaults_recovers_the_qemu_machine",
+                crate::board_identify::identify_on_the_board_with_its_defaults_recovers_the_qemu_machine,
             );
         });
     });

@@ -9,6 +9,11 @@
 //! - The lost-motion test: no excitation, ±`identify.reversal_torque_pu` reversed every
 //!   `identify.reversal_hold_s`, three holds.
 //!
+//! The board streams each record while it takes it and holds only what the link is behind
+//! (a ring of 65,536 ticks on the QEMU board), so the runs are identify's own, at their
+//! default length too: the same PRBS, bit for bit, as the simulated measurement. A link
+//! that falls a ring behind ends the run, and the command fails saying so.
+//!
 //! Both in speed mode at zero speed, acceleration feedback off, the velocity loop at
 //! `identify.velocity_bandwidth_rad_s`. The rig's load torque exists on QEMU (the `board`
 //! image's virtual machine takes it); a real board has no rig and ignores it, so there the
