@@ -114,7 +114,7 @@ impl DriveConfig {
             self.current_bandwidth_rad_s,
             pi * f_cur,
         )?;
-        check_bandwidth_ratio(w_vel, w_cur)?;
+        self.check_velocity_bandwidth(w_vel, w_cur, pi * f_vel)?;
         let afb = &self.accel_feedback;
         let afb_rate_hz = match afb.rate {
             AfbRate::Current => f_cur,
@@ -257,24 +257,69 @@ impl DriveConfig {
 /// 2^23: the position error (Q24.8) holds magnitudes below it \[counts\].
 const COUNTS_ERR_LIMIT: f32 = 8_388_608.0;
 
-/// `current_bandwidth_rad_s ≥ MIN_CURRENT_TO_VELOCITY_BANDWIDTH × velocity_bandwidth_rad_s`:
-/// a velocity loop that is not slower than its current loop is refused, naming both keys.
-fn check_bandwidth_ratio(w_vel: f32, w_cur: f32) -> Result<(), ConfigError> {
-    let n = ranges::MIN_CURRENT_TO_VELOCITY_BANDWIDTH;
-    if w_cur >= n * w_vel {
-        return Ok(());
+/// What bounds the velocity bandwidth when the current loop does.
+const RATIO_GIVEN: &str = "current_bandwidth_rad_s: the current loop must be at least 1.5 \
+    times as fast (current_bandwidth_rad_s ≥ 1.5 × velocity_bandwidth_rad_s)";
+
+/// What bounds the velocity bandwidth when the PI's gains do.
+pub(crate) const VELOCITY_GIVEN: &str = "motor_inertia_s + load_inertia_s (plus Ka with \
+    velocity_pi_inertia = \"total_plus_afb\"), velocity_damping and velocity_rate_hz: \
+    Kp = ω·J (Q16.16) and Ki·Ts = ω²·J/(4ζ²·velocity_rate_hz) (Q8.24) must fit within 1 %; \
+    and current_bandwidth_rad_s ≥ 1.5 × velocity_bandwidth_rad_s";
+
+impl DriveConfig {
+    /// The velocity bandwidth ω against the range the other settings leave it: below the
+    /// Nyquist limit `nyquist`, at most the current bandwidth over
+    /// [`ranges::MIN_CURRENT_TO_VELOCITY_BANDWIDTH`], and with the velocity PI's gains
+    /// Kp = ω·J (Q16.16) and Ki·Ts = ω²·J/(4ζ²·f_vel) (Q8.24) at most their format's
+    /// maximum and at least 50 of its steps (within 1 %). The error names the key that
+    /// bounds it: `current_bandwidth_rad_s` where the current loop does.
+    fn check_velocity_bandwidth(
+        &self,
+        w: f32,
+        w_cur: f32,
+        nyquist: f32,
+    ) -> Result<(), ConfigError> {
+        let r = &ranges::VELOCITY_BANDWIDTH_RAD_S;
+        let j_total = f64::from(self.total_inertia_s());
+        let afb_on = self.accel_feedback.mode != crate::config::AfbMode::Off;
+        let j = match self.velocity_pi_inertia {
+            crate::config::PiInertia::TotalPlusAfb if afb_on => {
+                j_total * (1.0 + f64::from(self.accel_feedback.gain_fraction))
+            }
+            _ => j_total,
+        };
+        let zeta = f64::from(self.velocity_damping);
+        let ki_scale = 4.0 * zeta * zeta * f64::from(self.velocity_rate_hz) / j;
+        let sqrt = crate::cfgmath::sqrt;
+        let lo = (GAIN_MIN / j).max(sqrt(TICK_MIN * ki_scale)) as f32;
+        let hi_gains = (GAIN_MAX / j).min(sqrt(TICK_MAX * ki_scale)) as f32;
+        let ratio = w_cur / ranges::MIN_CURRENT_TO_VELOCITY_BANDWIDTH;
+        let hi = hi_gains.min(ratio).min(nyquist.next_down());
+        if w >= lo && w <= hi {
+            return Ok(());
+        }
+        Err(ConfigError::OutOfRangeGiven {
+            param: r.key,
+            value: w,
+            min: lo.max(r.min),
+            max: hi,
+            min_exclusive: lo <= r.min,
+            given: if w > ratio && ratio <= hi_gains {
+                RATIO_GIVEN
+            } else {
+                VELOCITY_GIVEN
+            },
+        })
     }
-    let r = &ranges::VELOCITY_BANDWIDTH_RAD_S;
-    Err(ConfigError::OutOfRangeGiven {
-        param: r.key,
-        value: w_vel,
-        min: r.min,
-        max: w_cur / n,
-        min_exclusive: r.min_exclusive,
-        given: "current_bandwidth_rad_s: the current loop must be at least 1.5 times as fast \
-                (current_bandwidth_rad_s ≥ 1.5 × velocity_bandwidth_rad_s)",
-    })
 }
+
+/// Q16.16 (`Gain`): its largest value and 50 of its steps (the 1 % rule of `quantize`).
+pub(crate) const GAIN_MAX: f64 = 32_768.0 - 1.0 / 65_536.0;
+pub(crate) const GAIN_MIN: f64 = 50.0 / 65_536.0;
+/// Q8.24 (`TickGain`): likewise.
+const TICK_MAX: f64 = 128.0 - 1.0 / 16_777_216.0;
+const TICK_MIN: f64 = 50.0 / 16_777_216.0;
 
 /// The text of [`encoder_cpr_range`]'s bounds.
 const ENCODER_CPR_GIVEN: &str = "base_speed_rpm, current_rate_hz, velocity_rate_hz, \
@@ -291,17 +336,15 @@ const ENCODER_CPR_GIVEN: &str = "base_speed_rpm, current_rate_hz, velocity_rate_
 ///   half the counter's range, and below 2^23 (its Q24.8 limit);
 /// * observer velocity (Q16.16 counts per current tick, when the observer estimates the
 ///   velocity or the AFB's acceleration): cpr·c·Ts_cur × overspeed below 2^15;
-/// * observer torque scale k_u = Ts_cur²·cpr·c / J_model below 128 (Q8.24);
+/// * observer torque scale k_u = Ts_cur²·cpr·c / J_model below 128 and at least 50 of its
+///   steps (Q8.24);
 /// * count scales 1/(cpr·c·Ts) (Q8.24) and 1/(cpr·c·Ts²) (Q16.16) at both rates: below
 ///   their format's maximum and at least 50 of its steps (within 1 %).
 pub(crate) fn encoder_cpr_range(cfg: &DriveConfig) -> (u32, u32, &'static str) {
     let c = f64::from(cfg.base_speed_rpm) / 60.0;
     let ts_cur = 1.0 / f64::from(cfg.current_rate_hz);
     let ts_vel = 1.0 / f64::from(cfg.velocity_rate_hz);
-    let tick_max = 128.0 - 1.0 / 16_777_216.0; // TickGain (Q8.24)
-    let tick_min = 50.0 / 16_777_216.0;
-    let gain_max = 32_768.0 - 1.0 / 65_536.0; // Gain (Q16.16)
-    let gain_min = 50.0 / 65_536.0;
+    let (tick_max, tick_min, gain_max, gain_min) = (TICK_MAX, TICK_MIN, GAIN_MAX, GAIN_MIN);
     // Lower bounds: 1/(cpr·c·Ts) ≤ tick_max and 1/(cpr·c·Ts²) ≤ gain_max at both rates
     // (the current rate's are the larger).
     let lo = (1.0 / (tick_max * c * ts_cur)).max(1.0 / (gain_max * c * ts_cur * ts_cur));
@@ -316,6 +359,7 @@ pub(crate) fn encoder_cpr_range(cfg: &DriveConfig) -> (u32, u32, &'static str) {
         crate::config::ObserverInertia::Motor => cfg.motor_inertia_s,
     });
     hi = hi.min(tick_max * j_obs / (ts_cur * ts_cur * c));
+    let lo = lo.max(tick_min * j_obs / (ts_cur * ts_cur * c));
     let observer_used = cfg.velocity_estimator == crate::config::Estimator::Observer
         || (cfg.accel_feedback.mode != crate::config::AfbMode::Off
             && cfg.accel_feedback.source == crate::config::Estimator::Observer);

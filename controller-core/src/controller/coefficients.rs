@@ -17,7 +17,7 @@ use crate::per_unit::{Coef, CountsErr, Gain, PosGain, Pu, TickGain, counter_shif
 use crate::pi::PiCoefficients;
 use crate::protection::Protection;
 use crate::ranges as r;
-use crate::validate::{Scales, encoder_cpr_error, fit, fit_setting};
+use crate::validate::{Scales, VELOCITY_GIVEN, encoder_cpr_error, fit, fit_setting};
 
 /// A limit L on the magnitude of a raw 32-bit value, |x| > L tested with one add and one
 /// unsigned compare: for L < 2^31, x + L (mod 2^32) is within [0, 2L] exactly when
@@ -138,20 +138,55 @@ fn accel_feedback(g: &Gains, lim: Pu) -> Result<AccelerationFeedback, ConfigErro
     // Closed form of the loop through the observer's model (accel_feedback module docs):
     // g·Ka with g = 1/(1 + b0·Ka/J_model); b0 from the quantized filter, so that the
     // solved loop is the one the tick runs.
+    let ka = fit(g.ka, gain_fraction(cfg))?;
     let ka_closed = if cfg.accel_feedback.source == Estimator::Observer {
         let b0: f32 = filter.feedthrough().to_num();
         let gain = 1.0 / (1.0 + b0 * g.ka / g.observer_inertia_s);
-        fit::<Gain>(g.ka * gain, gain_fraction(cfg))?
+        quantize::<Gain>(g.ka * gain, r::AFB_GAIN_FRACTION.key)
+            .map_err(|_| closed_form_error(g, b0))?
     } else {
         Gain::ZERO
     };
     Ok(AccelerationFeedback {
         mode: cfg.accel_feedback.mode,
-        ka: fit(g.ka, gain_fraction(cfg))?,
+        ka,
         filter,
         limit: lim,
         ka_closed,
     })
+}
+
+/// The closed form's Ka/(1 + b·Ka) (b = b0/J_model) below 50 steps of Q16.16 (m): it grows
+/// with Ka towards 1/b, so it fits from Ka = m/(1 − b·m) on (the gain fraction's range
+/// starts there); if 1/b itself is below m, no Ka fits and the model inertia is too small.
+fn closed_form_error(g: &Gains, b0: f32) -> ConfigError {
+    use crate::validate::{GAIN_MAX, GAIN_MIN};
+    let cfg = &g.cfg;
+    let b = f64::from(b0) / f64::from(g.observer_inertia_s);
+    let j = f64::from(g.j_total_s);
+    let r = &r::AFB_GAIN_FRACTION;
+    if b * GAIN_MIN < 1.0 {
+        ConfigError::OutOfRangeGiven {
+            param: r.key,
+            value: cfg.accel_feedback.gain_fraction,
+            min: (GAIN_MIN / ((1.0 - b * GAIN_MIN) * j)) as f32,
+            max: ((GAIN_MAX / j) as f32).min(r.max),
+            min_exclusive: false,
+            given: gain_fraction(cfg).given,
+        }
+    } else {
+        let m = &r::MOTOR_INERTIA_S;
+        ConfigError::OutOfRangeGiven {
+            param: m.key,
+            value: cfg.motor_inertia_s,
+            min: (f64::from(b0) * GAIN_MIN * 1.001) as f32,
+            max: m.max,
+            min_exclusive: false,
+            given: "accel_feedback and observer.model_inertia: the closed form's \
+                    Ka/(1 + b0·Ka/J_model), below J_model/b0 (b0 the AFB filter's \
+                    feed-through), must fit Q16.16 within 1 %",
+        }
+    }
 }
 
 /// The state observer.
@@ -230,11 +265,6 @@ fn differentiator(cfg: &DriveConfig, v: f32, a: f32) -> Result<Differentiator, C
         k_acc: quantize(a, r::ENCODER_CPR.key).map_err(cpr)?,
     })
 }
-
-/// What the velocity PI's gains depend on besides the bandwidth.
-const VELOCITY_GIVEN: &str = "motor_inertia_s + load_inertia_s (plus Ka with \
-    velocity_pi_inertia = \"total_plus_afb\"), velocity_damping and velocity_rate_hz: \
-    Kp = ω·J (Q16.16) and Ki·Ts = ω²·J/(4ζ²·velocity_rate_hz) (Q8.24) must fit within 1 %";
 
 /// What the current PI's gains depend on besides the bandwidth.
 const CURRENT_GIVEN: &str = "winding_inductance_pu_s, winding_resistance_pu and \

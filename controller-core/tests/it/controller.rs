@@ -288,12 +288,12 @@ fn from_gains_runs_the_same_gains_with_afb_off() {
     assert_eq!(c.gains().ka, 0.0);
     // The carried settings are the AFB-off drive.
     assert_eq!(c.gains().cfg, off);
-    // Bad gains are still validated against their Q-formats, and the error names the
-    // format of the coefficient's type.
+    // Bad gains are still validated against their Q-formats: the error names the setting
+    // the gain scales with, and the format.
     let mut bad = gains.without_afb();
     bad.kp_vel = 1e9;
     let e = Controller::from_gains(&bad).unwrap_err();
-    assert!(e.param().starts_with("kp_vel"));
+    assert_eq!(e.param(), "velocity_bandwidth_rad_s");
     assert!(e.to_string().contains("Q16.16"), "{e}");
 }
 

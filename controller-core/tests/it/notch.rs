@@ -179,7 +179,7 @@ fn bad_notch_settings_name_the_key_and_the_range() {
         (
             with(|n| n.centre_hz = f32::NAN),
             "notch.centre_hz",
-            "finite",
+            "(0, 1999.9",
         ),
         (with(|n| n.width_hz = 0.0), "notch.width_hz", "(0, "),
         (with(|n| n.width_hz = 150.0), "notch.width_hz", "(0, 100]"),
@@ -191,7 +191,8 @@ fn bad_notch_settings_name_the_key_and_the_range() {
         assert_eq!(e.param(), key, "{:?}", cfg.notch);
         let text = e.to_string();
         assert!(text.contains(key) && text.contains(range), "{text}");
-        assert_eq!(design(&cfg).unwrap_err(), e);
+        // (By its text: a NaN value is not equal to itself.)
+        assert_eq!(design(&cfg).unwrap_err().to_string(), text);
         assert!(Controller::new(&cfg).is_err());
     }
     // The edges of the ranges are accepted.

@@ -189,3 +189,84 @@ proptest! {
         }
     }
 }
+
+/// A value spread over `[min, max]` by its logarithm (`u` in 0..=1), for a range that
+/// spans decades.
+fn log_between(min: f32, max: f32, u: f64) -> f32 {
+    let (a, b) = (f64::from(min).ln(), f64::from(max).ln());
+    (a + (b - a) * u).exp() as f32
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(4000))]
+
+    /// Settings drawn across their stated ranges (by decades): every refusal names a
+    /// setting of the range table, the user's key, never a derived coefficient; a refusal
+    /// with a range given the others (`OutOfRangeGiven`) has the value outside that range;
+    /// and a value inside it, the rest unchanged, is not refused for that key again.
+    #[test]
+    fn every_refusal_names_the_users_key_and_a_range_that_holds(
+        u in proptest::collection::vec(0.0f64..=1.0, 14),
+        cpr_bits in 2u32..=30, bits in 16u8..=32, ratio in 1u32..=16, mode in 0u8..3,
+    ) {
+        use controller_core::ConfigError;
+        use controller_core::ranges::range_of;
+        let mut c = common::table1();
+        c.base_speed_rpm = log_between(1.0, 100_000.0, u[0]);
+        c.encoder_cpr = 1 << cpr_bits;
+        c.counter_bits = bits;
+        c.current_rate_hz = (log_between(100.0, 100_000.0, u[1]) as u32 / ratio).max(10) * ratio;
+        c.velocity_rate_hz = c.current_rate_hz / ratio;
+        c.motor_inertia_s = log_between(1e-5, 1000.0, u[2]);
+        c.load_inertia_s = log_between(1e-5, 1000.0, u[3]);
+        let f_vel = c.velocity_rate_hz as f32;
+        c.velocity_bandwidth_rad_s = log_between(1e-3, 0.999 * std::f32::consts::PI * f_vel, u[4]);
+        c.current_bandwidth_rad_s = log_between(1e-3, 0.999 * std::f32::consts::PI * c.current_rate_hz as f32, u[5]);
+        c.position_bandwidth_rad_s = if u[6] < 0.2 { 0.0 } else { log_between(1e-3, 0.999 * std::f32::consts::PI * f_vel, u[6]) };
+        c.winding_inductance_pu_s = log_between(1e-5, 100.0, u[7]);
+        c.winding_resistance_pu = log_between(1e-5, 100.0, u[8]);
+        c.accel_feedback.mode = [AfbMode::Off, AfbMode::Plain, AfbMode::Error][usize::from(mode)];
+        c.accel_feedback.gain_fraction = log_between(1e-6, 20.0, u[9]);
+        c.observer.bandwidth_hz = log_between(1e-3, c.current_rate_hz as f32 / 2.01, u[10]);
+        c.faults.following_error_rev = log_between(1e-6, 1000.0, u[11]);
+        c.torque_limit_pu = log_between(1e-5, 1000.0, u[12]);
+        c.velocity_ff_gain = log_between(1e-6, 1.0, u[13]);
+        if let Err(e) = Controller::new(&c) {
+            let key = e.param();
+            prop_assert!(
+                range_of(key).is_some() || key == "velocity_rate_hz",
+                "not a user's key: {e}"
+            );
+            prop_assert!(
+                !matches!(e, ConfigError::CoefficientOverflow { .. } | ConfigError::CoefficientUnderflow { .. }),
+                "no range: {e}"
+            );
+            if let ConfigError::OutOfRangeGiven { param, value, min, max, .. } = e {
+                prop_assert!(!(min..=max).contains(&value), "{e}");
+                if min > max {
+                    // No value fits: another setting has to change (e.g. a current loop
+                    // too slow for any velocity loop the gains can hold).
+                    return Ok(());
+                }
+                // Inside the range (its geometric middle), the same key is not refused.
+                let inside = if min > 0.0 { (min * max).sqrt() } else { max / 2.0 };
+                let mut d = c;
+                match param {
+                    "encoder_cpr" => d.encoder_cpr = inside as u32,
+                    "velocity_bandwidth_rad_s" => d.velocity_bandwidth_rad_s = inside,
+                    "current_bandwidth_rad_s" => d.current_bandwidth_rad_s = inside,
+                    "position_bandwidth_rad_s" => d.position_bandwidth_rad_s = inside,
+                    "observer.bandwidth_hz" => d.observer.bandwidth_hz = inside,
+                    "accel_feedback.gain_fraction" => d.accel_feedback.gain_fraction = inside,
+                    "faults.following_error_rev" => d.faults.following_error_rev = inside,
+                    "torque_limit_pu" => d.torque_limit_pu = inside,
+                    "velocity_ff_gain" => d.velocity_ff_gain = inside,
+                    _ => return Ok(()),
+                }
+                if let Err(again) = Controller::new(&d) {
+                    prop_assert!(again.param() != param, "{e}\nthen at {inside}: {again}");
+                }
+            }
+        }
+    }
+}

@@ -304,12 +304,16 @@ fn the_velocity_bandwidth_stays_below_the_current_bandwidth() {
     let mut cfg = common::table1();
     cfg.velocity_bandwidth_rad_s = 1000.0;
     assert!(Controller::new(&cfg).is_ok());
-    cfg.velocity_bandwidth_rad_s = 1330.0;
+    cfg.current_bandwidth_rad_s = 600.0;
+    cfg.velocity_bandwidth_rad_s = 399.0;
     assert!(cfg.validate().is_ok());
-    cfg.velocity_bandwidth_rad_s = 1335.0;
-    assert_eq!(
-        cfg.validate().unwrap_err().param(),
-        "velocity_bandwidth_rad_s"
+    cfg.velocity_bandwidth_rad_s = 401.0;
+    let e = cfg.validate().unwrap_err();
+    assert_eq!(e.param(), "velocity_bandwidth_rad_s");
+    assert!(
+        e.to_string()
+            .contains(", 400] given current_bandwidth_rad_s"),
+        "{e}"
     );
 }
 
