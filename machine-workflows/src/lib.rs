@@ -4,6 +4,7 @@
 //! measures the machine and fits its model, `commission`, which does both and verifies the
 //! design on the machine, and `flash`, which puts a drive on the board.
 
+pub mod calibrate;
 pub mod commission;
 pub mod flash;
 pub mod identify;

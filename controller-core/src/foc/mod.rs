@@ -22,6 +22,7 @@
 //! (a table with interpolation: at most 9e-6 error).
 
 pub mod angle;
+pub mod calibration;
 pub mod commutation;
 pub mod current_loop;
 pub mod svpwm;
