@@ -122,3 +122,170 @@ pub fn run_identify(client: &mut BoardClient<Stream>, run: &IdentifyRun) -> Resu
     }
     Ok(BoardRecord { rate_hz, samples })
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
+    use super::*;
+    use controller_core::{ConfigError, DriveConfig};
+    use pil_link::board::faults::{FaultEntry, FaultHistory};
+    use pil_link::board::identify::IdentifyError;
+    use pil_link::board::message::Origin;
+    use pil_link::board::scope::{ScopeSample, CHUNK_SAMPLES};
+    use pil_link::board::session::{BoardSession, Drive};
+    use pil_link::board::store::{SaveError, RECORD_LEN};
+    use pil_link::wire::Writer;
+    use pil_link::{Frame, FrameKind, MAX_FRAME};
+    use std::io::{Read, Write};
+    use std::os::unix::net::UnixStream;
+
+    /// A board whose measurement ends after two chunks, as the firmware's console ends a
+    /// run cut short (`firmware/src/board_console.rs`): the samples recorded, an overrun's
+    /// link fault in the history (or none: a disable), then the empty mark.
+    struct CutBoard {
+        history: FaultHistory,
+        enabled: bool,
+        started: bool,
+    }
+
+    impl Drive for CutBoard {
+        fn apply(&mut self, _: &DriveConfig) -> std::result::Result<(), ConfigError> {
+            Ok(())
+        }
+        fn enabled(&self) -> bool {
+            self.enabled
+        }
+        fn set_enabled(&mut self, on: bool) {
+            self.enabled = on;
+        }
+        fn fault_code(&self) -> u8 {
+            0
+        }
+        fn save(&mut self, _: &[u8; RECORD_LEN]) -> std::result::Result<(), SaveError> {
+            Ok(())
+        }
+        fn fault_history(&self) -> FaultHistory {
+            self.history
+        }
+        fn scope(&mut self, _: bool) -> ScopeInfo<'_> {
+            ScopeInfo {
+                rate_hz: 1000,
+                channels: "a,b,c,d",
+            }
+        }
+        fn enter_safe_state(&mut self) {}
+        fn identify(
+            &mut self,
+            cfg: &DriveConfig,
+            _: &DriveConfig,
+            _: &IdentifyRun,
+        ) -> std::result::Result<ScopeInfo<'_>, IdentifyError> {
+            (self.enabled, self.started) = (true, true);
+            Ok(ScopeInfo {
+                rate_hz: cfg.current_rate_hz,
+                channels: CHANNELS,
+            })
+        }
+    }
+
+    fn send(sock: &mut UnixStream, kind: FrameKind, payload: &[u8]) {
+        send_frame(sock, &Frame::new(kind, 0, payload).unwrap());
+    }
+
+    fn send_frame(sock: &mut UnixStream, frame: &Frame) {
+        let mut wire = [0_u8; MAX_FRAME];
+        let n = frame.encode(&mut wire).unwrap();
+        sock.write_all(&wire[..n]).unwrap();
+    }
+
+    fn chunk_payload(c: &ScopeChunk) -> Vec<u8> {
+        let mut w = Writer::new();
+        c.encode(&mut w).unwrap();
+        w.as_slice().to_vec()
+    }
+
+    /// Serves the console on `sock` until the host hangs up.
+    fn serve(mut sock: UnixStream, overrun: bool) {
+        let drive = machine_file::table1().expect("table1 composes").drive;
+        let mut session = BoardSession::new(drive, Origin::Baked, 0x0001_0000, "table1");
+        let mut board = CutBoard {
+            history: FaultHistory::new(),
+            enabled: false,
+            started: false,
+        };
+        let mut buf = [0_u8; 256];
+        while let Ok(n @ 1..) = sock.read(&mut buf) {
+            for &b in &buf[..n] {
+                if let Some(reply) = session.on_byte(b, &mut board) {
+                    send_frame(&mut sock, &reply);
+                }
+                if std::mem::take(&mut board.started) {
+                    for first in [0, 8] {
+                        let mut c = ScopeChunk::new(first);
+                        for n in first..first + CHUNK_SAMPLES as u32 {
+                            c.push(ScopeSample {
+                                tick: n,
+                                values: [0; SCOPE_CHANNELS],
+                            });
+                        }
+                        send(&mut sock, FrameKind::ScopeData, &chunk_payload(&c));
+                    }
+                    if overrun {
+                        board.history.push(FaultEntry {
+                            ms: 1,
+                            code: LINK_FAULT_CODE,
+                        });
+                    }
+                    board.enabled = false;
+                    let mark = ScopeChunk::new(16);
+                    send(&mut sock, FrameKind::ScopeData, &chunk_payload(&mark));
+                }
+            }
+        }
+    }
+
+    /// identify's default frequency-response run: 32 periods of 8191 ticks.
+    const DEFAULT_RUN: IdentifyRun = IdentifyRun {
+        amplitude_pu: 0.3,
+        prbs_bits: 13,
+        prbs_hold_ticks: 1,
+        prbs_periods: 32,
+        velocity_bandwidth_rad_s: 15.0,
+        load_pu: 0.8,
+        reverse_every_ticks: 0,
+        ticks: 262_112,
+    };
+
+    fn cut_run(overrun: bool) -> (String, Duration) {
+        let (host, board) = UnixStream::pair().unwrap();
+        let server = std::thread::spawn(move || serve(board, overrun));
+        let mut client = BoardClient::new(Stream::Socket(host), Duration::from_secs(5));
+        let t0 = Instant::now();
+        let err = run_identify(&mut client, &DEFAULT_RUN).unwrap_err();
+        let took = t0.elapsed();
+        drop(client);
+        server.join().unwrap();
+        (err.to_string(), took)
+    }
+
+    #[test]
+    fn a_run_the_board_cut_short_fails_at_once_naming_why() {
+        // The link fell a ring behind: the history's link fault says so.
+        let (msg, took) = cut_run(true);
+        assert!(
+            msg.contains("ended the run after 16 of 262112 ticks")
+                && msg.contains("fell behind")
+                && msg.contains("identify.prbs_periods"),
+            "{msg}"
+        );
+        // At the mark, not at the stream's deadline (four times the 65.5 s run).
+        assert!(took < Duration::from_secs(5), "{took:?}");
+        // Without the link fault: the drive was disabled.
+        let (msg, took) = cut_run(false);
+        assert!(
+            msg.contains("after 16 of 262112 ticks") && msg.contains("disabled"),
+            "{msg}"
+        );
+        assert!(took < Duration::from_secs(5), "{took:?}");
+    }
+}
