@@ -416,7 +416,7 @@ fn draw_panel<DB: DrawingBackend>(
                 VERTICAL.stroke_width(2),
             ))
             .map_err(err)?;
-        if text {
+        if text && !v.label.is_empty() {
             let right = x > (x0 + x1) / 2.0;
             let h = if right { HPos::Right } else { HPos::Left };
             let style = TextStyle::from((FONT, LABEL_SIZE).into_font())

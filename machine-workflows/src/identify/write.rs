@@ -210,19 +210,23 @@ pub fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
         log_y,
         legend: Legend::LowerLeft,
     };
-    let marks = || {
+    // The fitted anti-resonance and resonance, labelled on the magnitude panel only (the
+    // panels below share its frequencies; their lines stay unlabelled, clear of the data).
+    let with_marks = |mut v: Vec<Series>, labelled: bool| {
         let f_ar = fit.anti_resonance_hz;
         let f_r = fit.resonance_hz();
-        [
+        let marks = [
             (format!("fitted anti-resonance {f_ar:.2} Hz"), f_ar),
             (format!("fitted resonance {f_r:.2} Hz"), f_r),
-        ]
-        .into_iter()
-        .filter(|(_, f)| f.is_finite() && *f > 0.0)
-        .map(|(label, f)| Series::vertical(label, f))
-    };
-    let with_marks = |mut v: Vec<Series>| {
-        v.extend(marks());
+        ];
+        v.extend(
+            marks
+                .into_iter()
+                .filter(|(_, f)| f.is_finite() && *f > 0.0)
+                .map(|(label, f)| {
+                    Series::vertical(if labelled { label } else { String::new() }, f)
+                }),
+        );
         v
     };
     Figure {
@@ -231,53 +235,62 @@ pub fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
             panel(
                 "Motor position / motor torque: magnitude",
                 "rad per pu torque",
-                with_marks(vec![
-                    Series::markers(
-                        "measured",
-                        measured.iter().map(|&(f, h)| (f, h.norm())).collect(),
-                    ),
-                    Series::line(
-                        "fitted",
-                        grid.iter()
-                            .zip(&model)
-                            .map(|(&f, h)| (f, h.norm()))
-                            .collect(),
-                    ),
-                ]),
+                with_marks(
+                    vec![
+                        Series::markers(
+                            "measured",
+                            measured.iter().map(|&(f, h)| (f, h.norm())).collect(),
+                        ),
+                        Series::line(
+                            "fitted",
+                            grid.iter()
+                                .zip(&model)
+                                .map(|(&f, h)| (f, h.norm()))
+                                .collect(),
+                        ),
+                    ],
+                    true,
+                ),
                 true,
             ),
             panel(
                 "Phase (unwrapped)",
                 "deg",
-                with_marks(vec![
-                    Series::markers(
-                        "measured",
-                        measured
-                            .iter()
-                            .map(|&(f, h)| (f, nearest_turn(deg(h), fit_at(f))))
-                            .collect(),
-                    ),
-                    Series::line(
-                        "fitted",
-                        grid.iter()
-                            .copied()
-                            .zip(fit_phase.iter().copied())
-                            .collect(),
-                    ),
-                ]),
+                with_marks(
+                    vec![
+                        Series::markers(
+                            "measured",
+                            measured
+                                .iter()
+                                .map(|&(f, h)| (f, nearest_turn(deg(h), fit_at(f))))
+                                .collect(),
+                        ),
+                        Series::line(
+                            "fitted",
+                            grid.iter()
+                                .copied()
+                                .zip(fit_phase.iter().copied())
+                                .collect(),
+                        ),
+                    ],
+                    false,
+                ),
                 false,
             ),
             panel(
                 "Coherence",
                 "coherence",
-                with_marks(vec![Series::markers(
-                    "coherence",
-                    r.freq_hz
-                        .iter()
-                        .zip(&r.coherence)
-                        .map(|(&f, &g)| (f, g))
-                        .collect(),
-                )]),
+                with_marks(
+                    vec![Series::markers(
+                        "coherence",
+                        r.freq_hz
+                            .iter()
+                            .zip(&r.coherence)
+                            .map(|(&f, &g)| (f, g))
+                            .collect(),
+                    )],
+                    false,
+                ),
                 false,
             ),
         ],
