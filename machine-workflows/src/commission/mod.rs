@@ -70,7 +70,7 @@ pub const CRITERION: &str = "the chosen design (of the two, the one stable witho
     shaft torque, and its objective on the machine is lower than the file's own drive's (3); \
     worse means worse beyond the noise: a design is worse than the file's own drive in a \
     figure only by more than that figure's run-to-run spread, measured as its range over the \
-    file's own drive run with the load step moved by each of STEP_OFFSETS_S";
+    file's own drive run with the load step moved by -0.1 to +0.1 s every 20 ms";
 
 /// The offsets of the load step \[s\] at which the machine file's own drive runs `fig6` on
 /// the machine, to measure each figure's run-to-run spread (its range over them): every
@@ -222,8 +222,8 @@ pub struct Commissioning {
     /// The run-to-run spread of the file's own drive's figures on the machine, over the
     /// load step's timing: the noise a design must be worse by to count as worse.
     pub spread: Spread,
-    /// The chosen design's gains without its AFB, on the machine (when it has AFB): what
-    /// the AFB itself adds on top of the bandwidth.
+    /// The AFB design's gains without its AFB, on the machine: what the AFB itself adds on
+    /// top of the bandwidth.
     pub same_gains_without_afb: Option<OnMachine>,
     /// Every machine file written, with its drive's settings CRC.
     pub files: Vec<WrittenFile>,
@@ -654,12 +654,25 @@ fn judge_reference(
         .into_iter()
         .map(|(s, _)| s)
         .collect();
+    let own_damping = tune::machine_resonance_damping(&cfg);
+    if let Some(b) = judged.resonance_band_damping {
+        if b < own_damping {
+            fails.push(format!(
+                "damping near the machine's resonance {b:.3} (needs ≥ the machine's own \
+                 {own_damping:.3})"
+            ));
+        }
+    }
+    if let Some(b) = judged.notch_band_damping {
+        let floor = tune::NOTCH_BAND_DAMPING_SHARE * own_damping;
+        if b < floor {
+            fails.push(format!(
+                "damping in the notch's band {b:.3} (needs ≥ {floor:.3})"
+            ));
+        }
+    }
     if fails.is_empty() && !judged.feasible {
-        fails.push(
-            "damping near the machine's resonance below the machine's own (tune's band \
-             rule)"
-                .into(),
-        );
+        fails.push("a band-damping rule of `tune` (docs/tuning.md)".into());
     }
     Ok(ReferenceDrive { judged, fails })
 }
@@ -747,14 +760,16 @@ fn run_stages(
         )?),
         None => None,
     };
-    let same_gains_without_afb = if afb {
-        Some(OnMachine::run_same_gains_without_afb(
-            m.clone(),
-            "chosen, same gains without AFB",
-            chosen_design,
-        )?)
-    } else {
-        None
+    // What AFB itself adds: the AFB design (chosen or not) at its gains without its AFB.
+    let same_gains_without_afb = match pair.with.result.design.candidate {
+        d if d.afb.mode != controller_core::AfbMode::Off => {
+            Some(OnMachine::run_same_gains_without_afb(
+                m.clone(),
+                "AFB design, same gains without AFB",
+                &d,
+            )?)
+        }
+        _ => None,
     };
     let c_run = if afb { &runs[0] } else { &runs[1] };
     let c_j = if afb { objective[0] } else { objective[1] };

@@ -222,7 +222,7 @@ fn spread_table(md: &mut String, c: &Commissioning) {
     }
     let _ = writeln!(
         md,
-        "| **spread** | **{d:.4}** | **{s:.4}** | {r:.4} | {n:.4} |"
+        "| **spread** | **{d:.2e}** | **{s:.2e}** | {r:.2e} | {n:.2e} |"
     );
 }
 
@@ -238,25 +238,39 @@ fn credit(md: &mut String, c: &Commissioning, pair: &Pair) {
         &c.runs[1]
     };
     let _ = write!(md, "\n### Credit and price\n\n");
+    let afb_run = &c.runs[0];
+    let chosen_afb = pair.afb_chosen();
     match &c.same_gains_without_afb {
         Some(n) => {
-            let (ja, jn) = (j(c_run), j(n));
+            let (ja, jn) = (j(afb_run), j(n));
             let _ = writeln!(
                 md,
-                "**Credit.** The chosen design with its AFB turned off at the same gains \
-                 (last row above): J {jn:.3} against {ja:.3} with AFB. AFB itself lowers J by \
-                 {:.3}; the rest of the design's gain over the file's own drive (J 3 → \
-                 {jn:.3}) is its bandwidth's and estimator's ({bw} rad/s against the file's \
+                "**Credit.** {}The AFB design ({} rad/s, {}) with its AFB turned off at the \
+                 same gains (last row above): J {jn:.3} against {ja:.3} with AFB. AFB itself \
+                 lowers J by {:.3}; the rest of that design's gain over the file's own drive \
+                 (J 3 → {jn:.3}) is its bandwidth's and estimator's (against the file's \
                  {own_bw} rad/s).",
+                if chosen_afb {
+                    String::new()
+                } else {
+                    format!(
+                        "The chosen design has no AFB: all of its gain over the file's own \
+                         drive (J 3 → {:.3}) is its bandwidth's and estimator's ({bw} rad/s \
+                         against the file's {own_bw} rad/s). ",
+                        j(c_run)
+                    )
+                },
+                afb_run.bandwidth_rad_s,
+                afb_run.afb,
                 jn - ja
             );
         }
         None => {
             let _ = writeln!(
                 md,
-                "**Credit.** The chosen design has no AFB: all of its gain over the file's own \
-                 drive (J 3 → {:.3}) is its bandwidth's and estimator's ({bw} rad/s against \
-                 the file's {own_bw} rad/s).",
+                "**Credit.** No design with AFB: all of the chosen design's gain over the \
+                 file's own drive (J 3 → {:.3}) is its bandwidth's and estimator's ({bw} rad/s \
+                 against the file's {own_bw} rad/s).",
                 j(c_run)
             );
         }

@@ -482,11 +482,15 @@ impl PairFiles {
             c.bandwidth_rad_s,
             c.afb.label()
         );
-        let config = config.display();
         if self.model_only {
+            // The file tuned on lies beside this folder (its staged path is not the user's).
+            let model = config.file_name().map_or_else(
+                || config.display().to_string(),
+                |n| n.to_string_lossy().into(),
+            );
             format!(
                 "NOT verified on the machine (a model only): `hil-harness commission`'s model of \
-                 the machine, {config}, with {what}.\nThe machine file with this drive, and \
+                 the machine, ../{model}, with {what}.\nThe machine file with this drive, and \
                  whether it passed on the machine, are in the folder above (commission.md); \
                  flash nothing from here."
             )
@@ -496,6 +500,7 @@ impl PairFiles {
             } else {
                 format!("; tune chose {} over it", self.chosen)
             };
+            let config = config.display();
             format!(
                 "`hil-harness tune`: {config} with {what}, verified in the nonlinear loop on \
                  this file's plant (fig6, shock, sweep; tune.md{over}).\nEvery [drive] key is \
