@@ -67,12 +67,12 @@ fn own_command() -> String {
 }
 
 /// Whether `file` is still what `path` names (same device and inode).
-fn still_named(file: &File, path: &Path) -> Result<bool> {
-    let held = file.metadata().map_err(|e| HarnessError::io(path, e))?;
+fn still_named(file: &File, path: &Path) -> std::io::Result<bool> {
+    let held = file.metadata()?;
     match std::fs::symlink_metadata(path) {
         Ok(now) => Ok(now.dev() == held.dev() && now.ino() == held.ino()),
         Err(e) if e.kind() == ErrorKind::NotFound => Ok(false),
-        Err(e) => Err(HarnessError::io(path, e)),
+        Err(e) => Err(e),
     }
 }
 
@@ -103,7 +103,13 @@ impl TargetLock {
     /// refuses naming the process that holds it.
     pub(super) fn acquire(target: &Path, parent: &Path, name: &OsStr) -> Result<Self> {
         let path = lock_path(parent, name);
-        let io = |e: std::io::Error| HarnessError::io(&path, e);
+        // Errors name the output directory the user gave, and the lock file.
+        let io = |e: std::io::Error| {
+            HarnessError::io(
+                target,
+                format!("cannot lock it with `{}`: {e}", path.display()),
+            )
+        };
         for _ in 0..ATTEMPTS {
             let mut file = OpenOptions::new()
                 .read(true)
@@ -134,7 +140,7 @@ impl TargetLock {
                 }
                 Err(TryLockError::Error(e)) => return Err(io(e)),
             }
-            if !still_named(&file, &path)? {
+            if !still_named(&file, &path).map_err(io)? {
                 // Its holder removed it between our open and our lock: a new file now.
                 continue;
             }
@@ -148,8 +154,11 @@ impl TargetLock {
             });
         }
         Err(HarnessError::io(
-            &path,
-            "the lock file kept being replaced while this command tried to lock it",
+            target,
+            format!(
+                "its lock `{}` kept being replaced while this command tried to take it",
+                path.display()
+            ),
         ))
     }
 
