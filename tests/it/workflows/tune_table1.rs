@@ -136,7 +136,12 @@ fn tune_table1_writes_a_design_that_runs_and_a_fit_that_measures() {
     // 4x interpolated encoder (16,384 counts; the following-error trip is in revolutions),
     // fits within the tolerance of the model. The gap at 4096 counts is the quantization,
     // which adds damping the linear model does not have.
-    let sets = ["sensors.encoder_interpolation=4".to_string()];
+    // drive.toml states the drive's encoder_cpr (every [drive] key is stated), so the
+    // drive is told of the finer encoder too.
+    let sets = [
+        "sensors.encoder_interpolation=4".to_string(),
+        "drive.encoder_cpr=16384".to_string(),
+    ];
     let fine = sim_engine::resolve("fig6", Some(&config), &sets).unwrap();
     let gains = sim_engine::engine::runner::regulator_gains(&fine).unwrap();
     let model = for_gains(&fine, &gains, Gears::Engaged).unwrap();
