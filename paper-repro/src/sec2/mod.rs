@@ -86,11 +86,13 @@ pub fn base_config(interpolation: u32) -> Result<RunConfig> {
 }
 
 /// The AFB run of a cell: differentiated velocity and acceleration behind first-order
-/// filters at the two corners (the following-error trip is in revolutions: the same angle on
-/// any encoder).
+/// filters at the two corners, the following-error trip at one motor revolution on every
+/// encoder (the map's runaway cells trip there, as they always have; the drive's default is
+/// a quarter revolution).
 pub fn afb_config(base: &RunConfig, velocity_corner_hz: f64, afb_corner_hz: f64) -> RunConfig {
     let mut cfg = base.clone();
     let d = &mut cfg.drive;
+    d.faults.following_error_rev = 1.0;
     d.velocity_estimator = Estimator::Differentiation;
     d.velocity_filter = FilterConfig::FirstOrder {
         corner_hz: velocity_corner_hz as f32,
