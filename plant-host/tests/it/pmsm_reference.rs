@@ -26,6 +26,8 @@ pub struct RefMotor {
     pub flux_pu: f64,
     pub offset_rad: f64,
     pub dc_bus: f64,
+    /// The dead time's loss of a pole's mean voltage, V_dc·t_d·f_pwm, pu (0 = none).
+    pub dead_loss: f64,
 }
 
 /// θm, θl (rad), ωm, ωl (pu), ψα, ψβ (pu·s).
@@ -36,7 +38,10 @@ pub struct PmsmReference {
     pub m: RefMotor,
     pub x: X,
     pub h: f64,
+    /// Contact changes located.
     pub switches: u64,
+    /// Phase-current sign changes located (with dead time).
+    pub sign_changes: u64,
 }
 
 impl PmsmReference {
@@ -48,6 +53,7 @@ impl PmsmReference {
             x: [0.0; 6],
             h,
             switches: 0,
+            sign_changes: 0,
         };
         let th = m.offset_rad;
         let psi_m = r.psi_m();
@@ -96,10 +102,38 @@ impl PmsmReference {
         classify(&self.p, &Self::mech(&self.x))
     }
 
-    /// The stator voltage of three duties: phase = (duty − mean)·V_dc, then Clarke.
-    pub fn voltage(&self, duties: [f64; 3]) -> [f64; 2] {
-        let mean = (duties[0] + duties[1] + duties[2]) / 3.0;
-        let v = duties.map(|d| (d - mean) * self.m.dc_bus);
+    /// The phase currents' signs, with dead time (else all 0).
+    fn signs(&self, x: &X) -> [i8; 3] {
+        if self.m.dead_loss == 0.0 {
+            return [0; 3];
+        }
+        let [ia, ib] = self.current_ab(x);
+        let b = -0.5 * ia + 0.75_f64.sqrt() * ib;
+        let c = -0.5 * ia - 0.75_f64.sqrt() * ib;
+        [ia, b, c].map(|i| {
+            if i > 0.0 {
+                1
+            } else if i < 0.0 {
+                -1
+            } else {
+                0
+            }
+        })
+    }
+
+    /// What a step holds: the contact law and the currents' signs.
+    fn pattern(&self, x: &X) -> (Law, [i8; 3]) {
+        (classify(&self.p, &Self::mech(x)), self.signs(x))
+    }
+
+    /// The stator voltage of three duties: pole = duty·V_dc − ΔV·sign(i), phase = pole −
+    /// mean, then Clarke.
+    pub fn voltage(&self, duties: [f64; 3], signs: [i8; 3]) -> [f64; 2] {
+        let poles: [f64; 3] = std::array::from_fn(|k| {
+            duties[k] * self.m.dc_bus - self.m.dead_loss * f64::from(signs[k])
+        });
+        let mean = (poles[0] + poles[1] + poles[2]) / 3.0;
+        let v = poles.map(|p| p - mean);
         [v[0], (v[1] - v[2]) / 3.0_f64.sqrt()]
     }
 
@@ -129,13 +163,13 @@ impl PmsmReference {
 
     /// Integrates `dt` with the duties and load torque held.
     pub fn advance(&mut self, dt: f64, duties: [f64; 3], tl: f64) {
-        let v = self.voltage(duties);
         let mut left = dt;
         while left > 1e-15 {
             let h = self.h.min(left);
-            let law = self.law();
+            let (law, signs) = self.pattern(&self.x);
+            let v = self.voltage(duties, signs);
             let x1 = self.rk4(&self.x, law, v, tl, h);
-            if classify(&self.p, &Self::mech(&x1)) == law {
+            if self.pattern(&x1) == (law, signs) {
                 self.x = x1;
                 left -= h;
                 continue;
@@ -144,14 +178,16 @@ impl PmsmReference {
             for _ in 0..60 {
                 let mid = 0.5 * (lo + hi);
                 let xm = self.rk4(&self.x, law, v, tl, mid);
-                if classify(&self.p, &Self::mech(&xm)) == law {
+                if self.pattern(&xm) == (law, signs) {
                     lo = mid;
                 } else {
                     hi = mid;
                 }
             }
             self.x = self.rk4(&self.x, law, v, tl, hi);
-            self.switches += 1;
+            let (new_law, new_signs) = self.pattern(&self.x);
+            self.switches += u64::from(new_law != law);
+            self.sign_changes += u64::from(new_signs != signs);
             left -= hi;
         }
     }
