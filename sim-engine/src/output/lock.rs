@@ -124,10 +124,9 @@ impl TargetLock {
                     return Err(HarnessError::OutputInTheWay {
                         out: target.to_path_buf(),
                         reason: format!(
-                            "`{}` is in use by another stiffdrive command, {}, until it has \
+                            "it is in use by another stiffdrive command, {}, until it has \
                              written its output (lock `{}`); run this one when that one has \
                              finished, or give it another output directory",
-                            target.display(),
                             holder(&path),
                             path.display()
                         ),

@@ -318,7 +318,7 @@ fn a_second_staging_of_a_target_in_use_is_refused_naming_it_and_the_holder() {
     // The lock is per open file: a second staging in this process is a second command.
     let e = Staging::new(&out).unwrap_err().to_string();
     assert!(
-        e.contains("o` is in use by another stiffdrive command"),
+        e.contains("/o`: it is in use by another stiffdrive command"),
         "{e}"
     );
     assert!(
