@@ -9,10 +9,16 @@
 //! * [`runner`]: the cargo runner of the embedded target (`.cargo/config.toml`): boots an
 //!   ELF on QEMU's mps2-an386 (Cortex-M4F), decodes its log as it arrives, and exits with
 //!   the firmware's semihosting exit status.
+//! * [`cycles`]: the cycle estimate of `cargo fw-bench`: the executed instruction stream of
+//!   the firmware's measured windows priced by the Cortex-M4 TRM's timings.
+//! * [`plugin`]: the QEMU TCG plugin that feeds it (this library, built as
+//!   `libfw_runner.so`).
 //!
 //! The `hil-harness pil` command and the PIL tests use the first two; the `fw-*` cargo
 //! aliases go through the runner binary.
 
+pub mod cycles;
 pub mod defmt_log;
+pub mod plugin;
 pub mod provision;
 pub mod runner;

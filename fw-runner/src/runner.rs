@@ -14,9 +14,13 @@
 //!
 //! Runner options, first after the ELF: `--plain-log` prints messages without level or
 //! timestamp (`cargo fw-bench`); `--expect-crash` passes only on exit status 1 with a
-//! `HardFault` or `panic` line in the log (`cargo fw-crash-check`). Further arguments go to
-//! QEMU.
+//! `HardFault` or `panic` line in the log (`cargo fw-crash-check`); `--cycles` loads this
+//! crate's QEMU plugin ([`crate::plugin`]) on the image's window marks, prints the cycle
+//! estimate ([`crate::cycles`]) after the firmware's log, and fails when the worst period
+//! exceeds the `period_cycle_budget` the firmware logged (`cargo fw-bench`). Further
+//! arguments go to QEMU.
 
+use crate::cycles::{log_value, BenchFigures, Marks, Trace};
 use crate::defmt_log::{LineFormat, LogDecoder};
 use crate::provision::{ensure_qemu, QEMU_BINARY};
 use std::ffi::OsString;
@@ -36,6 +40,8 @@ pub struct RunnerArgs {
     pub format: LineFormat,
     /// Pass only on a logged crash with exit status 1.
     pub expect_crash: bool,
+    /// Trace the image's marked windows and report (and gate) their cycle estimate.
+    pub cycles: bool,
     /// Extra QEMU arguments after the runner options.
     pub qemu_args: Vec<OsString>,
 }
@@ -46,11 +52,12 @@ pub fn parse_args(args: impl IntoIterator<Item = OsString>) -> Result<RunnerArgs
     let elf = args
         .next()
         .map(PathBuf::from)
-        .ok_or("usage: fw-runner ELF [--plain-log] [--expect-crash] [QEMU ARGS...]")?;
+        .ok_or("usage: fw-runner ELF [--plain-log] [--expect-crash] [--cycles] [QEMU ARGS...]")?;
     let mut out = RunnerArgs {
         elf,
         format: LineFormat::Full,
         expect_crash: false,
+        cycles: false,
         qemu_args: Vec::new(),
     };
     let mut options = true;
@@ -58,6 +65,7 @@ pub fn parse_args(args: impl IntoIterator<Item = OsString>) -> Result<RunnerArgs
         match a.to_str() {
             Some("--plain-log") if options => out.format = LineFormat::Plain,
             Some("--expect-crash") if options => out.expect_crash = true,
+            Some("--cycles") if options => out.cycles = true,
             _ => {
                 options = false;
                 out.qemu_args.push(a);
@@ -123,7 +131,105 @@ fn watchdog(child: Arc<Mutex<Child>>, limit: Duration, fired: Arc<Mutex<bool>>) 
     }
 }
 
-fn spawn_qemu(args: &RunnerArgs, socket: &Path) -> Result<Child, String> {
+/// The QEMU plugin: this crate's library built as a shared object, next to the running
+/// executable (`target/<profile>/`) or one folder up (a test in `target/<profile>/deps/`).
+pub fn plugin_path() -> Result<PathBuf, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("cannot locate fw-runner: {e}"))?;
+    let dir = exe.parent().unwrap_or_else(|| Path::new("."));
+    let name = "libfw_runner.so";
+    let candidates = [
+        dir.join(name),
+        dir.join("deps").join(name),
+        dir.parent().unwrap_or(dir).join(name),
+    ];
+    candidates
+        .iter()
+        .find(|p| p.is_file())
+        .cloned()
+        .ok_or_else(|| {
+            format!(
+                "the cycle plugin {} is missing (it is built with fw-runner: cargo build -p fw-runner)",
+                dir.join(name).display()
+            )
+        })
+}
+
+/// The window marks of the image at `elf` (its symbols `cycle_window_arm_current`,
+/// required, `cycle_window_arm_velocity` and `cycle_window_preempt`).
+pub fn elf_marks(elf: &Path) -> Result<Marks, String> {
+    use object::{Object, ObjectSymbol};
+    let bytes = std::fs::read(elf).map_err(|e| format!("{}: {e}", elf.display()))?;
+    let file = object::File::parse(bytes.as_slice())
+        .map_err(|e| format!("{}: not an ELF image: {e}", elf.display()))?;
+    let find = |name: &str| {
+        file.symbols()
+            .find(|s| s.name() == Ok(name))
+            // A Thumb function's symbol has bit 0 set; the instruction is at the even address.
+            .map(|s| s.address() & !1)
+    };
+    let marks = Marks {
+        arm_current: find("cycle_window_arm_current"),
+        arm_velocity: find("cycle_window_arm_velocity"),
+        preempt: find("cycle_window_preempt"),
+    };
+    if marks.arm_current.is_none() {
+        return Err(format!(
+            "{} has no cycle_window_arm_current: --cycles needs an image with window marks (fw-bench)",
+            elf.display()
+        ));
+    }
+    Ok(marks)
+}
+
+/// The `-plugin` argument that traces `marks` into `out`.
+#[must_use]
+pub fn plugin_arg(plugin: &Path, out: &Path, marks: &Marks) -> String {
+    let mut arg = format!("file={},out={}", plugin.display(), out.display());
+    for (name, addr) in [
+        ("arm_current", marks.arm_current),
+        ("arm_velocity", marks.arm_velocity),
+        ("preempt", marks.preempt),
+    ] {
+        if let Some(a) = addr {
+            arg.push_str(&format!(",{name}={a:#x}"));
+        }
+    }
+    arg
+}
+
+/// The cycle report of a traced run and its verdict: the lines to print, and whether the
+/// worst period is within the firmware's `period_cycle_budget` (true when it logged none).
+#[must_use]
+pub fn cycle_report(trace: &Trace, log: &[String]) -> (Vec<String>, bool) {
+    let figures = BenchFigures::of(trace);
+    let mut lines = figures.lines();
+    if let Some(n) = log_value(log, "period_instructions") {
+        lines.push(format!(
+            "trace check: the traced mean period is {:.1} instructions, the SysTick figure {n}",
+            figures.period_instructions_mean
+        ));
+    }
+    let Some(budget) = log_value(log, "period_cycle_budget") else {
+        return (lines, true);
+    };
+    let pass = figures.current.cycles.n > 0 && figures.period_worst <= budget;
+    lines.push(if figures.current.cycles.n == 0 {
+        "FAIL: the cycle trace holds no current tick".to_string()
+    } else if pass {
+        format!(
+            "PASS: worst period {} cycles within the budget of {budget}",
+            figures.period_worst
+        )
+    } else {
+        format!(
+            "FAIL: worst period {} cycles exceeds the budget of {budget}",
+            figures.period_worst
+        )
+    });
+    (lines, pass)
+}
+
+fn spawn_qemu(args: &RunnerArgs, socket: &Path, plugin: Option<&str>) -> Result<Child, String> {
     let mut cmd = Command::new(QEMU_BINARY);
     cmd.args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
         .args(["-nographic", "-monitor", "none"])
@@ -132,6 +238,9 @@ fn spawn_qemu(args: &RunnerArgs, socket: &Path) -> Result<Child, String> {
         .args(["-serial", "chardev:uart0"])
         .args(["-semihosting-config", "enable=on,target=native"])
         .args(["-icount", "shift=0,sleep=off"]);
+    if let Some(plugin) = plugin {
+        cmd.args(["-plugin", plugin]);
+    }
     if let Ok(extra) = std::env::var("QEMU_EXTRA") {
         cmd.args(extra.split_whitespace());
     }
@@ -164,7 +273,14 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
     let input = std::env::var_os("UART_INPUT").map(PathBuf::from);
     let uart = std::thread::spawn(move || serve_uart(listener, input));
 
-    let mut child = spawn_qemu(args, &socket)?;
+    let trace_file = dir.join("cycles.txt");
+    let plugin = if args.cycles {
+        let marks = elf_marks(&args.elf)?;
+        Some(plugin_arg(&plugin_path()?, &trace_file, &marks))
+    } else {
+        None
+    };
+    let mut child = spawn_qemu(args, &socket, plugin.as_deref())?;
     let stdout = child.stdout.take();
     let child = Arc::new(Mutex::new(child));
     let fired = Arc::new(Mutex::new(false));
@@ -174,6 +290,7 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
     }
 
     let mut crash_logged = false;
+    let mut log = Vec::new();
     let mut stream = decoder.stream(args.format);
     let mut out = std::io::stdout();
     if let Some(mut pipe) = stdout {
@@ -186,6 +303,9 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
             stream.push(buf.get(..n).unwrap_or_default(), |line| {
                 crash_logged |= is_crash_line(&line);
                 let _ = writeln!(out, "{line}");
+                if args.cycles {
+                    log.push(line);
+                }
             });
             let _ = out.flush();
         }
@@ -199,6 +319,16 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
         .wait()
         .map_err(|e| format!("waiting for QEMU: {e}"))?;
     let _ = uart.join();
+    let traced = args.cycles.then(|| {
+        std::fs::read_to_string(&trace_file)
+            .map_err(|e| {
+                format!(
+                    "the cycle trace {} was not written: {e}",
+                    trace_file.display()
+                )
+            })
+            .and_then(|t| Trace::parse(&t))
+    });
     let _ = std::fs::remove_dir_all(&dir);
     if *fired.lock().unwrap_or_else(PoisonError::into_inner) {
         return Err(format!(
@@ -218,7 +348,21 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
         }
         return Ok(verdict);
     }
-    Ok(code.unwrap_or(1))
+    let code = code.unwrap_or(1);
+    match traced {
+        None => Ok(code),
+        Some(Err(e)) => {
+            eprintln!("fw-runner: {e}");
+            Ok(1)
+        }
+        Some(Ok(trace)) => {
+            let (lines, pass) = cycle_report(&trace, &log);
+            for l in lines {
+                let _ = writeln!(out, "{l}");
+            }
+            Ok(if pass { code } else { 1 })
+        }
+    }
 }
 
 /// A fresh private directory for the UART socket.
@@ -249,6 +393,10 @@ mod tests {
         let b =
             parse_args(os(&["fw.elf", "--expect-crash"])).unwrap_or_else(|e| unreachable!("{e}"));
         assert!(b.expect_crash && b.format == LineFormat::Full && b.qemu_args.is_empty());
+        assert!(!b.cycles);
+        let c = parse_args(os(&["fw.elf", "--plain-log", "--cycles"]))
+            .unwrap_or_else(|e| unreachable!("{e}"));
+        assert!(c.cycles && c.qemu_args.is_empty());
         assert!(parse_args(os(&[])).is_err());
     }
 

@@ -30,6 +30,9 @@ mod blocks;
 #[path = "fw_bench/report.rs"]
 mod report;
 #[cfg(target_os = "none")]
+#[path = "fw_bench/stack.rs"]
+mod stack;
+#[cfg(target_os = "none")]
 #[path = "fw_bench/window.rs"]
 mod window;
 
@@ -53,12 +56,21 @@ mod target {
 
     use crate::blocks::{current_blocks, velocity_blocks};
     use crate::report::{self, Results};
-    use crate::window::{calibrate, dither, elapsed, per_call};
+    use crate::stack::{self, StackMark};
+    use crate::window::{
+        calibrate, cycle_window_arm_current, cycle_window_arm_velocity, cycle_window_preempt,
+        dither, elapsed, per_call,
+    };
 
     /// Budget of one 4 kHz period: current tick + half a velocity tick [instructions]: the
     /// 600 measured for the drive before the overcurrent, I²t and stall protections, plus
     /// 10 %, so a regression of that size fails the bench.
     pub(crate) const PERIOD_BUDGET: u32 = 660;
+    /// Gate of the traced worst-case period [estimated Cortex-M4 cycles]: worst current tick
+    /// + half the worst velocity tick, each with exception entry and exit; checked by the
+    /// runner (`fw-runner --cycles`). The 1,054 measured for the DC drive plus 10 %, as the
+    /// instruction budget's margin.
+    pub(crate) const PERIOD_CYCLE_BUDGET: u32 = 1160;
     /// Current ticks before measuring (start-up: estimator priming).
     const WARMUP_TICKS: u32 = 100;
     /// Measured current ticks (and half as many velocity ticks).
@@ -103,6 +115,9 @@ mod target {
     const PREEMPTION_CHECK_TICK: u32 = (WARMUP_TICKS + MEASURED_TICKS) / 2 + 10;
     /// Current ticks that ran inside the stretched velocity interrupt.
     pub(crate) static PREEMPTIONS: AtomicU32 = AtomicU32::new(0);
+    /// Stack marks of the current and the velocity interrupt (see `fw_bench/stack.rs`).
+    pub(crate) static CURRENT_STACK: StackMark = StackMark::new();
+    pub(crate) static VELOCITY_STACK: StackMark = StackMark::new();
 
     /// Check that the current loop preempts the velocity loop: stay in the velocity
     /// interrupt for 600 µs (2.4 current periods, timed on SysTick) and count the current
@@ -122,16 +137,21 @@ mod target {
     }
 
     fn current_loop() {
+        cycle_window_preempt();
         let tick = CURRENT_TICKS.fetch_add(1, Ordering::Relaxed);
         if measuring(tick) {
             dither(tick % 23);
             let t0 = SYST::get_current();
             let t1 = SYST::get_current();
             CURRENT_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            let sp = stack::sp();
+            stack::paint(sp);
+            cycle_window_arm_current();
             dither(tick % 17);
             let t0 = SYST::get_current();
             let _ = LOOPS.current_isr();
             let t1 = SYST::get_current();
+            CURRENT_STACK.record(sp, stack::depth(sp));
             CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
             CURRENT_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
             CURRENT_SAMPLES.fetch_add(1, Ordering::Relaxed);
@@ -193,12 +213,16 @@ mod target {
             let t0 = SYST::get_current();
             let t1 = SYST::get_current();
             VELOCITY_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+            let sp = stack::sp();
+            stack::paint(sp);
+            cycle_window_arm_velocity();
             dither(tick % 17);
             let before = CURRENT_TICKS.load(Ordering::Relaxed);
             let t0 = SYST::get_current();
             let out = LOOPS.velocity_isr();
             let t1 = SYST::get_current();
             let _ = out;
+            let velocity_depth = stack::depth(sp);
             dither(tick % 13);
             let _ = BARE
                 .with(|(c, profile)| {
@@ -224,6 +248,7 @@ mod target {
                     velocity_blocks(tick, e, setpoint.acceleration_pu_s, out.accel_fb_pu);
                 });
             if CURRENT_TICKS.load(Ordering::Relaxed) == before {
+                VELOCITY_STACK.record(sp, velocity_depth);
                 VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
                 VELOCITY_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
                 VELOCITY_SAMPLES.fetch_add(1, Ordering::Relaxed);
@@ -292,6 +317,7 @@ mod target {
         start_systick(&mut core.SYST);
         let calibration = calibrate();
         board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
+        stack::note_main_sp();
         while CURRENT_TICKS.load(Ordering::Relaxed) < WARMUP_TICKS + MEASURED_TICKS + 60 {
             cortex_m::asm::wfi();
         }

@@ -8,10 +8,12 @@ use firmware::boards::active as board;
 use firmware::rt::{exit, MemoryUse};
 
 use crate::blocks::{per_block, Block};
+use crate::stack::SPAN_BYTES;
 use crate::target::{
     BARE_CURRENT_COUNTS, BARE_PROFILE_COUNTS, BARE_VELOCITY_COUNTS, BENCH_NOTCH, CURRENT_MAX,
-    CURRENT_OVERHEAD, CURRENT_SAMPLES, DISTURBED, LOOPS, MEASURED_TICKS, PERIOD_BUDGET,
-    PREEMPTIONS, VELOCITY_MAX, VELOCITY_OVERHEAD, VELOCITY_SAMPLES,
+    CURRENT_OVERHEAD, CURRENT_SAMPLES, CURRENT_STACK, DISTURBED, LOOPS, MEASURED_TICKS,
+    PERIOD_BUDGET, PERIOD_CYCLE_BUDGET, PREEMPTIONS, VELOCITY_MAX, VELOCITY_OVERHEAD,
+    VELOCITY_SAMPLES, VELOCITY_STACK,
 };
 use crate::window::{longest, per_call, INSTRUCTIONS_PER_COUNT};
 
@@ -39,7 +41,7 @@ pub(crate) struct Results {
 /// Log the figures: method, interrupt bodies, the core's share, the per-block table, and
 /// the image's memory use.
 pub(crate) fn print(r: &Results) {
-    defmt::info!("fw-bench: instruction counts (QEMU -icount shift=0: 1 instruction = 1 ns, SysTick at {=u32} Hz = {=u32} instructions per count); these are instructions, not cycles", board::CORE_CLOCK_HZ, INSTRUCTIONS_PER_COUNT);
+    defmt::info!("fw-bench: instruction counts (QEMU -icount shift=0: 1 instruction = 1 ns, SysTick at {=u32} Hz = {=u32} instructions per count); these are instructions, not cycles: the runner's cycle estimate follows the firmware's lines", board::CORE_CLOCK_HZ, INSTRUCTIONS_PER_COUNT);
     defmt::info!(
         "calibration: a block of 1000 NOPs (+ call/return) measures {=u32} instructions",
         r.calibration
@@ -91,7 +93,22 @@ pub(crate) fn print(r: &Results) {
     }
     defmt::info!("flash_bytes: {=u32}", r.mem.flash_bytes);
     defmt::info!("static_ram_bytes: {=u32}", r.mem.static_ram_bytes);
-    defmt::info!("stack_high_water_bytes: {=u32}", r.stack);
+    defmt::info!(
+        "stack_high_water_bytes: {=u32} (the whole run: start-up, main loop and interrupts)",
+        r.stack
+    );
+    for (name, mark) in [("current", &CURRENT_STACK), ("velocity", &VELOCITY_STACK)] {
+        let (body, above, whole) = mark.get();
+        defmt::info!(
+            "stack_{=str}_interrupt_bytes: {=u32} (worst tick; painted stack: {=u32} used by the tick's body below the handler's stack pointer, {=u32} above it for the exception frame, the vector and the bench's handler frame)",
+            name,
+            whole,
+            body,
+            above
+        );
+    }
+    // Read by the runner (`fw-runner --cycles`), which gates the traced worst period on it.
+    defmt::info!("period_cycle_budget: {=u32}", PERIOD_CYCLE_BUDGET);
 }
 
 /// The per-block table: each block of the core timed alone, the rest of each tick, and the
@@ -158,6 +175,15 @@ pub(crate) fn verdict(r: &Results) -> ! {
     }
     if !ok_samples || LOOPS.overruns() != 0 {
         defmt::error!("FAIL: measurement incomplete or disturbed");
+        exit(false)
+    }
+    let stack_body = CURRENT_STACK.get().0.max(VELOCITY_STACK.get().0);
+    if stack_body == 0 || stack_body >= SPAN_BYTES {
+        defmt::error!(
+            "FAIL: an interrupt's stack mark is {=u32} bytes: outside the painted span of {=u32}",
+            stack_body,
+            SPAN_BYTES
+        );
         exit(false)
     }
     let preemptions = PREEMPTIONS.load(Ordering::Relaxed);

@@ -72,3 +72,46 @@ pub(crate) fn longest(max: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32
     let mean_overhead = overhead.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT / n;
     max.saturating_sub(mean_overhead)
 }
+
+/// What the last window mark armed (1: current tick, 2: velocity tick, 0: preempted).
+static ARMED: AtomicU32 = AtomicU32::new(0);
+
+/// A store the optimizer keeps (so the mark functions, and their calls, stay in the image),
+/// of a different value in each (so they are not merged into one address).
+#[inline(always)]
+fn mark(value: u32) {
+    // SAFETY: a volatile write of the atomic's own storage from its only writer context
+    // (the mark functions run in the interrupt handlers, which never preempt each other's
+    // marks: the current loop's mark runs at the higher priority and completes).
+    #[allow(unsafe_code)]
+    unsafe {
+        core::ptr::write_volatile(ARMED.as_ptr(), value);
+    }
+}
+
+/// Marks for the cycle tracer of `fw-runner --cycles` (QEMU plugin): executing this
+/// function arms it, and the next two SysTick reads (the `t0`, `t1` of the window) bound
+/// one current tick's body. Called before the window's dither, outside the window.
+#[allow(unsafe_code)]
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn cycle_window_arm_current() {
+    mark(1);
+}
+
+/// As [`cycle_window_arm_current`], for a velocity tick's body.
+#[allow(unsafe_code)]
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn cycle_window_arm_velocity() {
+    mark(2);
+}
+
+/// First call of the current-loop handler: the tracer drops a window this interrupt
+/// preempts (as the SysTick figures drop a disturbed velocity window).
+#[allow(unsafe_code)]
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn cycle_window_preempt() {
+    mark(0);
+}
