@@ -42,17 +42,22 @@ const CASES: &[Case] = &[
         ],
         must: &[
             "drive.velocity_bandwidth_rad_s",
-            "allowed range is (0, 20]",
+            "allowed range is [0.15",
+            ", 20] given current_bandwidth_rad_s",
             "current_bandwidth_rad_s ≥ 1.5 × velocity_bandwidth_rad_s",
         ],
         must_not: &[],
     },
-    // 3000 rad/s on Table 1's 1998 rad/s current loop: the ratio.
+    // 3000 rad/s on Table 1's 1998 rad/s current loop: one range from every bound, where
+    // the PI gains' formats (1022 rad/s) bind before the ratio (1332 rad/s); the message
+    // names both.
     Case {
         sets: &["drive.velocity_bandwidth_rad_s=3000"],
         must: &[
             "drive.velocity_bandwidth_rad_s",
-            "allowed range is (0, 1332]",
+            "allowed range is [0.15",
+            ", 1022.2",
+            "current_bandwidth_rad_s ≥ 1.5 × velocity_bandwidth_rad_s",
         ],
         must_not: &["ki_vel"],
     },
