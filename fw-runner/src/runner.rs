@@ -11,6 +11,7 @@
 //!   socket. `UART_INPUT=<file>` feeds that file to UART0's receiver (a `d` asks the
 //!   firmware for a trace dump): `UART_INPUT=<(printf d) cargo fw-run`.
 //! * `QEMU_EXTRA` adds QEMU arguments; `QEMU_TIMEOUT` (s, default 120) bounds the run.
+//! * `CYCLE_TRACE=<file>` (with `--cycles`) keeps the plugin's window-by-window trace there.
 //!
 //! Runner options, first after the ELF: `--plain-log` prints messages without level or
 //! timestamp (`cargo fw-bench`); `--expect-crash` passes only on exit status 1 with a
@@ -319,6 +320,11 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
         .wait()
         .map_err(|e| format!("waiting for QEMU: {e}"))?;
     let _ = uart.join();
+    if let Some(keep) = std::env::var_os("CYCLE_TRACE").filter(|_| args.cycles) {
+        if let Err(e) = std::fs::copy(&trace_file, &keep) {
+            eprintln!("fw-runner: cannot keep the cycle trace in {keep:?}: {e}");
+        }
+    }
     let traced = args.cycles.then(|| {
         std::fs::read_to_string(&trace_file)
             .map_err(|e| {

@@ -66,10 +66,10 @@ mod target {
     /// 600 measured for the drive before the overcurrent, I²t and stall protections, plus
     /// 10 %, so a regression of that size fails the bench.
     pub(crate) const PERIOD_BUDGET: u32 = 660;
-    /// Gate of the traced worst-case period [estimated Cortex-M4 cycles]: worst current tick
-    /// + half the worst velocity tick, each with exception entry and exit; checked by the
-    /// runner (`fw-runner --cycles`). The 1,054 measured for the DC drive plus 10 %, as the
-    /// instruction budget's margin.
+    /// Gate of the traced worst-case period [estimated Cortex-M4 cycles]: the worst current
+    /// tick plus half the worst velocity tick, each with exception entry and exit; checked
+    /// by the runner (`fw-runner --cycles`). The 1,054 measured for the DC drive plus 10 %,
+    /// as the instruction budget's margin.
     pub(crate) const PERIOD_CYCLE_BUDGET: u32 = 1160;
     /// Current ticks before measuring (start-up: estimator priming).
     const WARMUP_TICKS: u32 = 100;
