@@ -22,7 +22,23 @@ fn file_value(base: &RunConfig, name: &str) -> Option<f64> {
     }
 }
 
+/// `commission.md`, section by section.
 fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &Pair) -> String {
+    let mut md = identified(c, base, ident);
+    tuned(&mut md, c, pair);
+    reference_drive(&mut md, c, pair);
+    on_the_machine(&mut md, c);
+    spread_table(&mut md, c);
+    credit(&mut md, c, pair);
+    tried_table(&mut md, c);
+    verdict(&mut md, c, pair);
+    files_table(&mut md, c);
+    md
+}
+
+/// The heading and section 1: the identified `[plant]` keys beside the simulated machine's
+/// own values.
+fn identified(c: &Commissioning, base: &RunConfig, ident: &Identification) -> String {
     let mut md = format!(
         "# Commissioning of {}\n\n## 1. Identified ([identify/identify.md](identify/identify.md))\n\n\
          | parameter | identified | standard error | the simulated machine's file | unit |\n\
@@ -37,12 +53,17 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
             e.name, e.value, e.std_error, e.unit
         );
     }
+    md.push_str("\n`identified.toml` is the machine file with that `[plant]` table.\n\n");
+    md
+}
+
+/// Section 2: the design chosen on the identified model, and where its files are.
+fn tuned(md: &mut String, c: &Commissioning, pair: &Pair) {
     let (chosen, other) = pair.chosen();
     let d = &chosen.result.design;
     let _ = write!(
         md,
-        "\n`identified.toml` is the machine file with that `[plant]` table.\n\n{}\
-         ## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
+        "{}## 2. Tuned on the identified machine ([tune/tune.md](tune/tune.md))\n\n\
          Chosen {} (J {:.3} on the identified model; {} J {:.3}; the file's own drive \
          3) by the objective on the machine, where both designs ran (section 3): {} rad/s, {}; smallest damping {:.3} (engaged){}, phase margin \
          {:.1} deg, gain margin {:.1} dB, quantization torque noise {:.3} pu RMS. \
@@ -86,7 +107,10 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
             )
         },
     );
-    reference_drive(&mut md, c, pair);
+}
+
+/// Section 3's table: both designs (and the runs set beside them) on the machine itself.
+fn on_the_machine(md: &mut String, c: &Commissioning) {
     let _ = write!(
         md,
         "\n## 3. On the machine itself: `fig6` against the plant of the machine file\n\n\
@@ -118,12 +142,6 @@ fn markdown(c: &Commissioning, base: &RunConfig, ident: &Identification, pair: &
             ratio(g.torque_noise_rms_pu, own_noise)
         );
     }
-    spread_table(&mut md, c);
-    credit(&mut md, c, pair);
-    tried_table(&mut md, c);
-    verdict(&mut md, c, pair);
-    files_table(&mut md, c);
-    md
 }
 
 /// `x / of` as "8.5×", or "-" when `of` is not a positive number.
