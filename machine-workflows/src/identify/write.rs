@@ -6,6 +6,8 @@ use super::lost_motion::identified_mechanics;
 use super::spec::IdentifySpec;
 use super::twin::{self, Twin};
 use super::Identification;
+use nalgebra::Complex;
+use plant_host::analysis::TwoInertiaFit;
 use plant_host::MechanicsConfig;
 use serde::Serialize;
 use sim_engine::config::RunConfig;
@@ -156,145 +158,199 @@ const FIT_POINTS_PER_DECADE: f64 = 200.0;
 /// each measured point moved by whole turns to the one nearest the fitted curve at its
 /// frequency, so noise never puts a point a turn away from the fit it matches.
 pub fn bode(ident: &Identification, spec: &IdentifySpec, wb: f64) -> Figure {
-    let r = &ident.response;
     let fit = &ident.fit.fit;
+    let measured = measured_bins(ident, spec);
+    let curve = FittedCurve::new(fit, &measured, wb);
+    Figure {
+        x_label: "frequency (Hz)".into(),
+        panels: vec![
+            magnitude_panel(fit, &measured, &curve),
+            phase_panel(fit, &measured, &curve, wb),
+            coherence_panel(ident),
+        ],
+    }
+}
+
+/// The response's bins the fit used (γ² ≥ min_coherence, up to max_freq_hz, above 0 Hz):
+/// (frequency \[Hz\], θm/Tm).
+fn measured_bins(ident: &Identification, spec: &IdentifySpec) -> Vec<(f64, Complex<f64>)> {
+    let r = &ident.response;
     let used = |i: usize| {
         r.coherence.get(i).is_some_and(|&g| g >= spec.min_coherence)
             && r.freq_hz.get(i).is_some_and(|&f| f <= spec.max_freq_hz)
     };
-    let measured: Vec<(f64, nalgebra::Complex<f64>)> = r
-        .freq_hz
+    r.freq_hz
         .iter()
         .zip(&r.h)
         .enumerate()
         .filter(|(i, (f, _))| used(*i) && **f > 0.0)
         .map(|(_, (&f, &h))| (f, h))
-        .collect();
-    let deg = |h: nalgebra::Complex<f64>| h.arg().to_degrees();
-    // The fitted curve: a log grid from the lowest to the highest bin used.
-    let (lo, hi) = measured
-        .iter()
-        .fold((f64::INFINITY, 0.0_f64), |(a, b), &(f, _)| {
-            (a.min(f), b.max(f))
-        });
-    let grid: Vec<f64> = if lo.is_finite() && hi > lo {
-        let n = ((hi / lo).log10() * FIT_POINTS_PER_DECADE).ceil().max(2.0) as usize;
-        (0..=n)
-            .map(|k| lo * (hi / lo).powf(k as f64 / n as f64))
-            .collect()
-    } else {
-        measured.iter().map(|&(f, _)| f).collect()
-    };
-    let model: Vec<nalgebra::Complex<f64>> = grid.iter().map(|&f| fit.response(f, wb)).collect();
-    let mut fit_phase = unwrapped(model.iter().map(|&h| deg(h)));
-    if let Some(&first) = fit_phase.first() {
-        let shift = -360.0 * (first / 360.0).ceil();
-        fit_phase.iter_mut().for_each(|p| *p += shift);
+        .collect()
+}
+
+/// The phase of `h` \[deg\], in (−180°, 180°].
+fn deg(h: Complex<f64>) -> f64 {
+    h.arg().to_degrees()
+}
+
+/// The fitted model on a log grid from the lowest to the highest bin used, its phase
+/// unwrapped.
+struct FittedCurve {
+    /// The grid \[Hz\].
+    grid: Vec<f64>,
+    /// The fitted θm/Tm at each frequency of `grid`.
+    model: Vec<Complex<f64>>,
+    /// Its phase \[deg\], continuous along `grid` and started in (−360°, 0°].
+    phase: Vec<f64>,
+}
+
+impl FittedCurve {
+    fn new(fit: &TwoInertiaFit, measured: &[(f64, Complex<f64>)], wb: f64) -> Self {
+        let (lo, hi) = measured
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(a, b), &(f, _)| {
+                (a.min(f), b.max(f))
+            });
+        let grid: Vec<f64> = if lo.is_finite() && hi > lo {
+            let n = ((hi / lo).log10() * FIT_POINTS_PER_DECADE).ceil().max(2.0) as usize;
+            (0..=n)
+                .map(|k| lo * (hi / lo).powf(k as f64 / n as f64))
+                .collect()
+        } else {
+            measured.iter().map(|&(f, _)| f).collect()
+        };
+        let model: Vec<Complex<f64>> = grid.iter().map(|&f| fit.response(f, wb)).collect();
+        let mut phase = unwrapped(model.iter().map(|&h| deg(h)));
+        if let Some(&first) = phase.first() {
+            let shift = -360.0 * (first / 360.0).ceil();
+            phase.iter_mut().for_each(|p| *p += shift);
+        }
+        Self { grid, model, phase }
     }
-    // The unwrapped fit at `f`: its raw phase there, on the turn of the nearest grid point.
-    let fit_at = |f: f64| {
-        let k = grid.partition_point(|&g| g < f);
+
+    /// The unwrapped fit at `f`: its raw phase there, on the turn of the nearest grid point.
+    fn phase_at(&self, fit: &TwoInertiaFit, f: f64, wb: f64) -> f64 {
+        let k = self.grid.partition_point(|&g| g < f);
         let near = [k.saturating_sub(1), k]
             .into_iter()
-            .filter_map(|j| Some((grid.get(j)?, fit_phase.get(j)?)))
+            .filter_map(|j| Some((self.grid.get(j)?, self.phase.get(j)?)))
             .min_by(|a, b| (a.0 / f).ln().abs().total_cmp(&(b.0 / f).ln().abs()))
             .map(|(_, &p)| p);
         let raw = deg(fit.response(f, wb));
         near.map_or(raw, |p| nearest_turn(raw, p))
-    };
-    let panel = |title: &str, y: &str, series, log_y| Panel {
+    }
+}
+
+/// A panel of the Bode plot over a log frequency axis.
+fn panel(title: &str, y: &str, series: Vec<Series>, log_y: bool) -> Panel {
+    Panel {
         title: title.into(),
         y_label: y.into(),
         series,
         log_x: true,
         log_y,
         legend: Legend::LowerLeft,
-    };
-    // The fitted anti-resonance and resonance, labelled on the magnitude panel only (the
-    // panels below share its frequencies; their lines stay unlabelled, clear of the data).
-    let with_marks = |mut v: Vec<Series>, labelled: bool| {
-        let f_ar = fit.anti_resonance_hz;
-        let f_r = fit.resonance_hz();
-        let marks = [
-            (format!("fitted anti-resonance {f_ar:.2} Hz"), f_ar),
-            (format!("fitted resonance {f_r:.2} Hz"), f_r),
-        ];
-        v.extend(
-            marks
-                .into_iter()
-                .filter(|(_, f)| f.is_finite() && *f > 0.0)
-                .map(|(label, f)| {
-                    Series::vertical(if labelled { label } else { String::new() }, f)
-                }),
-        );
-        v
-    };
-    Figure {
-        x_label: "frequency (Hz)".into(),
-        panels: vec![
-            panel(
-                "Motor position / motor torque: magnitude",
-                "rad per pu torque",
-                with_marks(
-                    vec![
-                        Series::markers(
-                            "measured",
-                            measured.iter().map(|&(f, h)| (f, h.norm())).collect(),
-                        ),
-                        Series::line(
-                            "fitted",
-                            grid.iter()
-                                .zip(&model)
-                                .map(|(&f, h)| (f, h.norm()))
-                                .collect(),
-                        ),
-                    ],
-                    true,
-                ),
-                true,
-            ),
-            panel(
-                "Phase (unwrapped)",
-                "deg",
-                with_marks(
-                    vec![
-                        Series::markers(
-                            "measured",
-                            measured
-                                .iter()
-                                .map(|&(f, h)| (f, nearest_turn(deg(h), fit_at(f))))
-                                .collect(),
-                        ),
-                        Series::line(
-                            "fitted",
-                            grid.iter()
-                                .copied()
-                                .zip(fit_phase.iter().copied())
-                                .collect(),
-                        ),
-                    ],
-                    false,
-                ),
-                false,
-            ),
-            panel(
-                "Coherence",
-                "coherence",
-                with_marks(
-                    vec![Series::markers(
-                        "coherence",
-                        r.freq_hz
-                            .iter()
-                            .zip(&r.coherence)
-                            .map(|(&f, &g)| (f, g))
-                            .collect(),
-                    )],
-                    false,
-                ),
-                false,
-            ),
-        ],
     }
+}
+
+/// `v` with the fitted anti-resonance and resonance as vertical lines, `labelled` on the
+/// magnitude panel only (the panels below share its frequencies; their lines stay
+/// unlabelled, clear of the data).
+fn with_marks(fit: &TwoInertiaFit, mut v: Vec<Series>, labelled: bool) -> Vec<Series> {
+    let f_ar = fit.anti_resonance_hz;
+    let f_r = fit.resonance_hz();
+    let marks = [
+        (format!("fitted anti-resonance {f_ar:.2} Hz"), f_ar),
+        (format!("fitted resonance {f_r:.2} Hz"), f_r),
+    ];
+    v.extend(
+        marks
+            .into_iter()
+            .filter(|(_, f)| f.is_finite() && *f > 0.0)
+            .map(|(label, f)| Series::vertical(if labelled { label } else { String::new() }, f)),
+    );
+    v
+}
+
+/// |θm/Tm|: the bins used as markers, the fit as a line, the marks labelled.
+fn magnitude_panel(
+    fit: &TwoInertiaFit,
+    measured: &[(f64, Complex<f64>)],
+    curve: &FittedCurve,
+) -> Panel {
+    let series = vec![
+        Series::markers(
+            "measured",
+            measured.iter().map(|&(f, h)| (f, h.norm())).collect(),
+        ),
+        Series::line(
+            "fitted",
+            curve
+                .grid
+                .iter()
+                .zip(&curve.model)
+                .map(|(&f, h)| (f, h.norm()))
+                .collect(),
+        ),
+    ];
+    panel(
+        "Motor position / motor torque: magnitude",
+        "rad per pu torque",
+        with_marks(fit, series, true),
+        true,
+    )
+}
+
+/// The phase, unwrapped: each bin used on the turn nearest the fit at its frequency.
+fn phase_panel(
+    fit: &TwoInertiaFit,
+    measured: &[(f64, Complex<f64>)],
+    curve: &FittedCurve,
+    wb: f64,
+) -> Panel {
+    let series = vec![
+        Series::markers(
+            "measured",
+            measured
+                .iter()
+                .map(|&(f, h)| (f, nearest_turn(deg(h), curve.phase_at(fit, f, wb))))
+                .collect(),
+        ),
+        Series::line(
+            "fitted",
+            curve
+                .grid
+                .iter()
+                .copied()
+                .zip(curve.phase.iter().copied())
+                .collect(),
+        ),
+    ];
+    panel(
+        "Phase (unwrapped)",
+        "deg",
+        with_marks(fit, series, false),
+        false,
+    )
+}
+
+/// The coherence of every bin.
+fn coherence_panel(ident: &Identification) -> Panel {
+    let r = &ident.response;
+    let series = vec![Series::markers(
+        "coherence",
+        r.freq_hz
+            .iter()
+            .zip(&r.coherence)
+            .map(|(&f, &g)| (f, g))
+            .collect(),
+    )];
+    panel(
+        "Coherence",
+        "coherence",
+        with_marks(&ident.fit.fit, series, false),
+        false,
+    )
 }
 
 fn markdown(
