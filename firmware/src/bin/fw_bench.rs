@@ -38,7 +38,7 @@ mod window;
 
 #[cfg(target_os = "none")]
 mod target {
-    use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
+    use core::sync::atomic::{AtomicBool, AtomicI32, AtomicU32, Ordering};
 
     use controller_core::{
         Controller, CurrentInputs, DriveConfig, NotchConfig, Profile, ProfileConfig, ProfileKind,
@@ -118,6 +118,8 @@ mod target {
     /// Stack marks of the current and the velocity interrupt (see `fw_bench/stack.rs`).
     pub(crate) static CURRENT_STACK: StackMark = StackMark::new();
     pub(crate) static VELOCITY_STACK: StackMark = StackMark::new();
+    /// The velocity interrupt is running (a current tick then nests in it).
+    static IN_VELOCITY: AtomicBool = AtomicBool::new(false);
 
     /// Check that the current loop preempts the velocity loop: stay in the velocity
     /// interrupt for 600 µs (2.4 current periods, timed on SysTick) and count the current
@@ -151,7 +153,7 @@ mod target {
             let t0 = SYST::get_current();
             let _ = LOOPS.current_isr();
             let t1 = SYST::get_current();
-            CURRENT_STACK.record(sp, stack::depth(sp));
+            CURRENT_STACK.record(sp, stack::depth(sp), IN_VELOCITY.load(Ordering::Relaxed));
             CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
             CURRENT_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
             CURRENT_SAMPLES.fetch_add(1, Ordering::Relaxed);
@@ -204,6 +206,12 @@ mod target {
     }
 
     fn velocity_loop() {
+        IN_VELOCITY.store(true, Ordering::Relaxed);
+        velocity_loop_body();
+        IN_VELOCITY.store(false, Ordering::Relaxed);
+    }
+
+    fn velocity_loop_body() {
         let tick = VELOCITY_TICKS.fetch_add(1, Ordering::Relaxed);
         if tick == PREEMPTION_CHECK_TICK {
             preemption_check();
@@ -248,7 +256,7 @@ mod target {
                     velocity_blocks(tick, e, setpoint.acceleration_pu_s, out.accel_fb_pu);
                 });
             if CURRENT_TICKS.load(Ordering::Relaxed) == before {
-                VELOCITY_STACK.record(sp, velocity_depth);
+                VELOCITY_STACK.record(sp, velocity_depth, false);
                 VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
                 VELOCITY_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
                 VELOCITY_SAMPLES.fetch_add(1, Ordering::Relaxed);

@@ -57,11 +57,15 @@ impl StackMark {
     }
 
     /// Record one tick: the handler's stack pointer `sp` (from [`paint`]) and the depth
-    /// [`depth`] found below it.
-    pub(crate) fn record(&self, sp: u32, depth: u32) {
+    /// [`depth`] found below it. `nested` when the interrupt came into another handler
+    /// (whose frames then lie above this one's): its body counts, its whole does not.
+    pub(crate) fn record(&self, sp: u32, depth: u32, nested: bool) {
+        self.body.fetch_max(depth, Ordering::Relaxed);
+        if nested {
+            return;
+        }
         let main = MAIN_SP.load(Ordering::Relaxed);
         let above = main.saturating_sub(sp);
-        self.body.fetch_max(depth, Ordering::Relaxed);
         self.above.fetch_max(above, Ordering::Relaxed);
         self.whole.fetch_max(above + depth, Ordering::Relaxed);
     }
