@@ -100,7 +100,8 @@ mod target {
             );
             // 6. PUSH and POP of 4 registers: 1 + N each.
             window!(
-                "push {{r4, r5, r8, r9}}", "pop {{r4, r5, r8, r9}}",
+                "push {{r4, r5, r8, r9}}",
+                "pop {{r4, r5, r8, r9}}",
                 "ldr {t}, [{syst}]",
             );
             // 7. A loop of 8 iterations: the branch taken 7 times (1 + P), not taken once (1).
