@@ -33,7 +33,9 @@ const SEARCH_SAMPLES: u32 = 16;
 /// Bisections of a bracketed crossing (the bracket ends 2^-60 of a step wide).
 const BISECTIONS: u32 = 60;
 /// Mode or sign changes inside one call before the rest of it is stepped without guards
-/// (a chattering contact, or a current sliding at zero through the dead time).
+/// (a chattering contact, or a phase current the dead time holds at zero: each side's
+/// loss drives it back across, which the averaged model does not resolve; past the cap
+/// each step takes the signs at its start).
 const MAX_CHANGES_PER_CALL: u32 = 32;
 /// Halvings of a step whose series does not converge before it is taken as it is.
 const MAX_HALVINGS: u32 = 40;
@@ -76,12 +78,18 @@ pub struct PmsmPlant {
     h_max_s: f64,
     x: Vars,
     contact: Contact,
+    /// With dead time, the phase currents' signs the inverter applies now (else zeros).
+    /// Carried, like the contact, and changed only where a crossing is located: the state
+    /// a located crossing leaves is within round-off of zero current, and recomputing the
+    /// angle's cosine and sine at the next step can put it back on the old side.
+    signs: [i8; 3],
     time_s: f64,
     /// The duties [`PmsmPlant::advance_period`] is applying now.
     applied_duties: [f64; 3],
     /// The duties of the last step (what [`PmsmPlant::phase_voltages_pu`] reports).
     last_duties: [f64; 3],
     events: u64,
+    sign_changes: u64,
     searches: u64,
 }
 
@@ -113,10 +121,12 @@ impl PmsmPlant {
             h_max_s: (0.5 / rate).min(MAX_STEP_S),
             x: Vars::default(),
             contact: Contact::Free,
+            signs: [0; 3],
             time_s: 0.0,
             applied_duties: [0.5; 3],
             last_duties: [0.5; 3],
             events: 0,
+            sign_changes: 0,
             searches: 0,
         };
         plant.set_state(0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
@@ -304,6 +314,10 @@ impl PmsmPlant {
     pub fn mode_changes(&self) -> u64 {
         self.events
     }
+    /// Phase-current sign changes located so far (with dead time; else 0).
+    pub fn current_sign_changes(&self) -> u64 {
+        self.sign_changes
+    }
     /// Steps searched for a crossing (suspected or real): a cost diagnostic.
     pub fn crossing_searches(&self) -> u64 {
         self.searches
@@ -331,7 +345,7 @@ impl PmsmPlant {
             sin: 0.0,
         };
         self.refresh_angle();
-        self.contact = self.contact_of(&self.x);
+        (self.contact, self.signs) = self.pattern_of(&self.x, [0; 3]);
     }
 
     /// cos θe and sin θe from the motor angle (each step starts from them, so the carried
@@ -366,10 +380,16 @@ impl PmsmPlant {
         }
     }
 
-    /// What a step holds fixed: the contact and, with dead time, the phase currents' signs.
-    fn pattern_of(&self, x: &Vars) -> (Contact, [i8; 3]) {
+    /// What a step holds fixed: the contact and, with dead time, the phase currents' signs,
+    /// where a current exactly at zero keeps its sign in `carried` (only a strict crossing
+    /// changes a sign: a bisection can end exactly on zero).
+    fn pattern_of(&self, x: &Vars, carried: [i8; 3]) -> (Contact, [i8; 3]) {
         let signs = if self.inverter.dead_time_loss_pu() > 0.0 {
-            x.phase_currents().map(|i| sign(i) as i8)
+            let now = x.phase_currents().map(|i| sign(i) as i8);
+            std::array::from_fn(|k| match now.get(k).copied().unwrap_or(0) {
+                0 => carried.get(k).copied().unwrap_or(0),
+                s => s,
+            })
         } else {
             [0; 3]
         };
@@ -428,7 +448,7 @@ impl PmsmPlant {
         while remaining > 0.0 {
             self.refresh_angle();
             let x0 = self.x;
-            let pattern = (self.contact, self.pattern_of(&x0).1);
+            let pattern = (self.contact, self.signs);
             let currents = pattern.1.map(f64::from);
             let v_ab = self.inverter.voltage_ab(duties, currents);
             let eq = self.equations(self.contact, v_ab, tl);
@@ -442,21 +462,29 @@ impl PmsmPlant {
                 series = Series::new(&eq, &x0, h);
             }
             let whole = h >= remaining;
-            if changes < MAX_CHANGES_PER_CALL && self.suspect(&series, &x0) {
+            let guarded = changes < MAX_CHANGES_PER_CALL;
+            if guarded && self.suspect(&series, &x0) {
                 self.searches += 1;
                 if let Some(tau) = self.first_change(&series, pattern) {
                     self.x = series.at(tau);
-                    let contact = self.contact_of(&self.x);
+                    let (contact, signs) = self.pattern_of(&self.x, self.signs);
                     if contact != self.contact {
                         self.events += 1;
                     }
-                    self.contact = contact;
+                    if signs != self.signs {
+                        self.sign_changes += 1;
+                    }
+                    (self.contact, self.signs) = (contact, signs);
                     changes += 1;
                     remaining -= tau;
                     continue;
                 }
             }
             self.x = series.at(h);
+            if !guarded {
+                // Past the cap each step takes the signs its start has.
+                self.signs = self.pattern_of(&self.x, self.signs).1;
+            }
             remaining = if whole { 0.0 } else { remaining - h };
         }
         self.refresh_angle();
@@ -502,7 +530,7 @@ impl PmsmPlant {
         let h = series.h();
         let left = |tau: f64| {
             let x = series.at(tau);
-            self.pattern_of(&x) != pattern
+            self.pattern_of(&x, pattern.1) != pattern
         };
         let mut lo = 0.0;
         let mut hi = None;

@@ -404,100 +404,178 @@ fn the_dead_time_opposes_the_phase_currents() {
     assert!(di[0] < 0.0);
 }
 
-/// A PMSM run under a crude current loop (duties from the true currents every 250 µs,
-/// applied 180 µs late, so the steps alternate 180 and 70 µs), torque reversing at 4 Hz
-/// so the gears cross the lost motion, a load torque: against the stator-frame reference
-/// at 0.5 µs RK4 steps (140 to 360 times shorter), from rest under both contact laws.
-/// The reference also models the dead time (its sign changes bisected), for a case with
-/// dead time at speed.
+/// One case of the run against the reference: the contact law, the speed both shafts
+/// start at (pu), the dead time (s), the scale of the q current reference, and the
+/// encoder offset (electrical degrees).
+#[derive(Debug, Clone, Copy)]
+struct Case {
+    law: BacklashModel,
+    speed: f64,
+    dead_time: f64,
+    amp: f64,
+    offset_deg: f64,
+}
+
+/// The figures of one run against the reference: the largest errors, and the contact
+/// changes and phase-current sign changes each located.
+#[derive(Debug, Clone, Copy)]
+struct Agreement {
+    pos: f64,
+    vel: f64,
+    cur: f64,
+    crossings: u64,
+    ref_crossings: u64,
+    signs: u64,
+    ref_signs: u64,
+}
+
+/// 0.5 s of a crude current loop (duties from the true currents every 250 µs, applied
+/// 180 µs late, so the steps alternate 180 and 70 µs) on the plant and on the reference
+/// (RK4 at 0.5 µs: 140 to 360 times shorter), the duties computed from the plant.
+fn against_reference(c: Case) -> Agreement {
+    let mut cfg = pmsm_config(&[
+        ("dead_time_s", Value::Float(c.dead_time)),
+        ("encoder_offset_elec_deg", Value::Float(c.offset_deg)),
+    ]);
+    cfg.lost_motion.model = c.law;
+    cfg.mechanics.motor_viscous_pu = 0.01;
+    let mut p = PmsmPlant::new(&cfg, PWM_HZ).unwrap();
+    let mc = &cfg.mechanics;
+    let mut rp = RefParams::from_raw(
+        mc.base_speed_rpm,
+        mc.motor_inertia_s,
+        mc.load_inertia_s,
+        mc.anti_resonance_hz,
+        mc.shaft_damping_ratio,
+        mc.backlash_deg,
+        c.law == BacklashModel::Clamped,
+        None,
+    );
+    rp.bm = mc.motor_viscous_pu;
+    rp.bl = mc.load_viscous_pu;
+    let m = *p.motor();
+    let rm = RefMotor {
+        pole_pairs: 4.0,
+        r: cfg.electrics.winding_resistance_pu,
+        ld: 4e-4,
+        lq: 6e-4,
+        flux_pu: 1.0,
+        offset_rad: c.offset_deg.to_radians(),
+        dc_bus: 1.8,
+        dead_loss: 1.8 * c.dead_time * PWM_HZ,
+    };
+    let mut r = PmsmReference::new(rp, rm, 0.5e-6);
+    p.set_state(0.0, 0.0, c.speed, c.speed, 0.0, 0.0);
+    r.x[2] = c.speed;
+    r.x[3] = c.speed;
+    let delay = cfg.electrics.computational_delay_s;
+    let (mut pos, mut vel, mut cur) = (0.0_f64, 0.0_f64, 0.0_f64);
+    let mut applied = [0.5; 3];
+    for tick in 0..2000 {
+        let t = f64::from(tick) * 250e-6;
+        let tl = 0.2 * (2.0 * PI * 1.3 * t).sin();
+        let i_q_ref =
+            c.amp * (1.2 * (2.0 * PI * 4.0 * t).sin() + 0.3 * (2.0 * PI * 31.0 * t).sin());
+        let w = p.motor_vel_pu();
+        let (i_d, i_q) = (p.i_d_pu(), p.i_q_pu());
+        let kp = 2.0;
+        let v_d = kp * (-0.2 - i_d) - w * m.electrical_rad_s_per_pu * m.lq_pu_s * i_q;
+        let v_q = kp * (i_q_ref - i_q) + w * m.flux_linkage_pu;
+        // Rotated to the angle at the middle of the period the voltage applies over.
+        let ahead = w * m.electrical_rad_s_per_pu * (delay + 125e-6);
+        let v_ab = inverse_park([v_d, v_q], p.electrical_angle_rad() + ahead);
+        let duties = p.inverter().duties_for(v_ab);
+        for (dt, d) in [(delay, applied), (250e-6 - delay, duties)] {
+            p.advance(dt, d, tl);
+            r.advance(dt, d, tl);
+        }
+        applied = duties;
+        pos = pos
+            .max((p.motor_pos_rad() - r.x[0]).abs())
+            .max((p.load_pos_rad() - r.x[1]).abs());
+        vel = vel
+            .max((p.motor_vel_pu() - r.x[2]).abs())
+            .max((p.load_vel_pu() - r.x[3]).abs());
+        let [a, b, _] = p.phase_currents_pu();
+        let [ra, rb] = r.phase_ab();
+        cur = cur.max((a - ra).abs()).max((b - rb).abs());
+    }
+    Agreement {
+        pos,
+        vel,
+        cur,
+        crossings: p.mode_changes(),
+        ref_crossings: r.switches,
+        signs: p.current_sign_changes(),
+        ref_signs: r.sign_changes,
+    }
+}
+
+/// The PMSM against the stator-frame reference: torque reversing at 4 Hz (with 31 Hz
+/// ripple) so the gears cross the lost motion, a load torque. From rest under both
+/// contact laws; started at base speed (67 Hz electrical) without and with 2 µs of dead
+/// time; and from rest with the dead time at three times the current (phase currents
+/// to 4.5 pu), so that each phase current crosses zero briskly. At a 30° offset and the
+/// 1× current the dead time holds a phase current at zero from the start (the two sides'
+/// losses both drive it back to zero), which neither integrator models, hence 10° there.
 #[test]
 fn the_pmsm_matches_the_stator_frame_reference() {
+    let rest = Case {
+        law: BacklashModel::DeadZone,
+        speed: 0.0,
+        dead_time: 0.0,
+        amp: 1.0,
+        offset_deg: 30.0,
+    };
     let cases = [
-        (BacklashModel::DeadZone, 0.0, 0.0),
-        (BacklashModel::Clamped, 0.0, 0.0),
+        rest,
+        Case {
+            law: BacklashModel::Clamped,
+            ..rest
+        },
+        Case { speed: 1.0, ..rest },
+        Case {
+            speed: 1.0,
+            dead_time: 2e-6,
+            ..rest
+        },
+        Case {
+            dead_time: 2e-6,
+            amp: 3.0,
+            offset_deg: 10.0,
+            ..rest
+        },
     ];
-    for (law, speed, dead_time) in cases {
-        let mut cfg = pmsm_config(&[("dead_time_s", Value::Float(dead_time))]);
-        cfg.lost_motion.model = law;
-        cfg.mechanics.motor_viscous_pu = 0.01;
-        let mut p = PmsmPlant::new(&cfg, PWM_HZ).unwrap();
-        let mc = &cfg.mechanics;
-        let mut rp = RefParams::from_raw(
-            mc.base_speed_rpm,
-            mc.motor_inertia_s,
-            mc.load_inertia_s,
-            mc.anti_resonance_hz,
-            mc.shaft_damping_ratio,
-            mc.backlash_deg,
-            law == BacklashModel::Clamped,
-            None,
-        );
-        rp.bm = mc.motor_viscous_pu;
-        rp.bl = mc.load_viscous_pu;
-        let m = *p.motor();
-        let rm = RefMotor {
-            pole_pairs: 4.0,
-            r: cfg.electrics.winding_resistance_pu,
-            ld: 4e-4,
-            lq: 6e-4,
-            flux_pu: 1.0,
-            offset_rad: 30f64.to_radians(),
-            dc_bus: 1.8,
-            dead_loss: 1.8 * dead_time * PWM_HZ,
-        };
-        let mut r = PmsmReference::new(rp, rm, 0.5e-6);
-        p.set_state(0.0, 0.0, speed, speed, 0.0, 0.0);
-        r.x[2] = speed;
-        r.x[3] = speed;
-        let delay = cfg.electrics.computational_delay_s;
-        let (mut pos, mut vel, mut cur) = (0.0_f64, 0.0_f64, 0.0_f64);
-        let mut peak = 0.0_f64;
-        let mut applied = [0.5; 3];
-        let ticks = 2000;
-        for tick in 0..ticks {
-            let t = f64::from(tick) * 250e-6;
-            let tl = 0.2 * (2.0 * PI * 1.3 * t).sin();
-            let i_q_ref = 1.2 * (2.0 * PI * 4.0 * t).sin() + 0.3 * (2.0 * PI * 31.0 * t).sin();
-            let w = p.motor_vel_pu();
-            let (i_d, i_q) = (p.i_d_pu(), p.i_q_pu());
-            let kp = 2.0;
-            let v_d = kp * (-0.2 - i_d) - w * m.electrical_rad_s_per_pu * m.lq_pu_s * i_q;
-            let v_q = kp * (i_q_ref - i_q) + w * m.flux_linkage_pu;
-            // Rotated to the angle at the middle of the period the voltage applies over.
-            let ahead = w * m.electrical_rad_s_per_pu * (delay + 125e-6);
-            let v_ab = inverse_park([v_d, v_q], p.electrical_angle_rad() + ahead);
-            let duties = p.inverter().duties_for(v_ab);
-            for (dt, d) in [(delay, applied), (250e-6 - delay, duties)] {
-                p.advance(dt, d, tl);
-                r.advance(dt, d, tl);
-            }
-            applied = duties;
-            pos = pos
-                .max((p.motor_pos_rad() - r.x[0]).abs())
-                .max((p.load_pos_rad() - r.x[1]).abs());
-            vel = vel
-                .max((p.motor_vel_pu() - r.x[2]).abs())
-                .max((p.load_vel_pu() - r.x[3]).abs());
-            let [a, b, _] = p.phase_currents_pu();
-            let [ra, rb] = r.phase_ab();
-            cur = cur.max((a - ra).abs()).max((b - rb).abs());
-            peak = peak.max(p.motor_vel_pu().abs());
-        }
+    for c in cases {
+        let a = against_reference(c);
         println!(
-            "{law:?}, from {speed} pu, dead time {dead_time} s: max |error| position {pos:.2e} \
-             rad, speed {vel:.2e} pu, phase current {cur:.2e} pu; {} crossings (reference \
-             {}), {} current sign changes in the reference, {} searches; peak speed {peak:.3} pu",
-            p.mode_changes(),
-            r.switches,
-            r.sign_changes,
-            p.crossing_searches(),
+            "{:?} from {} pu, dead time {} s, current x{}, offset {}°: max |error| position \
+             {:.1e} rad, speed {:.1e} pu, phase current {:.1e} pu; {} crossings (reference \
+             {}), {} current sign changes (reference {})",
+            c.law,
+            c.speed,
+            c.dead_time,
+            c.amp,
+            c.offset_deg,
+            a.pos,
+            a.vel,
+            a.cur,
+            a.crossings,
+            a.ref_crossings,
+            a.signs,
+            a.ref_signs,
         );
-        assert!(p.mode_changes() >= 4, "{}", p.mode_changes());
-        assert_eq!(p.mode_changes(), r.switches);
-        if dead_time > 0.0 {
-            assert!(r.sign_changes > 20, "{}", r.sign_changes);
+        assert!(a.crossings >= 4, "{c:?} {a:?}");
+        assert_eq!(a.crossings, a.ref_crossings, "{c:?} {a:?}");
+        if c.dead_time > 0.0 {
+            // The reference may count one more at the start: from zero current its first
+            // located state can put a phase at round-off on the wrong side.
+            assert!(a.signs > 30, "{c:?} {a:?}");
+            assert!(a.ref_signs.abs_diff(a.signs) <= 1, "{c:?} {a:?}");
+        } else {
+            assert_eq!((a.signs, a.ref_signs), (0, 0));
         }
-        assert!(pos < 1e-9 && vel < 1e-9 && cur < 1e-9, "{pos} {vel} {cur}");
+        assert!(a.pos < 1e-9 && a.vel < 1e-9 && a.cur < 1e-9, "{c:?} {a:?}");
     }
 }
 

@@ -42,6 +42,9 @@ pub struct PmsmReference {
     pub switches: u64,
     /// Phase-current sign changes located (with dead time).
     pub sign_changes: u64,
+    /// The signs the dead time applies now: a current exactly at zero keeps its sign here,
+    /// only a strict crossing changes it (all zero at the start, no current).
+    pub signs: [i8; 3],
 }
 
 impl PmsmReference {
@@ -54,6 +57,7 @@ impl PmsmReference {
             h,
             switches: 0,
             sign_changes: 0,
+            signs: [0; 3],
         };
         let th = m.offset_rad;
         let psi_m = r.psi_m();
@@ -102,28 +106,30 @@ impl PmsmReference {
         classify(&self.p, &Self::mech(&self.x))
     }
 
-    /// The phase currents' signs, with dead time (else all 0).
-    fn signs(&self, x: &X) -> [i8; 3] {
+    /// The phase currents' signs, with dead time (else all 0); a current exactly at zero
+    /// keeps its sign in `held`.
+    fn signs(&self, x: &X, held: [i8; 3]) -> [i8; 3] {
         if self.m.dead_loss == 0.0 {
             return [0; 3];
         }
         let [ia, ib] = self.current_ab(x);
         let b = -0.5 * ia + 0.75_f64.sqrt() * ib;
         let c = -0.5 * ia - 0.75_f64.sqrt() * ib;
-        [ia, b, c].map(|i| {
-            if i > 0.0 {
+        let i = [ia, b, c];
+        std::array::from_fn(|k| {
+            if i[k] > 0.0 {
                 1
-            } else if i < 0.0 {
+            } else if i[k] < 0.0 {
                 -1
             } else {
-                0
+                held[k]
             }
         })
     }
 
     /// What a step holds: the contact law and the currents' signs.
     fn pattern(&self, x: &X) -> (Law, [i8; 3]) {
-        (classify(&self.p, &Self::mech(x)), self.signs(x))
+        (classify(&self.p, &Self::mech(x)), self.signs(x, self.signs))
     }
 
     /// The stator voltage of three duties: pole = duty·V_dc − ΔV·sign(i), phase = pole −
@@ -164,9 +170,14 @@ impl PmsmReference {
     /// Integrates `dt` with the duties and load torque held.
     pub fn advance(&mut self, dt: f64, duties: [f64; 3], tl: f64) {
         let mut left = dt;
+        // Located switches in a row that each advanced less than 1e-12 s: a current held at
+        // zero by the dead time (the two sides' fields both point at zero), which this
+        // reference does not model; it stops rather than chatter forever.
+        let mut chatter = 0;
         while left > 1e-15 {
             let h = self.h.min(left);
             let (law, signs) = self.pattern(&self.x);
+            self.signs = signs;
             let v = self.voltage(duties, signs);
             let x1 = self.rk4(&self.x, law, v, tl, h);
             if self.pattern(&x1) == (law, signs) {
@@ -188,7 +199,14 @@ impl PmsmReference {
             let (new_law, new_signs) = self.pattern(&self.x);
             self.switches += u64::from(new_law != law);
             self.sign_changes += u64::from(new_signs != signs);
+            self.signs = new_signs;
             left -= hi;
+            chatter = if hi < 1e-12 { chatter + 1 } else { 0 };
+            assert!(
+                chatter < 1000,
+                "a phase current held at zero by the dead time (sliding) at θm {}",
+                self.x[0]
+            );
         }
     }
 }
