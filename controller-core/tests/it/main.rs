@@ -20,6 +20,7 @@ mod controller;
 mod estimator;
 mod foc;
 mod gains;
+mod given_ranges;
 mod notch;
 mod pinned;
 mod properties;
