@@ -28,7 +28,7 @@ use std::ffi::OsString;
 use std::io::{Read, Write};
 use std::os::unix::net::UnixListener;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, ChildStdout, Command, Stdio};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
@@ -259,20 +259,10 @@ fn spawn_qemu(args: &RunnerArgs, socket: &Path, plugin: Option<&str>) -> Result<
 pub fn run(args: &RunnerArgs) -> Result<i32, String> {
     ensure_qemu().map_err(|e| e.to_string())?;
     let decoder = LogDecoder::from_elf(&args.elf).map_err(|e| e.to_string())?;
-    let limit_s: u64 = match std::env::var("QEMU_TIMEOUT") {
-        Ok(v) => v
-            .parse()
-            .map_err(|_| format!("QEMU_TIMEOUT must be whole seconds, got {v:?}"))?,
-        Err(_) => 120,
-    };
+    let limit_s = qemu_timeout_s()?;
     let dir = tempfile_dir()?;
     let socket = dir.join("uart0.sock");
-    let listener = UnixListener::bind(&socket).map_err(|e| format!("UART socket: {e}"))?;
-    listener
-        .set_nonblocking(true)
-        .map_err(|e| format!("UART socket: {e}"))?;
-    let input = std::env::var_os("UART_INPUT").map(PathBuf::from);
-    let uart = std::thread::spawn(move || serve_uart(listener, input));
+    let uart = start_uart(&socket)?;
 
     let trace_file = dir.join("cycles.txt");
     let plugin = if args.cycles {
@@ -290,11 +280,63 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
         std::thread::spawn(move || watchdog(child, Duration::from_secs(limit_s), fired));
     }
 
+    let mut out = std::io::stdout();
+    let (crash_logged, log) = print_log(&decoder, args, stdout, &mut out);
+    let status = child
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .wait()
+        .map_err(|e| format!("waiting for QEMU: {e}"))?;
+    let _ = uart.join();
+    let traced = args.cycles.then(|| read_trace(&trace_file));
+    let _ = std::fs::remove_dir_all(&dir);
+    if *fired.lock().unwrap_or_else(PoisonError::into_inner) {
+        return Err(format!(
+            "QEMU ran past QEMU_TIMEOUT = {limit_s} s and was stopped"
+        ));
+    }
+    Ok(verdict(
+        args,
+        status.code(),
+        crash_logged,
+        traced,
+        &log,
+        &mut out,
+    ))
+}
+
+/// `QEMU_TIMEOUT` [s], 120 when unset.
+fn qemu_timeout_s() -> Result<u64, String> {
+    match std::env::var("QEMU_TIMEOUT") {
+        Ok(v) => v
+            .parse()
+            .map_err(|_| format!("QEMU_TIMEOUT must be whole seconds, got {v:?}")),
+        Err(_) => Ok(120),
+    }
+}
+
+/// Binds UART0's socket at `socket` and serves it (with `UART_INPUT`) on a thread.
+fn start_uart(socket: &Path) -> Result<std::thread::JoinHandle<()>, String> {
+    let listener = UnixListener::bind(socket).map_err(|e| format!("UART socket: {e}"))?;
+    listener
+        .set_nonblocking(true)
+        .map_err(|e| format!("UART socket: {e}"))?;
+    let input = std::env::var_os("UART_INPUT").map(PathBuf::from);
+    Ok(std::thread::spawn(move || serve_uart(listener, input)))
+}
+
+/// Decodes QEMU's semihosting output (the defmt stream) and prints it line by line until
+/// QEMU closes it. Returns whether a crash was logged and, with `--cycles`, the lines.
+fn print_log(
+    decoder: &LogDecoder,
+    args: &RunnerArgs,
+    pipe: Option<ChildStdout>,
+    out: &mut impl Write,
+) -> (bool, Vec<String>) {
     let mut crash_logged = false;
     let mut log = Vec::new();
     let mut stream = decoder.stream(args.format);
-    let mut out = std::io::stdout();
-    if let Some(mut pipe) = stdout {
+    if let Some(mut pipe) = pipe {
         let mut buf = [0u8; 4096];
         loop {
             let n = match pipe.read(&mut buf) {
@@ -314,34 +356,37 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
     if let Some(note) = stream.finish().note() {
         let _ = writeln!(out, "{note}");
     }
-    let status = child
-        .lock()
-        .unwrap_or_else(PoisonError::into_inner)
-        .wait()
-        .map_err(|e| format!("waiting for QEMU: {e}"))?;
-    let _ = uart.join();
-    if let Some(keep) = std::env::var_os("CYCLE_TRACE").filter(|_| args.cycles) {
-        if let Err(e) = std::fs::copy(&trace_file, &keep) {
+    (crash_logged, log)
+}
+
+/// The plugin's trace of the run, kept in `CYCLE_TRACE` when that is set.
+fn read_trace(trace_file: &Path) -> Result<Trace, String> {
+    if let Some(keep) = std::env::var_os("CYCLE_TRACE") {
+        if let Err(e) = std::fs::copy(trace_file, &keep) {
             eprintln!("fw-runner: cannot keep the cycle trace in {keep:?}: {e}");
         }
     }
-    let traced = args.cycles.then(|| {
-        std::fs::read_to_string(&trace_file)
-            .map_err(|e| {
-                format!(
-                    "the cycle trace {} was not written: {e}",
-                    trace_file.display()
-                )
-            })
-            .and_then(|t| Trace::parse(&t))
-    });
-    let _ = std::fs::remove_dir_all(&dir);
-    if *fired.lock().unwrap_or_else(PoisonError::into_inner) {
-        return Err(format!(
-            "QEMU ran past QEMU_TIMEOUT = {limit_s} s and was stopped"
-        ));
-    }
-    let code = status.code();
+    std::fs::read_to_string(trace_file)
+        .map_err(|e| {
+            format!(
+                "the cycle trace {} was not written: {e}",
+                trace_file.display()
+            )
+        })
+        .and_then(|t| Trace::parse(&t))
+}
+
+/// The runner's exit status from QEMU's `code`: the crash check with `--expect-crash`, else
+/// QEMU's status, failed by a missing trace or a worst period over the budget (the cycle
+/// report is printed to `out`).
+fn verdict(
+    args: &RunnerArgs,
+    code: Option<i32>,
+    crash_logged: bool,
+    traced: Option<Result<Trace, String>>,
+    log: &[String],
+    out: &mut impl Write,
+) -> i32 {
     if args.expect_crash {
         let verdict = expected_crash_status(code, crash_logged);
         if verdict == 0 {
@@ -352,21 +397,25 @@ pub fn run(args: &RunnerArgs) -> Result<i32, String> {
                  crash logged: {crash_logged}"
             );
         }
-        return Ok(verdict);
+        return verdict;
     }
     let code = code.unwrap_or(1);
     match traced {
-        None => Ok(code),
+        None => code,
         Some(Err(e)) => {
             eprintln!("fw-runner: {e}");
-            Ok(1)
+            1
         }
         Some(Ok(trace)) => {
-            let (lines, pass) = cycle_report(&trace, &log);
+            let (lines, pass) = cycle_report(&trace, log);
             for l in lines {
                 let _ = writeln!(out, "{l}");
             }
-            Ok(if pass { code } else { 1 })
+            if pass {
+                code
+            } else {
+                1
+            }
         }
     }
 }

@@ -1,0 +1,205 @@
+//! The figures of a `fw-bench` run from its trace: per tick, per 4 kHz period, and the
+//! report's lines with their bounds.
+
+use std::fmt::Write as _;
+
+use super::price::{
+    DIVIDE_CYCLES, EXCEPTION_CYCLES, EXCEPTION_ENTRY, EXCEPTION_EXIT, FLASH_WAIT_STATES,
+    PIPELINE_REFILL,
+};
+use super::trace::Trace;
+use super::tracker::Which;
+
+/// Mean and worst case of one figure over the windows.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stat {
+    /// Windows.
+    pub n: usize,
+    /// Mean.
+    pub mean: f64,
+    /// Worst case.
+    pub max: u32,
+}
+
+impl Stat {
+    /// Over `values`.
+    pub fn of(values: impl Iterator<Item = u32>) -> Self {
+        let (mut n, mut sum, mut max) = (0_usize, 0_u64, 0_u32);
+        for v in values {
+            n += 1;
+            sum += u64::from(v);
+            max = max.max(v);
+        }
+        let mean = if n == 0 { 0.0 } else { sum as f64 / n as f64 };
+        Self { n, mean, max }
+    }
+}
+
+/// The figures of one tick kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TickFigures {
+    /// Instructions of the body.
+    pub instructions: Stat,
+    /// Cycles of the body.
+    pub cycles: Stat,
+    /// Taken branches (for the flash bound).
+    pub taken: Stat,
+}
+
+impl TickFigures {
+    /// Over the windows of `which`.
+    #[must_use]
+    pub fn of(trace: &Trace, which: Which) -> Self {
+        Self {
+            instructions: Stat::of(trace.of(which).map(|w| w.instructions)),
+            cycles: Stat::of(trace.of(which).map(|w| w.cycles)),
+            taken: Stat::of(trace.of(which).map(|w| w.taken)),
+        }
+    }
+}
+
+/// The cycle figures of a `fw-bench` run: per tick and per 4 kHz period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BenchFigures {
+    /// The current tick.
+    pub current: TickFigures,
+    /// The velocity tick.
+    pub velocity: TickFigures,
+    /// Mean period: current + velocity / 2, with each interrupt's entry and exit [cycles].
+    pub period_mean: f64,
+    /// Worst period: worst current + worst velocity / 2 (rounded up), with each
+    /// interrupt's entry and exit [cycles].
+    pub period_worst: u32,
+    /// Mean and worst period [instructions], as the cycles.
+    pub period_instructions_mean: f64,
+    /// Worst period [instructions].
+    pub period_instructions_worst: u32,
+    /// Windows dropped (an interrupt came into them).
+    pub dropped: u32,
+    /// Instructions of no known class over the run (priced 1).
+    pub unknown: u32,
+}
+
+impl BenchFigures {
+    /// From a trace of `fw-bench`.
+    #[must_use]
+    pub fn of(trace: &Trace) -> Self {
+        let current = TickFigures::of(trace, Which::Current);
+        let velocity = TickFigures::of(trace, Which::Velocity);
+        let exc = f64::from(EXCEPTION_CYCLES);
+        let period_mean = current.cycles.mean + exc + (velocity.cycles.mean + exc) / 2.0;
+        let period_worst = current.cycles.max
+            + EXCEPTION_CYCLES
+            + (velocity.cycles.max + EXCEPTION_CYCLES).div_ceil(2);
+        Self {
+            current,
+            velocity,
+            period_mean,
+            period_worst,
+            period_instructions_mean: current.instructions.mean + velocity.instructions.mean / 2.0,
+            period_instructions_worst: current.instructions.max
+                + velocity.instructions.max.div_ceil(2),
+            dropped: trace.dropped,
+            unknown: trace.windows.iter().map(|(_, w)| w.unknown).sum(),
+        }
+    }
+
+    /// The report's lines.
+    #[must_use]
+    pub fn lines(&self) -> Vec<String> {
+        let mut out = vec![format!(
+            "cycle estimate: every instruction QEMU executed in each measured window (TCG plugin), \
+             priced by the Cortex-M4 TRM's timings: pipeline refill P = {PIPELINE_REFILL} per taken branch, \
+             divides at their worst case ({DIVIDE_CYCLES}), flash at 0 wait states (ART accelerator hits), \
+             exception entry {EXCEPTION_ENTRY} + exit {EXCEPTION_EXIT} per interrupt (lazy FP stacking); \
+             windows as the SysTick figures (net of the measuring code)"
+        )];
+        for (name, t) in [("current", &self.current), ("velocity", &self.velocity)] {
+            out.push(format!(
+                "{name}_tick_cycles: mean {:.0} worst {} (body; {} with exception entry/exit: mean {:.0} worst {}); \
+                 instructions mean {:.1} worst {}; over {} ticks",
+                t.cycles.mean,
+                t.cycles.max,
+                name,
+                t.cycles.mean + f64::from(EXCEPTION_CYCLES),
+                t.cycles.max + EXCEPTION_CYCLES,
+                t.instructions.mean,
+                t.instructions.max,
+                t.cycles.n
+            ));
+        }
+        out.push(format!(
+            "period_cycles: mean {:.0} worst {} (one 4 kHz period: current + velocity/2, each with exception entry/exit; \
+             worst = worst current + worst velocity/2)",
+            self.period_mean, self.period_worst
+        ));
+        out.push(format!(
+            "period_instructions (traced): mean {:.1} worst {}",
+            self.period_instructions_mean, self.period_instructions_worst
+        ));
+        let flash = f64::from(FLASH_WAIT_STATES)
+            * (self.current.taken.mean + self.velocity.taken.mean / 2.0);
+        let mut note = format!(
+            "cycle bounds: P = 1 or 3 instead of {PIPELINE_REFILL} moves the mean period by ∓/± {:.0}; \
+             a flash miss ({FLASH_WAIT_STATES} wait states at 168 MHz) on every taken branch would add up to {flash:.0}",
+            self.current.taken.mean + self.velocity.taken.mean / 2.0
+        );
+        if self.dropped > 0 || self.unknown > 0 {
+            let _ = write!(
+                note,
+                "; {} windows dropped (interrupted), {} instructions of no known class priced 1",
+                self.dropped, self.unknown
+            );
+        }
+        out.push(note);
+        out
+    }
+}
+
+/// The value of a `name: N` line of the firmware's log, if there is one.
+#[must_use]
+pub fn log_value(lines: &[String], name: &str) -> Option<u32> {
+    lines.iter().find_map(|l| {
+        l.strip_prefix(name)
+            .and_then(|r| r.strip_prefix(':'))
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|v| v.parse().ok())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cycles::{window_line, Window};
+
+    #[test]
+    fn the_trace_file_round_trips_and_the_period_adds_half_a_velocity_tick() {
+        let w = |i, c| Window {
+            instructions: i,
+            cycles: c,
+            ..Window::default()
+        };
+        let mut text = String::new();
+        for (which, win) in [
+            (Which::Current, w(400, 500)),
+            (Which::Current, w(420, 540)),
+            (Which::Velocity, w(470, 600)),
+        ] {
+            text.push_str(&window_line(which, &win));
+            text.push('\n');
+        }
+        text.push_str("dropped 2\n");
+        let trace = Trace::parse(&text).unwrap_or_default();
+        assert_eq!(trace.windows.len(), 3);
+        assert_eq!(trace.dropped, 2);
+        let f = BenchFigures::of(&trace);
+        assert_eq!(f.current.cycles.max, 540);
+        assert!((f.current.cycles.mean - 520.0).abs() < 1e-9);
+        assert_eq!(f.period_worst, 540 + 22 + (600 + 22) / 2);
+        assert_eq!(f.period_instructions_worst, 420 + 235);
+        assert!(Trace::parse("current 1 2\n").is_err());
+        let lines = vec!["period_cycle_budget: 900".to_string()];
+        assert_eq!(log_value(&lines, "period_cycle_budget"), Some(900));
+        assert_eq!(log_value(&lines, "period_cycles"), None);
+    }
+}
