@@ -159,7 +159,7 @@ fn accel_feedback(g: &Gains, lim: Pu) -> Result<AccelerationFeedback, ConfigErro
 /// The closed form's Ka/(1 + b·Ka) (b = b0/J_model) below 50 steps of Q16.16 (m): it grows
 /// with Ka towards 1/b, so it fits from Ka = m/(1 − b·m) on (the gain fraction's range
 /// starts there); if 1/b itself is below m, no Ka fits and the model inertia is too small.
-fn closed_form_error(g: &Gains, b0: f32) -> ConfigError {
+pub(super) fn closed_form_error(g: &Gains, b0: f32) -> ConfigError {
     use crate::validate::{GAIN_MAX, GAIN_MIN};
     let cfg = &g.cfg;
     let b = f64::from(b0) / f64::from(g.observer_inertia_s);
@@ -273,7 +273,7 @@ const CURRENT_GIVEN: &str = "winding_inductance_pu_s, winding_resistance_pu and 
 
 /// A PI's gains `kp` (∝ ω) and `ki_ts` (∝ ω^`ki_power`) from the bandwidth `range`; if
 /// either does not fit, the error gives the bandwidth's range that fits both.
-fn pi_gains(
+pub(super) fn pi_gains(
     range: &'static crate::ranges::Range,
     w: f32,
     kp: f32,
@@ -315,7 +315,7 @@ fn pi_gains(
 }
 
 /// The velocity and current PI regulators (torque limit `lim`, voltage limit `vlim`).
-fn regulators(
+pub(super) fn regulators(
     g: &Gains,
     lim: Pu,
     vlim: Pu,

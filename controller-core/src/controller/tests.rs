@@ -1,5 +1,5 @@
 //! The controller's ticks against their general paths.
-#![allow(clippy::indexing_slicing, clippy::unwrap_used)]
+#![allow(clippy::indexing_slicing, clippy::unwrap_used, clippy::panic)]
 
 use super::coefficients::AfbStep;
 use super::*;
@@ -238,4 +238,108 @@ fn protection_trips_latch_zero_torque_and_a_reset_keeps_the_heat() {
         current_pu: over,
     });
     assert_eq!(out.fault, None);
+}
+
+/// The closed form's error states the range by its branch: with b·m below 1 (b = b0/J_model,
+/// m the 50-step floor of Q16.16) the gain fraction's, from m/((1 − b·m)·J_total); with b·m
+/// at 1 no Ka fits, and it is the motor inertia's, from b0·m (with 0.1 % to spare).
+#[test]
+fn the_closed_form_error_states_the_range_of_its_branch() {
+    use crate::ranges::{AFB_GAIN_FRACTION, MOTOR_INERTIA_S};
+    use crate::validate::GAIN_MIN;
+    let mut g = crate::design(&drive()).unwrap();
+    let j = f64::from(g.j_total_s);
+    // J_model = 2m (exact in f32): b·m = 1/2.
+    g.observer_inertia_s = (2.0 * GAIN_MIN) as f32;
+    let b = 1.0 / f64::from(g.observer_inertia_s);
+    match coefficients::closed_form_error(&g, 1.0) {
+        ConfigError::OutOfRangeGiven { param, min, .. } => {
+            assert_eq!(param, AFB_GAIN_FRACTION.key);
+            assert_eq!(min, (GAIN_MIN / ((1.0 - b * GAIN_MIN) * j)) as f32);
+            assert!((f64::from(min) - 2.0 * GAIN_MIN / j).abs() < 1e-6 * f64::from(min));
+        }
+        e => panic!("{e:?}"),
+    }
+    // The gain fraction's top: GAIN_MAX/J_total where that is below its stated 20.
+    g.j_total_s = 2000.0;
+    match coefficients::closed_form_error(&g, 1.0) {
+        ConfigError::OutOfRangeGiven { max, .. } => {
+            assert_eq!(max, (crate::validate::GAIN_MAX / 2000.0) as f32);
+        }
+        e => panic!("{e:?}"),
+    }
+    g.j_total_s = j as f32;
+    // J_model = m: b·m is exactly 1 in f64, the other branch.
+    g.observer_inertia_s = GAIN_MIN as f32;
+    assert_eq!(1.0 / f64::from(g.observer_inertia_s) * GAIN_MIN, 1.0);
+    match coefficients::closed_form_error(&g, 1.0) {
+        ConfigError::OutOfRangeGiven { param, min, .. } => {
+            assert_eq!(param, MOTOR_INERTIA_S.key);
+            assert_eq!(min, (GAIN_MIN * 1.001) as f32);
+        }
+        e => panic!("{e:?}"),
+    }
+}
+
+/// A PI whose Kp does not fit Q16.16: the bandwidth's range scales with Kp ∝ ω, so its top
+/// is ω·(Q16.16's largest)/Kp.
+#[test]
+fn a_proportional_gain_too_large_gives_the_bandwidth_s_top() {
+    use crate::ranges::CURRENT_BANDWIDTH_RAD_S;
+    let e = coefficients::pi_gains(&CURRENT_BANDWIDTH_RAD_S, 1000.0, 1.0e6, 0.01, 1.0, "", 1e9);
+    match e {
+        Err(ConfigError::OutOfRangeGiven {
+            param,
+            max,
+            min,
+            min_exclusive,
+            ..
+        }) => {
+            assert_eq!(param, CURRENT_BANDWIDTH_RAD_S.key);
+            let want = 1000.0 * (32_768.0 - 2.0 / 65_536.0) / 1.0e6;
+            assert!(
+                (f64::from(max) - want).abs() < 1e-4 * want,
+                "{max} against {want}"
+            );
+            // The range's own minimum (0, excluded) is not the bound: a closed one is.
+            assert!(min > 0.0 && !min_exclusive);
+        }
+        other => panic!("{other:?}"),
+    }
+    // Ki·Ts ∝ ω² (the velocity PI's): too large, the top is ω·√(Q8.24's largest/Ki·Ts).
+    let e = coefficients::pi_gains(&CURRENT_BANDWIDTH_RAD_S, 100.0, 1.0, 1000.0, 2.0, "", 1e9);
+    match e {
+        Err(ConfigError::OutOfRangeGiven { max, .. }) => {
+            let want = 100.0 * ((128.0 - 2.0 / 16_777_216.0) / 1000.0f64).sqrt();
+            assert!(
+                (f64::from(max) - want).abs() < 1e-4 * want,
+                "{max} against {want}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// A regulator whose gains are far too small for their formats: the bandwidth's range reaches up
+/// to the loop's Nyquist limit, π·rate (just below it), and no further.
+#[test]
+fn a_regulator_s_bandwidth_range_stops_below_its_nyquist_limit() {
+    let g = crate::design(&drive()).unwrap();
+    let cfg = g.cfg;
+    let (lim, vlim) = (Pu::from_num(2), Pu::from_num(2));
+    for (velocity, rate) in [(true, cfg.velocity_rate_hz), (false, cfg.current_rate_hz)] {
+        let mut g = g;
+        // Both gains far below their formats: their ranges reach far above the limit.
+        if velocity {
+            (g.kp_vel, g.ki_vel) = (1e-9, 1e-9);
+        } else {
+            (g.kp_cur, g.ki_cur) = (1e-9, 1e-9);
+        }
+        match coefficients::regulators(&g, lim, vlim) {
+            Err(ConfigError::OutOfRangeGiven { max, .. }) => {
+                assert_eq!(max, (core::f32::consts::PI * rate as f32).next_down());
+            }
+            other => panic!("{other:?}"),
+        }
+    }
 }
