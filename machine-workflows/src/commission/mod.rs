@@ -56,7 +56,7 @@ pub use on_machine::{Tried, ON_MACHINE_PER_KIND};
 use sim_engine::config::{resolve, RunConfig};
 use sim_engine::error::{HarnessError, Result};
 use sim_engine::output::Staging;
-pub use spread::{Spread, STEP_OFFSETS_S};
+pub use spread::{shifted, Spread, STEP_OFFSETS_S};
 use std::path::Path;
 use toml::Table;
 

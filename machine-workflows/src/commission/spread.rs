@@ -64,8 +64,9 @@ impl Spread {
 }
 
 /// `cfg` with its load steps `dt` later (and a profile that starts late, the explicit
-/// metric windows and the run's end with them).
-fn shifted(mut cfg: RunConfig, dt: f64) -> RunConfig {
+/// metric windows and the run's end with them; a ramp that starts at 0 stays). Also the
+/// report's step-timing section's shift.
+pub fn shifted(mut cfg: RunConfig, dt: f64) -> RunConfig {
     let s = &mut cfg.scenario;
     for l in &mut s.load {
         l.t_s += dt;

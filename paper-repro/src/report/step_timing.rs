@@ -10,39 +10,15 @@
 use super::count_interval::{CRITERIA, PAIRS};
 use super::section::Section;
 use rayon::prelude::*;
-use sim_engine::config::RunConfig;
 use sim_engine::engine::metrics::Metrics;
 use sim_engine::error::Result;
 use std::fmt::Write as _;
 
+// `cfg` with its events `dt` later: commission's shift over the same offsets.
+use machine_workflows::commission::shifted;
 /// The offsets of the events \[s\]: every 20 ms within ±0.1 s of the scenario's timing (0
-/// is the scenario itself).
-pub const OFFSETS_S: [f64; 11] = [
-    -0.10, -0.08, -0.06, -0.04, -0.02, 0.0, 0.02, 0.04, 0.06, 0.08, 0.10,
-];
-
-/// `cfg` with its events `dt` later.
-fn shifted(mut cfg: RunConfig, dt: f64) -> RunConfig {
-    let s = &mut cfg.scenario;
-    for l in &mut s.load {
-        l.t_s += dt;
-    }
-    if s.profile.start_s > 0.0 {
-        s.profile.start_s += dt;
-    }
-    for w in [
-        &mut s.metrics.ripple_window_s,
-        &mut s.metrics.overshoot_window_s,
-        &mut s.metrics.stable_window_s,
-    ]
-    .into_iter()
-    .flatten()
-    {
-        w.iter_mut().for_each(|t| *t += dt);
-    }
-    s.duration_s += dt;
-    cfg
-}
+/// is the scenario itself), the offsets over which `commission` measures a figure's spread.
+pub use machine_workflows::commission::STEP_OFFSETS_S as OFFSETS_S;
 
 /// Per pair, per offset: the metrics with AFB and without.
 fn run_grid() -> Result<Vec<Vec<(Metrics, Metrics)>>> {
