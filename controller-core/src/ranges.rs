@@ -25,7 +25,7 @@ pub struct Range {
 }
 
 impl Range {
-    const fn real(key: &'static str, min: f32, max: f32, min_exclusive: bool) -> Self {
+    pub(crate) const fn real(key: &'static str, min: f32, max: f32, min_exclusive: bool) -> Self {
         Self {
             key,
             min,

@@ -162,15 +162,7 @@ impl Calibration {
     /// The sequence of `s`; a bad setting is an error naming it.
     pub fn new(s: &CalibrationSettings) -> Result<Self, ConfigError> {
         let rate = s.current_rate_hz;
-        if !(rate.is_finite() && (100.0..=200_000.0).contains(&rate)) {
-            return Err(ConfigError::OutOfRange {
-                param: "current_rate_hz",
-                value: rate,
-                min: 100.0,
-                max: 200_000.0,
-                min_exclusive: false,
-            });
-        }
+        crate::ranges::Range::real("current_rate_hz", 100.0, 200_000.0, false).check(rate)?;
         let turn_ticks = ticks(1.0 / s.sweep_hz, rate, "calibration sweep_hz (turns/s)")?;
         Ok(Self {
             level_current: [

@@ -146,21 +146,9 @@ pub struct FocOutputs {
     pub commutation_off: bool,
 }
 
-/// `x` checked against `[min, max]` for the key `param`.
+/// `x` checked against `[min, max]` for the key `param` (NaN gets the range, as every key).
 fn in_range(param: &'static str, x: f32, min: f32, max: f32) -> Result<f32, ConfigError> {
-    if !x.is_finite() {
-        return Err(ConfigError::NotFinite { param });
-    }
-    if x < min || x > max {
-        return Err(ConfigError::OutOfRange {
-            param,
-            value: x,
-            min,
-            max,
-            min_exclusive: false,
-        });
-    }
-    Ok(x)
+    crate::ranges::Range::real(param, min, max, false).check(x)
 }
 
 /// One axis's PI (Q32.32 inside), its output within `±bound` (raw Q16.16, ≥ 0):

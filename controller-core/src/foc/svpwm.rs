@@ -37,15 +37,7 @@ impl Svpwm {
     /// assert_eq!(m.duties(AlphaBeta::default()), [500, 500, 500]);
     /// ```
     pub fn new(dc_bus_pu: f32, period: u16) -> Result<Self, ConfigError> {
-        if !(dc_bus_pu.is_finite() && (0.01..=1000.0).contains(&dc_bus_pu)) {
-            return Err(ConfigError::OutOfRange {
-                param: "dc_bus_pu",
-                value: dc_bus_pu,
-                min: 0.01,
-                max: 1000.0,
-                min_exclusive: false,
-            });
-        }
+        crate::ranges::Range::real("dc_bus_pu", 0.01, 1000.0, false).check(dc_bus_pu)?;
         if period < 2 {
             return Err(ConfigError::OutOfRange {
                 param: "pwm period (timer counts)",
