@@ -336,6 +336,14 @@ pub struct DriveConfig {
         serde(default, skip_serializing_if = "Option::is_none")
     )]
     pub notch: Option<NotchConfig>,
+    /// The motor kind's current loop: `None` (no `[drive.pmsm]` table) drives one DC
+    /// winding with the current PI; a `[drive.pmsm]` table drives a three-phase
+    /// permanent-magnet motor by field-oriented control ([`crate::foc`]).
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub pmsm: Option<crate::foc::PmsmConfig>,
 }
 
 impl DriveConfig {

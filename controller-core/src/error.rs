@@ -103,6 +103,14 @@ pub enum ConfigError {
         /// The Q-format it must fit.
         q_format: QFormat,
     },
+    /// A setting the drive needs before it may enable, which only a measurement gives
+    /// (the PMSM's encoder offset): `measure` says what to run.
+    Missing {
+        /// Field path.
+        param: &'static str,
+        /// The command that measures it.
+        measure: &'static str,
+    },
     /// `current_rate_hz` is not an integer multiple of `velocity_rate_hz`.
     RateRatio {
         /// Current tick rate \[Hz\].
@@ -142,7 +150,8 @@ impl ConfigError {
             | Self::OutOfRangeGiven { param, .. }
             | Self::AboveNyquist { param, .. }
             | Self::CoefficientOverflow { param, .. }
-            | Self::CoefficientUnderflow { param, .. } => param,
+            | Self::CoefficientUnderflow { param, .. }
+            | Self::Missing { param, .. } => param,
             Self::RateRatio { .. } => "velocity_rate_hz",
         }
     }
@@ -178,6 +187,10 @@ impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Self::NotFinite { param } => write!(f, "{param}: must be a finite number"),
+            Self::Missing { param, measure } => write!(
+                f,
+                "{param} is not set: the drive refuses to enable without it; measure it with `{measure}`"
+            ),
             Self::OutOfRange {
                 param,
                 value,

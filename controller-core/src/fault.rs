@@ -23,6 +23,9 @@ pub enum Fault {
     /// The torque reference at its limit with the speed under `faults.stall_speed_pu` for
     /// `faults.stall_time_s` ([`crate::protection`]).
     Stall,
+    /// A PMSM's electrical angle looks more than 30° off (a wrong encoder offset or pole
+    /// pair count) for `pmsm.commutation_trip_s` ([`crate::foc::CommutationCheck`]).
+    Commutation,
 }
 
 impl Fault {
@@ -37,6 +40,7 @@ impl Fault {
             Self::Overcurrent => "overcurrent",
             Self::Overload => "overload",
             Self::Stall => "stall",
+            Self::Commutation => "commutation",
         }
     }
 }
@@ -51,6 +55,7 @@ impl fmt::Display for Fault {
             Self::Overcurrent => "overcurrent",
             Self::Overload => "overload (I²t)",
             Self::Stall => "stall",
+            Self::Commutation => "commutation (electrical angle off)",
         })
     }
 }

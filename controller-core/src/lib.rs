@@ -40,7 +40,8 @@ pub use config::{
     FilterConfig, NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
 };
 pub use controller::{
-    Controller, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs,
+    Controller, CurrentInputs, CurrentOutputs, PmsmInputs, PmsmOutputs, Setpoint, VelocityInputs,
+    VelocityOutputs,
 };
 pub use design::{Gains, design};
 pub use error::{ConfigError, QFormat};

@@ -137,6 +137,9 @@ impl DriveConfig {
             self.observer.bandwidth_hz,
             f_cur / 2.0,
         )?;
+        if let Some(p) = &self.pmsm {
+            crate::foc::config::check(self, p)?;
+        }
         if let Some(n) = &self.notch {
             check_notch(n, f_cur)?;
         }

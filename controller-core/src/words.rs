@@ -32,7 +32,7 @@ pub const VELOCITY_FIELDS: [&str; VELOCITY_WORDS] = [
 
 impl Fault {
     /// Every fault, in code order (codes 1, 2, ...).
-    pub const ALL: [Self; 7] = [
+    pub const ALL: [Self; 8] = [
         Self::Overspeed,
         Self::FollowingError,
         Self::EncoderJump,
@@ -40,9 +40,10 @@ impl Fault {
         Self::Overcurrent,
         Self::Overload,
         Self::Stall,
+        Self::Commutation,
     ];
 
-    /// The fault's code, 1..=7 (0 is "no fault"). Stable across versions.
+    /// The fault's code, 1..=8 (0 is "no fault"). Stable across versions.
     #[must_use]
     pub const fn code(self) -> u8 {
         match self {
@@ -53,10 +54,11 @@ impl Fault {
             Self::Overcurrent => 5,
             Self::Overload => 6,
             Self::Stall => 7,
+            Self::Commutation => 8,
         }
     }
 
-    /// The fault of a code 1..=7; `None` for any other code.
+    /// The fault of a code 1..=8; `None` for any other code.
     ///
     /// ```
     /// use controller_core::Fault;
@@ -75,6 +77,7 @@ impl Fault {
             5 => Some(Self::Overcurrent),
             6 => Some(Self::Overload),
             7 => Some(Self::Stall),
+            8 => Some(Self::Commutation),
             _ => None,
         }
     }

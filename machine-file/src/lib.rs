@@ -140,11 +140,85 @@ pub fn compose(mut doc: Table) -> Result<Machine, Error> {
     for (key, value) in MACHINE_KEYS.into_iter().zip(machine_values(&plant)) {
         drive.entry(key).or_insert(value);
     }
+    motor_table(&plant, &mut drive)?;
     let drive: DriveConfig = typed("drive", Value::Table(drive))?;
     drive
         .validate()
         .map_err(|e| Error::key(format!("drive.{}", e.param()), e.to_string()))?;
     Ok(Machine { plant, drive })
+}
+
+/// The `[drive.pmsm]` keys: those that describe the motor default to `[electrics]`; the
+/// calibration's (`encoder_offset_elec_deg`, `encoder_reversed`) never do.
+pub const PMSM_MACHINE_KEYS: [&str; 5] = [
+    "pole_pairs",
+    "d_inductance_pu_s",
+    "q_inductance_pu_s",
+    "flux_linkage_pu",
+    "dc_bus_pu",
+];
+
+/// Every key of `[drive.pmsm]`, each of which may also be written straight in `[drive]`.
+const PMSM_KEYS: [&str; 11] = [
+    "pole_pairs",
+    "d_inductance_pu_s",
+    "q_inductance_pu_s",
+    "flux_linkage_pu",
+    "dc_bus_pu",
+    "encoder_offset_elec_deg",
+    "encoder_reversed",
+    "angle_advance_ticks",
+    "pwm_period_counts",
+    "commutation_min_speed_pu",
+    "commutation_trip_s",
+];
+
+/// The drive's motor kind follows the plant's (`electrics.motor`). For a PMSM, the
+/// `[drive.pmsm]` table gathers its keys (given there or straight in `[drive]`, not both)
+/// and takes the motor's values from `[electrics]` where not given. A DC machine's drive
+/// has no PMSM key.
+fn motor_table(plant: &PlantConfig, drive: &mut Table) -> Result<(), Error> {
+    let e = &plant.electrics;
+    if e.motor == plant_host::MotorKind::Dc {
+        let flat = PMSM_KEYS.into_iter().find(|k| drive.contains_key(*k));
+        if let Some(key) = flat.or(drive.contains_key("pmsm").then_some("pmsm")) {
+            return Err(Error::key(
+                format!("drive.{key}"),
+                "a PMSM drive key, and this machine's motor is `dc` (electrics.motor)",
+            ));
+        }
+        return Ok(());
+    }
+    let mut table = match drive.remove("pmsm") {
+        None => Table::new(),
+        Some(Value::Table(t)) => t,
+        Some(_) => return Err(Error::key("drive.pmsm", "must be a table")),
+    };
+    for key in PMSM_KEYS {
+        if let Some(v) = drive.remove(key) {
+            if table.contains_key(key) {
+                return Err(Error::key(
+                    format!("drive.{key}"),
+                    "given twice: in [drive] and in [drive.pmsm]; keep one",
+                ));
+            }
+            table.insert(key.to_string(), v);
+        }
+    }
+    let values = [
+        e.pole_pairs.map(|p| Value::Integer(i64::from(p))),
+        e.d_inductance_pu_s.map(Value::Float),
+        e.q_inductance_pu_s.map(Value::Float),
+        Some(Value::Float(e.flux_linkage_pu.unwrap_or(1.0))),
+        e.dc_bus_pu.map(Value::Float),
+    ];
+    for (key, value) in PMSM_MACHINE_KEYS.into_iter().zip(values) {
+        if let Some(v) = value {
+            table.entry(key).or_insert(v);
+        }
+    }
+    drive.insert("pmsm".to_string(), Value::Table(table));
+    Ok(())
 }
 
 /// The value tree of a machine file's text.
@@ -253,5 +327,50 @@ mod tests {
         ));
         let missing = Path::new("/nonexistent/machine.toml");
         assert!(matches!(load(missing), Err(Error::Io { path, .. }) if path == missing));
+    }
+
+    /// A PMSM machine's drive takes the motor keys from `[electrics]`, never the offset;
+    /// flat `[drive]` PMSM keys join `[drive.pmsm]`; a DC machine refuses them.
+    #[test]
+    fn a_pmsm_drive_takes_the_motor_from_electrics_and_the_offset_only_from_the_file() {
+        let text = include_str!("../../configs/machines/table1-pmsm.toml");
+        let m = from_text(text).unwrap();
+        let p = m.drive.pmsm.unwrap();
+        assert_eq!(
+            (p.pole_pairs, p.dc_bus_pu, p.flux_linkage_pu),
+            (4, 2.0, 1.0)
+        );
+        assert_eq!(p.d_inductance_pu_s, 5e-4);
+        assert_eq!(p.encoder_offset_elec_deg, Some(23.0));
+        let no_offset = text.replace("[drive.pmsm]\nencoder_offset_elec_deg = 23.0", "");
+        let m = from_text(&no_offset).unwrap();
+        assert_eq!(m.drive.pmsm.unwrap().encoder_offset_elec_deg, None);
+        let flat = no_offset.replace(
+            "current_bandwidth_rad_s = 1998.0",
+            "current_bandwidth_rad_s = 1998.0\nencoder_offset_elec_deg = 5.0\npole_pairs = 5",
+        );
+        let p = from_text(&flat).unwrap().drive.pmsm.unwrap();
+        assert_eq!((p.encoder_offset_elec_deg, p.pole_pairs), (Some(5.0), 5));
+        let twice = format!("{text}encoder_reversed = true\n").replace(
+            "current_bandwidth_rad_s = 1998.0",
+            "current_bandwidth_rad_s = 1998.0\nencoder_reversed = false",
+        );
+        let e = from_text(&twice).unwrap_err();
+        assert!(
+            matches!(&e, Error::Key { key, .. } if key == "drive.encoder_reversed"),
+            "{e}"
+        );
+        let e = with("[drive]\nencoder_offset_elec_deg = 5.0\n").unwrap_err();
+        assert!(
+            matches!(&e, Error::Key { key, .. } if key == "drive.encoder_offset_elec_deg"),
+            "{e}"
+        );
+        let e = with("[drive.pmsm]\npole_pairs = 5\n").unwrap_err();
+        assert!(
+            matches!(&e, Error::Key { key, .. } if key == "drive.pmsm"),
+            "{e}"
+        );
+        let e = from_text(&text.replace("dc_bus_pu = 2.0", "dc_bus_pu = -1.0")).unwrap_err();
+        assert!(e.to_string().contains("dc_bus_pu"), "{e}");
     }
 }

@@ -51,6 +51,9 @@ pub enum LinkError {
         /// Bytes needed.
         needed: usize,
     },
+    /// The drive's motor kind has no encoding on the link or the board yet (a
+    /// `[drive.pmsm]` drive: the board layer drives one DC winding).
+    UnsupportedMotor,
 }
 
 impl core::fmt::Display for LinkError {
@@ -81,6 +84,9 @@ impl core::fmt::Display for LinkError {
                 "payload of {len} bytes does not fit frame kind {kind:#04x}"
             ),
             Self::BufferTooSmall { needed } => write!(f, "buffer too small: {needed} bytes needed"),
+            Self::UnsupportedMotor => f.write_str(
+                "drive.pmsm: the board and the PIL link drive a DC winding only; run a PMSM drive on the host (`stiffdrive run`)",
+            ),
         }
     }
 }

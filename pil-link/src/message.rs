@@ -121,6 +121,7 @@ impl FaultCode {
             LinkError::OutOfSequence { .. } => Self::OutOfSequence,
             LinkError::Timeout { .. } => Self::Timeout,
             LinkError::BadPayload { .. } | LinkError::BufferTooSmall { .. } => Self::BadPayload,
+            LinkError::UnsupportedMotor => Self::Config,
         }
     }
 

@@ -53,7 +53,11 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         observer,
         faults,
         notch,
+        pmsm,
     } = *cfg;
+    if pmsm.is_some() {
+        return Err(LinkError::UnsupportedMotor);
+    }
     put_machine(
         w,
         &Machine {
@@ -154,6 +158,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         observer,
         faults,
         notch,
+        pmsm: None,
     })
 }
 

@@ -36,10 +36,12 @@ mod afb;
 mod coefficients;
 mod excite;
 mod io;
+mod pmsm;
 #[cfg(test)]
 mod tests;
 
 pub use io::{Blocks, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs};
+pub use pmsm::{PmsmInputs, PmsmOutputs};
 
 use crate::config::{DriveConfig, Estimator, ObserverTorque};
 use crate::design::{Gains, design};
@@ -84,6 +86,11 @@ struct State {
     /// Overcurrent and stall counts, the I²t heat (kept across [`Controller::reset`]).
     protection: ProtectionState,
     fault: Option<Fault>,
+    /// A PMSM drive's FOC state (untouched on a DC drive).
+    foc: crate::foc::FocState,
+    /// A PMSM drive's measured torque λ·i_q of the last tick (the DC drive's is
+    /// `last_current`, which a PMSM drive sets to the current's magnitude).
+    pmsm_torque: Pu,
 }
 
 /// The drive controller: coefficients plus state.
@@ -103,6 +110,8 @@ pub struct Controller {
     /// itself (see [`Controller::closed_total_exact`]): decided at configuration and when an
     /// excitation is set, so the current tick does not add and clamp the same sum twice.
     closed_total: bool,
+    /// A PMSM drive's field-oriented current loop (`[drive.pmsm]`); `None` for DC.
+    foc: Option<crate::foc::FocCoefficients>,
     state: State,
 }
 
@@ -135,7 +144,9 @@ impl Controller {
     /// ```
     pub fn from_gains(gains: &Gains) -> Result<Self, ConfigError> {
         let coef = Coefficients::from_gains(gains)?;
+        let foc = pmsm::foc_of(&gains.cfg)?;
         Ok(Self {
+            foc,
             gains: *gains,
             closed_total: Self::closed_total_exact(&coef, false),
             coef,
@@ -292,29 +303,9 @@ impl Controller {
     #[inline(always)]
     pub fn current_tick(&mut self, inp: CurrentInputs) -> CurrentOutputs {
         self.read_encoder(inp.encoder_count);
-        let position = self.state.position;
-        // The observer sees the torque that acted over the last tick: the command, or the
-        // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
-        let torque = match self.coef.observer_torque {
-            ObserverTorque::Command => self.state.current_ref,
-            ObserverTorque::MeasuredCurrent => Pu::from_bits(sat_shr::<1>(
-                i64::from(self.state.last_current.to_bits()) + i64::from(inp.current_pu.to_bits()),
-            )),
-        };
+        let last = self.state.last_current;
         self.state.last_current = inp.current_pu;
-        let _ = self.excite(Injection::TorqueReference);
-        self.coef
-            .observer
-            .update(&mut self.state.observer, position, torque);
-        // The current-rate differentiator runs only when it feeds the AFB here.
-        let closed = self.run_afb(self.coef.afb_current, |c| {
-            c.coef
-                .diff_current_rate
-                .update(&mut c.state.diff_current_rate, position)
-                .1
-        });
-        let i_ref = self.notched_ref(closed);
-        self.state.current_ref = i_ref;
+        let i_ref = self.torque_stage(last, inp.current_pu);
         let e = i_ref.saturating_sub(inp.current_pu);
         let v = self.coef.current_regulator.update_within(
             &mut self.state.current_regulator,
@@ -340,6 +331,37 @@ impl Controller {
             accel_fb_pu: self.state.afb,
             fault: self.state.fault,
         }
+    }
+
+    /// The torque side of a current tick, after the encoder is read: the observer on the
+    /// torque of the last tick (the command, or the mean of the torque measured at its
+    /// start, `last`, and now, `now`), the AFB where it runs at this rate, and the torque
+    /// reference through the notch. Returns the reference the current loop is to follow.
+    #[inline(always)]
+    fn torque_stage(&mut self, last: Pu, now: Pu) -> Pu {
+        let position = self.state.position;
+        // The observer sees the torque that acted over the last tick: the command, or the
+        // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
+        let torque = match self.coef.observer_torque {
+            ObserverTorque::Command => self.state.current_ref,
+            ObserverTorque::MeasuredCurrent => Pu::from_bits(sat_shr::<1>(
+                i64::from(last.to_bits()) + i64::from(now.to_bits()),
+            )),
+        };
+        let _ = self.excite(Injection::TorqueReference);
+        self.coef
+            .observer
+            .update(&mut self.state.observer, position, torque);
+        // The current-rate differentiator runs only when it feeds the AFB here.
+        let closed = self.run_afb(self.coef.afb_current, |c| {
+            c.coef
+                .diff_current_rate
+                .update(&mut c.state.diff_current_rate, position)
+                .1
+        });
+        let i_ref = self.notched_ref(closed);
+        self.state.current_ref = i_ref;
+        i_ref
     }
 
     /// The position loop of a velocity tick: the position error (Q24.8 counts, saturating;

@@ -75,7 +75,7 @@ impl AngleCoefficients {
         }
         if pole_pairs == 0 || pole_pairs >= cpr {
             return Err(ConfigError::OutOfRange {
-                param: "pole_pairs",
+                param: "pmsm.pole_pairs",
                 value: pole_pairs as f32,
                 min: 1.0,
                 max: (cpr - 1) as f32,
@@ -84,7 +84,7 @@ impl AngleCoefficients {
         }
         if !offset_elec_deg.is_finite() {
             return Err(ConfigError::NotFinite {
-                param: "encoder_offset_elec_deg",
+                param: "pmsm.encoder_offset_elec_deg",
             });
         }
         let num = u128::from(pole_pairs) << 64;

@@ -186,17 +186,17 @@ impl FocCoefficients {
         let rate = in_range("current_rate_hz", s.current_rate_hz, 100.0, 200_000.0)?;
         let rpm = in_range("base_speed_rpm", s.base_speed_rpm, 1.0, 100_000.0)?;
         let r = in_range("winding_resistance_pu", s.resistance_pu, 0.0, 10.0)?;
-        let ld = in_range("d_inductance_pu_s", s.d_inductance_pu_s, 1e-6, 10.0)?;
-        let lq = in_range("q_inductance_pu_s", s.q_inductance_pu_s, 1e-6, 10.0)?;
-        let flux = in_range("flux_linkage_pu", s.flux_linkage_pu, 0.05, 10.0)?;
+        let ld = in_range("pmsm.d_inductance_pu_s", s.d_inductance_pu_s, 1e-6, 10.0)?;
+        let lq = in_range("pmsm.q_inductance_pu_s", s.q_inductance_pu_s, 1e-6, 10.0)?;
+        let flux = in_range("pmsm.flux_linkage_pu", s.flux_linkage_pu, 0.05, 10.0)?;
         let wc = in_range(
             "current_bandwidth_rad_s",
             s.current_bandwidth_rad_s,
             1.0,
             core::f32::consts::PI * rate,
         )?;
-        let delay = in_range("delay_ticks", s.delay_ticks, 0.0, 4.0)?;
-        let i_max = in_range("current_limit_pu", s.current_limit_pu, 0.01, 100.0)?;
+        let delay = in_range("pmsm.angle_advance_ticks", s.delay_ticks, 0.0, 4.0)?;
+        let i_max = in_range("torque_limit_pu", s.current_limit_pu, 0.01, 100.0)?;
         let ts = 1.0 / rate;
         let angle = AngleCoefficients::new(
             s.pole_pairs,
@@ -219,14 +219,14 @@ impl FocCoefficients {
         let w_e_base = s.pole_pairs as f32 * rpm * core::f32::consts::TAU / 60.0;
         let min_speed: Pu = quantize(
             in_range(
-                "commutation_min_speed_pu",
+                "pmsm.commutation_min_speed_pu",
                 s.commutation_min_speed_pu,
                 0.001,
                 10.0,
             )?,
-            "commutation_min_speed_pu",
+            "pmsm.commutation_min_speed_pu",
         )?;
-        let trip = in_range("commutation_trip_s", s.commutation_trip_s, 1e-4, 1.0)?;
+        let trip = in_range("pmsm.commutation_trip_s", s.commutation_trip_s, 1e-4, 1.0)?;
         // The residual's filter: a time constant of about 2 ms, 2^k ticks.
         let mut shift = 0;
         while shift < 15 && ((1u32 << shift) as f32) < 0.002 * rate {
@@ -260,9 +260,9 @@ impl FocCoefficients {
                 w_e_base * lq,
                 "ω_e·L_q (pole_pairs, base_speed_rpm, q_inductance_pu_s)",
             )?,
-            flux: quantize(flux, "flux_linkage_pu")?,
-            inv_flux: quantize(1.0 / flux, "1/flux_linkage_pu")?,
-            current_limit: quantize(i_max, "current_limit_pu")?,
+            flux: quantize(flux, "pmsm.flux_linkage_pu")?,
+            inv_flux: quantize(1.0 / flux, "1/pmsm.flux_linkage_pu")?,
+            current_limit: quantize(i_max, "torque_limit_pu / pmsm.flux_linkage_pu")?,
             circle,
             svpwm,
             commutation: CommutationCheck {
@@ -285,20 +285,47 @@ impl FocCoefficients {
         }
     }
 
-    /// One current tick.
+    /// One current tick: [`Self::measure`], then [`Self::regulate`].
     #[inline]
     pub fn tick(&self, state: &mut FocState, inp: FocInputs) -> FocOutputs {
-        let phase = self.angle.update(&mut state.angle, inp.count_delta);
-        let cs = CosSin::of(phase);
-        let [i_a, i_b] = inp.phase_current_pu;
-        let current = park(clarke(i_a, i_b), cs);
+        let (phase, current) = self.measure(state, inp.phase_current_pu, inp.count_delta);
+        self.regulate(state, phase, current, inp.speed_pu, inp.torque_ref_pu)
+    }
+
+    /// Steps 1 and 2: the electrical phase after `count_delta` counts, and the phase
+    /// currents a and b in the rotor frame at that phase.
+    #[inline(always)]
+    pub fn measure(
+        &self,
+        state: &mut FocState,
+        phase_current_pu: [Pu; 2],
+        count_delta: i32,
+    ) -> (u32, Dq) {
+        let phase = self.angle.update(&mut state.angle, count_delta);
+        let [i_a, i_b] = phase_current_pu;
+        (phase, park(clarke(i_a, i_b), CosSin::of(phase)))
+    }
+
+    /// Steps 3 to 7 on a measured sample: the references from the torque reference, the
+    /// d and q PIs within the voltage circle, the duties at the advanced angle, and the
+    /// commutation check. `speed_pu` is the motor speed estimate.
+    #[inline(always)]
+    pub fn regulate(
+        &self,
+        state: &mut FocState,
+        phase: u32,
+        current: Dq,
+        speed_pu: Pu,
+        torque_ref_pu: Pu,
+    ) -> FocOutputs {
+        let inp = (speed_pu, torque_ref_pu);
         let lim = self.current_limit;
-        let i_q_ref = mul_gain(inp.torque_ref_pu, self.inv_flux).clamp(-lim, lim);
+        let i_q_ref = mul_gain(inp.1, self.inv_flux).clamp(-lim, lim);
         let current_ref = Dq {
             d: Pu::ZERO,
             q: i_q_ref,
         };
-        let w = inp.speed_pu;
+        let w = inp.0;
         // ω·i in Q16.16 (64-bit product, saturated), then times ω_e,b·L.
         let w_times = |i: Pu| {
             Pu::from_bits(sat_shr::<16>(

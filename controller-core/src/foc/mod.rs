@@ -24,6 +24,7 @@
 pub mod angle;
 pub mod calibration;
 pub mod commutation;
+pub mod config;
 pub mod current_loop;
 pub mod svpwm;
 pub mod transforms;
@@ -31,6 +32,7 @@ pub mod voltage_limit;
 
 pub use angle::{AngleCoefficients, AngleState};
 pub use commutation::{CommutationCheck, CommutationState};
+pub use config::PmsmConfig;
 pub use current_loop::{FocCoefficients, FocInputs, FocOutputs, FocSettings, FocState};
 pub use svpwm::Svpwm;
 pub use transforms::{AlphaBeta, CosSin, Dq, clarke, inverse_park, park};

@@ -37,10 +37,10 @@ impl Svpwm {
     /// assert_eq!(m.duties(AlphaBeta::default()), [500, 500, 500]);
     /// ```
     pub fn new(dc_bus_pu: f32, period: u16) -> Result<Self, ConfigError> {
-        crate::ranges::Range::real("dc_bus_pu", 0.01, 1000.0, false).check(dc_bus_pu)?;
+        crate::ranges::Range::real("pmsm.dc_bus_pu", 0.01, 1000.0, false).check(dc_bus_pu)?;
         if period < 2 {
             return Err(ConfigError::OutOfRange {
-                param: "pwm period (timer counts)",
+                param: "pmsm.pwm_period_counts",
                 value: f32::from(period),
                 min: 2.0,
                 max: 65535.0,

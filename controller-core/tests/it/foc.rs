@@ -555,9 +555,9 @@ fn a_wrong_angle_latches_the_commutation_check() {
 fn bad_foc_settings_name_their_key() {
     type Edit = fn(&mut FocSettings);
     let cases: [(Edit, &str); 5] = [
-        (|s| s.pole_pairs = 0, "pole_pairs"),
-        (|s| s.dc_bus_pu = f32::NAN, "dc_bus_pu"),
-        (|s| s.d_inductance_pu_s = -1.0, "d_inductance_pu_s"),
+        (|s| s.pole_pairs = 0, "pmsm.pole_pairs"),
+        (|s| s.dc_bus_pu = f32::NAN, "pmsm.dc_bus_pu"),
+        (|s| s.d_inductance_pu_s = -1.0, "pmsm.d_inductance_pu_s"),
         (|s| s.flux_linkage_pu = f32::INFINITY, "flux_linkage_pu"),
         (
             |s| s.current_bandwidth_rad_s = 1e9,

@@ -1,0 +1,190 @@
+//! The current tick of a PMSM drive (`[drive.pmsm]`): the same torque side as the DC
+//! drive's (encoder, observer, acceleration feedback, notch), then the field-oriented
+//! current loop ([`crate::foc`]) in place of the DC winding's current PI.
+//!
+//! ```text
+//! position ← unwrap(encoder_count)                 (encoder-jump check)
+//! θe, (i_d, i_q) ← FOC measure(i_a, i_b, Δcount)
+//! i_ref ← torque side, as the DC tick, with the measured torque λ·i_q
+//! duties ← FOC regulate(θe, (i_d, i_q), ω̂ (observer), i_ref)
+//! protection ← |i| = √(i_d² + i_q²)                 (overcurrent on the current vector)
+//! commutation ← the FOC's check                      (latches `commutation`)
+//! ```
+//! The I²t model and the stall check of the velocity tick see |i| too. A fault turns the
+//! inverter off (`enabled = false`, the duties at half the period): the currents then
+//! decay through the free-wheeling diodes while the back-EMF stays below the bus.
+
+use super::Controller;
+use crate::fault::Fault;
+use crate::foc::{Dq, FocCoefficients};
+use crate::per_unit::{Pu, mul_gain};
+
+/// Inputs of a PMSM current tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PmsmInputs {
+    /// Raw encoder counter, wraps at `counter_bits`.
+    pub encoder_count: u32,
+    /// Phase currents a and b \[pu\], sampled together (c = −a − b).
+    pub phase_current_pu: [Pu; 2],
+}
+
+/// Outputs of a PMSM current tick.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PmsmOutputs {
+    /// Duties of phases a, b, c \[timer counts\], each within `[0, pwm_period_counts]`.
+    pub duties: [u16; 3],
+    /// Whether the inverter switches (false once a fault latched: all six switches off).
+    pub enabled: bool,
+    /// The measured currents in the rotor frame \[pu\].
+    pub current: Dq,
+    /// The current references \[pu\] (zero when faulted).
+    pub current_ref: Dq,
+    /// The voltage set in the rotor frame \[pu\].
+    pub voltage: Dq,
+    /// Torque reference \[pu\] after the notch (the velocity loop's, plus AFB).
+    pub torque_ref_pu: Pu,
+    /// Acceleration-feedback term \[pu torque\].
+    pub accel_fb_pu: Pu,
+    /// Latched fault, if any.
+    pub fault: Option<Fault>,
+}
+
+/// |(d, q)| in Q16.16, saturating at the format's top.
+#[inline(always)]
+fn magnitude(i: Dq) -> Pu {
+    let d = i64::from(i.d.to_bits());
+    let q = i64::from(i.q.to_bits());
+    // d², q² ≤ 2^62 each: their sum fits u64.
+    let sq = (d * d) as u64 + (q * q) as u64;
+    Pu::from_bits(i32::try_from(sq.isqrt()).unwrap_or(i32::MAX))
+}
+
+impl Controller {
+    /// The FOC coefficients of a PMSM drive; `None` for a DC drive.
+    #[must_use]
+    pub fn foc(&self) -> Option<&FocCoefficients> {
+        self.foc.as_ref()
+    }
+
+    /// The current tick of a PMSM drive: run every 1/current_rate_hz, in place of
+    /// [`Controller::current_tick`]. On a DC drive (no `[drive.pmsm]`) it commands nothing
+    /// and returns the inverter off.
+    ///
+    /// ```
+    /// use controller_core::{Controller, PmsmInputs};
+    /// # let mut cfg: controller_core::DriveConfig = toml::from_str(include_str!(concat!(
+    /// #     env!("CARGO_MANIFEST_DIR"), "/doc/example-drive.toml"))).unwrap();
+    /// cfg.pmsm = Some(toml::from_str("pole_pairs = 4\nd_inductance_pu_s = 5e-4\n\
+    ///     q_inductance_pu_s = 5e-4\ndc_bus_pu = 2.0\nencoder_offset_elec_deg = 0.0").unwrap());
+    /// let mut c = Controller::new(&cfg).unwrap();
+    /// let out = c.pmsm_tick(PmsmInputs::default());
+    /// assert!(out.enabled);
+    /// assert_eq!(out.duties, [2100; 3]);
+    /// ```
+    #[inline]
+    pub fn pmsm_tick(&mut self, inp: PmsmInputs) -> PmsmOutputs {
+        let Some(foc) = self.foc else {
+            return PmsmOutputs {
+                fault: self.state.fault,
+                ..PmsmOutputs::default()
+            };
+        };
+        let primed = self.state.primed;
+        let before = self.state.position;
+        self.read_encoder(inp.encoder_count);
+        let position = self.state.position;
+        let delta = if primed {
+            let d = position.wrapping_sub(before);
+            i32::try_from(d).unwrap_or(if d < 0 { i32::MIN } else { i32::MAX })
+        } else {
+            self.state.foc = foc.state_at(position);
+            0
+        };
+        let (phase, current) = foc.measure(&mut self.state.foc, inp.phase_current_pu, delta);
+        let torque = mul_gain(current.q, foc.flux);
+        let last = self.state.pmsm_torque;
+        self.state.pmsm_torque = torque;
+        let i_ref = self.torque_stage(last, torque);
+        let speed = self.coef.observer.velocity_pu(&self.state.observer);
+        let out = foc.regulate(&mut self.state.foc, phase, current, speed, i_ref);
+        let size = magnitude(current);
+        // The velocity tick's I²t model and stall check read the current's magnitude.
+        self.state.last_current = size;
+        if out.commutation_off {
+            self.trip(Fault::Commutation);
+        }
+        if self
+            .coef
+            .protection
+            .current_tick(&mut self.state.protection, size)
+        {
+            self.trip(Fault::Overcurrent);
+        }
+        let enabled = self.state.fault.is_none();
+        if !enabled {
+            self.state.current_ref = Pu::ZERO;
+            self.state.foc.d = crate::pi::PiState::default();
+            self.state.foc.q = crate::pi::PiState::default();
+        }
+        let half = foc.svpwm.period() / 2;
+        PmsmOutputs {
+            duties: if enabled { out.duties } else { [half; 3] },
+            enabled,
+            current,
+            current_ref: if enabled {
+                out.current_ref
+            } else {
+                Dq::default()
+            },
+            voltage: if enabled { out.voltage } else { Dq::default() },
+            torque_ref_pu: self.state.current_ref,
+            accel_fb_pu: self.state.afb,
+            fault: self.state.fault,
+        }
+    }
+}
+
+/// The FOC loop of a drive's settings: `None` without `[drive.pmsm]`; an error naming
+/// `pmsm.encoder_offset_elec_deg` when the offset has not been measured.
+pub(super) fn foc_of(
+    cfg: &crate::DriveConfig,
+) -> Result<Option<FocCoefficients>, crate::ConfigError> {
+    let Some(p) = &cfg.pmsm else {
+        return Ok(None);
+    };
+    let offset = p
+        .encoder_offset_elec_deg
+        .ok_or(crate::ConfigError::Missing {
+            param: "pmsm.encoder_offset_elec_deg",
+            measure: "stiffdrive identify --config FILE (or commission, which writes it into drive.toml)",
+        })?;
+    FocCoefficients::new(&crate::foc::config::foc_settings(cfg, p, offset)).map(Some)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_magnitude_is_the_rounded_down_root_and_saturates() {
+        let pu = |x: f64| Pu::from_num(x);
+        assert_eq!(
+            magnitude(Dq {
+                d: pu(3.0),
+                q: pu(-4.0)
+            }),
+            pu(5.0)
+        );
+        assert_eq!(magnitude(Dq::default()), Pu::ZERO);
+        let top = Dq {
+            d: Pu::from_bits(i32::MIN),
+            q: Pu::from_bits(i32::MIN),
+        };
+        assert_eq!(magnitude(top), Pu::MAX);
+        let e = magnitude(Dq {
+            d: pu(0.6),
+            q: pu(0.8),
+        });
+        assert!((e.to_num::<f64>() - 1.0).abs() < 2e-5, "{e}");
+    }
+}
