@@ -303,9 +303,9 @@ impl Controller {
     #[inline(always)]
     pub fn current_tick(&mut self, inp: CurrentInputs) -> CurrentOutputs {
         self.read_encoder(inp.encoder_count);
-        let last = self.state.last_current;
+        let torque = self.observer_torque(self.state.last_current, inp.current_pu);
         self.state.last_current = inp.current_pu;
-        let i_ref = self.torque_stage(last, inp.current_pu);
+        let i_ref = self.torque_stage(torque);
         let e = i_ref.saturating_sub(inp.current_pu);
         let v = self.coef.current_regulator.update_within(
             &mut self.state.current_regulator,
@@ -333,21 +333,26 @@ impl Controller {
         }
     }
 
-    /// The torque side of a current tick, after the encoder is read: the observer on the
-    /// torque of the last tick (the command, or the mean of the torque measured at its
-    /// start, `last`, and now, `now`), the AFB where it runs at this rate, and the torque
-    /// reference through the notch. Returns the reference the current loop is to follow.
+    /// The torque the observer sees as having acted over the last tick: the command, or
+    /// the mean of the torque measured at its start, `last`, and now, `now` (Q16.16, the
+    /// halved sum in i64).
     #[inline(always)]
-    fn torque_stage(&mut self, last: Pu, now: Pu) -> Pu {
-        let position = self.state.position;
-        // The observer sees the torque that acted over the last tick: the command, or the
-        // mean of the current sampled at its start and now (Q16.16, halved sum in i64).
-        let torque = match self.coef.observer_torque {
+    fn observer_torque(&self, last: Pu, now: Pu) -> Pu {
+        match self.coef.observer_torque {
             ObserverTorque::Command => self.state.current_ref,
             ObserverTorque::MeasuredCurrent => Pu::from_bits(sat_shr::<1>(
                 i64::from(last.to_bits()) + i64::from(now.to_bits()),
             )),
-        };
+        }
+    }
+
+    /// The torque side of a current tick, after the encoder is read: the observer on
+    /// `torque` ([`Self::observer_torque`]), the AFB where it runs at this rate, and the
+    /// torque reference through the notch. Returns the reference the current loop is to
+    /// follow.
+    #[inline(always)]
+    fn torque_stage(&mut self, torque: Pu) -> Pu {
+        let position = self.state.position;
         let _ = self.excite(Injection::TorqueReference);
         self.coef
             .observer

@@ -102,9 +102,9 @@ impl Controller {
         };
         let (phase, current) = foc.measure(&mut self.state.foc, inp.phase_current_pu, delta);
         let torque = mul_gain(current.q, foc.flux);
-        let last = self.state.pmsm_torque;
+        let observed = self.observer_torque(self.state.pmsm_torque, torque);
         self.state.pmsm_torque = torque;
-        let i_ref = self.torque_stage(last, torque);
+        let i_ref = self.torque_stage(observed);
         let speed = self.coef.observer.velocity_pu(&self.state.observer);
         let out = foc.regulate(&mut self.state.foc, phase, current, speed, i_ref);
         let size = magnitude(current);
@@ -163,7 +163,102 @@ pub(super) fn foc_of(
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
+    use crate::config::DriveConfig;
+    use crate::controller::VelocityInputs;
+
+    fn drive(offset: Option<f32>) -> DriveConfig {
+        let mut cfg: DriveConfig = toml::from_str(include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/doc/example-drive.toml"
+        )))
+        .unwrap();
+        cfg.pmsm = Some(
+            toml::from_str(
+                "pole_pairs = 4\nd_inductance_pu_s = 5e-4\nq_inductance_pu_s = 6e-4\ndc_bus_pu = 2.0",
+            )
+            .unwrap(),
+        );
+        if let Some(p) = cfg.pmsm.as_mut() {
+            p.encoder_offset_elec_deg = offset;
+        }
+        cfg
+    }
+
+    fn pu(x: f64) -> Pu {
+        Pu::from_num(x)
+    }
+
+    #[test]
+    fn a_pmsm_drive_without_its_measured_offset_refuses_to_enable_naming_the_key() {
+        let cfg = drive(None);
+        assert_eq!(cfg.validate(), Ok(()));
+        let e = Controller::new(&cfg).unwrap_err();
+        assert_eq!(e.param(), "pmsm.encoder_offset_elec_deg");
+        assert!(e.to_string().contains("stiffdrive identify"), "{e}");
+        assert!(Controller::new(&drive(Some(12.5))).unwrap().foc().is_some());
+    }
+
+    #[test]
+    fn a_dc_drive_commands_nothing_through_the_pmsm_tick() {
+        let mut cfg = drive(None);
+        cfg.pmsm = None;
+        let mut c = Controller::new(&cfg).unwrap();
+        assert!(c.foc().is_none());
+        let out = c.pmsm_tick(PmsmInputs {
+            encoder_count: 7,
+            phase_current_pu: [pu(1.0), pu(-0.5)],
+        });
+        assert!(!out.enabled);
+        assert_eq!(out.duties, [0; 3]);
+    }
+
+    #[test]
+    fn a_fault_turns_the_inverter_off_and_zeroes_the_references() {
+        let mut c = Controller::new(&drive(Some(0.0))).unwrap();
+        let inp = PmsmInputs {
+            encoder_count: 0,
+            phase_current_pu: [pu(0.1), pu(-0.05)],
+        };
+        assert!(c.pmsm_tick(inp).enabled);
+        let _ = c.velocity_tick(VelocityInputs {
+            fault_input: true,
+            ..VelocityInputs::default()
+        });
+        let out = c.pmsm_tick(inp);
+        assert_eq!(out.fault, Some(Fault::External));
+        assert!(!out.enabled);
+        assert_eq!(out.duties, [c.foc().unwrap().svpwm.period() / 2; 3]);
+        assert_eq!(
+            (out.current_ref, out.voltage),
+            (Dq::default(), Dq::default())
+        );
+        assert_eq!(out.torque_ref_pu, Pu::ZERO);
+    }
+
+    /// Overcurrent judges the current vector: phase currents whose every sample is below
+    /// the trip level, but whose vector is above it, trip after `overcurrent_ticks`.
+    #[test]
+    fn overcurrent_trips_on_the_current_vector() {
+        let cfg = drive(Some(0.0));
+        let mut c = Controller::new(&cfg).unwrap();
+        let level = f64::from(cfg.faults.overcurrent_ratio * cfg.torque_limit_pu);
+        // |i| = 1.05·level with the vector at 90° electrical: i_a = 0 and
+        // i_b = −√3/2·|i|, so no phase sample reaches the level.
+        let m = 1.05 * level;
+        let samples = [pu(0.0), pu(-m * 3f64.sqrt() / 2.0)];
+        let ticks = cfg.faults.overcurrent_ticks;
+        for k in 1..=ticks {
+            let out = c.pmsm_tick(PmsmInputs {
+                encoder_count: 0,
+                phase_current_pu: samples,
+            });
+            assert_eq!(out.fault.is_some(), k == ticks, "tick {k}: {:?}", out.fault);
+        }
+        assert_eq!(c.fault(), Some(Fault::Overcurrent));
+        assert!(m * 3f64.sqrt() / 2.0 < level, "each sample below the level");
+    }
 
     #[test]
     fn the_magnitude_is_the_rounded_down_root_and_saturates() {
