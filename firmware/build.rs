@@ -127,7 +127,7 @@ fn bake_drive(
     let cfg = machine.drive;
     controller_core::design(&cfg).map_err(|e| format!("drive.{}: {e}", e.param()))?;
     let mut w = pil_link::wire::Writer::new();
-    pil_link::settings::encode(&cfg, &mut w).map_err(|e| format!("encode: {e:?}"))?;
+    pil_link::settings::encode(&cfg, &mut w).map_err(|e| format!("encode: {e}"))?;
     let bytes = w.as_slice();
     // The image decodes these very bytes; the reference run uses the decoded drive too.
     let back = pil_link::settings::decode(bytes).map_err(|e| format!("decode: {e:?}"))?;

@@ -52,7 +52,15 @@ fn records_round_trip() {
         current_pu: controller_core::Pu::from_bits(-12345),
         fault_input: true,
     };
-    assert_eq!(words::LilInput::from_bytes(&rec.to_bytes()), rec);
+    assert_eq!(words::LilInput::from_bytes(&rec.to_bytes()), Ok(rec));
+    // The same bytes as before the words were shared: encoder, current, fault input, LE.
+    let b = rec.to_bytes();
+    assert_eq!(b[..4], 0xFFFE_u32.to_le_bytes());
+    assert_eq!(b[4..8], (-12345_i32).to_le_bytes());
+    assert_eq!(b[8..], 1_u32.to_le_bytes());
+    let mut bad = b;
+    bad[8] = 2;
+    assert!(words::LilInput::from_bytes(&bad).is_err());
 }
 
 #[test]

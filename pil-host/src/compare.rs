@@ -61,11 +61,11 @@ fn named(names: &[&'static str], words: &[u32]) -> Vec<(&'static str, i64)> {
 }
 
 fn current_fields(o: &CurrentOutputs) -> Vec<(&'static str, i64)> {
-    named(&CURRENT_FIELDS, &o.to_words())
+    named(CURRENT_FIELDS, &o.to_words())
 }
 
 fn velocity_fields(o: &VelocityOutputs) -> Vec<(&'static str, i64)> {
-    named(&VELOCITY_FIELDS, &o.to_words())
+    named(VELOCITY_FIELDS, &o.to_words())
 }
 
 /// The output-value tally of a comparison.

@@ -1,47 +1,27 @@
 //! Per-tick payloads: controller-core's inputs (harness → firmware, `Sensors` frames) and
-//! outputs (firmware → harness, `Commands` frames). Fixed-point values travel as their raw
-//! bits, so both sides hold the very same numbers; a fault travels as its
-//! [`controller_core::words::fault_code`].
+//! outputs (firmware → harness, `Commands` frames), each a tag byte and then the record's
+//! words ([`controller_core::words`], the one layout of every tick record), little-endian.
+//! Fixed-point values travel as their raw bits, so both sides hold the very same numbers.
 //!
 //! ```text
-//! Sensors, current tick   (9 bytes):  tag 1 | encoder u32 | current_pu i32
-//! Sensors, velocity tick (22 bytes):  tag 2 | encoder u32 | position_counts i64 |
-//!                                     velocity_pu i32 | acceleration_pu_s i32 | fault_input u8
-//! Commands, current tick (24 bytes):  tag 1 | voltage_cmd i32 | current_ref i32 | accel_fb i32 |
-//!                                     fault u8 | applied_voltage i32 | enabled u8 | isr_ticks u32 |
-//!                                     excitation i32
-//!                                     (applied_voltage, enabled, isr_ticks: what the board
-//!                                     layer applied; excitation: the controller's latest
+//! Sensors, current tick   (9 bytes):  tag 1 | CurrentInputs words (2)
+//! Sensors, velocity tick (29 bytes):  tag 2 | VelocityInputs words (7)
+//! Commands, current tick (33 bytes):  tag 1 | CurrentOutputs words (4) | Applied words (4)
+//!                                     (Applied: what the board layer applied: voltage,
+//!                                     enable, isr_ticks, and the controller's latest
 //!                                     excitation sample, 0 without one)
-//! Commands, velocity tick (30 bytes): tag 2 | current_ref i32 | accel_fb i32 | velocity_cmd i32 |
-//!                                     velocity_est i32 | acceleration_est i32 |
-//!                                     position_error i32 (Q24.8) | disturbance_est i32 | fault u8
+//! Commands, velocity tick (33 bytes): tag 2 | VelocityOutputs words (8)
 //! ```
 
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
-use controller_core::per_unit::{Counts, CountsErr, Pu, PuPerS};
-use controller_core::words::{fault_code, fault_from_code};
-use controller_core::{
-    CurrentInputs, CurrentOutputs, Fault, Setpoint, VelocityInputs, VelocityOutputs,
-};
+use controller_core::words::{BadWord, WordField};
+use controller_core::{CurrentInputs, CurrentOutputs, Pu, VelocityInputs, VelocityOutputs};
 
 const TAG_CURRENT: u8 = 1;
 const TAG_VELOCITY: u8 = 2;
 
-/// A fault code byte ([`controller_core::words::fault_from_code`]); an unknown code is a
-/// `BadPayload` of `kind`.
-const fn fault_from_byte(b: u8, kind: FrameKind) -> Result<Option<Fault>, LinkError> {
-    match fault_from_code(b) {
-        Ok(f) => Ok(f),
-        Err(_) => Err(LinkError::BadPayload {
-            kind: kind as u8,
-            len: 0,
-        }),
-    }
-}
-
-/// A `Sensors` payload: the inputs of one controller tick.
+/// A tick's inputs, harness → firmware.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Sensors {
     /// Inputs of a current tick.
@@ -50,103 +30,130 @@ pub enum Sensors {
     Velocity(VelocityInputs),
 }
 
-impl Sensors {
-    /// Payload bytes.
-    pub fn encode(&self, w: &mut Writer) -> Result<(), LinkError> {
-        match self {
-            Self::Current(i) => {
-                w.u8(TAG_CURRENT)?
-                    .u32(i.encoder_count)?
-                    .i32(i.current_pu.to_bits())?;
-            }
-            Self::Velocity(i) => {
-                w.u8(TAG_VELOCITY)?
-                    .u32(i.encoder_count)?
-                    .i64(i.setpoint.position_counts.to_bits())?
-                    .i32(i.setpoint.velocity_pu.to_bits())?
-                    .i32(i.setpoint.acceleration_pu_s.to_bits())?
-                    .u8(u8::from(i.fault_input))?;
-            }
+/// What the board layer applied in a current tick, read back from its outputs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Applied {
+    /// Voltage written to the PWM, raw Q16.16 bits.
+    pub voltage_bits: i32,
+    /// Level of the power stage's enable pin.
+    pub enabled: bool,
+    /// Current-loop interrupts run so far.
+    pub isr_ticks: u32,
+    /// The controller's latest excitation sample, raw Q16.16 bits (0 without one).
+    pub excitation_bits: i32,
+}
+
+/// `Applied`'s words: the voltage and the excitation as Q16.16 values.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct AppliedWords {
+    voltage: Pu,
+    enabled: bool,
+    isr_ticks: u32,
+    excitation: Pu,
+}
+
+controller_core::tick_words!(AppliedWords {
+    voltage: Pu,
+    enabled: bool,
+    isr_ticks: u32,
+    excitation: Pu,
+});
+
+impl From<Applied> for AppliedWords {
+    fn from(a: Applied) -> Self {
+        Self {
+            voltage: Pu::from_bits(a.voltage_bits),
+            enabled: a.enabled,
+            isr_ticks: a.isr_ticks,
+            excitation: Pu::from_bits(a.excitation_bits),
         }
-        Ok(())
+    }
+}
+
+impl From<AppliedWords> for Applied {
+    fn from(a: AppliedWords) -> Self {
+        Self {
+            voltage_bits: a.voltage.to_bits(),
+            enabled: a.enabled,
+            isr_ticks: a.isr_ticks,
+            excitation_bits: a.excitation.to_bits(),
+        }
+    }
+}
+
+/// A tick's outputs, firmware → harness.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Commands {
+    /// Outputs of a current tick and what the board applied.
+    Current(CurrentOutputs, Applied),
+    /// Outputs of a velocity tick.
+    Velocity(VelocityOutputs),
+}
+
+/// Writes a record's words.
+fn put<T: WordField>(w: &mut Writer, v: &T, scratch: &mut [u32]) -> Result<(), LinkError> {
+    let n = T::WIDTH.min(scratch.len());
+    let words = scratch.get_mut(..n).unwrap_or_default();
+    v.put(words, 0);
+    for x in words.iter() {
+        w.u32(*x)?;
+    }
+    Ok(())
+}
+
+/// Reads a record's words; a word that names no value is a bad payload.
+fn take<T: WordField>(r: &mut Reader<'_>, kind: FrameKind) -> Result<T, LinkError> {
+    let mut scratch = [0_u32; MAX_WORDS];
+    let n = T::WIDTH.min(MAX_WORDS);
+    for x in scratch.iter_mut().take(n) {
+        *x = r.u32()?;
+    }
+    T::take(scratch.get(..n).unwrap_or_default(), 0)
+        .map(|(v, _)| v)
+        .map_err(|BadWord { .. }| LinkError::BadPayload {
+            kind: kind as u8,
+            len: 0,
+        })
+}
+
+/// The widest record on the link (words).
+const MAX_WORDS: usize = 16;
+
+impl Sensors {
+    /// Writes the payload.
+    pub fn encode(&self, w: &mut Writer) -> Result<(), LinkError> {
+        let mut scratch = [0_u32; MAX_WORDS];
+        match self {
+            Self::Current(i) => put(w.u8(TAG_CURRENT)?, i, &mut scratch),
+            Self::Velocity(i) => put(w.u8(TAG_VELOCITY)?, i, &mut scratch),
+        }
     }
 
     /// Parses a `Sensors` payload.
     pub fn decode(payload: &[u8]) -> Result<Self, LinkError> {
-        let mut r = Reader::new(FrameKind::Sensors, payload);
+        let k = FrameKind::Sensors;
+        let mut r = Reader::new(k, payload);
         let out = match r.u8()? {
-            TAG_CURRENT => Self::Current(CurrentInputs {
-                encoder_count: r.u32()?,
-                current_pu: Pu::from_bits(r.i32()?),
-            }),
-            TAG_VELOCITY => Self::Velocity(VelocityInputs {
-                encoder_count: r.u32()?,
-                setpoint: Setpoint {
-                    position_counts: Counts::from_bits(r.i64()?),
-                    velocity_pu: Pu::from_bits(r.i32()?),
-                    acceleration_pu_s: PuPerS::from_bits(r.i32()?),
-                },
-                fault_input: bool_byte(r.u8()?, FrameKind::Sensors)?,
-            }),
-            _ => return Err(bad(FrameKind::Sensors, payload)),
+            TAG_CURRENT => Self::Current(take(&mut r, k)?),
+            TAG_VELOCITY => Self::Velocity(take(&mut r, k)?),
+            _ => return Err(bad(k, payload)),
         };
         r.finish()?;
         Ok(out)
     }
 }
 
-/// What the board layer did with a current tick's command (the firmware's view of its
-/// power stage).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Applied {
-    /// Voltage written to the PWM [pu, Q16.16 bits] (0 when the stage is off).
-    pub voltage_bits: i32,
-    /// Power stage enabled.
-    pub enabled: bool,
-    /// Current-loop interrupts run so far (proves the tick ran in the interrupt).
-    pub isr_ticks: u32,
-    /// The identification excitation's latest sample after the tick [pu, Q16.16 bits]
-    /// (`Controller::excitation_pu`; 0 without an excitation).
-    pub excitation_bits: i32,
-}
-
-/// A `Commands` payload: the outputs of one controller tick.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Commands {
-    /// Outputs of a current tick, and what the board layer applied.
-    Current(CurrentOutputs, Applied),
-    /// Outputs of a velocity tick.
-    Velocity(VelocityOutputs),
-}
-
 impl Commands {
-    /// Payload bytes.
+    /// Writes the payload.
     pub fn encode(&self, w: &mut Writer) -> Result<(), LinkError> {
+        let mut scratch = [0_u32; MAX_WORDS];
         match self {
             Self::Current(o, a) => {
-                w.u8(TAG_CURRENT)?
-                    .i32(o.voltage_cmd_pu.to_bits())?
-                    .i32(o.current_ref_pu.to_bits())?
-                    .i32(o.accel_fb_pu.to_bits())?
-                    .u8(fault_code(o.fault))?
-                    .i32(a.voltage_bits)?
-                    .u8(u8::from(a.enabled))?
-                    .u32(a.isr_ticks)?
-                    .i32(a.excitation_bits)?;
+                put(w.u8(TAG_CURRENT)?, o, &mut scratch)?;
+                put(w, &AppliedWords::from(*a), &mut scratch)
             }
-            Self::Velocity(o) => {
-                w.u8(TAG_VELOCITY)?
-                    .i32(o.current_ref_pu.to_bits())?
-                    .i32(o.accel_fb_pu.to_bits())?
-                    .i32(o.velocity_cmd_pu.to_bits())?
-                    .i32(o.velocity_est_pu.to_bits())?
-                    .i32(o.acceleration_est_pu_s.to_bits())?
-                    .i32(o.position_error_counts.to_bits())?
-                    .i32(o.disturbance_est_pu.to_bits())?
-                    .u8(fault_code(o.fault))?;
-            }
+            Self::Velocity(o) => put(w.u8(TAG_VELOCITY)?, o, &mut scratch),
         }
-        Ok(())
     }
 
     /// Parses a `Commands` payload.
@@ -154,30 +161,11 @@ impl Commands {
         let k = FrameKind::Commands;
         let mut r = Reader::new(k, payload);
         let out = match r.u8()? {
-            TAG_CURRENT => Self::Current(
-                CurrentOutputs {
-                    voltage_cmd_pu: Pu::from_bits(r.i32()?),
-                    current_ref_pu: Pu::from_bits(r.i32()?),
-                    accel_fb_pu: Pu::from_bits(r.i32()?),
-                    fault: fault_from_byte(r.u8()?, k)?,
-                },
-                Applied {
-                    voltage_bits: r.i32()?,
-                    enabled: bool_byte(r.u8()?, k)?,
-                    isr_ticks: r.u32()?,
-                    excitation_bits: r.i32()?,
-                },
-            ),
-            TAG_VELOCITY => Self::Velocity(VelocityOutputs {
-                current_ref_pu: Pu::from_bits(r.i32()?),
-                accel_fb_pu: Pu::from_bits(r.i32()?),
-                velocity_cmd_pu: Pu::from_bits(r.i32()?),
-                velocity_est_pu: Pu::from_bits(r.i32()?),
-                acceleration_est_pu_s: PuPerS::from_bits(r.i32()?),
-                position_error_counts: CountsErr::from_bits(r.i32()?),
-                disturbance_est_pu: Pu::from_bits(r.i32()?),
-                fault: fault_from_byte(r.u8()?, k)?,
-            }),
+            TAG_CURRENT => {
+                let o = take(&mut r, k)?;
+                Self::Current(o, take::<AppliedWords>(&mut r, k)?.into())
+            }
+            TAG_VELOCITY => Self::Velocity(take(&mut r, k)?),
             _ => return Err(bad(k, payload)),
         };
         r.finish()?;
@@ -189,16 +177,5 @@ fn bad(kind: FrameKind, payload: &[u8]) -> LinkError {
     LinkError::BadPayload {
         kind: kind as u8,
         len: u8::try_from(payload.len()).unwrap_or(u8::MAX),
-    }
-}
-
-const fn bool_byte(b: u8, kind: FrameKind) -> Result<bool, LinkError> {
-    match b {
-        0 => Ok(false),
-        1 => Ok(true),
-        _ => Err(LinkError::BadPayload {
-            kind: kind as u8,
-            len: 0,
-        }),
     }
 }

@@ -155,7 +155,13 @@ pub fn replay<S: SetpointSource>(
     for (k, chunk) in (0_u32..).zip(inputs.chunks_exact(INPUT_RECORD_BYTES)) {
         let mut rec = [0_u8; INPUT_RECORD_BYTES];
         rec.copy_from_slice(chunk);
-        io.record = LilInput::from_bytes(&rec);
+        // A record that names no input (a fault-input word other than 0 or 1) is a
+        // mismatch, and the replay stops there.
+        let Ok(record) = LilInput::from_bytes(&rec) else {
+            report.mismatches += 1;
+            break;
+        };
+        io.record = record;
         let out = app.on_current_tick(&mut io);
         report.enabled_ticks += u32::from(io.enabled);
         report.last = out;

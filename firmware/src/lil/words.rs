@@ -17,7 +17,7 @@ use controller_core::{
 
 /// Bytes per input record: encoder count (u32 LE), current (Q16.16 bits, i32 LE), fault
 /// input (u32 LE, 0 or 1).
-pub const INPUT_RECORD_BYTES: usize = 12;
+pub const INPUT_RECORD_BYTES: usize = 4 * LilInput::WORDS;
 
 /// One recorded 4 kHz period of sensor inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -30,28 +30,34 @@ pub struct LilInput {
     pub fault_input: bool,
 }
 
+controller_core::tick_words!(LilInput {
+    encoder_count: u32,
+    current_pu: Pu,
+    fault_input: bool,
+});
+
 impl LilInput {
-    /// The record as bytes.
+    /// The record as bytes: its words ([`controller_core::words`]), little-endian.
     #[must_use]
     pub fn to_bytes(self) -> [u8; INPUT_RECORD_BYTES] {
         let mut b = [0_u8; INPUT_RECORD_BYTES];
-        let (enc, rest) = b.split_at_mut(4);
-        let (cur, flt) = rest.split_at_mut(4);
-        enc.copy_from_slice(&self.encoder_count.to_le_bytes());
-        cur.copy_from_slice(&self.current_pu.to_bits().to_le_bytes());
-        flt.copy_from_slice(&u32::from(self.fault_input).to_le_bytes());
+        for (chunk, w) in b.chunks_exact_mut(4).zip(self.to_words()) {
+            chunk.copy_from_slice(&w.to_le_bytes());
+        }
         b
     }
 
-    /// A record from bytes.
-    #[must_use]
-    pub fn from_bytes(b: &[u8; INPUT_RECORD_BYTES]) -> Self {
-        let [e0, e1, e2, e3, c0, c1, c2, c3, f0, f1, f2, f3] = *b;
-        Self {
-            encoder_count: u32::from_le_bytes([e0, e1, e2, e3]),
-            current_pu: Pu::from_bits(i32::from_le_bytes([c0, c1, c2, c3])),
-            fault_input: u32::from_le_bytes([f0, f1, f2, f3]) != 0,
+    /// A record from bytes; a fault-input word other than 0 or 1 is an error.
+    pub fn from_bytes(
+        b: &[u8; INPUT_RECORD_BYTES],
+    ) -> Result<Self, controller_core::words::BadWord> {
+        let mut words = [0_u32; Self::WORDS];
+        for (w, chunk) in words.iter_mut().zip(b.chunks_exact(4)) {
+            let mut le = [0_u8; 4];
+            le.copy_from_slice(chunk);
+            *w = u32::from_le_bytes(le);
         }
+        Self::from_words(&words)
     }
 }
 
