@@ -119,7 +119,77 @@ pub(super) fn identified_doc(
     let table = Value::try_from(plant)
         .map_err(|e| HarnessError::Backend(format!("identified.toml: {e}")))?;
     doc.insert("plant".into(), table);
+    if let Some(m) = &ident.motor {
+        set_calibration(&mut doc, m)?;
+    }
     Ok(doc)
+}
+
+/// The `[drive.pmsm]` keys a calibration sets (each also allowed straight in `[drive]`).
+const CALIBRATED_PMSM_KEYS: [&str; 5] = [
+    "pole_pairs",
+    "d_inductance_pu_s",
+    "q_inductance_pu_s",
+    "encoder_offset_elec_deg",
+    "encoder_reversed",
+];
+
+/// `x` as the drive reads it, an `f32`: its shortest decimal that reads back to that `f32`.
+fn f32_value(x: f64) -> Value {
+    let y = x as f32;
+    Value::Float(y.to_string().parse::<f64>().unwrap_or(f64::from(y)))
+}
+
+/// The table `key` of `doc`, created when absent.
+fn table_mut<'a>(doc: &'a mut Table, key: &str) -> Result<&'a mut Table> {
+    match doc.entry(key).or_insert_with(|| Value::Table(Table::new())) {
+        Value::Table(t) => Ok(t),
+        _ => Err(HarnessError::config(key, "must be a table")),
+    }
+}
+
+/// A PMSM's calibration into a machine file's tree: the model's `[electrics]` takes the
+/// measured motor (R, L_d, L_q, pole pairs, encoder offset), the drive its
+/// `winding_resistance_pu` and `[drive.pmsm]` keys (the file's own, in `[drive.pmsm]` or
+/// straight in `[drive]`, replaced), so the drive composes to [`identify::motor::calibrated`].
+pub(super) fn set_calibration(doc: &mut Table, m: &crate::calibrate::MotorEstimates) -> Result<()> {
+    let electrics = table_mut(doc, "electrics")?;
+    for (key, v) in [
+        ("winding_resistance_pu", m.winding_resistance_pu.value),
+        ("d_inductance_pu_s", m.d_inductance_pu_s.value),
+        ("q_inductance_pu_s", m.q_inductance_pu_s.value),
+        ("encoder_offset_elec_deg", m.encoder_offset_elec_deg.value),
+    ] {
+        electrics.insert(key.into(), Value::Float(v));
+    }
+    electrics.insert("pole_pairs".into(), Value::Integer(i64::from(m.pole_pairs)));
+    let drive = table_mut(doc, "drive")?;
+    drive.insert(
+        "winding_resistance_pu".into(),
+        f32_value(m.winding_resistance_pu.value),
+    );
+    for key in CALIBRATED_PMSM_KEYS {
+        drive.remove(key);
+    }
+    let pmsm = table_mut(drive, "pmsm")?;
+    pmsm.insert("pole_pairs".into(), Value::Integer(i64::from(m.pole_pairs)));
+    pmsm.insert(
+        "d_inductance_pu_s".into(),
+        f32_value(m.d_inductance_pu_s.value),
+    );
+    pmsm.insert(
+        "q_inductance_pu_s".into(),
+        f32_value(m.q_inductance_pu_s.value),
+    );
+    pmsm.insert(
+        "encoder_offset_elec_deg".into(),
+        f32_value(m.encoder_offset_elec_deg.value),
+    );
+    pmsm.insert(
+        "encoder_reversed".into(),
+        Value::Boolean(m.encoder_reversed),
+    );
+    Ok(())
 }
 
 /// A model's machine file text (not verified on the machine): the comment line `header`,

@@ -343,7 +343,11 @@ fn run_stages(
     };
     let mut pair = pair;
     let m = verification_base(config, sets, &placed.tuned_on)?;
-    let own = resolve("fig6", Some(config), sets)?;
+    // The file's own drive, with a PMSM's calibration: what the machine runs it with.
+    let mut own = resolve("fig6", Some(config), sets)?;
+    if let Some(m) = &ident.motor {
+        own.drive = identify::motor::calibrated(&own.drive, m)?;
+    }
     let spread = Spread::measure(&own)?;
     let [droop_spread, shaft_spread, ..] = spread.range;
     let reference = tune::objective::Reference::of(&own, constraints.max_torque_noise_pu)?

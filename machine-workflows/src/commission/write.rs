@@ -12,7 +12,15 @@ use std::fmt::Write as _;
 /// none: it is shown only to judge the measurement).
 fn file_value(base: &RunConfig, name: &str) -> Option<f64> {
     let m = &base.plant.mechanics;
+    let e = &base.plant.electrics;
     match name {
+        "winding_resistance_pu" if e.motor != plant_host::MotorKind::Dc => {
+            Some(e.winding_resistance_pu)
+        }
+        "d_inductance_pu_s" => e.d_inductance_pu_s,
+        "q_inductance_pu_s" => e.q_inductance_pu_s,
+        "encoder_offset_elec_deg" => e.encoder_offset_elec_deg,
+        "pole_pairs" => e.pole_pairs.map(f64::from),
         "motor_inertia_s" => Some(m.motor_inertia_s),
         "load_inertia_s" => Some(m.load_inertia_s),
         "anti_resonance_hz" => Some(m.anti_resonance_hz),

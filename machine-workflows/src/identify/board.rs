@@ -178,6 +178,13 @@ pub fn identify_board(
         ));
     }
     let (base, spec) = load(config, sets)?;
+    if base.drive.pmsm.is_some() {
+        return Err(HarnessError::config(
+            "electrics.motor",
+            "\"pmsm\": the board's firmware drives a DC motor only; identify a PMSM machine \
+             (its motor calibration and mechanics) on the simulated machine, without --board",
+        ));
+    }
     let staging = Staging::new(out)?;
     let target = match target {
         // The `board` image on mps2-an386: the QEMU board with a rig.

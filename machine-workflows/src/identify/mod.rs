@@ -1,6 +1,11 @@
 //! `hil-harness identify --config CFG --out DIR`: measure the machine in the closed loop
 //! and fit its model, reading only the signals a drive records.
 //!
+//! 0. On a PMSM machine (`electrics.motor = "pmsm"`), first the motor calibration
+//!    ([`motor`]): phase resistance, d and q inductances, pole pairs, encoder direction and
+//!    offset, each with its standard error; the steps below then run with the drive using
+//!    them (so a `[drive.pmsm]` without `encoder_offset_elec_deg` is identified too). A DC
+//!    machine has no step 0;
 //! 1. The frequency response θm/Tm from a PRBS on the torque reference, H1 with Welch
 //!    averaging and the excitation as the instrument, with its coherence
 //!    ([`measure`]);
@@ -34,6 +39,7 @@
 pub mod board;
 pub mod lost_motion;
 pub mod measure;
+pub mod motor;
 pub mod spec;
 pub mod twin;
 pub mod write;
@@ -65,6 +71,9 @@ pub struct Identification {
     pub record_s: f64,
     /// Where the two records were taken (the simulated machine, or the board).
     pub measured_on: String,
+    /// A PMSM's motor calibration ([`motor`]), which the drive ran the measurement with;
+    /// `None` for a DC machine.
+    pub motor: Option<crate::calibrate::MotorEstimates>,
 }
 
 /// The machine of `config` (a path or a name under `configs/`) with `sets` applied, as
@@ -99,11 +108,15 @@ pub fn load(config: &str, sets: &[String]) -> Result<(RunConfig, IdentifySpec)> 
 /// What [`identify_machine`] names its source.
 pub const SIMULATED: &str = "the simulated machine (sim-engine's closed loop)";
 
-/// Measures and fits (module docs).
+/// Measures and fits (module docs): a PMSM's motor calibration first, then the mechanics
+/// with the drive [`motor::calibrated`] by it.
 pub fn identify_machine(base: &RunConfig, spec: &IdentifySpec) -> Result<Identification> {
+    let motor = motor::calibrate(base)?;
+    let base = &motor::with_calibration(base, motor.as_ref())?;
     let rec = measure::frequency_response_run(base, spec)?;
     let reversal = measure::reversal_run(base, spec)?;
-    identify_records(base, spec, &rec, &reversal, SIMULATED)
+    let ident = identify_records(base, spec, &rec, &reversal, SIMULATED)?;
+    Ok(Identification { motor, ..ident })
 }
 
 /// The estimation from the two records, whichever backend recorded them: `rec` the
@@ -133,6 +146,7 @@ pub fn identify_records(
         twin,
         record_s: rec.counts.len() as f64 / rate,
         measured_on: measured_on.to_string(),
+        motor: None,
     })
 }
 
@@ -175,8 +189,24 @@ pub fn identify(config: &str, sets: &[String], out: &Path) -> Result<String> {
 /// The line `identify` prints.
 fn summary(base: &RunConfig, ident: &Identification, out: &Path) -> String {
     let f = &ident.fit.fit;
+    let motor = ident.motor.as_ref().map_or_else(String::new, |m| {
+        format!(
+            "R = {:.4} pu, Ld = {:.3e} pu·s, Lq = {:.3e} pu·s, {} pole pairs, encoder offset \
+             {:.2} deg electrical{}, ",
+            m.winding_resistance_pu.value,
+            m.d_inductance_pu_s.value,
+            m.q_inductance_pu_s.value,
+            m.pole_pairs,
+            m.encoder_offset_elec_deg.value,
+            if m.encoder_reversed {
+                " (reversed)"
+            } else {
+                ""
+            }
+        )
+    });
     format!(
-        "identify {}: Jm = {:.4} s, Jl = {:.4} s, anti-resonance {:.2} Hz, resonance {:.2} Hz, \
+        "identify {}: {motor}Jm = {:.4} s, Jl = {:.4} s, anti-resonance {:.2} Hz, resonance {:.2} Hz, \
          damping {:.3}, viscous {:.4} pu, lost motion {:.4} deg (measured on {}) -> {}",
         base.config_path.display(),
         f.motor_inertia_s,

@@ -75,7 +75,12 @@ pub fn estimates(base: &RunConfig, ident: &Identification) -> Vec<Estimate> {
         std_error,
         unit,
     };
-    vec![
+    // A PMSM's motor calibration, measured first, under the machine-file keys.
+    let mut v = ident
+        .motor
+        .as_ref()
+        .map_or_else(Vec::new, super::motor::estimates);
+    v.extend([
         est("motor_inertia_s", jm, e.motor_inertia_s, "s"),
         est("load_inertia_s", jl, e.load_inertia_s, "s"),
         est(
@@ -110,7 +115,8 @@ pub fn estimates(base: &RunConfig, ident: &Identification) -> Vec<Estimate> {
             lm.std_error_deg * counts_per_deg,
             "counts",
         ),
-    ]
+    ]);
+    v
 }
 
 /// `plant.toml`: the identified `[plant]` table.
@@ -388,6 +394,7 @@ fn markdown(
         ident.lost_motion.evaluations,
         ident.lost_motion.rms_mismatch_pu,
     );
+    md.push_str(&calibration_text(ident));
     md.push_str("| parameter | estimate | standard error | unit |\n|---|---|---|---|\n");
     for e in est {
         let _ = writeln!(
@@ -399,6 +406,32 @@ fn markdown(
     md.push_str(&twin_table(ident));
     md.push_str("\n![Bode plot: measured and fitted](bode.png)\n\n`plant.toml` holds the `[plant]` table; `identify.json` every estimate.\n");
     md
+}
+
+/// A PMSM's motor calibration: how it was measured and the `[drive.pmsm]` it gives (empty
+/// for a DC machine).
+fn calibration_text(ident: &Identification) -> String {
+    let Some(m) = &ident.motor else {
+        return String::new();
+    };
+    format!(
+        "First the motor calibration (the inverter alone, `machine-workflows/src/calibrate/`): \
+         two α current levels for the phase resistance, a pseudo-random ±square wave on α and \
+         β for the d and q inductances, then the voltage vector turned forwards and back for \
+         the encoder's direction, counts per electrical turn and offset. The measurement \
+         above ran with the drive using them (rotor lag behind the turning vector {:.2}° \
+         electrical, cancelled by the two directions). As `[drive.pmsm]` (with \
+         `[drive] winding_resistance_pu = {}`; `commission` writes them into `drive.toml`):\n\n\
+         ```toml\n[drive.pmsm]\npole_pairs = {}\nd_inductance_pu_s = {}\n\
+         q_inductance_pu_s = {}\nencoder_offset_elec_deg = {}\nencoder_reversed = {}\n```\n\n",
+        m.sweep_lag_elec_deg,
+        m.winding_resistance_pu.value as f32,
+        m.pole_pairs,
+        m.d_inductance_pu_s.value as f32,
+        m.q_inductance_pu_s.value as f32,
+        m.encoder_offset_elec_deg.value as f32,
+        m.encoder_reversed,
+    )
 }
 
 /// The check on the twin, as a table: what the fit gave, what the same fit gave on a twin
