@@ -134,18 +134,21 @@ impl AfbStep {
 /// The acceleration-feedback block with torque limit `lim`.
 fn accel_feedback(g: &Gains, lim: Pu) -> Result<AccelerationFeedback, ConfigError> {
     let cfg = &g.cfg;
+    let key = r::AFB_GAIN_FRACTION.key;
     let filter = LowPass::quantize(&g.afb_filter, r::AFB_FILTER_CORNER_HZ.key)?;
     // Closed form of the loop through the observer's model (accel_feedback module docs):
     // g·Ka with g = 1/(1 + b0·Ka/J_model); b0 from the quantized filter, so that the
-    // solved loop is the one the tick runs.
-    let ka = fit(g.ka, gain_fraction(cfg))?;
-    let ka_closed = if cfg.accel_feedback.source == Estimator::Observer {
-        let b0: f32 = filter.feedthrough().to_num();
-        let gain = 1.0 / (1.0 + b0 * g.ka / g.observer_inertia_s);
-        quantize::<Gain>(g.ka * gain, r::AFB_GAIN_FRACTION.key)
-            .map_err(|_| closed_form_error(g, b0))?
-    } else {
-        Gain::ZERO
+    // solved loop is the one the tick runs. Both Ka and the closed form's gain come from the
+    // gain fraction, so either not fitting states the range that fits both.
+    let b0 = (cfg.accel_feedback.source == Estimator::Observer)
+        .then(|| filter.feedthrough().to_num::<f32>());
+    let ka = quantize::<Gain>(g.ka, key).map_err(|_| gain_fraction_error(g, b0))?;
+    let ka_closed = match b0 {
+        Some(b0) => {
+            let gain = 1.0 / (1.0 + b0 * g.ka / g.observer_inertia_s);
+            quantize::<Gain>(g.ka * gain, key).map_err(|_| gain_fraction_error(g, Some(b0)))?
+        }
+        None => Gain::ZERO,
     };
     Ok(AccelerationFeedback {
         mode: cfg.accel_feedback.mode,
@@ -156,27 +159,31 @@ fn accel_feedback(g: &Gains, lim: Pu) -> Result<AccelerationFeedback, ConfigErro
     })
 }
 
-/// The closed form's Ka/(1 + b·Ka) (b = b0/J_model) below 50 steps of Q16.16 (m): it grows
-/// with Ka towards 1/b, so it fits from Ka = m/(1 − b·m) on (the gain fraction's range
-/// starts there); if 1/b itself is below m, no Ka fits and the model inertia is too small.
-pub(super) fn closed_form_error(g: &Gains, b0: f32) -> ConfigError {
-    use crate::validate::{GAIN_MAX, GAIN_MIN};
+/// The largest f32 at or below Q16.16's largest (2^15 − 2^−16 is no f32; 2^15 − 2^−9 is):
+/// Ka = gain_fraction × J_total rounded to f32 stays at or below it whenever the exact
+/// product does, so a top stated against it holds in the build's own arithmetic.
+const KA_TOP: f32 = 32_768.0 - 1.0 / 512.0;
+
+/// The range of `accel_feedback.gain_fraction` that fits given the other settings, when Ka
+/// = gain_fraction × J_total or the closed form's Ka/(1 + b·Ka) (b = b0/J_model; `b0` the
+/// AFB filter's feed-through, given with the observer as the source) does not fit Q16.16.
+///
+/// Both must keep 50 steps of Q16.16 (m). The closed form grows with Ka towards 1/b and
+/// stays below Ka, so it fits from Ka = m/(1 − b·m) on, above Ka's own floor m: with the
+/// closed form, that is the range's bottom whichever of the two was refused (Ka's floor
+/// alone would state values the closed form refuses). If 1/b itself is below m, no Ka fits
+/// and the model inertia is too small. The top is Ka's: [`KA_TOP`] / J_total, rounded down
+/// to f32. The bottom needs no such care: `quantize` keeps a value down to about 49.5 steps
+/// (within 1 %), far below any f32 rounding of 50.
+pub(super) fn gain_fraction_error(g: &Gains, b0: Option<f32>) -> ConfigError {
+    use crate::validate::GAIN_MIN;
     let cfg = &g.cfg;
-    let b = f64::from(b0) / f64::from(g.observer_inertia_s);
     let j = f64::from(g.j_total_s);
     let r = &r::AFB_GAIN_FRACTION;
-    if b * GAIN_MIN < 1.0 {
-        ConfigError::OutOfRangeGiven {
-            param: r.key,
-            value: cfg.accel_feedback.gain_fraction,
-            min: (GAIN_MIN / ((1.0 - b * GAIN_MIN) * j)) as f32,
-            max: ((GAIN_MAX / j) as f32).min(r.max),
-            min_exclusive: false,
-            given: gain_fraction(cfg).given,
-        }
-    } else {
+    let b = b0.map_or(0.0, |b0| f64::from(b0) / f64::from(g.observer_inertia_s));
+    if let Some(b0) = b0.filter(|_| b * GAIN_MIN >= 1.0) {
         let m = &r::MOTOR_INERTIA_S;
-        ConfigError::OutOfRangeGiven {
+        return ConfigError::OutOfRangeGiven {
             param: m.key,
             value: cfg.motor_inertia_s,
             min: (f64::from(b0) * GAIN_MIN * 1.001) as f32,
@@ -185,7 +192,20 @@ pub(super) fn closed_form_error(g: &Gains, b0: f32) -> ConfigError {
             given: "accel_feedback and observer.model_inertia: the closed form's \
                     Ka/(1 + b0·Ka/J_model), below J_model/b0 (b0 the AFB filter's \
                     feed-through), must fit Q16.16 within 1 %",
-        }
+        };
+    }
+    let top = f64::from(KA_TOP) / j;
+    let mut max = top as f32;
+    if f64::from(max) > top {
+        max = max.next_down();
+    }
+    ConfigError::OutOfRangeGiven {
+        param: r.key,
+        value: cfg.accel_feedback.gain_fraction,
+        min: (GAIN_MIN / ((1.0 - b * GAIN_MIN) * j)) as f32,
+        max: max.min(r.max),
+        min_exclusive: false,
+        given: GAIN_FRACTION_GIVEN,
     }
 }
 
@@ -243,18 +263,10 @@ fn observer(g: &Gains) -> Result<Observer, ConfigError> {
     })
 }
 
-/// `accel_feedback.gain_fraction`, which Ka (and the closed form's gain) scale with.
-fn gain_fraction(cfg: &DriveConfig) -> Scales {
-    Scales {
-        cap: f32::INFINITY,
-        range: &r::AFB_GAIN_FRACTION,
-        setting: cfg.accel_feedback.gain_fraction,
-        power: 1.0,
-        given: "motor_inertia_s + load_inertia_s: Ka = gain_fraction × J_total (and the \
-                closed form's Ka/(1 + b0·Ka/J_model)) must fit Q16.16 within 1 %; 0 or \
-                mode = \"off\" turns the feedback off",
-    }
-}
+/// What the range of `accel_feedback.gain_fraction` ([`gain_fraction_error`]) depends on.
+const GAIN_FRACTION_GIVEN: &str = "motor_inertia_s + load_inertia_s: Ka = gain_fraction × \
+    J_total (and the closed form's Ka/(1 + b0·Ka/J_model)) must fit Q16.16 within 1 %; 0 or \
+    mode = \"off\" turns the feedback off";
 
 /// A differentiator with velocity scale `v` and acceleration scale `a` (counts to pu: both
 /// bounded by `encoder_cpr`'s range).

@@ -252,7 +252,7 @@ fn the_closed_form_error_states_the_range_of_its_branch() {
     // J_model = 2m (exact in f32): b·m = 1/2.
     g.observer_inertia_s = (2.0 * GAIN_MIN) as f32;
     let b = 1.0 / f64::from(g.observer_inertia_s);
-    match coefficients::closed_form_error(&g, 1.0) {
+    match coefficients::gain_fraction_error(&g, Some(1.0)) {
         ConfigError::OutOfRangeGiven { param, min, .. } => {
             assert_eq!(param, AFB_GAIN_FRACTION.key);
             assert_eq!(min, (GAIN_MIN / ((1.0 - b * GAIN_MIN) * j)) as f32);
@@ -260,11 +260,14 @@ fn the_closed_form_error_states_the_range_of_its_branch() {
         }
         e => panic!("{e:?}"),
     }
-    // The gain fraction's top: GAIN_MAX/J_total where that is below its stated 20.
+    // The gain fraction's top where that is below its stated 20: the largest f32 whose Ka
+    // (× J_total in f32, as the design computes it) fits Q16.16; the next one's does not.
     g.j_total_s = 2000.0;
-    match coefficients::closed_form_error(&g, 1.0) {
+    match coefficients::gain_fraction_error(&g, Some(1.0)) {
         ConfigError::OutOfRangeGiven { max, .. } => {
-            assert_eq!(max, (crate::validate::GAIN_MAX / 2000.0) as f32);
+            assert!(crate::per_unit::quantize::<crate::per_unit::Gain>(max * 2000.0, "").is_ok());
+            let above = max.next_up() * 2000.0;
+            assert!(crate::per_unit::quantize::<crate::per_unit::Gain>(above, "").is_err());
         }
         e => panic!("{e:?}"),
     }
@@ -272,7 +275,7 @@ fn the_closed_form_error_states_the_range_of_its_branch() {
     // J_model = m: b·m is exactly 1 in f64, the other branch.
     g.observer_inertia_s = GAIN_MIN as f32;
     assert_eq!(1.0 / f64::from(g.observer_inertia_s) * GAIN_MIN, 1.0);
-    match coefficients::closed_form_error(&g, 1.0) {
+    match coefficients::gain_fraction_error(&g, Some(1.0)) {
         ConfigError::OutOfRangeGiven { param, min, .. } => {
             assert_eq!(param, MOTOR_INERTIA_S.key);
             assert_eq!(min, (GAIN_MIN * 1.001) as f32);

@@ -197,6 +197,40 @@ fn log_between(min: f32, max: f32, u: f64) -> f32 {
     (a + (b - a) * u).exp() as f32
 }
 
+/// The settings the refusal property draws: `u` (14 numbers in [0, 1]) placed across each
+/// setting's range on a log scale.
+fn drawn(u: &[f64], cpr_bits: u32, bits: u8, ratio: u32, mode: u8) -> DriveConfig {
+    let mut c = common::table1();
+    c.base_speed_rpm = log_between(1.0, 100_000.0, u[0]);
+    c.encoder_cpr = 1 << cpr_bits;
+    c.counter_bits = bits;
+    c.current_rate_hz = (log_between(100.0, 100_000.0, u[1]) as u32 / ratio).max(10) * ratio;
+    c.velocity_rate_hz = c.current_rate_hz / ratio;
+    c.motor_inertia_s = log_between(1e-5, 1000.0, u[2]);
+    c.load_inertia_s = log_between(1e-5, 1000.0, u[3]);
+    let f_vel = c.velocity_rate_hz as f32;
+    c.velocity_bandwidth_rad_s = log_between(1e-3, 0.999 * std::f32::consts::PI * f_vel, u[4]);
+    c.current_bandwidth_rad_s = log_between(
+        1e-3,
+        0.999 * std::f32::consts::PI * c.current_rate_hz as f32,
+        u[5],
+    );
+    c.position_bandwidth_rad_s = if u[6] < 0.2 {
+        0.0
+    } else {
+        log_between(1e-3, 0.999 * std::f32::consts::PI * f_vel, u[6])
+    };
+    c.winding_inductance_pu_s = log_between(1e-5, 100.0, u[7]);
+    c.winding_resistance_pu = log_between(1e-5, 100.0, u[8]);
+    c.accel_feedback.mode = [AfbMode::Off, AfbMode::Plain, AfbMode::Error][usize::from(mode)];
+    c.accel_feedback.gain_fraction = log_between(1e-6, 20.0, u[9]);
+    c.observer.bandwidth_hz = log_between(1e-3, c.current_rate_hz as f32 / 2.01, u[10]);
+    c.faults.following_error_rev = log_between(1e-6, 1000.0, u[11]);
+    c.torque_limit_pu = log_between(1e-5, 1000.0, u[12]);
+    c.velocity_ff_gain = log_between(1e-6, 1.0, u[13]);
+    c
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(4000))]
 
@@ -211,26 +245,7 @@ proptest! {
     ) {
         use controller_core::ConfigError;
         use controller_core::ranges::range_of;
-        let mut c = common::table1();
-        c.base_speed_rpm = log_between(1.0, 100_000.0, u[0]);
-        c.encoder_cpr = 1 << cpr_bits;
-        c.counter_bits = bits;
-        c.current_rate_hz = (log_between(100.0, 100_000.0, u[1]) as u32 / ratio).max(10) * ratio;
-        c.velocity_rate_hz = c.current_rate_hz / ratio;
-        c.motor_inertia_s = log_between(1e-5, 1000.0, u[2]);
-        c.load_inertia_s = log_between(1e-5, 1000.0, u[3]);
-        let f_vel = c.velocity_rate_hz as f32;
-        c.velocity_bandwidth_rad_s = log_between(1e-3, 0.999 * std::f32::consts::PI * f_vel, u[4]);
-        c.current_bandwidth_rad_s = log_between(1e-3, 0.999 * std::f32::consts::PI * c.current_rate_hz as f32, u[5]);
-        c.position_bandwidth_rad_s = if u[6] < 0.2 { 0.0 } else { log_between(1e-3, 0.999 * std::f32::consts::PI * f_vel, u[6]) };
-        c.winding_inductance_pu_s = log_between(1e-5, 100.0, u[7]);
-        c.winding_resistance_pu = log_between(1e-5, 100.0, u[8]);
-        c.accel_feedback.mode = [AfbMode::Off, AfbMode::Plain, AfbMode::Error][usize::from(mode)];
-        c.accel_feedback.gain_fraction = log_between(1e-6, 20.0, u[9]);
-        c.observer.bandwidth_hz = log_between(1e-3, c.current_rate_hz as f32 / 2.01, u[10]);
-        c.faults.following_error_rev = log_between(1e-6, 1000.0, u[11]);
-        c.torque_limit_pu = log_between(1e-5, 1000.0, u[12]);
-        c.velocity_ff_gain = log_between(1e-6, 1.0, u[13]);
+        let c = drawn(&u, cpr_bits, bits, ratio, mode);
         if let Err(e) = Controller::new(&c) {
             let key = e.param();
             prop_assert!(
@@ -265,6 +280,119 @@ proptest! {
                 }
                 if let Err(again) = Controller::new(&d) {
                     prop_assert!(again.param() != param, "{e}\nthen at {inside}: {again}");
+                }
+            }
+        }
+    }
+}
+
+/// The range a refusal of `c` states for `accel_feedback.gain_fraction` (`None` when `c`
+/// is not refused by that key).
+fn gain_fraction_range(c: &DriveConfig) -> Option<(f32, f32)> {
+    match Controller::new(c) {
+        Err(controller_core::ConfigError::OutOfRangeGiven {
+            param: "accel_feedback.gain_fraction",
+            min,
+            max,
+            ..
+        }) => Some((min, max)),
+        _ => None,
+    }
+}
+
+/// `c` with the gain fraction `v` is refused by the gain fraction's key.
+fn gain_fraction_refused(c: &DriveConfig, v: f32) -> bool {
+    let mut d = *c;
+    d.accel_feedback.gain_fraction = v;
+    matches!(Controller::new(&d), Err(e) if e.param() == "accel_feedback.gain_fraction")
+}
+
+/// The refusal property's saved case (proptest-regressions/properties.txt): a light drive
+/// (J_total ≈ 1.3·10⁻⁴) whose gain fraction 10⁻⁶ is refused. Ka alone fits from 5.90 on,
+/// but the closed form's Ka/(1 + b0·Ka/J_model), which grows more slowly, only from 16.0:
+/// the stated range starts there (it stated 5.90, and its middle 10.86 was refused again),
+/// and holds at both ends and in the middle.
+#[test]
+fn the_gain_fraction_s_range_starts_where_the_closed_form_fits() {
+    let u = [
+        0.674_476_949_429_625_7,
+        0.641_370_973_763_548,
+        0.117_474_319_121_645_01,
+        0.078_170_385_355_133_03,
+        0.637_496_501_385_698_2,
+        0.678_082_186_914_914_6,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.979_525_479_847_579_9,
+        0.0,
+    ];
+    let c = drawn(&u, 6, 16, 1, 1);
+    let (min, max) = gain_fraction_range(&c).unwrap();
+    assert!(min > 16.0 && min < 16.1 && max == 20.0, "[{min}, {max}]");
+    for v in [min, (min * max).sqrt(), max] {
+        assert!(!gain_fraction_refused(&c, v), "{v} in [{min}, {max}]");
+    }
+    // The old range's middle is refused: it lies below the range now.
+    assert!(gain_fraction_refused(&c, 10.864_952));
+    // And the range is not loose. Quantizing keeps 1 % down to about 49.5 steps (with
+    // gaps below 50, where a value half a step off is refused), and the closed form moves
+    // by 1/(1 + b·Ka) = 0.37 of the gain fraction's change here: within 1 %/0.37 = 2.7 %
+    // below the bottom, some value is refused.
+    let mut v = min;
+    let mut refused_below = None;
+    for _ in 0..300 {
+        v *= 0.9999;
+        if gain_fraction_refused(&c, v) {
+            refused_below = Some(v);
+            break;
+        }
+    }
+    assert!(refused_below.is_some(), "none refused from {v} to {min}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    /// Whatever derives from the gain fraction (Ka, with the observer the closed form's gain
+    /// through the AFB filter's feed-through b0 and the model inertia), the range a refusal
+    /// states holds at its bottom, its top and its middle. `heavy` draws inertias near the
+    /// top of their ranges, where Ka = gain_fraction × J_total reaches Q16.16's top.
+    #[test]
+    fn the_gain_fraction_s_stated_range_holds_at_both_ends(
+        motor in 0.0f64..=1.0, load in 0.0f64..=1.0, heavy: bool, fraction in 0.0f64..=1.0,
+        observer: bool, motor_model: bool, error_form: bool, filter in 0u8..3,
+        corner in 0.0f64..=1.0,
+    ) {
+        use controller_core::ObserverInertia;
+        let mut c = common::table1();
+        let (lo, hi) = if heavy { (800.0, 1000.0) } else { (1e-5, 1000.0) };
+        c.motor_inertia_s = log_between(lo, hi, motor);
+        c.load_inertia_s = log_between(lo, hi, load);
+        if heavy {
+            // A velocity loop slow enough for the velocity PI's Kp = ω·J_total·(1 + fraction)
+            // to fit: otherwise its bandwidth is refused first.
+            c.velocity_bandwidth_rad_s = 0.5;
+        }
+        c.accel_feedback.mode = if error_form { AfbMode::Error } else { AfbMode::Plain };
+        c.accel_feedback.rate = AfbRate::Current;
+        c.accel_feedback.source = if observer { Estimator::Observer } else { Estimator::Differentiation };
+        c.observer.model_inertia = if motor_model { ObserverInertia::Motor } else { ObserverInertia::Total };
+        let corner_hz = log_between(1.0, 0.49 * c.current_rate_hz as f32, corner);
+        c.accel_feedback.filter = match filter {
+            0 => FilterConfig::None,
+            1 => FilterConfig::FirstOrder { corner_hz },
+            _ => FilterConfig::SecondOrder { corner_hz, q: 0.7 },
+        };
+        c.accel_feedback.gain_fraction = log_between(1e-6, 20.0, fraction);
+        if let Some((min, max)) = gain_fraction_range(&c) {
+            prop_assert!(!(min..=max).contains(&c.accel_feedback.gain_fraction), "[{min}, {max}]");
+            if min <= max {
+                for v in [min, (min * max).sqrt(), max] {
+                    prop_assert!(!gain_fraction_refused(&c, v), "{v} in [{min}, {max}]");
                 }
             }
         }
