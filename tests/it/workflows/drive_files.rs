@@ -2,7 +2,9 @@
 //! through the machine-file composer, each gives exactly the `DriveConfig` written and the
 //! same settings CRC (the one the board logs at boot), for every kind of design `tune`
 //! makes and for 1,000 random valid drives, on machine files whose own `[drive]` differs
-//! from the design in every way (AFB on against off, a notch against none).
+//! from the design in every way (AFB on against off, a notch against none, for a PMSM
+//! another `[drive.pmsm]`: the calibration `commission` writes replaces the file's, and
+//! a drive without the encoder offset stays without it).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use controller_core::{
@@ -17,10 +19,17 @@ use toml::{Table, Value};
 /// The shipped machine files' trees, each also with a notch and AFB off in its own
 /// `[drive]` (what a written file must not keep).
 fn machine_docs() -> Vec<(String, Table)> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/machines");
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut v = Vec::new();
-    for name in ["table1", "dyno", "printing-press"] {
-        let text = std::fs::read_to_string(dir.join(format!("{name}.toml"))).unwrap();
+    for name in [
+        "table1",
+        "dyno",
+        "printing-press",
+        "table1-pmsm",
+        "../../tests/fixtures/pmsm-odd",
+    ] {
+        let path = root.join("configs/machines").join(format!("{name}.toml"));
+        let text = std::fs::read_to_string(path).unwrap();
         let doc: Table = text.parse().unwrap();
         let mut odd = doc.clone();
         let drive = odd["drive"].as_table_mut().unwrap();
@@ -70,6 +79,47 @@ fn round_trip(what: &str, doc: &Table, design: &DriveConfig) {
         design.notch.is_some(),
         "{what}"
     );
+    assert_eq!(drive.contains_key("pmsm"), design.pmsm.is_some(), "{what}");
+    if let Some(p) = &design.pmsm {
+        let pmsm = drive["pmsm"].as_table().unwrap();
+        for key in PMSM_KEYS {
+            assert!(pmsm.contains_key(key), "{what}: pmsm.{key} not stated\n{text}");
+        }
+        assert_eq!(
+            pmsm.contains_key("encoder_offset_elec_deg"),
+            p.encoder_offset_elec_deg.is_some(),
+            "{what}"
+        );
+    }
+}
+
+/// The `[drive.pmsm]` keys a drive file states whatever the design (the offset only when
+/// the design has one).
+const PMSM_KEYS: [&str; 10] = [
+    "pole_pairs",
+    "d_inductance_pu_s",
+    "q_inductance_pu_s",
+    "flux_linkage_pu",
+    "dc_bus_pu",
+    "encoder_reversed",
+    "angle_advance_ticks",
+    "pwm_period_counts",
+    "commutation_min_speed_pu",
+    "commutation_trip_s",
+];
+
+/// A calibration as `commission` writes it, none of it the file's own: 7 pole pairs, a
+/// salient motor, an offset with a long mantissa, the encoder reversed.
+fn calibrated(mut d: DriveConfig) -> DriveConfig {
+    if let Some(p) = d.pmsm.as_mut() {
+        p.pole_pairs = 7;
+        p.d_inductance_pu_s = 3.0137e-4;
+        p.q_inductance_pu_s = 4.5327e-4;
+        p.encoder_offset_elec_deg = Some(137.146_21);
+        p.encoder_reversed = true;
+        d.winding_resistance_pu = 0.059_748_3;
+    }
+    d
 }
 
 /// Every kind of design `tune` makes (its grid's candidates: AFB off and on, each form,
@@ -80,9 +130,9 @@ fn every_kind_of_design_tune_makes_composes_back_to_itself() {
     let grid = sim_engine::config::tune_grid().unwrap();
     let candidates = tune::candidates(&grid, &grid.bandwidths_rad_s[..2]);
     let mut kinds = std::collections::BTreeSet::new();
-    let mut n = 0;
+    let (mut n, mut pmsm) = (0, 0);
     for (name, doc) in machine_docs() {
-        let base = machine_file::compose(doc.clone()).unwrap().drive;
+        let base = calibrated(machine_file::compose(doc.clone()).unwrap().drive);
         for c in &candidates {
             for notch in [None, Some((0.3, 0.2, 30.0))] {
                 for position in [0.0, 12.5] {
@@ -105,6 +155,7 @@ fn every_kind_of_design_tune_makes_composes_back_to_itself() {
                     ));
                     round_trip(&format!("{name}: {c:?}"), &doc, &d);
                     n += 1;
+                    pmsm += usize::from(d.pmsm.is_some());
                 }
             }
         }
@@ -113,6 +164,8 @@ fn every_kind_of_design_tune_makes_composes_back_to_itself() {
     // with and without a notch and the position loop.
     assert_eq!(kinds.len(), (1 + 2 * 2) * 2 * 2, "{kinds:?}");
     assert!(n > 1000, "{n}");
+    // The two PMSM files' designs, each with the calibration.
+    assert!(pmsm > 300, "{pmsm} of {n}");
 }
 
 /// SplitMix64: the test's seeded random numbers.
@@ -241,6 +294,19 @@ fn random_drive(base: &DriveConfig, rng: &mut Rng) -> Option<DriveConfig> {
             depth_db: rng.uniform(0.0, 80.0),
         }
     });
+    if let Some(p) = d.pmsm.as_mut() {
+        p.pole_pairs = rng.log(1.0, 50.0) as u32;
+        p.d_inductance_pu_s = rng.log(1e-5, 1e-2);
+        p.q_inductance_pu_s = p.d_inductance_pu_s * rng.uniform(1.0, 3.0);
+        p.flux_linkage_pu = rng.log(0.2, 5.0);
+        p.dc_bus_pu = rng.uniform(1.0, 4.0);
+        p.encoder_offset_elec_deg = rng.coin().then(|| rng.uniform(-360.0, 360.0));
+        p.encoder_reversed = rng.coin();
+        p.angle_advance_ticks = rng.uniform(0.0, 4.0);
+        p.pwm_period_counts = rng.pick(&[1000u16, 2100, 4200, 8400]);
+        p.commutation_min_speed_pu = rng.log(0.001, 1.0);
+        p.commutation_trip_s = rng.log(1e-4, 1.0);
+    }
     d.validate().is_ok().then_some(d)
 }
 
@@ -254,7 +320,7 @@ fn a_thousand_random_valid_drives_compose_back_to_themselves() {
         .map(|(_, d)| machine_file::compose(d.clone()).unwrap().drive)
         .collect();
     let mut rng = Rng(0x5eed_d417e);
-    let (mut valid, mut drawn, mut crcs) = (0, 0, 0);
+    let (mut valid, mut drawn, mut crcs, mut pmsm) = (0, 0, 0, 0);
     while valid < 1000 {
         drawn += 1;
         assert!(
@@ -271,9 +337,13 @@ fn a_thousand_random_valid_drives_compose_back_to_themselves() {
             &d,
         );
         crcs += usize::from(settings_crc(&d) != 0);
+        pmsm += usize::from(d.pmsm.is_some());
         valid += 1;
     }
-    eprintln!("{valid} valid drives of {drawn} drawn; {crcs} with a settings encoding");
+    eprintln!(
+        "{valid} valid drives of {drawn} drawn; {crcs} with a settings encoding; {pmsm} PMSM"
+    );
+    assert!(pmsm > 200, "{pmsm} PMSM drives");
     // The CRC compared is of a real encoding for most of them (0: the drive has no
     // settings record, e.g. a gain out of the record's format).
     assert!(crcs > 500, "{crcs}");
