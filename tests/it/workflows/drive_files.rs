@@ -83,7 +83,10 @@ fn round_trip(what: &str, doc: &Table, design: &DriveConfig) {
     if let Some(p) = &design.pmsm {
         let pmsm = drive["pmsm"].as_table().unwrap();
         for key in PMSM_KEYS {
-            assert!(pmsm.contains_key(key), "{what}: pmsm.{key} not stated\n{text}");
+            assert!(
+                pmsm.contains_key(key),
+                "{what}: pmsm.{key} not stated\n{text}"
+            );
         }
         assert_eq!(
             pmsm.contains_key("encoder_offset_elec_deg"),
