@@ -2,10 +2,14 @@
 //! as a drive engineer commissions a machine whose parameters nobody gave them.
 //!
 //! 1. **Identify** the machine of `CFG` in the closed loop ([`super::identify`]): the
-//!    estimator reads only the recorded signals. `DIR/identify/` gets its files.
+//!    estimator reads only the recorded signals. `DIR/identify/` gets its files. On a PMSM
+//!    machine this starts with the motor calibration ([`super::identify::motor`]).
 //! 2. **The identified machine file**, `DIR/identified.toml`: `CFG` (with `--set` applied)
-//!    with its `[plant]` table replaced by the identified one. Everything the drive knows of
-//!    the machine now comes from the measurement.
+//!    with its `[plant]` table replaced by the identified one; for a PMSM also the measured
+//!    motor in `[electrics]` and the calibration in the drive's `winding_resistance_pu` and
+//!    `[drive.pmsm]`. Everything the drive knows of the machine now comes from the
+//!    measurement. The machine file's own drive, where it is the reference below, runs with
+//!    the same calibration (a PMSM drive runs with no other).
 //! 3. **Tune** on the identified file ([`super::tune`]), with AFB and without by the same
 //!    constraints ([`tune::pair`]), each chosen by the objective; `DIR/tune/` as `tune`
 //!    writes it.
