@@ -15,6 +15,7 @@
 
 mod inverter;
 mod machine;
+mod off;
 mod series;
 
 use crate::config::{BacklashModel, MechanicsDerived, PlantConfig};
@@ -91,6 +92,8 @@ pub struct PmsmPlant {
     events: u64,
     sign_changes: u64,
     searches: u64,
+    /// The switches (open once the drive turns the inverter off: `off`).
+    switches: off::Switches,
 }
 
 impl PmsmPlant {
@@ -128,6 +131,7 @@ impl PmsmPlant {
             events: 0,
             sign_changes: 0,
             searches: 0,
+            switches: off::Switches::default(),
         };
         plant.set_state(0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         Ok(plant)
@@ -170,9 +174,11 @@ impl PmsmPlant {
         {
             return Err(PlantError::BadInput { value: *bad });
         }
+        self.open_phases();
         self.integrate(dt_s, duties, load_torque_pu);
         self.last_duties = duties;
         self.time_s += dt_s;
+        self.open_phases();
         Ok(())
     }
 
@@ -272,7 +278,11 @@ impl PmsmPlant {
     }
     /// The phase voltages the inverter applies now (the last step's duties, the dead
     /// time's loss at the present currents), pu.
+    /// Zero while the switches are open.
     pub fn phase_voltages_pu(&self) -> [f64; 3] {
+        if !self.switches.enabled {
+            return [0.0; 3];
+        }
         self.inverter
             .phase_voltages(self.last_duties, self.phase_currents_pu())
     }
@@ -428,6 +438,7 @@ impl PmsmPlant {
             saliency: p.saliency_pu(),
             v_alpha,
             v_beta,
+            conducting: self.conducting(),
         }
     }
 
@@ -509,7 +520,7 @@ impl PmsmPlant {
                     || (s.k * (x0.delta + s.g) + s.d * rel).abs() <= force;
             }
         }
-        if self.inverter.dead_time_loss_pu() > 0.0 {
+        if self.inverter.dead_time_loss_pu() > 0.0 && self.switches.enabled {
             // |Δ(c·i_d − s·i_q)| ≤ |c|·Δi_d + Δc·|i_d| + Δc·Δi_d + (the same for s, i_q);
             // β alike, and each phase is within |Δα| + |Δβ| of its start.
             let product = |a: f64, da: f64, b: f64, db: f64| a.abs() * db + da * b.abs() + da * db;

@@ -108,6 +108,9 @@ pub(crate) struct Equations {
     /// The voltage vector (α, β), pu.
     pub v_alpha: f64,
     pub v_beta: f64,
+    /// 1 while the inverter's switches conduct; 0 while they are open and the currents
+    /// are held at zero (`off`).
+    pub conducting: f64,
 }
 
 impl Equations {
@@ -138,8 +141,10 @@ impl Equations {
             theta_l: self.wb * x.w_l,
             w_m: (te - ts - self.bm * x.w_m) * self.inv_jm,
             w_l: (ts - once(self.tl) - self.bl * x.w_l) * self.inv_jl,
-            i_d: (v_d - self.r * x.i_d + self.pw * self.lq * wm_iq) / self.ld,
-            i_q: (v_q - self.r * x.i_q - self.pw * self.ld * wm_id - self.flux * x.w_m) / self.lq,
+            i_d: self.conducting * (v_d - self.r * x.i_d + self.pw * self.lq * wm_iq) / self.ld,
+            i_q: self.conducting
+                * (v_q - self.r * x.i_q - self.pw * self.ld * wm_id - self.flux * x.w_m)
+                / self.lq,
             cos: -self.pw * wm_sin,
             sin: self.pw * wm_cos,
         }
@@ -262,6 +267,7 @@ mod tests {
             saliency: 0.0,
             v_alpha: 0.0,
             v_beta: 0.0,
+            conducting: 1.0,
         }
     }
 
