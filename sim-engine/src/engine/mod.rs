@@ -4,6 +4,7 @@
 
 pub mod metrics;
 pub mod plant;
+mod pmsm;
 pub mod protection;
 pub mod runner;
 mod schedule;

@@ -1,10 +1,61 @@
 //! The conversions between plant-host's f64 per-unit values and the controller's
-//! fixed-point signals (the runner drives `plant_host::TwoInertiaPlant` directly).
+//! fixed-point signals (the runner drives `plant_host::TwoInertiaPlant` or
+//! `plant_host::PmsmPlant` directly), and what a trace row reads of either ([`PlantView`]).
 
 use crate::error::HarnessError;
 use controller_core::per_unit::{Counts, Pu, PuPerS};
 use plant_host::rounding::{round_i64, round_ties_even_i64};
 use plant_host::PlantError;
+
+/// What a trace row reads from the plant: the same columns for either motor.
+pub trait PlantView {
+    /// Motor angle \[rad\].
+    fn motor_pos_rad(&self) -> f64;
+    /// Load angle, reflected to the motor side \[rad\].
+    fn load_pos_rad(&self) -> f64;
+    /// Motor speed \[pu\].
+    fn motor_vel_pu(&self) -> f64;
+    /// Load speed \[pu\].
+    fn load_vel_pu(&self) -> f64;
+    /// The torque-producing current \[pu\]: the DC winding's current; a PMSM's true q
+    /// current (in the rotor's own frame).
+    fn current_pu(&self) -> f64;
+    /// Shaft torque \[pu\].
+    fn shaft_torque_pu(&self) -> f64;
+}
+
+macro_rules! plant_view {
+    ($plant:ty, $current:ident) => {
+        impl PlantView for $plant {
+            #[inline]
+            fn motor_pos_rad(&self) -> f64 {
+                <$plant>::motor_pos_rad(self)
+            }
+            #[inline]
+            fn load_pos_rad(&self) -> f64 {
+                <$plant>::load_pos_rad(self)
+            }
+            #[inline]
+            fn motor_vel_pu(&self) -> f64 {
+                <$plant>::motor_vel_pu(self)
+            }
+            #[inline]
+            fn load_vel_pu(&self) -> f64 {
+                <$plant>::load_vel_pu(self)
+            }
+            #[inline]
+            fn current_pu(&self) -> f64 {
+                <$plant>::$current(self)
+            }
+            #[inline]
+            fn shaft_torque_pu(&self) -> f64 {
+                <$plant>::shaft_torque_pu(self)
+            }
+        }
+    };
+}
+plant_view!(plant_host::TwoInertiaPlant, current_pu);
+plant_view!(plant_host::PmsmPlant, i_q_pu);
 
 /// A plant-host error (an invalid step or input) as the harness reports it.
 pub fn plant_error(e: PlantError) -> HarnessError {

@@ -14,13 +14,15 @@
 use crate::config::RunConfig;
 use crate::engine::metrics::oscillation::CONFIRM_INTERPOLATION;
 use crate::engine::metrics::{compute, Metrics, OscillationKind};
+use crate::engine::plant::PlantView;
 use crate::engine::protection::{FaultRecord, ProtectionSummary, ProtectionWatch};
 use crate::engine::schedule::{LoadCursor, TickSteps};
 use crate::engine::trace::{Trace, TraceRow};
 use crate::error::{HarnessError, Result};
 use controller_core::words::fault_code;
 use controller_core::{
-    Controller, CurrentInputs, CurrentOutputs, Gains, Setpoint, VelocityInputs, VelocityOutputs,
+    Controller, CurrentInputs, CurrentOutputs, Gains, PmsmInputs, PmsmOutputs, Setpoint,
+    VelocityInputs, VelocityOutputs,
 };
 use plant_host::TwoInertiaPlant;
 use std::time::Instant;
@@ -33,6 +35,17 @@ pub trait ControlBackend {
     /// One velocity-loop tick (every 500 µs for Table 1), run before the current tick of
     /// the same instant.
     fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs;
+    /// One current tick of a PMSM drive (`[drive.pmsm]`), in place of
+    /// [`Self::current_tick`]. The default is a backend that drives a DC motor only (the
+    /// PIL link has no PMSM encoding): an error, and the run stops.
+    fn pmsm_tick(&mut self, inputs: PmsmInputs) -> Result<PmsmOutputs> {
+        let _ = inputs;
+        Err(HarnessError::Backend(
+            "this controller backend drives a DC motor only (electrics.motor = \"dc\"); \
+             a PMSM drive runs on the host controller (`stiffdrive run`)"
+                .into(),
+        ))
+    }
     /// Whether the backend can no longer control the plant (a PIL link fault): the run
     /// stops before the next tick, with the trace up to that point.
     fn halted(&self) -> bool {
@@ -58,7 +71,8 @@ pub struct TickRecord {
     pub encoder_count: i64,
     /// Load encoder count, where one is fitted.
     pub load_encoder_count: Option<i64>,
-    /// Measured current (= torque) sample \[pu\] (ADC, noise).
+    /// Measured current (= torque) sample \[pu\] (ADC, noise); for a PMSM the measured
+    /// q current.
     pub current_pu: f64,
     /// Torque reference the tick formed \[pu\].
     pub current_ref_pu: f64,
@@ -73,6 +87,10 @@ impl ControlBackend for Controller {
 
     fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
         Controller::velocity_tick(self, inputs)
+    }
+
+    fn pmsm_tick(&mut self, inputs: PmsmInputs) -> Result<PmsmOutputs> {
+        Ok(Controller::pmsm_tick(self, inputs))
     }
 
     fn excitation_pu(&self) -> f64 {
@@ -247,27 +265,28 @@ pub fn finer_encoder(cfg: &RunConfig) -> Option<RunConfig> {
 }
 
 /// The fixed quantities of a run: tick lengths and the count scales.
-struct Timing {
+pub(super) struct Timing {
     /// Current tick \[s\].
-    tc_s: f64,
+    pub(super) tc_s: f64,
     /// The part of the computational delay within one tick \[s\].
-    delay_s: f64,
+    pub(super) delay_s: f64,
     /// Current ticks per velocity tick.
-    ratio: u64,
+    pub(super) ratio: u64,
     /// Position command: counts = pu·s · (base rpm / 60) · cpr, in the counts the drive
     /// reads (after sin/cos interpolation).
     counts_per_pu_s: f64,
     /// Counts per radian of the motor shaft.
     counts_per_rad: f64,
     /// The hardware counter's range: the plant's unwrapped count modulo 2^counter_bits.
-    mask: u64,
+    pub(super) mask: u64,
     /// The controller takes its first reading as the position origin; commands are
     /// unwrapped counts relative to the same origin.
     initial_count: i64,
 }
 
 impl Timing {
-    fn new(cfg: &RunConfig, plant: &TwoInertiaPlant, delay_s: f64) -> Self {
+    /// For a plant whose encoder reads `initial_count` at the start.
+    pub(super) fn new(cfg: &RunConfig, initial_count: i64, delay_s: f64) -> Self {
         let drive = &cfg.drive;
         let cpr = f64::from(cfg.plant.counts_per_rev());
         Self {
@@ -281,15 +300,15 @@ impl Timing {
             } else {
                 (1u64 << drive.counter_bits) - 1
             },
-            initial_count: plant.encoder_count(),
+            initial_count,
         }
     }
 }
 
 /// The velocity tick at `t_s`, and the trace row of this instant.
-fn velocity_step<B: ControlBackend + ?Sized>(
+pub(super) fn velocity_step<B: ControlBackend + ?Sized, P: PlantView>(
     backend: &mut B,
-    plant: &TwoInertiaPlant,
+    plant: &P,
     cfg: &RunConfig,
     (tm, load): (&Timing, &mut LoadCursor),
     (t_s, encoder_count, voltage_pu): (f64, u32, f64),
@@ -422,13 +441,16 @@ pub fn run_ticks<B: ControlBackend + ?Sized>(
     mut record: impl FnMut(&TickRecord),
 ) -> Result<TickRun> {
     use crate::engine::plant::{f, pu};
+    if super::pmsm::is_pmsm(cfg)? {
+        return super::pmsm::run_ticks(cfg, backend, record);
+    }
     let mut plant = plant_of(cfg);
     let current_rate_hz = f64::from(cfg.drive.current_rate_hz);
     let mut delay_line = DelayLine::new(
         cfg.plant.electrics.computational_delay_s,
         1.0 / current_rate_hz,
     );
-    let tm = Timing::new(cfg, &plant, delay_line.remainder_s());
+    let tm = Timing::new(cfg, plant.encoder_count(), delay_line.remainder_s());
     let ticks = (cfg.scenario.duration_s * current_rate_hz).round() as u64;
     let mut rows = Vec::with_capacity((ticks / tm.ratio + 1) as usize);
     let steps = TickSteps::new(&mut plant, tm.delay_s, tm.tc_s - tm.delay_s)?;
