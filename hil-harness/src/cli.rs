@@ -41,7 +41,9 @@ pub enum Command {
     },
     /// Measure the machine in the closed loop (PRBS on the torque reference, H1 with Welch
     /// averaging, lost-motion reversal test) and fit its two-inertia model; writes
-    /// DIR/plant.toml, DIR/identify.json, DIR/identify.md and DIR/bode.png|svg. With
+    /// DIR/plant.toml, DIR/identify.json, DIR/identify.md and DIR/bode.png|svg. On a PMSM
+    /// machine the motor is calibrated first (phase resistance, Ld, Lq, pole pairs,
+    /// encoder direction and offset, in identify.json and identify.md). With
     /// `--board --qemu | --port PATH` the board runs the measurements in its own loops.
     Identify {
         /// Configuration (path, or name under configs/); its optional `[identify]` table
@@ -65,7 +67,7 @@ pub enum Command {
     /// identified resonance the loop cannot damp), and verify both drives on the machine
     /// itself; writes DIR/identify/,
     /// DIR/identified.toml, DIR/notched.toml (with a notch), DIR/tune/, DIR/commission.md
-    /// and .json.
+    /// and .json, and DIR/drive.toml (with a PMSM's calibration in `[drive.pmsm]`).
     Commission {
         /// Configuration (path, or name under configs/): the machine to commission.
         #[arg(long)]
