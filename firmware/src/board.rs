@@ -16,6 +16,7 @@
 use controller_core::per_unit::Pu;
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal::pwm::SetDutyCycle;
+use pil_link::board::store::{SaveError, RECORD_LEN};
 
 /// A phase-current measurement, already scaled to per unit by the board (ADC counts ×
 /// the shunt/amplifier gain, offset removed).
@@ -55,6 +56,30 @@ pub trait VelocityLoopIo {
     fn encoder_count(&mut self) -> u32;
     /// True while the external fault input is active (or unreadable: fail safe).
     fn fault_input(&mut self) -> bool;
+}
+
+/// What a board gives the board console besides its drive I/O: the serial port, the
+/// settings sector and the loop timers. The board layer defines it and each board
+/// implements it; the console (`board_console`, the app layer) only calls it, so the
+/// dependency runs one way.
+pub trait ConsoleBoard {
+    /// The serial port's name, for the boot log (`UART0`, `USART2`).
+    const PORT: &'static str;
+    /// Sends `bytes` on the console's serial port, waiting while it is busy.
+    fn send(&mut self, bytes: &[u8]);
+    /// Reads the start of the settings sector into `record`.
+    fn read_settings(&mut self, record: &mut [u8; RECORD_LEN]);
+    /// Writes `record` at the start of the settings sector and reads it back.
+    ///
+    /// # Errors
+    /// Why the sector does not hold the record.
+    fn write_settings(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError>;
+    /// Runs the loop timers at new rates [Hz], both restarted together.
+    fn set_loop_rates(&mut self, current_hz: u32, velocity_hz: u32);
+    /// Called once the board is set up, with the boot's word on the settings it runs
+    /// (`note`), before the loops start: a board whose log cannot be read over its serial
+    /// port says it there.
+    fn booted(&mut self, _note: &str) {}
 }
 
 /// Duty for a voltage command on a bipolar bridge: `max·(1 + v)/2`, `v` clamped to ±1 pu.

@@ -49,6 +49,7 @@ use pil_link::wire::Writer;
 use pil_link::{Frame, FrameKind, MAX_FRAME};
 
 use crate::app::{fault_code, App, AppError, DEFAULT_TRACE};
+pub use crate::board::ConsoleBoard;
 use crate::board::EncoderCounter;
 use crate::boards::active as board;
 use crate::console::{channel_names, ticks_to_ms, FaultTracker, ScopeTap};
@@ -62,30 +63,8 @@ use crate::identify::StreamEnd;
 #[cfg(feature = "board-qemu")]
 use crate::rig::{Rig, RECORD};
 
-/// What the console needs of a board besides its drive I/O (`boards::active::init`).
-pub trait ConsoleBoard {
-    /// The serial port's name, for the boot log (`UART0`, `USART2`).
-    const PORT: &'static str;
-    /// Sends `bytes` on the console's serial port, waiting while it is busy.
-    fn send(&mut self, bytes: &[u8]);
-    /// Reads the start of the settings sector into `record`.
-    fn read_settings(&mut self, record: &mut [u8; RECORD_LEN]);
-    /// Writes `record` at the start of the settings sector and reads it back.
-    ///
-    /// # Errors
-    /// Why the sector does not hold the record.
-    fn write_settings(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError>;
-    /// Runs the loop timers at new rates [Hz], both restarted together.
-    fn set_loop_rates(&mut self, current_hz: u32, velocity_hz: u32);
-    /// Called once the board is set up, with the boot's word on the settings it runs
-    /// (`note`), before the loops start: a board whose log cannot be read over its serial
-    /// port says it there.
-    fn booted(&mut self, _note: &str) {}
-}
-
-/// The app and the loops' I/O (`crate::rig` reaches them on QEMU).
-pub(crate) static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, Setpoint> =
-    Loops::new();
+/// The app and the loops' I/O (handed to `crate::rig` on QEMU).
+static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, Setpoint> = Loops::new();
 static RX: ByteRing = ByteRing::new();
 /// Current-loop interrupts since boot: the clock of the fault history.
 static BOOT_TICKS: AtomicU32 = AtomicU32::new(0);
@@ -97,10 +76,10 @@ static SCOPE: Shared<(ScopeTap, Deque<(u32, ScopeSample), 256>)> = Shared::new()
 /// The current-loop interrupt's body.
 pub fn current_loop() {
     #[cfg(feature = "board-qemu")]
-    let inputs = Rig::before_tick();
+    let inputs = Rig::before_tick(&LOOPS);
     let _out = LOOPS.current_isr();
     #[cfg(feature = "board-qemu")]
-    Rig::after_tick(inputs, _out);
+    Rig::after_tick(&LOOPS, inputs, _out);
     BOOT_TICKS.fetch_add(1, Ordering::Relaxed);
     if SCOPE_ON.load(Ordering::Relaxed) {
         let newest = LOOPS.with_app(|app| app.trace().newest()).flatten();

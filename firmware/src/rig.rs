@@ -2,16 +2,23 @@
 //! machine behind the bridge with the baked machine file's load, the rig's load torque
 //! during an `Identify` run and its record, and the velocity tick run from the current
 //! tick so the two loops stay in step however late QEMU runs.
+//!
+//! The console owns the loops ([`ConsoleLoops`]) and hands them to the rig's calls: the
+//! rig depends on the board layer and the interrupt glue, never on the console, and the
+//! board layer on neither.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use controller_core::{CurrentOutputs, DriveConfig, Pu};
+use controller_core::{CurrentOutputs, DriveConfig, Pu, Setpoint};
 
 use crate::board::CurrentLoopIo;
-use crate::board_console::LOOPS;
-use crate::boards::qemu::PeriodicTimer;
+use crate::boards::qemu::{CurrentIoImpl, PeriodicTimer, VelocityIoImpl};
 use crate::identify::{Recorder, RECORD_CAPACITY};
+use crate::isr::Loops;
 use crate::virtual_motor::VirtualMotor;
+
+/// The board console's loops on the QEMU board: the app, its I/O, a fixed setpoint.
+pub type ConsoleLoops = Loops<CurrentIoImpl, VelocityIoImpl, Setpoint>;
 
 /// The record of an `Identify` run.
 pub static RECORD: Recorder<RECORD_CAPACITY> = Recorder::new();
@@ -26,9 +33,9 @@ impl Rig {
     /// Before a current tick of a measurement: the rig's load torque for it, and the
     /// inputs the tick reads (the virtual sensors, read again: nothing changes them in
     /// between).
-    pub fn before_tick() -> Option<(u32, Option<Pu>)> {
+    pub fn before_tick(loops: &ConsoleLoops) -> Option<(u32, Option<Pu>)> {
         let load = RECORD.load_now()?;
-        LOOPS.with_current_io(|io| {
+        loops.with_current_io(|io| {
             io.pwm.motor_mut().set_load_torque_pu(load);
             (io.encoder_count(), io.current_pu())
         })
@@ -36,9 +43,13 @@ impl Rig {
 
     /// After a current tick: its sample into the record (after the run's last, the
     /// drive off); the velocity tick when one is due.
-    pub fn after_tick(inputs: Option<(u32, Option<Pu>)>, out: Option<CurrentOutputs>) {
+    pub fn after_tick(
+        loops: &ConsoleLoops,
+        inputs: Option<(u32, Option<Pu>)>,
+        out: Option<CurrentOutputs>,
+    ) {
         if let (Some((counts, current)), Some(out)) = (inputs, out) {
-            let excitation = LOOPS.with_app(|app| app.excitation_pu().to_bits());
+            let excitation = loops.with_app(|app| app.excitation_pu().to_bits());
             let values = [
                 excitation.unwrap_or(0),
                 current.map_or(0, |i| i.to_bits()),
@@ -46,13 +57,13 @@ impl Rig {
                 counts as i32,
             ];
             if RECORD.record(values) {
-                LOOPS.with_app(|app| app.set_enable_request(false));
+                loops.with_app(|app| app.set_enable_request(false));
             }
         }
         let since = PHASE.load(Ordering::Relaxed).wrapping_add(1);
         if since >= VELOCITY_EVERY.load(Ordering::Relaxed) {
             PHASE.store(0, Ordering::Relaxed);
-            let _ = LOOPS.velocity_isr();
+            let _ = loops.velocity_isr();
         } else {
             PHASE.store(since, Ordering::Relaxed);
         }

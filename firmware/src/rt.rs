@@ -5,7 +5,6 @@
 //! `probe-rs run` (which implements semihosting exit), and the log goes out over RTT.
 
 use cortex_m_rt::{exception, ExceptionFrame};
-use cortex_m_semihosting::debug;
 
 // The defmt global logger of the selected board.
 #[cfg(feature = "board-stm32f4")]
@@ -13,18 +12,9 @@ use defmt_rtt as _;
 #[cfg(all(feature = "board-qemu", not(feature = "board-stm32f4")))]
 use defmt_semihosting as _;
 
-/// End the program with a pass/fail status. Under QEMU this stops the emulator with exit
-/// code 0 or 1; if no debugger or emulator handles semihosting it parks the core.
-pub fn exit(success: bool) -> ! {
-    debug::exit(if success {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::bkpt();
-    }
-}
+/// End the program with a pass/fail status (the board layer's: `boards::exit`, which
+/// the boards' own bring-up calls too).
+pub use crate::boards::exit;
 
 // SAFETY: cortex-m-rt requires the HardFault handler to be declared `unsafe fn`; it only
 // reads the stacked frame it is handed.

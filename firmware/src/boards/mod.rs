@@ -15,3 +15,19 @@ pub use stm32f4 as active;
 
 #[cfg(not(any(feature = "board-qemu", feature = "board-stm32f4")))]
 compile_error!("select a board: feature `board-qemu` (default) or `board-stm32f4`");
+
+/// End the program with a pass/fail status. Under QEMU this stops the emulator with exit
+/// code 0 or 1 (semihosting; `probe-rs run` implements it too); if no debugger or
+/// emulator handles semihosting it parks the core. The board layer's own, so a board's
+/// bring-up can give up without reaching up into the runtime (`crate::rt` re-exports it).
+pub fn exit(success: bool) -> ! {
+    use cortex_m_semihosting::debug;
+    debug::exit(if success {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}

@@ -488,7 +488,7 @@ const _: () = assert!(RECORD_LEN <= SETTINGS_SECTOR_LEN);
 #[derive(Debug, Default)]
 pub struct BoardConsole;
 
-impl crate::board_console::ConsoleBoard for BoardConsole {
+impl crate::board::ConsoleBoard for BoardConsole {
     const PORT: &'static str = "UART0";
 
     fn send(&mut self, bytes: &[u8]) {

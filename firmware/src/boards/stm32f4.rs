@@ -358,7 +358,7 @@ impl core::fmt::Write for Usart2 {
 #[derive(Debug, Default)]
 pub struct BoardConsole;
 
-impl crate::board_console::ConsoleBoard for BoardConsole {
+impl crate::board::ConsoleBoard for BoardConsole {
     const PORT: &'static str = "USART2";
 
     fn send(&mut self, bytes: &[u8]) {

@@ -79,7 +79,7 @@ const PULL_DOWN: u32 = 0b10;
 /// timers stopped until [`start`](super::start).
 pub fn init(_core: &mut cortex_m::Peripherals, _cfg: &controller_core::DriveConfig) -> Board {
     let Some(dp) = pac::Peripherals::take() else {
-        crate::rt::exit(false)
+        crate::boards::exit(false)
     };
     let clocks = clocks(&dp.RCC, &dp.FLASH);
     set_clocks(clocks);
