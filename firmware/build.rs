@@ -123,6 +123,13 @@ fn bake_drive(
     out: &std::path::Path,
 ) -> Result<DriveConfig, String> {
     let machine = machine_file::load(toml_path).map_err(|e| e.to_string())?;
+    if machine.drive.pmsm.is_some() {
+        return Err(format!(
+            "{}: {}",
+            toml_path.display(),
+            pil_link::LinkError::UnsupportedMotor
+        ));
+    }
     write_coupling(&machine.plant, out)?;
     let cfg = machine.drive;
     controller_core::design(&cfg).map_err(|e| format!("drive.{}: {e}", e.param()))?;

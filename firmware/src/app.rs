@@ -120,6 +120,10 @@ impl App {
     /// # Errors
     /// [`AppError`] naming the bad setting.
     pub fn new(cfg: &DriveConfig, counter_bits: u8, trace: TraceConfig) -> Result<Self, AppError> {
+        if cfg.pmsm.is_some() {
+            // The board layer drives one DC winding (`CurrentLoopIo`).
+            return Err(AppError::Settings(pil_link::LinkError::UnsupportedMotor));
+        }
         if counter_bits != cfg.counter_bits {
             return Err(AppError::CounterBits {
                 board: counter_bits,

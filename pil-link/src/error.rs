@@ -51,8 +51,8 @@ pub enum LinkError {
         /// Bytes needed.
         needed: usize,
     },
-    /// The drive's motor kind has no encoding on the link or the board yet (a
-    /// `[drive.pmsm]` drive: the board layer drives one DC winding).
+    /// The drive's motor kind is not one the firmware's board layer drives (a
+    /// `[drive.pmsm]` drive on a board that drives one DC winding).
     UnsupportedMotor,
 }
 
@@ -85,7 +85,7 @@ impl core::fmt::Display for LinkError {
             ),
             Self::BufferTooSmall { needed } => write!(f, "buffer too small: {needed} bytes needed"),
             Self::UnsupportedMotor => f.write_str(
-                "drive.pmsm: the board and the PIL link drive a DC winding only; run a PMSM drive on the host (`stiffdrive run`)",
+                "drive.pmsm: the firmware's board layer drives a DC winding only; a PMSM drive runs on the host (`stiffdrive run --config FILE`)",
             ),
         }
     }

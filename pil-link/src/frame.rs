@@ -21,7 +21,7 @@ pub const SYNC: [u8; 2] = [0xA5, 0x5A];
 /// Version of this protocol. Bump it whenever a payload layout changes.
 pub const PROTOCOL_VERSION: u8 = 8;
 /// Largest payload, in bytes.
-pub const MAX_PAYLOAD: usize = 192;
+pub const MAX_PAYLOAD: usize = 240;
 /// Bytes before the payload: sync (2), version, kind, sequence (2), length.
 pub const HEADER_LEN: usize = 7;
 /// Bytes of CRC after the payload.

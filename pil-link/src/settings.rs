@@ -3,13 +3,18 @@
 //! comparison also checks that `design` (the one place floats are used) gives the same
 //! fixed-point coefficients on the Cortex-M4F as on the host.
 //!
-//! Layout (167 bytes): the scalar fields in declaration order, each filter as
+//! Layout ([`LEN`] bytes): the scalar fields in declaration order, each filter as
 //! `tag u8 (0 none, 1 first order, 2 second order) | corner_hz f32 | q f32`, each enum as u8,
-//! and last the notch as `present u8 (0 none, 1 notch) | centre_hz f32 | width_hz f32 |
-//! depth_db f32` (zeros without one).
+//! then the notch as `present u8 (0 none, 1 notch) | centre_hz f32 | width_hz f32 |
+//! depth_db f32` (zeros without one), and last the PMSM current loop (`[drive.pmsm]`) as
+//! `present u8 | pole_pairs u32 | d_inductance f32 | q_inductance f32 | flux_linkage f32 |
+//! dc_bus f32 | offset_present u8 | offset_deg f32 | reversed u8 | angle_advance_ticks f32 |
+//! pwm_period_counts u16 | commutation_min_speed f32 | commutation_trip_s f32` (zeros for a
+//! DC drive).
 
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
+use controller_core::foc::PmsmConfig;
 use controller_core::{
     AccelFeedbackConfig, AfbFilterAtLimit, AfbMode, AfbRate, DriveConfig, Estimator, FaultLimits,
     FilterConfig, NotchConfig, ObserverConfig, ObserverInertia, ObserverTorque, PiInertia,
@@ -55,9 +60,6 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
         notch,
         pmsm,
     } = *cfg;
-    if pmsm.is_some() {
-        return Err(LinkError::UnsupportedMotor);
-    }
     put_machine(
         w,
         &Machine {
@@ -91,11 +93,15 @@ pub fn encode(cfg: &DriveConfig, w: &mut Writer) -> Result<(), LinkError> {
     put_accel_feedback(w, accel_feedback)?;
     put_observer(w, observer)?;
     put_faults(w, faults)?;
-    put_notch(w, notch)
+    put_notch(w, notch)?;
+    put_pmsm(w, pmsm)
 }
 
 /// Length of the payload [`encode`] writes, in bytes.
-pub const LEN: usize = 168;
+pub const LEN: usize = 168 + PMSM_LEN;
+
+/// Bytes of the PMSM section, the last of the payload.
+pub const PMSM_LEN: usize = 1 + 4 * 5 + 1 + 4 + 1 + 4 + 2 + 4 + 4;
 
 /// Parses a `Config` payload.
 pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
@@ -132,6 +138,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
     let observer = get_observer(&mut r, bad)?;
     let faults = get_faults(&mut r)?;
     let notch = get_notch(&mut r, bad)?;
+    let pmsm = get_pmsm(&mut r, bad)?;
     r.finish()?;
     Ok(DriveConfig {
         base_speed_rpm,
@@ -158,7 +165,7 @@ pub fn decode(payload: &[u8]) -> Result<DriveConfig, LinkError> {
         observer,
         faults,
         notch,
-        pmsm: None,
+        pmsm,
     })
 }
 
@@ -447,6 +454,69 @@ fn get_notch(r: &mut Reader<'_>, bad: LinkError) -> Result<Option<NotchConfig>, 
         1 => Ok(Some(n)),
         _ => Err(bad),
     }
+}
+
+fn put_pmsm(w: &mut Writer, pmsm: Option<PmsmConfig>) -> Result<(), LinkError> {
+    let Some(p) = pmsm else {
+        return w.bytes(&[0; PMSM_LEN]).map(|_| ());
+    };
+    let PmsmConfig {
+        pole_pairs,
+        d_inductance_pu_s,
+        q_inductance_pu_s,
+        flux_linkage_pu,
+        dc_bus_pu,
+        encoder_offset_elec_deg,
+        encoder_reversed,
+        angle_advance_ticks,
+        pwm_period_counts,
+        commutation_min_speed_pu,
+        commutation_trip_s,
+    } = p;
+    w.u8(1)?
+        .u32(pole_pairs)?
+        .u32(d_inductance_pu_s.to_bits())?
+        .u32(q_inductance_pu_s.to_bits())?
+        .u32(flux_linkage_pu.to_bits())?
+        .u32(dc_bus_pu.to_bits())?
+        .u8(u8::from(encoder_offset_elec_deg.is_some()))?
+        .u32(encoder_offset_elec_deg.unwrap_or(0.0).to_bits())?
+        .u8(u8::from(encoder_reversed))?
+        .u32(angle_advance_ticks.to_bits())?
+        .u16(pwm_period_counts)?
+        .u32(commutation_min_speed_pu.to_bits())?
+        .u32(commutation_trip_s.to_bits())?;
+    Ok(())
+}
+
+fn get_pmsm(r: &mut Reader<'_>, bad: LinkError) -> Result<Option<PmsmConfig>, LinkError> {
+    let flag = |b: u8| match b {
+        0 => Ok(false),
+        1 => Ok(true),
+        _ => Err(bad),
+    };
+    let present = flag(r.u8()?)?;
+    let pole_pairs = r.u32()?;
+    let d_inductance_pu_s = f(r)?;
+    let q_inductance_pu_s = f(r)?;
+    let flux_linkage_pu = f(r)?;
+    let dc_bus_pu = f(r)?;
+    let has_offset = flag(r.u8()?)?;
+    let offset = f(r)?;
+    let p = PmsmConfig {
+        pole_pairs,
+        d_inductance_pu_s,
+        q_inductance_pu_s,
+        flux_linkage_pu,
+        dc_bus_pu,
+        encoder_offset_elec_deg: has_offset.then_some(offset),
+        encoder_reversed: flag(r.u8()?)?,
+        angle_advance_ticks: f(r)?,
+        pwm_period_counts: r.u16()?,
+        commutation_min_speed_pu: f(r)?,
+        commutation_trip_s: f(r)?,
+    };
+    Ok(present.then_some(p))
 }
 
 fn f(r: &mut Reader<'_>) -> Result<f32, LinkError> {

@@ -19,7 +19,7 @@ use controller_core::DriveConfig;
 /// "SDRV", little endian.
 pub const MAGIC: u32 = 0x5652_4453;
 /// Version of the record layout; bump it when the layout or the settings encoding changes.
-pub const STORE_VERSION: u16 = 3;
+pub const STORE_VERSION: u16 = 4;
 /// Bytes of a record.
 pub const RECORD_LEN: usize = 8 + settings::LEN + 4;
 

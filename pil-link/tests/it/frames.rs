@@ -362,9 +362,12 @@ mod payloads {
         bytes[37] = 2; // velocity_pi_inertia
         assert!(settings::decode(&bytes).is_err());
         let mut bytes = w.as_slice().to_vec();
-        bytes[settings::LEN - 13] = 2; // the notch's present byte
+        bytes[N0 - 13] = 2; // the notch's present byte
         assert!(settings::decode(&bytes).is_err());
     }
+
+    /// Where the notch's section ends: the PMSM section follows it.
+    const N0: usize = settings::LEN - settings::PMSM_LEN;
 
     #[test]
     fn the_notch_travels_with_the_drive() {
@@ -373,7 +376,7 @@ mod payloads {
         settings::encode(&cfg, &mut w).unwrap();
         let without = w.as_slice().to_vec();
         // No notch: a zero present byte and zeros.
-        assert_eq!(&without[settings::LEN - 13..], &[0; 13]);
+        assert_eq!(&without[N0 - 13..], &[0; 13 + settings::PMSM_LEN]);
         assert_eq!(settings::decode(&without).unwrap().notch, None);
         let n = controller_core::NotchConfig {
             centre_hz: 65.25,
@@ -386,16 +389,54 @@ mod payloads {
         let with = w.as_slice();
         assert_eq!(with.len(), settings::LEN);
         // Everything before the notch is the same bytes.
-        assert_eq!(&with[..settings::LEN - 13], &without[..settings::LEN - 13]);
-        assert_eq!(with[settings::LEN - 13], 1);
+        assert_eq!(&with[..N0 - 13], &without[..N0 - 13]);
+        assert_eq!(with[N0 - 13], 1);
         assert_eq!(
-            &with[settings::LEN - 12..settings::LEN - 8],
+            &with[N0 - 12..N0 - 8],
             &65.25_f32.to_le_bytes()
         );
         assert_eq!(settings::decode(with).unwrap(), cfg);
         // Any truncation is refused.
         for k in 0..with.len() {
             assert!(settings::decode(&with[..k]).is_err(), "{k} bytes");
+        }
+    }
+
+    /// A PMSM drive's `[drive.pmsm]` travels whole, after the notch; a DC drive's section
+    /// is zeros; a flag byte other than 0 or 1 is refused.
+    #[test]
+    fn the_pmsm_section_travels_with_the_drive() {
+        let mut cfg = common::table1();
+        let mut w = Writer::new();
+        settings::encode(&cfg, &mut w).unwrap();
+        let dc = w.as_slice().to_vec();
+        assert_eq!(&dc[N0..], &[0; settings::PMSM_LEN]);
+        for offset in [None, Some(-137.25_f32)] {
+            cfg.pmsm = Some(controller_core::foc::PmsmConfig {
+                pole_pairs: 7,
+                d_inductance_pu_s: 3e-4,
+                q_inductance_pu_s: 4.5e-4,
+                flux_linkage_pu: 0.9,
+                dc_bus_pu: 1.8,
+                encoder_offset_elec_deg: offset,
+                encoder_reversed: true,
+                angle_advance_ticks: 1.25,
+                pwm_period_counts: 4199,
+                commutation_min_speed_pu: 0.07,
+                commutation_trip_s: 0.03,
+            });
+            let mut w = Writer::new();
+            settings::encode(&cfg, &mut w).unwrap();
+            let bytes = w.as_slice();
+            assert_eq!(bytes.len(), settings::LEN);
+            assert_eq!(&bytes[..N0], &dc[..N0]);
+            assert_eq!(bytes[N0], 1);
+            assert_eq!(settings::decode(bytes).unwrap(), cfg);
+            for flag in [N0, N0 + 21, N0 + 26] {
+                let mut bad = bytes.to_vec();
+                bad[flag] = 2;
+                assert!(settings::decode(&bad).is_err(), "flag byte {flag}");
+            }
         }
     }
 }
