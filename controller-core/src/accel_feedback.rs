@@ -58,7 +58,7 @@
 //! [`AccelerationFeedback::update`] is used.
 
 use crate::config::AfbMode;
-use crate::filter::{LowPass, LowPassState};
+use crate::filter::{LowPass, LowPassLinear, LowPassState};
 use crate::per_unit::{Gain, Pu, PuPerS, mul_gain, sat_round_shr};
 
 /// Acceleration feedback coefficients.
@@ -76,7 +76,47 @@ pub struct AccelerationFeedback {
     pub ka_closed: Gain,
 }
 
+/// Acceleration feedback's linear form: its coefficients as f64, read from the stored bits
+/// ([`AccelerationFeedback::linear`]). Without the clamps and the roundings, with x the
+/// filter input (c − â, module docs):
+///
+/// ```text
+/// measured acceleration:  afb = ka·F(x)
+/// closed form:            afb = ka_closed·(h + b0·x(P)), the filter step completed with x(T)
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AfbLinear {
+    /// Ka \[pu torque per pu/s\].
+    pub ka: f64,
+    /// The closed form's g·Ka \[pu torque per pu/s\].
+    pub ka_closed: f64,
+    /// The filter F.
+    pub filter: LowPassLinear,
+}
+
 impl AccelerationFeedback {
+    /// The linear form ([`AfbLinear`]): Ka, g·Ka and the filter as f64, exactly the stored
+    /// values.
+    ///
+    /// ```
+    /// use controller_core::accel_feedback::AccelerationFeedback;
+    /// use controller_core::filter::{LowPass, LowPassLinear};
+    /// use controller_core::per_unit::{Gain, Pu};
+    /// use controller_core::AfbMode;
+    /// let afb = AccelerationFeedback { mode: AfbMode::Plain, ka: Gain::from_num(0.5),
+    ///     filter: LowPass::None, limit: Pu::from_num(2), ka_closed: Gain::from_num(0.25) };
+    /// let l = afb.linear();
+    /// assert_eq!((l.ka, l.ka_closed, l.filter), (0.5, 0.25, LowPassLinear::None));
+    /// ```
+    #[must_use]
+    pub fn linear(&self) -> AfbLinear {
+        AfbLinear {
+            ka: self.ka.to_num(),
+            ka_closed: self.ka_closed.to_num(),
+            filter: self.filter.linear(),
+        }
+    }
+
     /// One step with an acceleration `a_meas` that does not contain the torque command
     /// (differentiation): returns the torque term \[pu\] to add to the torque reference.
     ///
@@ -270,5 +310,77 @@ mod tests {
         let mut fresh = before;
         assert_eq!(step(&mut held, 0.1, true), step(&mut fresh, 0.1, false));
         assert_eq!(held, fresh);
+    }
+
+    /// One step of the linear form from the block's own filter state is its fixed-point
+    /// step, closed form and measured acceleration, first order and biquad: the filter's
+    /// part to (½ + α) LSB (first order: h from the state truncated to Q16.16) or 1 LSB
+    /// (biquad: the residual), the inner value rounded (½ LSB), the product with the gain
+    /// rounded (½ LSB).
+    #[test]
+    fn the_linear_step_is_the_fixed_point_step() {
+        const LSB: f64 = 1.0 / 65536.0;
+        let filters = [
+            (
+                LowPass::FirstOrder {
+                    alpha: Coef::from_num(0.145),
+                },
+                0.5 + 0.145,
+            ),
+            (
+                LowPass::SecondOrder {
+                    b0: Coef::from_num(0.0048),
+                    a1: Coef::from_num(-1.79),
+                    a2: Coef::from_num(0.809),
+                },
+                1.0,
+            ),
+        ];
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        let mut uniform = |span: f64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            Pu::from_num(((x >> 11) as f64 / 2f64.powi(53) * 2.0 - 1.0) * span)
+        };
+        for (filter, filter_lsb) in filters {
+            let a = AccelerationFeedback {
+                mode: AfbMode::Error,
+                ka: Gain::from_num(0.73),
+                filter,
+                limit: Pu::from_num(1000),
+                ka_closed: Gain::from_num(0.41),
+            };
+            let lin = a.linear();
+            let (mut closed, mut measured) = (LowPassState::default(), LowPassState::default());
+            // The filter state as the linear form's ([`LowPassLinear`]).
+            let as_linear = |s: &LowPassState| match filter {
+                LowPass::FirstOrder { .. } => [s.y_q32 as f64 / 2f64.powi(32), 0.0, 0.0, 0.0],
+                _ => [s.x[0], s.x[1], s.y[0], s.y[1]].map(|v| f64::from(v) * LSB),
+            };
+            let predict = |t: Pu| t * 2;
+            for _ in 0..20_000 {
+                let (p, a_cmd, a_meas) = (uniform(2.0), uniform(5.0), uniform(5.0));
+                let f = |v: Pu| v.to_num::<f64>();
+                // Closed form: ka_closed·(h + b0·x(P)).
+                let (h, b0) = lin.filter.begin(&as_linear(&closed));
+                let want = lin.ka_closed * (h + b0 * (f(a_cmd) - 2.0 * f(p)));
+                let got = f(a.update_closed(&mut closed, p, a_cmd, predict));
+                let tol = lin.ka_closed * (filter_lsb + 0.5) * LSB + 0.5 * LSB + 1e-12;
+                assert!(
+                    (got - want).abs() <= tol,
+                    "closed {filter:?}: {got} vs {want}"
+                );
+                // Measured acceleration: ka·F(a_cmd − a_meas).
+                let mut s = as_linear(&measured);
+                let want = lin.ka * lin.filter.process(&mut s, f(a_cmd) - f(a_meas));
+                let got = f(a.update(&mut measured, a_meas, a_cmd));
+                let tol = lin.ka * filter_lsb * LSB + 0.5 * LSB + 1e-12;
+                assert!(
+                    (got - want).abs() <= tol,
+                    "measured {filter:?}: {got} vs {want}"
+                );
+            }
+        }
     }
 }

@@ -18,6 +18,17 @@ pub struct Differentiator {
     pub k_acc: Gain,
 }
 
+/// A differentiator's linear form: its scales as f64, read from the stored bits
+/// ([`Differentiator::linear`]). Once primed, without the roundings:
+/// v = Δp·k_vel, a = (Δp − Δp_last)·k_acc.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DifferentiatorLinear {
+    /// Velocity per count of change per tick \[pu\].
+    pub k_vel: f64,
+    /// Acceleration per count of second difference \[pu/s\].
+    pub k_acc: f64,
+}
+
 /// Differentiator state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DifferentiatorState {
@@ -30,6 +41,23 @@ pub struct DifferentiatorState {
 }
 
 impl Differentiator {
+    /// The linear form ([`DifferentiatorLinear`]): both scales as f64, exactly the stored
+    /// Q8.24 and Q16.16 values.
+    ///
+    /// ```
+    /// use controller_core::differentiator::Differentiator;
+    /// use controller_core::per_unit::{Gain, TickGain};
+    /// let d = Differentiator { k_vel: TickGain::from_num(0.5), k_acc: Gain::from_num(10) };
+    /// assert_eq!((d.linear().k_vel, d.linear().k_acc), (0.5, 10.0));
+    /// ```
+    #[must_use]
+    pub fn linear(&self) -> DifferentiatorLinear {
+        DifferentiatorLinear {
+            k_vel: self.k_vel.to_num(),
+            k_acc: self.k_acc.to_num(),
+        }
+    }
+
     /// Update with the unwrapped position \[counts\]; returns (velocity \[pu\], acceleration \[pu/s\]).
     ///
     /// ```
@@ -57,5 +85,43 @@ impl Differentiator {
         let v = counts_to_pu(delta, self.k_vel);
         let a = mul_gain(Pu::saturating_from_num(dd), self.k_acc);
         (v, a)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Differentiator, DifferentiatorState};
+    use crate::per_unit::{Gain, TickGain};
+
+    /// Once primed, the linear form's differences times its scales are the fixed-point
+    /// outputs to ½ LSB (each product rounded once).
+    #[test]
+    fn the_linear_step_is_the_fixed_point_step_once_primed() {
+        let d = Differentiator {
+            k_vel: TickGain::from_num(0.029_296_875 * 1.37),
+            k_acc: Gain::from_num(117.18),
+        };
+        let lin = d.linear();
+        let mut s = DifferentiatorState::default();
+        let (mut position, mut last) = (0i64, (0i64, 0i64));
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for k in 0..100_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            position += (x as i64) >> 58; // ±32 counts: no output saturates
+            let (v, a) = d.update(&mut s, position);
+            let delta = position - last.0;
+            if k >= 2 {
+                let want = (
+                    delta as f64 * lin.k_vel,
+                    (delta - last.1) as f64 * lin.k_acc,
+                );
+                let tol = 0.5 / 65536.0 + 1e-12;
+                assert!((v.to_num::<f64>() - want.0).abs() <= tol, "{v} vs {want:?}");
+                assert!((a.to_num::<f64>() - want.1).abs() <= tol, "{a} vs {want:?}");
+            }
+            last = (position, delta);
+        }
     }
 }

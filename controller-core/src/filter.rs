@@ -43,6 +43,74 @@ pub struct LowPassState {
     pub residual: i64,
 }
 
+/// A low-pass filter's linear form: its coefficients as f64, read from the stored Q2.30
+/// bits ([`LowPass::linear`]), and its step in f64 without the roundings, for loop models.
+/// The state is `[x1, x2, y1, y2]` for the biquad, `[y, ..]` for the first order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LowPassLinear {
+    /// Pass-through.
+    None,
+    /// y ← y + α·(x − y).
+    FirstOrder {
+        /// α.
+        alpha: f64,
+    },
+    /// y = b0·(x0 + 2·x1 + x2) − a1·y1 − a2·y2.
+    SecondOrder {
+        /// b0.
+        b0: f64,
+        /// a1.
+        a1: f64,
+        /// a2.
+        a2: f64,
+    },
+}
+
+impl LowPassLinear {
+    /// (h, b0): the output's part from the past and the feed-through, y = h + b0·x, as
+    /// [`LowPass::begin`].
+    #[must_use]
+    pub fn begin(&self, s: &[f64; 4]) -> (f64, f64) {
+        match *self {
+            Self::None => (0.0, 1.0),
+            Self::FirstOrder { alpha } => ((1.0 - alpha) * s[0], alpha),
+            Self::SecondOrder { b0, a1, a2 } => {
+                (b0 * (2.0 * s[0] + s[1]) - a1 * s[2] - a2 * s[3], b0)
+            }
+        }
+    }
+
+    /// Completes a step begun with [`LowPassLinear::begin`] with input `x`, as
+    /// [`LowPass::finish`]: advances the state and returns y.
+    pub fn finish(&self, s: &mut [f64; 4], h: f64, x: f64) -> f64 {
+        match *self {
+            Self::None => x,
+            Self::FirstOrder { alpha } => {
+                s[0] = h + alpha * x;
+                s[0]
+            }
+            Self::SecondOrder { b0, .. } => {
+                let y = h + b0 * x;
+                *s = [x, s[0], y, s[2]];
+                y
+            }
+        }
+    }
+
+    /// One step with input `x`.
+    ///
+    /// ```
+    /// use controller_core::filter::LowPassLinear;
+    /// let f = LowPassLinear::FirstOrder { alpha: 0.5 };
+    /// let mut s = [0.0; 4];
+    /// assert_eq!((f.process(&mut s, 1.0), f.process(&mut s, 1.0)), (0.5, 0.75));
+    /// ```
+    pub fn process(&self, s: &mut [f64; 4], x: f64) -> f64 {
+        let (h, _) = self.begin(s);
+        self.finish(s, h, x)
+    }
+}
+
 /// The f32 design of a filter, before quantization (for references and logging).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LowPassDesign {
@@ -121,6 +189,29 @@ impl LowPass {
                 a2: q(a2)?,
             },
         })
+    }
+
+    /// The linear form ([`LowPassLinear`]): the coefficients as f64, exactly the stored
+    /// Q2.30 values.
+    ///
+    /// ```
+    /// use controller_core::filter::{LowPass, LowPassLinear};
+    /// use controller_core::per_unit::Coef;
+    /// let f = LowPass::FirstOrder { alpha: Coef::from_num(0.25) };
+    /// assert_eq!(f.linear(), LowPassLinear::FirstOrder { alpha: 0.25 });
+    /// ```
+    #[must_use]
+    pub fn linear(&self) -> LowPassLinear {
+        let f = |c: Coef| c.to_num::<f64>();
+        match *self {
+            Self::None => LowPassLinear::None,
+            Self::FirstOrder { alpha } => LowPassLinear::FirstOrder { alpha: f(alpha) },
+            Self::SecondOrder { b0, a1, a2 } => LowPassLinear::SecondOrder {
+                b0: f(b0),
+                a1: f(a1),
+                a2: f(a2),
+            },
+        }
     }
 
     /// The direct feed-through b0 of the filter, y\[n\] = b0·x\[n\] + h\[n\] (1 for
@@ -265,5 +356,84 @@ impl LowPass {
     pub fn process(&self, s: &mut LowPassState, x: Pu) -> Pu {
         let (h46, _) = self.begin(s);
         self.finish(s, h46, x)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{LowPass, LowPassLinear, LowPassState, design_low_pass};
+    use crate::config::FilterConfig;
+    use crate::per_unit::Pu;
+    use crate::ranges as r;
+
+    const LSB: f64 = 1.0 / 65536.0;
+    /// The f64 arithmetic's own rounding (signals below 2^4: ulp 2^−48).
+    const F64_NOISE: f64 = 1.0 / (1u64 << 40) as f64;
+
+    fn designed(cfg: FilterConfig) -> LowPass {
+        let d = design_low_pass(&cfg, 4000.0, &r::AFB_FILTER_CORNER_HZ, &r::AFB_FILTER_Q)
+            .unwrap_or_else(|e| unreachable!("{e}"));
+        LowPass::quantize(&d, "test").unwrap_or_else(|e| unreachable!("{e}"))
+    }
+
+    /// A sequence of inputs in ±4 pu (a xorshift64 sequence).
+    fn inputs(n: usize) -> impl Iterator<Item = Pu> {
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        (0..n).map(move |_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            Pu::from_bits((x as i32) >> 13)
+        })
+    }
+
+    /// One step of the linear form from the filter's own state is its fixed-point step:
+    /// the first order to α·LSB in the state (h uses the state truncated to Q16.16) and
+    /// ½ LSB more in the rounded output; the biquad to 1 LSB (the output truncated, the
+    /// residual of the last one fed back), over a random sequence of inputs.
+    #[test]
+    fn the_linear_step_is_the_fixed_point_step() {
+        let first = |corner_hz| FilterConfig::FirstOrder { corner_hz };
+        let second = |corner_hz, q| FilterConfig::SecondOrder { corner_hz, q };
+        for f in [
+            first(5.0),
+            first(200.0),
+            first(1500.0),
+            second(20.0, 0.7),
+            second(300.0, 2.0),
+            second(1500.0, 0.5),
+        ]
+        .map(designed)
+        {
+            let lin = f.linear();
+            let mut s = LowPassState::default();
+            for x in inputs(20_000) {
+                // The fixed-point state as the linear form's.
+                let now = match lin {
+                    LowPassLinear::FirstOrder { .. } => {
+                        [s.y_q32 as f64 / 2f64.powi(32), 0.0, 0.0, 0.0]
+                    }
+                    _ => [s.x[0], s.x[1], s.y[0], s.y[1]].map(|v| f64::from(v) * LSB),
+                };
+                let mut next = now;
+                let y_lin = lin.process(&mut next, x.to_num());
+                let y = f.process(&mut s, x).to_num::<f64>();
+                let bound = match lin {
+                    LowPassLinear::FirstOrder { alpha } => {
+                        let state = s.y_q32 as f64 / 2f64.powi(32);
+                        assert!(
+                            (state - next[0]).abs() <= alpha * LSB + 2f64.powi(-32) + F64_NOISE,
+                            "{f:?} {now:?} {x}"
+                        );
+                        (0.5 + alpha) * LSB + 2f64.powi(-32) + F64_NOISE
+                    }
+                    _ => LSB + F64_NOISE,
+                };
+                assert!(
+                    (y - y_lin).abs() <= bound,
+                    "{f:?} {now:?} {x}: {y} vs {y_lin}"
+                );
+            }
+        }
     }
 }

@@ -41,7 +41,8 @@ pub use crate::config::NotchConfig;
 /// Largest depth accepted \[dB\] (a gain of 1e-4 at the centre).
 pub const MAX_DEPTH_DB: f32 = 80.0;
 
-/// The f64 design of a notch, before quantization (for references and logging).
+/// The f64 coefficients of a notch: its design before quantization (for references and
+/// logging), or a quantized notch's linear form ([`Notch::linear`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NotchDesign {
     /// b0.
@@ -104,6 +105,24 @@ impl NotchDesign {
     pub fn reference_step(&self, x: [f64; 3], y: [f64; 2]) -> f64 {
         // y0 = b0·x0 + b1·x1 + b2·x2 − a1·y1 − a2·y2, a1 = b1.
         self.b0 * x[0] + self.b1 * x[1] + self.b2 * x[2] - self.b1 * y[0] - self.a2 * y[1]
+    }
+
+    /// One step of the minimal realization, the transposed direct form II, with input `x`
+    /// and state `s` = \[s1, s2\]: the transfer function [`Notch::process`] runs in Direct
+    /// Form I (four delayed signals), in two states, so a loop model gains only the notch's
+    /// own pole pair. Same input, same output as [`NotchDesign::reference_step`] (up to the
+    /// f64 roundings); no output clamp, no error feedback.
+    ///
+    /// ```text
+    /// y   = b0·x + s1
+    /// s1⁺ = b1·x − a1·y + s2        (a1 = b1)
+    /// s2⁺ = b2·x − a2·y
+    /// ```
+    #[must_use]
+    pub fn transposed_step(&self, s: &mut [f64; 2], x: f64) -> f64 {
+        let y = self.b0 * x + s[0];
+        *s = [self.b1 * x - self.b1 * y + s[1], self.b2 * x - self.a2 * y];
+        y
     }
 
     /// |H(e^{jωT})| at `freq_hz` for a tick rate `rate_hz`.
@@ -215,9 +234,17 @@ impl Notch {
         })
     }
 
-    /// The quantized Q2.30 coefficients [`Notch::process`] uses, as f64 (for loop models).
+    /// The linear form: the Q2.30 coefficients [`Notch::process`] uses, as f64, exactly the
+    /// stored values (for loop models: [`NotchDesign::transposed_step`]).
+    ///
+    /// ```
+    /// use controller_core::notch::{Notch, NotchDesign};
+    /// let d = NotchDesign { b0: 0.5, b1: -1.5, b2: 0.25, a2: 0.75 };
+    /// assert_eq!(Notch::quantize(&d, "notch")?.linear(), d);
+    /// # Ok::<(), controller_core::ConfigError>(())
+    /// ```
     #[must_use]
-    pub fn coefficients(&self) -> NotchDesign {
+    pub fn linear(&self) -> NotchDesign {
         let f = |c: Coef| c.to_num::<f64>();
         NotchDesign {
             b0: f(self.b0),
@@ -527,6 +554,44 @@ mod tests {
             match NotchDesign::new(&c, RATE, NAMES) {
                 Err(e) => assert_eq!(e.param(), key, "{c:?}"),
                 Ok(_) => unreachable!("{c:?} accepted"),
+            }
+        }
+    }
+
+    /// The linear form, stepped from the notch's own state (Direct Form I,
+    /// [`NotchDesign::reference_step`]), is the fixed-point step to 1 LSB (the output
+    /// truncated, the last one's residual fed back); and its two-state realization
+    /// ([`NotchDesign::transposed_step`]) is that Direct Form I in f64 on a whole sequence.
+    #[test]
+    fn the_linear_step_is_the_fixed_point_step() {
+        const LSB: f64 = 1.0 / 65536.0;
+        for (f0, w, d) in [
+            (180.0, 50.0, 30.0),
+            (40.0, 15.0, 20.0),
+            (1500.0, 400.0, 60.0),
+        ] {
+            let n = quantized(&design(f0, w, d));
+            let lin = n.linear();
+            let mut s = NotchState::default();
+            let (mut tdf2, mut x, mut y) = ([0.0f64; 2], [0.0f64; 3], [0.0f64; 2]);
+            let mut seed = 0x2545_F491_4F6C_DD1Du64;
+            for _ in 0..20_000 {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                let xq = Pu::from_bits((seed as i32) >> 14);
+                let f = |v: i32| f64::from(v) * LSB;
+                let want = lin.reference_step([xq.to_num(), f(s.x[0]), f(s.x[1])], s.y.map(f));
+                let got = n.process(&mut s, xq).to_num::<f64>();
+                assert!((got - want).abs() <= LSB + 1e-12, "{f0}: {got} vs {want}");
+                x = [xq.to_num(), x[0], x[1]];
+                let df1 = lin.reference_step(x, y);
+                y = [df1, y[0]];
+                let t = lin.transposed_step(&mut tdf2, x[0]);
+                assert!(
+                    (t - df1).abs() <= 1e-9 * (1.0 + df1.abs()),
+                    "{f0}: {t} vs {df1}"
+                );
             }
         }
     }

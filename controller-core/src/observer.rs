@@ -58,6 +58,29 @@ pub struct Observer {
     pub count_interval: CountInterval,
 }
 
+/// An observer's linear form: its coefficients as f64, read from the stored bits
+/// ([`Observer::linear`]). In counts and ticks, without the roundings, with the plain
+/// innovation (the count interval, a dead zone, is nonlinear and left out):
+///
+/// ```text
+/// u = T·k_u;  p⁻ = p + v + (u + d)/2;  v⁻ = v + u + d;  e = p_meas − p⁻
+/// p = p⁻ + l1·e;  v = v⁻ + l2·e;  d = d + l3·e;  r = d⁻ + l2·e;  â = u + r
+/// velocity = v·k_vel [pu];  acceleration = â·k_acc [pu/s];  load torque = d·k_acc·k_load [pu]
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObserverLinear {
+    /// l1, l2, l3.
+    pub l: [f64; 3],
+    /// k_u \[counts/tick² per pu\].
+    pub k_u: f64,
+    /// Velocity scale \[pu per count/tick\].
+    pub k_vel: f64,
+    /// Acceleration scale \[pu/s per count/tick²\].
+    pub k_acc: f64,
+    /// Load torque per pu/s of disturbance acceleration \[pu·s\].
+    pub k_load: f64,
+}
+
 /// The innovations e = n − p̂ \[counts, Q16.16\] that the count n cannot tell from zero:
 /// e ∈ \[lo, hi\]. The position lies in \[n, n + 1), so the error to the middle of the
 /// count is e + ½, and a half-width h > 0 around that middle is e ∈ \[−½ − h, −½ + h\]
@@ -132,6 +155,19 @@ fn q32_to_q20(x: i64) -> i32 {
 }
 
 impl Observer {
+    /// The linear form ([`ObserverLinear`]): every coefficient as f64, exactly the stored
+    /// value.
+    #[must_use]
+    pub fn linear(&self) -> ObserverLinear {
+        ObserverLinear {
+            l: [self.l1, self.l2, self.l3].map(|l| l.to_num()),
+            k_u: self.k_u.to_num(),
+            k_vel: self.k_vel.to_num(),
+            k_acc: self.k_acc.to_num(),
+            k_load: self.k_load.to_num(),
+        }
+    }
+
     /// One observer step with the measured unwrapped position \[counts\] and the torque
     /// command applied over the last tick \[pu\]. Updates the state only; read the estimates
     /// with [`Observer::velocity_pu`], [`Observer::acceleration_pu_s`],
@@ -274,6 +310,103 @@ impl Observer {
             velocity_pu: self.velocity_pu(s),
             acceleration_pu_s: self.acceleration_pu_s(s),
             load_torque_pu: self.load_torque_pu(s),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{CountInterval, Observer, ObserverState};
+    use crate::per_unit::{Coef, Gain, Pu, TickGain};
+
+    const LSB: f64 = 1.0 / 65536.0;
+    const Q32: f64 = 4_294_967_296.0;
+
+    /// One step of the linear form (its equations, [`super::ObserverLinear`]) from the
+    /// observer's own state is the fixed-point step: each state to l_i·2^−16 counts (the
+    /// innovation truncated to Q16.16) plus 2^−30 (the truncated products and halving), and
+    /// each output to its scale times its input's truncation plus ½ LSB of rounding.
+    #[test]
+    fn the_linear_step_is_the_fixed_point_step() {
+        // Poles at θ = e^(−2π·300/4000), the scales of 4096 CPR at 1000 rpm and 4 kHz.
+        let theta = (-core::f64::consts::TAU * 300.0 / 4000.0).exp();
+        let one_m = 1.0 - theta;
+        let o = Observer {
+            l1: Coef::from_num(1.0 - theta.powi(3)),
+            l2: Coef::from_num(1.5 * one_m * one_m * (1.0 + theta)),
+            l3: Coef::from_num(one_m.powi(3)),
+            k_u: TickGain::from_num(0.0137),
+            k_vel: TickGain::from_num(0.0586),
+            k_acc: Gain::from_num(234.375),
+            k_load: Gain::from_num(-0.117),
+            count_interval: CountInterval::PLAIN,
+        };
+        let lin = o.linear();
+        let [l1, l2, l3] = lin.l;
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut uniform = |span: f64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            ((x >> 11) as f64 / 2f64.powi(53) * 2.0 - 1.0) * span
+        };
+        for _ in 0..100_000 {
+            let q32 = |v: f64| (v * Q32).round() as i64;
+            let (p, v, d) = (uniform(1000.0), uniform(50.0), uniform(0.5));
+            let mut s = ObserverState {
+                p: q32(p),
+                v: q32(v),
+                d: q32(d),
+                primed: true,
+                ..ObserverState::default()
+            };
+            let (p, v, d) = (s.p as f64 / Q32, s.v as f64 / Q32, s.d as f64 / Q32);
+            let torque = Pu::from_num(uniform(2.0));
+            let n = (p + v + uniform(3.0)).round();
+            o.update(&mut s, n as i64, torque);
+            // The linear form's step.
+            let u = torque.to_num::<f64>() * lin.k_u;
+            let acc = u + d;
+            let (p_pred, v_pred) = (p + v + 0.5 * acc, v + acc);
+            let e = n - p_pred;
+            let r = d + l2 * e;
+            let want = [p_pred + l1 * e, v_pred + l2 * e, d + l3 * e, r, u + r];
+            let got = [s.p, s.v, s.d, s.residual, s.acc].map(|b| b as f64 / Q32);
+            let tol = [l1, l2, l3, l2, l2].map(|l| l / 65536.0 + 2f64.powi(-30));
+            for (k, ((g, w), t)) in got.iter().zip(want).zip(tol).enumerate() {
+                assert!((g - w).abs() <= t, "{k}: {got:?} vs {want:?}");
+            }
+            // The outputs, from the fixed-point state.
+            let [v1, acc1, d1] = [s.v, s.acc, s.d].map(|b| b as f64 / Q32);
+            let outputs = [
+                (
+                    o.velocity_pu(&s),
+                    v1 * lin.k_vel,
+                    lin.k_vel / 65536.0 + LSB / 2.0,
+                ),
+                (
+                    o.acceleration_pu_s(&s),
+                    acc1 * lin.k_acc,
+                    lin.k_acc * 2f64.powi(-20) + LSB / 2.0,
+                ),
+                (
+                    o.load_torque_pu(&s),
+                    d1 * lin.k_acc * lin.k_load,
+                    lin.k_load.abs() * (lin.k_acc * 2f64.powi(-20) + LSB / 2.0) + LSB / 2.0,
+                ),
+                (
+                    o.predicted_acceleration_pu_s(&s, torque),
+                    (u + s.residual as f64 / Q32) * lin.k_acc,
+                    lin.k_acc * (2f64.powi(-32) + 2f64.powi(-20)) + LSB / 2.0,
+                ),
+            ];
+            for (k, (fixed, linear, tol)) in outputs.into_iter().enumerate() {
+                let fixed = fixed.to_num::<f64>();
+                assert!(
+                    (fixed - linear).abs() <= tol + 1e-12,
+                    "output {k}: {fixed} vs {linear}"
+                );
+            }
         }
     }
 }

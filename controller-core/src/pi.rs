@@ -35,6 +35,20 @@ pub struct PiCoefficients {
     pub limit: Pu,
 }
 
+/// A PI regulator's linear form: its coefficients as f64, read from the stored bits
+/// ([`PiCoefficients::linear`]). Without the clamps and the roundings a step is
+///
+/// ```text
+/// I ← I + ki_ts·e;   u = kp·e + ff + I
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PiLinear {
+    /// Kp \[output pu per error pu\].
+    pub kp: f64,
+    /// Ki·Ts \[output pu per error pu per tick\].
+    pub ki_ts: f64,
+}
+
 /// PI state: the integral \[output pu\], Q32.32.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PiState {
@@ -45,6 +59,23 @@ pub struct PiState {
 }
 
 impl PiCoefficients {
+    /// The linear form ([`PiLinear`]): Kp and Ki·Ts as f64, exactly the stored Q16.16 and
+    /// Q8.24 values.
+    ///
+    /// ```
+    /// use controller_core::pi::PiCoefficients;
+    /// use controller_core::per_unit::{Pu, Gain, TickGain};
+    /// let c = PiCoefficients { kp: Gain::from_num(2), ki_ts: TickGain::from_num(0.5), limit: Pu::from_num(10) };
+    /// assert_eq!((c.linear().kp, c.linear().ki_ts), (2.0, 0.5));
+    /// ```
+    #[must_use]
+    pub fn linear(&self) -> PiLinear {
+        PiLinear {
+            kp: self.kp.to_num(),
+            ki_ts: self.ki_ts.to_num(),
+        }
+    }
+
     /// One regulator step for error `e` and feed-forward `ff`; returns the clamped output.
     ///
     /// ```
@@ -383,5 +414,47 @@ mod tests {
             c.update_with_offset_within(&mut a, small, Pu::ZERO, afb_held, [lim, 0]),
             c.update_with_offset_within(&mut b, small, Pu::ZERO, afb_held, [lim, h])
         );
+    }
+
+    /// The linear form's step, I ← I + ki_ts·e, u = kp·e + ff + I, from the regulator's own
+    /// integral, is the fixed-point step away from the clamps: the integral to the rounding
+    /// of the increment (2^−33 pu), the output to 1.5 LSB (Kp·e rounded, ±½ LSB, the
+    /// integral's whole part taken by truncation, < 1 LSB), each plus the f64 sums' own
+    /// rounding.
+    #[test]
+    fn the_linear_step_is_the_fixed_point_step_away_from_the_clamps() {
+        let mut next = xorshift(0x1234_5678_9ABC_DEF1);
+        let lsb = 2f64.powi(-16);
+        // The f64 sums' own rounding (values below 2^7: ulp 2^−46).
+        let f64_noise = 2f64.powi(-40);
+        // A value in ±`span` from the top bits of a random word.
+        let mut uniform = |span: f64| ((next() >> 11) as f64 / 2f64.powi(53) * 2.0 - 1.0) * span;
+        for _ in 0..100_000 {
+            let c = PiCoefficients {
+                kp: Gain::from_num(uniform(100.0)),
+                ki_ts: TickGain::from_num(uniform(100.0)),
+                limit: Pu::from_num(1000),
+            };
+            let (e, ff) = (Pu::from_num(uniform(1.0)), Pu::from_num(uniform(1.0)));
+            let integral = I32F32::from_num(uniform(10.0));
+            let mut s = PiState {
+                integral,
+                saturated: false,
+            };
+            let u = c.update(&mut s, e, ff);
+            let lin = c.linear();
+            let mut i_lin: f64 = integral.to_num();
+            i_lin += e.to_num::<f64>() * lin.ki_ts;
+            let u_lin = lin.kp * e.to_num::<f64>() + ff.to_num::<f64>() + i_lin;
+            assert!(!s.saturated);
+            assert!(
+                (s.integral.to_num::<f64>() - i_lin).abs() <= 2f64.powi(-33) + f64_noise,
+                "{c:?} e {e} integral {integral}"
+            );
+            assert!(
+                (u.to_num::<f64>() - u_lin).abs() <= 1.5 * lsb + f64_noise,
+                "{c:?} e {e} ff {ff} integral {integral}: {u} vs {u_lin}"
+            );
+        }
     }
 }

@@ -36,7 +36,7 @@ impl NotchMirror {
             .as_ref()
             .map(|d| {
                 Notch::quantize(d, super::mirror::NOTCH_PARAM).map(|n| Self {
-                    coefficients: n.coefficients(),
+                    coefficients: n.linear(),
                 })
             })
             .transpose()

@@ -2,11 +2,12 @@
 //! ([`super::Controller::blocks`]).
 
 use crate::accel_feedback::AccelerationFeedback;
+use crate::differentiator::Differentiator;
 use crate::fault::Fault;
 use crate::filter::LowPass;
 use crate::notch::Notch;
 use crate::observer::Observer;
-use crate::per_unit::{Counts, CountsErr, Pu, PuPerS};
+use crate::per_unit::{Counts, CountsErr, Gain, PosGain, Pu, PuPerS};
 use crate::pi::PiCoefficients;
 
 /// Inputs of the current tick.
@@ -91,4 +92,14 @@ pub struct Blocks {
     pub current_regulator: PiCoefficients,
     /// The torque-reference notch, if one is configured (current rate).
     pub notch: Option<Notch>,
+    /// The position loop's gain k_pos \[pu per count\] (Q1.31; 0 without a position loop).
+    pub k_pos: PosGain,
+    /// The position loop's velocity feed-forward gain (Q16.16).
+    pub velocity_ff: Gain,
+    /// The acceleration feed-forward gain \[pu torque per pu/s\] (Q16.16).
+    pub k_accel_ff: Gain,
+    /// The differentiator at the velocity rate.
+    pub diff_velocity_rate: Differentiator,
+    /// The differentiator at the current rate.
+    pub diff_current_rate: Differentiator,
 }

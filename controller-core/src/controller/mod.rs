@@ -178,7 +178,8 @@ impl Controller {
     }
 
     /// The quantized blocks the ticks run, to time or test one block on its own (e.g.
-    /// `cargo fw-bench`'s per-block table). Copies: the controller is not affected.
+    /// `cargo fw-bench`'s per-block table) or to read their linear forms (each block's
+    /// `linear()`, e.g. loop-model's mirror). Copies: the controller is not affected.
     #[must_use]
     pub fn blocks(&self) -> Blocks {
         let c = &self.coef;
@@ -189,6 +190,11 @@ impl Controller {
             velocity_regulator: c.velocity_regulator,
             current_regulator: c.current_regulator,
             notch: c.notch,
+            k_pos: c.k_pos,
+            velocity_ff: c.velocity_ff,
+            k_accel_ff: c.k_accel_ff,
+            diff_velocity_rate: c.diff_velocity_rate,
+            diff_current_rate: c.diff_current_rate,
         }
     }
 
