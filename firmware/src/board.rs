@@ -12,6 +12,9 @@
 //!
 //! A read error on a sensor is a fault: the tick reports it and the power stage is disabled.
 //! The voltage command maps to the duty of a bipolar bridge: 0 pu → 50 %, ±1 pu → 100 %/0 %.
+//! A three-phase stage (`board-stm32f4-3ph`) has its table and arithmetic in [`three_phase`].
+
+pub mod three_phase;
 
 use controller_core::per_unit::Pu;
 use embedded_hal::digital::{InputPin, OutputPin};
