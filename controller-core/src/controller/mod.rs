@@ -88,6 +88,10 @@ struct State {
     fault: Option<Fault>,
     /// A PMSM drive's FOC state (untouched on a DC drive).
     foc: crate::foc::FocState,
+    /// Whether the FOC angle has been set from a count, and the unwrapped position it
+    /// was last moved to.
+    foc_primed: bool,
+    foc_position: i64,
     /// A PMSM drive's measured torque λ·i_q of the last tick (the DC drive's is
     /// `last_current`, which a PMSM drive sets to the current's magnitude).
     pmsm_torque: Pu,

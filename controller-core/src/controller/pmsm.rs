@@ -89,17 +89,20 @@ impl Controller {
                 ..PmsmOutputs::default()
             };
         };
-        let primed = self.state.primed;
-        let before = self.state.position;
         self.read_encoder(inp.encoder_count);
         let position = self.state.position;
-        let delta = if primed {
-            let d = position.wrapping_sub(before);
+        // The counts since the angle's last update: the velocity tick reads the encoder
+        // too, so the difference is taken against the angle's own position, not the last
+        // reading. The first tick after a reset sets the angle from the count itself.
+        let delta = if self.state.foc_primed {
+            let d = position.wrapping_sub(self.state.foc_position);
             i32::try_from(d).unwrap_or(if d < 0 { i32::MIN } else { i32::MAX })
         } else {
             self.state.foc = foc.state_at(position);
+            self.state.foc_primed = true;
             0
         };
+        self.state.foc_position = position;
         let (phase, current) = foc.measure(&mut self.state.foc, inp.phase_current_pu, delta);
         let torque = mul_gain(current.q, foc.flux);
         let observed = self.observer_torque(self.state.pmsm_torque, torque);
@@ -258,6 +261,41 @@ mod tests {
         }
         assert_eq!(c.fault(), Some(Fault::Overcurrent));
         assert!(m * 3f64.sqrt() / 2.0 < level, "each sample below the level");
+    }
+
+    /// The angle follows every count, also those the velocity tick reads first: a d-axis
+    /// current at the machine's true angle is measured as d, with no q, at every tick of a
+    /// run where the shaft turns 3 counts a tick and the velocity tick runs every 4th.
+    #[test]
+    fn the_angle_follows_the_counts_the_velocity_tick_reads_first() {
+        let cfg = drive(Some(30.0));
+        let mut c = Controller::new(&cfg).unwrap();
+        let (cpr, pp) = (f64::from(cfg.encoder_cpr), 4.0);
+        let ratio = cfg.current_rate_hz / cfg.velocity_rate_hz;
+        let mut worst: f64 = 0.0;
+        for k in 0..2000_u32 {
+            let count = 3 * k;
+            let theta = pp * std::f64::consts::TAU * f64::from(count) / cpr + 30f64.to_radians();
+            let ia = theta.cos();
+            let ib = (theta - std::f64::consts::TAU / 3.0).cos();
+            if k % ratio == 0 {
+                let _ = c.velocity_tick(VelocityInputs {
+                    encoder_count: count,
+                    ..VelocityInputs::default()
+                });
+            }
+            let out = c.pmsm_tick(PmsmInputs {
+                encoder_count: count,
+                phase_current_pu: [pu(ia), pu(ib)],
+            });
+            let q = out.current.q.to_num::<f64>();
+            assert!(
+                (out.current.d.to_num::<f64>() - 1.0).abs() < 1e-3,
+                "tick {k}: {out:?}"
+            );
+            worst = worst.max(q.abs());
+        }
+        assert!(worst < 1e-3, "largest |i_q| {worst}");
     }
 
     #[test]
