@@ -338,7 +338,7 @@ mod tests {
         let p = m.drive.pmsm.unwrap();
         assert_eq!(
             (p.pole_pairs, p.dc_bus_pu, p.flux_linkage_pu),
-            (4, 2.0, 1.0)
+            (4, 2.0785, 1.0)
         );
         assert_eq!(p.d_inductance_pu_s, 5e-4);
         assert_eq!(p.encoder_offset_elec_deg, Some(23.0));
