@@ -1,7 +1,7 @@
 //! The linear model of stiffdrive's whole discrete loop: controller-core's ticks in f64 with
-//! their quantized coefficients ([`mirror`], with the torque-reference notch: [`notch`])
-//! around plant-host's exactly sampled two-inertia plant ([`model`]), for poles, damping,
-//! margins ([`margins`]) and stiffness.
+//! their quantized coefficients ([`mirror`]: the blocks' own linear forms) around
+//! plant-host's exactly sampled two-inertia plant ([`model`]), for poles, damping, margins
+//! ([`margins`]) and stiffness.
 //!
 //! It is the one closed-loop model for design and analysis: `tune` and `linear` in the
 //! harness judge designs with it, and controller-core's design tests use it as a
@@ -12,7 +12,6 @@ pub mod hessenberg;
 pub mod margins;
 pub mod mirror;
 pub mod model;
-pub mod notch;
 mod reduce;
 
 pub use margins::{Margins, margin_grid, margins_of, refined};

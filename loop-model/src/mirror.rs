@@ -3,99 +3,22 @@
 //!
 //! Every block follows its controller-core module equation for equation (observer,
 //! acceleration feedback in closed form, filters, PI regulators, differentiators, position
-//! loop, the torque-reference notch: [`super::notch`]). The order is the same, and so is the torque the observer is fed. Each
-//! coefficient is quantized to the Q-format the controller stores it in. What is left out
-//! is nonlinear or a start-up effect: the clamps, the 1-LSB rounding, the faults and the
-//! priming of the estimators. `tests/linear_model.rs` runs this mirror and the fixed-point
-//! controller on the same inputs, so a drift between the two fails a test.
+//! loop, the torque-reference notch in its two-state form). The order is the same, and so
+//! is the torque the observer is fed. The coefficients are not quantized here: each is the
+//! linear form (`linear()`) of the block the controller itself builds
+//! ([`Controller::blocks`]), the stored fixed-point value as f64. What is left out is
+//! nonlinear or a start-up effect: the clamps, the 1-LSB rounding, the observer's count
+//! interval, the faults and the priming of the estimators.
+//! `tests/it/workflows/linear_model.rs` runs this mirror and the fixed-point controller on
+//! the same inputs, so a drift between the two fails a test.
 
-use controller_core::filter::LowPassDesign;
-use controller_core::per_unit::{Coef, Counts, Gain, PosGain, TickGain};
+use controller_core::differentiator::Differentiator;
+use controller_core::filter::LowPassLinear;
+use controller_core::notch::NotchDesign;
+use controller_core::per_unit::Counts;
 use controller_core::{
-    AfbMode, AfbRate, ConfigError, DriveConfig, Estimator, Gains, ObserverTorque,
+    AfbMode, AfbRate, ConfigError, Controller, DriveConfig, Estimator, Gains, ObserverTorque,
 };
-use fixed::traits::Fixed;
-
-pub use super::notch::NotchMirror;
-
-/// What a notch whose coefficients do not quantize is called in the error (the keys that
-/// designed it).
-pub const NOTCH_PARAM: &str =
-    "notch coefficients (notch.centre_hz, notch.width_hz, notch.depth_db)";
-
-/// f32 → the Q-format `T` (round to nearest, as the controller's quantizer) → f64.
-fn q<T: Fixed>(v: f32) -> f64 {
-    T::saturating_from_num(v).to_num::<f64>()
-}
-
-/// A low-pass filter's quantized coefficients: y = b0·x + h, h from the past.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Filter {
-    /// Pass-through.
-    None,
-    /// y ← y + α·(x − y).
-    FirstOrder {
-        /// α.
-        alpha: f64,
-    },
-    /// y = b0·(x0 + 2·x1 + x2) − a1·y1 − a2·y2.
-    SecondOrder {
-        /// b0.
-        b0: f64,
-        /// a1.
-        a1: f64,
-        /// a2.
-        a2: f64,
-    },
-}
-
-impl Filter {
-    fn quantized(d: &LowPassDesign) -> Self {
-        match *d {
-            LowPassDesign::None => Self::None,
-            LowPassDesign::FirstOrder { alpha } => Self::FirstOrder {
-                alpha: q::<Coef>(alpha),
-            },
-            LowPassDesign::SecondOrder { b0, a1, a2 } => Self::SecondOrder {
-                b0: q::<Coef>(b0),
-                a1: q::<Coef>(a1),
-                a2: q::<Coef>(a2),
-            },
-        }
-    }
-
-    /// (h, b0): the output's part from the past, and the feed-through.
-    fn begin(&self, s: &[f64; 4]) -> (f64, f64) {
-        match *self {
-            Self::None => (0.0, 1.0),
-            Self::FirstOrder { alpha } => ((1.0 - alpha) * s[0], alpha),
-            Self::SecondOrder { b0, a1, a2 } => {
-                (b0 * (2.0 * s[0] + s[1]) - a1 * s[2] - a2 * s[3], b0)
-            }
-        }
-    }
-
-    /// Completes the step with input `x`; state layout [x1, x2, y1, y2] (first order: [y]).
-    fn finish(&self, s: &mut [f64; 4], h: f64, x: f64) -> f64 {
-        match *self {
-            Self::None => x,
-            Self::FirstOrder { alpha } => {
-                s[0] = h + alpha * x;
-                s[0]
-            }
-            Self::SecondOrder { b0, .. } => {
-                let y = h + b0 * x;
-                *s = [x, s[0], y, s[2]];
-                y
-            }
-        }
-    }
-
-    fn process(&self, s: &mut [f64; 4], x: f64) -> f64 {
-        let (h, _) = self.begin(s);
-        self.finish(s, h, x)
-    }
-}
 
 /// The quantized coefficients of a controller, as f64.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,9 +42,9 @@ pub struct Coefficients {
     /// Current PI Ki·Ts.
     pub cur_ki_ts: f64,
     /// Velocity feedback filter.
-    pub velocity_filter: Filter,
+    pub velocity_filter: LowPassLinear,
     /// AFB filter.
-    pub afb_filter: Filter,
+    pub afb_filter: LowPassLinear,
     /// AFB form.
     pub afb_mode: AfbMode,
     /// Ka (Q16.16) and the closed-form g·Ka (Q16.16).
@@ -148,67 +71,50 @@ pub struct Coefficients {
     pub diff_vel: (f64, f64),
     /// Current-rate scales.
     pub diff_cur: (f64, f64),
-    /// The torque-reference notch (quantized by controller-core), `None` without one.
-    pub notch: Option<NotchMirror>,
+    /// The torque-reference notch, `None` without one; run as its two-state realization
+    /// ([`NotchDesign::transposed_step`]).
+    pub notch: Option<NotchDesign>,
 }
 
 impl Coefficients {
-    /// From a drive and the gains its controller runs with. Fails only where the
-    /// controller would refuse the gains too: a notch whose coefficients do not quantize.
+    /// From a drive and the gains its controller runs with: every coefficient is the
+    /// linear form (`linear()`) of the block the controller built from `g` runs with
+    /// ([`Controller::blocks`]), so it is the stored fixed-point value itself. Fails where
+    /// the controller refuses the gains ([`Controller::from_gains`]).
     pub fn new(cfg: &DriveConfig, g: &Gains) -> Result<Self, ConfigError> {
-        let afb_filter = Filter::quantized(&g.afb_filter);
-        let b0 = match afb_filter {
-            Filter::None => 1.0,
-            Filter::FirstOrder { alpha } => alpha,
-            Filter::SecondOrder { b0, .. } => b0,
+        let b = Controller::from_gains(g)?.blocks();
+        let (vel, cur) = (b.velocity_regulator.linear(), b.current_regulator.linear());
+        let (obs, afb) = (b.observer.linear(), b.accel_feedback.linear());
+        let diff = |d: Differentiator| {
+            let l = d.linear();
+            (l.k_vel, l.k_acc)
         };
-        // As controller-core: g = 1/(1 + b0·Ka/J_model) in f32 from the quantized b0.
-        let gain = 1.0 / (1.0 + b0 as f32 * g.ka / g.observer_inertia_s);
-        let afb_on = cfg.accel_feedback.mode != AfbMode::Off;
         Ok(Self {
             ticks_per_velocity: g.ticks_per_velocity.max(1) as usize,
             position_loop: g.kpp > 0.0,
-            k_pos: if g.kpp > 0.0 {
-                q::<PosGain>(g.k_pos_pu_per_count)
-            } else {
-                0.0
-            },
-            velocity_ff: q::<Gain>(cfg.velocity_ff_gain),
-            k_accel_ff: q::<Gain>(g.k_accel_ff),
-            vel_kp: q::<Gain>(g.kp_vel),
-            vel_ki_ts: q::<TickGain>(g.ki_vel / cfg.velocity_rate_hz as f32),
-            cur_kp: q::<Gain>(g.kp_cur),
-            cur_ki_ts: q::<TickGain>(g.ki_cur / cfg.current_rate_hz as f32),
-            velocity_filter: Filter::quantized(&g.velocity_filter),
-            afb_filter,
-            afb_mode: if afb_on {
-                cfg.accel_feedback.mode
-            } else {
-                AfbMode::Off
-            },
-            ka: q::<Gain>(g.ka),
-            ka_closed: if cfg.accel_feedback.source == Estimator::Observer {
-                q::<Gain>(g.ka * gain)
-            } else {
-                0.0
-            },
+            k_pos: b.k_pos.to_num(),
+            velocity_ff: b.velocity_ff.to_num(),
+            k_accel_ff: b.k_accel_ff.to_num(),
+            vel_kp: vel.kp,
+            vel_ki_ts: vel.ki_ts,
+            cur_kp: cur.kp,
+            cur_ki_ts: cur.ki_ts,
+            velocity_filter: b.velocity_filter.linear(),
+            afb_filter: afb.filter,
+            afb_mode: cfg.accel_feedback.mode,
+            ka: afb.ka,
+            ka_closed: afb.ka_closed,
             afb_at_current_rate: cfg.accel_feedback.rate == AfbRate::Current,
             afb_source: cfg.accel_feedback.source,
             velocity_source: cfg.velocity_estimator,
             observer_torque: cfg.observer.torque_input,
-            l: g.observer_l.map(q::<Coef>),
-            k_u: q::<TickGain>(g.observer_k_u),
-            obs_k_vel: q::<TickGain>(g.cur_tick_pu_per_count),
-            obs_k_acc: q::<Gain>(g.cur_tick_pu_s_per_count),
-            diff_vel: (
-                q::<TickGain>(g.vel_tick_pu_per_count),
-                q::<Gain>(g.vel_tick_pu_s_per_count),
-            ),
-            diff_cur: (
-                q::<TickGain>(g.cur_tick_pu_per_count),
-                q::<Gain>(g.cur_tick_pu_s_per_count),
-            ),
-            notch: NotchMirror::of(g)?,
+            l: obs.l,
+            k_u: obs.k_u,
+            obs_k_vel: obs.k_vel,
+            obs_k_acc: obs.k_acc,
+            diff_vel: diff(b.diff_velocity_rate),
+            diff_cur: diff(b.diff_current_rate),
+            notch: b.notch.map(|n| n.linear()),
         })
     }
 
@@ -240,7 +146,8 @@ pub struct State {
     pub diff_current: [f64; 2],
     /// Held velocity PI output, AFB term, last torque reference, last current sample \[pu\].
     pub held: [f64; 4],
-    /// The torque-reference notch's two states (last in the layout; [`NotchMirror`]).
+    /// The torque-reference notch's two states (last in the layout;
+    /// [`NotchDesign::transposed_step`]).
     pub notch: [f64; 2],
 }
 
@@ -457,7 +364,7 @@ impl Coefficients {
         // AFB's closed form above solved for the sum, the observer sees the notched torque.
         let i_sum = s.held[0] + s.held[1];
         let i_ref = match &self.notch {
-            Some(n) => n.step(&mut s.notch, i_sum),
+            Some(n) => n.transposed_step(&mut s.notch, i_sum),
             None => i_sum,
         };
         s.held[2] = i_ref;
@@ -475,4 +382,172 @@ impl Coefficients {
 #[must_use]
 pub fn setpoint_counts(counts: f64) -> f64 {
     Counts::saturating_from_num(counts).to_num()
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+    use super::Coefficients;
+    use controller_core::filter::{LowPassDesign, LowPassLinear};
+    use controller_core::notch::{Notch, NotchConfig};
+    use controller_core::per_unit::{Coef, Gain, PosGain, TickGain};
+    use controller_core::{
+        AfbMode, AfbRate, ConfigError, DriveConfig, Estimator, FilterConfig, Gains, design,
+    };
+    use fixed::traits::Fixed;
+
+    /// The shipped machines' drives (`configs/machines/*.toml`), by file name.
+    fn shipped() -> Vec<(String, DriveConfig)> {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/machines");
+        let mut out: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .map(|p| {
+                let drive = machine_file::load(&p).unwrap().drive;
+                (p.file_name().unwrap().to_string_lossy().into_owned(), drive)
+            })
+            .collect();
+        out.sort_by(|a, b| a.0.cmp(&b.0));
+        out
+    }
+
+    /// Each shipped drive, and variants of it that take every other path of the mirror:
+    /// the AFB from differentiation at the velocity rate, the error form with biquads, AFB
+    /// off, no position loop, and a notch.
+    fn drives() -> Vec<(String, DriveConfig, Gains)> {
+        let mut out = Vec::new();
+        for (name, d) in shipped() {
+            let mut diff = d;
+            diff.accel_feedback.source = Estimator::Differentiation;
+            diff.velocity_estimator = Estimator::Differentiation;
+            diff.accel_feedback.rate = AfbRate::Velocity;
+            let mut biquads = d;
+            biquads.accel_feedback.mode = AfbMode::Error;
+            biquads.accel_feedback.filter = FilterConfig::SecondOrder {
+                corner_hz: 150.0,
+                q: 0.8,
+            };
+            biquads.velocity_filter = FilterConfig::SecondOrder {
+                corner_hz: 300.0,
+                q: 0.7,
+            };
+            let mut off = d;
+            off.accel_feedback.mode = AfbMode::Off;
+            let mut speed = d;
+            speed.position_bandwidth_rad_s = 0.0;
+            let mut notched = d;
+            notched.notch = Some(NotchConfig {
+                centre_hz: 180.0,
+                width_hz: 50.0,
+                depth_db: 25.0,
+            });
+            for (what, cfg) in [
+                ("", d),
+                (" (differentiation)", diff),
+                (" (error form, biquads)", biquads),
+                (" (AFB off)", off),
+                (" (speed mode)", speed),
+                (" (notch)", notched),
+            ] {
+                let g = design(&cfg).unwrap_or_else(|e| panic!("{name}{what}: {e}"));
+                out.push((format!("{name}{what}"), cfg, g));
+            }
+        }
+        out
+    }
+
+    /// f32 → the Q-format `T` (round to nearest, as the controller's quantizer) → f64.
+    fn q<T: Fixed>(v: f32) -> f64 {
+        T::saturating_from_num(v).to_num::<f64>()
+    }
+
+    /// The mirror's coefficients as it derived them before it read the blocks' linear
+    /// forms: each quantized again here from the gains.
+    fn old_derivation(cfg: &DriveConfig, g: &Gains) -> Result<Coefficients, ConfigError> {
+        let filter = |d: &LowPassDesign| match *d {
+            LowPassDesign::None => LowPassLinear::None,
+            LowPassDesign::FirstOrder { alpha } => LowPassLinear::FirstOrder {
+                alpha: q::<Coef>(alpha),
+            },
+            LowPassDesign::SecondOrder { b0, a1, a2 } => LowPassLinear::SecondOrder {
+                b0: q::<Coef>(b0),
+                a1: q::<Coef>(a1),
+                a2: q::<Coef>(a2),
+            },
+        };
+        let afb_filter = filter(&g.afb_filter);
+        let b0 = match afb_filter {
+            LowPassLinear::None => 1.0,
+            LowPassLinear::FirstOrder { alpha } => alpha,
+            LowPassLinear::SecondOrder { b0, .. } => b0,
+        };
+        let gain = 1.0 / (1.0 + b0 as f32 * g.ka / g.observer_inertia_s);
+        let afb_on = cfg.accel_feedback.mode != AfbMode::Off;
+        let notch_param = "notch coefficients (notch.centre_hz, notch.width_hz, notch.depth_db)";
+        Ok(Coefficients {
+            ticks_per_velocity: g.ticks_per_velocity.max(1) as usize,
+            position_loop: g.kpp > 0.0,
+            k_pos: if g.kpp > 0.0 {
+                q::<PosGain>(g.k_pos_pu_per_count)
+            } else {
+                0.0
+            },
+            velocity_ff: q::<Gain>(cfg.velocity_ff_gain),
+            k_accel_ff: q::<Gain>(g.k_accel_ff),
+            vel_kp: q::<Gain>(g.kp_vel),
+            vel_ki_ts: q::<TickGain>(g.ki_vel / cfg.velocity_rate_hz as f32),
+            cur_kp: q::<Gain>(g.kp_cur),
+            cur_ki_ts: q::<TickGain>(g.ki_cur / cfg.current_rate_hz as f32),
+            velocity_filter: filter(&g.velocity_filter),
+            afb_filter,
+            afb_mode: if afb_on {
+                cfg.accel_feedback.mode
+            } else {
+                AfbMode::Off
+            },
+            ka: q::<Gain>(g.ka),
+            ka_closed: if cfg.accel_feedback.source == Estimator::Observer {
+                q::<Gain>(g.ka * gain)
+            } else {
+                0.0
+            },
+            afb_at_current_rate: cfg.accel_feedback.rate == AfbRate::Current,
+            afb_source: cfg.accel_feedback.source,
+            velocity_source: cfg.velocity_estimator,
+            observer_torque: cfg.observer.torque_input,
+            l: g.observer_l.map(q::<Coef>),
+            k_u: q::<TickGain>(g.observer_k_u),
+            obs_k_vel: q::<TickGain>(g.cur_tick_pu_per_count),
+            obs_k_acc: q::<Gain>(g.cur_tick_pu_s_per_count),
+            diff_vel: (
+                q::<TickGain>(g.vel_tick_pu_per_count),
+                q::<Gain>(g.vel_tick_pu_s_per_count),
+            ),
+            diff_cur: (
+                q::<TickGain>(g.cur_tick_pu_per_count),
+                q::<Gain>(g.cur_tick_pu_s_per_count),
+            ),
+            notch: g
+                .notch
+                .as_ref()
+                .map(|d| Notch::quantize(d, notch_param).map(|n| n.linear()))
+                .transpose()?,
+        })
+    }
+
+    /// The blocks' linear forms are the coefficients the mirror derived for itself before,
+    /// bit for bit (their shortest round-trip decimals, so −0 and 0 differ too), on every
+    /// shipped machine and its variants.
+    #[test]
+    fn the_blocks_linear_forms_are_the_old_derivation_bit_for_bit() {
+        let all = drives();
+        assert!(all.len() >= 6 * 3, "{} drives", all.len());
+        for (name, cfg, g) in all {
+            let new = Coefficients::new(&cfg, &g).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let old = old_derivation(&cfg, &g).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(format!("{new:?}"), format!("{old:?}"), "{name}");
+            assert_eq!(new, old, "{name}");
+        }
+    }
 }

@@ -6,7 +6,7 @@
 pub mod analyze;
 pub mod check;
 
-pub use loop_model::{hessenberg, margins, mirror, model, notch};
+pub use loop_model::{hessenberg, margins, mirror, model};
 pub use loop_model::{margins_of, Break, Coefficients, LoopModel, Margins};
 
 use controller_core::Gains;
@@ -23,7 +23,7 @@ pub fn for_run(cfg: &RunConfig, gears: Gears) -> Result<LoopModel> {
 
 /// The model of a run whose controller runs with `gains` (designed once by the caller,
 /// [`sim_engine::engine::runner::regulator_gains`] of `cfg`), with the gears `gears`. Fails
-/// only where the controller would refuse the gains (a notch that does not quantize).
+/// where the controller refuses the gains (`controller_core::Controller::from_gains`).
 pub fn for_gains(cfg: &RunConfig, gains: &Gains, gears: Gears) -> Result<LoopModel> {
     let coef =
         Coefficients::new(&cfg.drive, gains).map_err(sim_engine::engine::runner::drive_error)?;
