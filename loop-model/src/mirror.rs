@@ -388,13 +388,12 @@ pub fn setpoint_counts(counts: f64) -> f64 {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
     use super::Coefficients;
-    use controller_core::filter::{LowPassDesign, LowPassLinear};
-    use controller_core::notch::{Notch, NotchConfig};
-    use controller_core::per_unit::{Coef, Gain, PosGain, TickGain};
+    use controller_core::filter::{LowPass, LowPassLinear};
+    use controller_core::notch::NotchConfig;
+    use controller_core::per_unit::Coef;
     use controller_core::{
-        AfbMode, AfbRate, ConfigError, DriveConfig, Estimator, FilterConfig, Gains, design,
+        AfbMode, AfbRate, Controller, DriveConfig, Estimator, FilterConfig, Gains, design,
     };
-    use fixed::traits::Fixed;
 
     /// The shipped machines' drives (`configs/machines/*.toml`), by file name.
     fn shipped() -> Vec<(String, DriveConfig)> {
@@ -457,97 +456,79 @@ mod tests {
         out
     }
 
-    /// f32 → the Q-format `T` (round to nearest, as the controller's quantizer) → f64.
-    fn q<T: Fixed>(v: f32) -> f64 {
-        T::saturating_from_num(v).to_num::<f64>()
+    /// `v` is the fixed-point value `raw` with `frac` fractional bits, exactly.
+    fn is_bits(v: f64, raw: i32, frac: i32) -> bool {
+        v * 2f64.powi(frac) == f64::from(raw)
     }
 
-    /// The mirror's coefficients as it derived them before it read the blocks' linear
-    /// forms: each quantized again here from the gains.
-    fn old_derivation(cfg: &DriveConfig, g: &Gains) -> Result<Coefficients, ConfigError> {
-        let filter = |d: &LowPassDesign| match *d {
-            LowPassDesign::None => LowPassLinear::None,
-            LowPassDesign::FirstOrder { alpha } => LowPassLinear::FirstOrder {
-                alpha: q::<Coef>(alpha),
-            },
-            LowPassDesign::SecondOrder { b0, a1, a2 } => LowPassLinear::SecondOrder {
-                b0: q::<Coef>(b0),
-                a1: q::<Coef>(a1),
-                a2: q::<Coef>(a2),
-            },
-        };
-        let afb_filter = filter(&g.afb_filter);
-        let b0 = match afb_filter {
-            LowPassLinear::None => 1.0,
-            LowPassLinear::FirstOrder { alpha } => alpha,
-            LowPassLinear::SecondOrder { b0, .. } => b0,
-        };
-        let gain = 1.0 / (1.0 + b0 as f32 * g.ka / g.observer_inertia_s);
-        let afb_on = cfg.accel_feedback.mode != AfbMode::Off;
-        let notch_param = "notch coefficients (notch.centre_hz, notch.width_hz, notch.depth_db)";
-        Ok(Coefficients {
-            ticks_per_velocity: g.ticks_per_velocity.max(1) as usize,
-            position_loop: g.kpp > 0.0,
-            k_pos: if g.kpp > 0.0 {
-                q::<PosGain>(g.k_pos_pu_per_count)
-            } else {
-                0.0
-            },
-            velocity_ff: q::<Gain>(cfg.velocity_ff_gain),
-            k_accel_ff: q::<Gain>(g.k_accel_ff),
-            vel_kp: q::<Gain>(g.kp_vel),
-            vel_ki_ts: q::<TickGain>(g.ki_vel / cfg.velocity_rate_hz as f32),
-            cur_kp: q::<Gain>(g.kp_cur),
-            cur_ki_ts: q::<TickGain>(g.ki_cur / cfg.current_rate_hz as f32),
-            velocity_filter: filter(&g.velocity_filter),
-            afb_filter,
-            afb_mode: if afb_on {
-                cfg.accel_feedback.mode
-            } else {
-                AfbMode::Off
-            },
-            ka: q::<Gain>(g.ka),
-            ka_closed: if cfg.accel_feedback.source == Estimator::Observer {
-                q::<Gain>(g.ka * gain)
-            } else {
-                0.0
-            },
-            afb_at_current_rate: cfg.accel_feedback.rate == AfbRate::Current,
-            afb_source: cfg.accel_feedback.source,
-            velocity_source: cfg.velocity_estimator,
-            observer_torque: cfg.observer.torque_input,
-            l: g.observer_l.map(q::<Coef>),
-            k_u: q::<TickGain>(g.observer_k_u),
-            obs_k_vel: q::<TickGain>(g.cur_tick_pu_per_count),
-            obs_k_acc: q::<Gain>(g.cur_tick_pu_s_per_count),
-            diff_vel: (
-                q::<TickGain>(g.vel_tick_pu_per_count),
-                q::<Gain>(g.vel_tick_pu_s_per_count),
-            ),
-            diff_cur: (
-                q::<TickGain>(g.cur_tick_pu_per_count),
-                q::<Gain>(g.cur_tick_pu_s_per_count),
-            ),
-            notch: g
-                .notch
-                .as_ref()
-                .map(|d| Notch::quantize(d, notch_param).map(|n| n.linear()))
-                .transpose()?,
-        })
+    /// A filter's linear form holds its Q2.30 bits.
+    fn filter_is_bits(lin: LowPassLinear, f: LowPass) -> bool {
+        let c = |v: f64, c: Coef| is_bits(v, c.to_bits(), 30);
+        match (lin, f) {
+            (LowPassLinear::None, LowPass::None) => true,
+            (LowPassLinear::FirstOrder { alpha }, LowPass::FirstOrder { alpha: a }) => c(alpha, a),
+            (
+                LowPassLinear::SecondOrder { b0, a1, a2 },
+                LowPass::SecondOrder {
+                    b0: q0,
+                    a1: q1,
+                    a2: q2,
+                },
+            ) => c(b0, q0) && c(a1, q1) && c(a2, q2),
+            _ => false,
+        }
     }
 
-    /// The blocks' linear forms are the coefficients the mirror derived for itself before,
-    /// bit for bit (their shortest round-trip decimals, so −0 and 0 differ too), on every
-    /// shipped machine and its variants.
+    /// Every coefficient of the mirror is the fixed-point value of the block the controller
+    /// runs, bit for bit (the value times 2^frac is the stored raw word), on every shipped
+    /// machine and its variants; the notch's are whole Q2.30 words of its linear form.
     #[test]
-    fn the_blocks_linear_forms_are_the_old_derivation_bit_for_bit() {
+    fn the_mirror_holds_the_blocks_fixed_point_bits() {
         let all = drives();
         assert!(all.len() >= 6 * 3, "{} drives", all.len());
         for (name, cfg, g) in all {
-            let new = Coefficients::new(&cfg, &g).unwrap_or_else(|e| panic!("{name}: {e}"));
-            let old = old_derivation(&cfg, &g).unwrap_or_else(|e| panic!("{name}: {e}"));
-            assert_eq!(format!("{new:?}"), format!("{old:?}"), "{name}");
-            assert_eq!(new, old, "{name}");
+            let m = Coefficients::new(&cfg, &g).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let b = Controller::from_gains(&g).unwrap().blocks();
+            let (o, afb) = (&b.observer, &b.accel_feedback);
+            let (v, c) = (&b.velocity_regulator, &b.current_regulator);
+            let (dv, dc) = (&b.diff_velocity_rate, &b.diff_current_rate);
+            let words = [
+                ("k_pos", m.k_pos, b.k_pos.to_bits(), 31),
+                ("velocity_ff", m.velocity_ff, b.velocity_ff.to_bits(), 16),
+                ("k_accel_ff", m.k_accel_ff, b.k_accel_ff.to_bits(), 16),
+                ("vel_kp", m.vel_kp, v.kp.to_bits(), 16),
+                ("vel_ki_ts", m.vel_ki_ts, v.ki_ts.to_bits(), 24),
+                ("cur_kp", m.cur_kp, c.kp.to_bits(), 16),
+                ("cur_ki_ts", m.cur_ki_ts, c.ki_ts.to_bits(), 24),
+                ("ka", m.ka, afb.ka.to_bits(), 16),
+                ("ka_closed", m.ka_closed, afb.ka_closed.to_bits(), 16),
+                ("l1", m.l[0], o.l1.to_bits(), 30),
+                ("l2", m.l[1], o.l2.to_bits(), 30),
+                ("l3", m.l[2], o.l3.to_bits(), 30),
+                ("k_u", m.k_u, o.k_u.to_bits(), 24),
+                ("obs_k_vel", m.obs_k_vel, o.k_vel.to_bits(), 24),
+                ("obs_k_acc", m.obs_k_acc, o.k_acc.to_bits(), 16),
+                ("diff_vel.0", m.diff_vel.0, dv.k_vel.to_bits(), 24),
+                ("diff_vel.1", m.diff_vel.1, dv.k_acc.to_bits(), 16),
+                ("diff_cur.0", m.diff_cur.0, dc.k_vel.to_bits(), 24),
+                ("diff_cur.1", m.diff_cur.1, dc.k_acc.to_bits(), 16),
+            ];
+            for (what, value, raw, frac) in words {
+                assert!(is_bits(value, raw, frac), "{name}: {what} {value} vs {raw}");
+            }
+            assert!(
+                filter_is_bits(m.velocity_filter, b.velocity_filter),
+                "{name}"
+            );
+            assert!(filter_is_bits(m.afb_filter, afb.filter), "{name}");
+            assert_eq!(m.notch, b.notch.map(|n| n.linear()), "{name}");
+            assert_eq!(m.notch.is_some(), cfg.notch.is_some(), "{name}");
+            if let Some(n) = m.notch {
+                for x in [n.b0, n.b1, n.b2, n.a2] {
+                    let w = x * 2f64.powi(30);
+                    assert!(w.fract() == 0.0 && w.abs() <= 2f64.powi(31), "{name}: {x}");
+                }
+            }
         }
     }
 }
