@@ -77,7 +77,9 @@ pub struct VelocityOutputs {
     pub fault: Option<Fault>,
 }
 
-/// The quantized blocks of a [`Controller`] ([`Controller::blocks`]).
+/// The quantized blocks of a [`super::Controller`] ([`super::Controller::blocks`]): each
+/// block gives its linear form (`linear()`: its coefficients as f64), each plain gain its
+/// value (`to_num`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blocks {
     /// The state observer (current rate).
