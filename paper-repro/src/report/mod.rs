@@ -7,7 +7,8 @@
 //! Each section is a function of typed results ([`section::Section`]), one file per group
 //! of figures: [`fig6`] (Fig. 4, 6, 7), [`sec2`] (Sec. II), [`load`] (Fig. 9-13),
 //! [`sweep`] and [`tune`] (Sec. III-D), [`stiffness`] (Fig. 2, Eq. 1), [`runs`] (gains, all runs, speed);
-//! [`figures`] draws the comparison plots; [`pil`] the processor-in-the-loop section.
+//! [`figures`] draws the comparison plots; [`pmsm`] the fig6, shock and stiffness pairs on
+//! a PMSM beside the DC model; [`pil`] the processor-in-the-loop section.
 
 pub mod claims;
 pub mod count_interval;
@@ -16,6 +17,7 @@ pub mod fig6;
 pub mod figures;
 pub mod load;
 pub mod pil;
+pub mod pmsm;
 pub mod runs;
 pub mod saturation;
 pub mod sec2;
@@ -93,6 +95,10 @@ pub const STIFFNESS_HIGH_MIN: f64 = 1.2;
 pub const SWEEP_RATIO_MIN: f64 = 2.0;
 /// ... and the limit without AFB is of the paper's order (rad/s).
 pub const SWEEP_NO_AFB_MAX_RAD_S: f64 = 60.0;
+/// The paper on a PMSM: the PMSM's shaft-ripple ratio with AFB / without, on `fig6` and on
+/// `shock`, is within this fraction of the DC model's ratio on the same scenario
+/// (|PMSM / DC − 1| at most this), at the scenario's timing.
+pub const PMSM_RATIO_TOLERANCE: f64 = 0.15;
 
 /// Sec. III-D with `tune`: each of [`MACHINES`] is tuned at the highest bandwidth that meets
 /// the constraints (`tune --max-bandwidth`), the question of the sweep section: the
@@ -131,6 +137,7 @@ struct Results {
     stiffness: Vec<machine_workflows::stiffness::StiffnessPoint>,
     sec2: Vec<crate::sec2::MapPoint>,
     tunes: Vec<MachineTune>,
+    pmsm: pmsm::Measured,
 }
 
 fn subdir(dir: &Path, name: &str) -> Result<std::path::PathBuf> {
@@ -188,6 +195,7 @@ fn sections(r: &Results, elapsed_s: f64) -> Result<Vec<Section>> {
         sweep::section(&r.sweep_points, &r.sweep)?,
         tune::section(&r.tunes, &Constraints::default())?,
         stiffness::section(&r.stiffness)?,
+        pmsm::section(&r.pmsm)?,
         runs::all_runs(runs)?,
         runs::speed(runs, elapsed_s)?,
     ])
@@ -212,6 +220,7 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
         TUNE_BANDWIDTH,
         &Constraints::default(),
     )?;
+    let pmsm = pmsm::measure(dir)?;
     figures::write_all(&runs, dir)?;
     let tune_text: String = tunes.iter().map(tune::console_line).collect();
     let results = Results {
@@ -221,6 +230,7 @@ pub fn reproduce_into(dir: &Path, pil: &str) -> Result<String> {
         stiffness,
         sec2,
         tunes,
+        pmsm,
     };
     let all = sections(&results, t0.elapsed().as_secs_f64())?;
     let mut report = String::from(PREAMBLE);

@@ -34,15 +34,16 @@ fn run_grid() -> Result<Vec<Vec<(Metrics, Metrics)>>> {
 }
 
 /// What one criterion's ratios over the offsets show.
-struct Spread {
-    at_scenario: f64,
-    median: f64,
-    min: f64,
-    max: f64,
+pub(super) struct Spread {
+    pub(super) at_scenario: f64,
+    pub(super) median: f64,
+    pub(super) min: f64,
+    pub(super) max: f64,
 }
 
 impl Spread {
-    fn of(mut ratios: Vec<f64>, at_scenario: f64) -> Self {
+    /// The spread of `ratios`, one of which is `at_scenario`.
+    pub(super) fn of(mut ratios: Vec<f64>, at_scenario: f64) -> Self {
         ratios.sort_by(f64::total_cmp);
         let pick = |i: usize| ratios.get(i).copied().unwrap_or(f64::NAN);
         Self {

@@ -7,23 +7,23 @@ use sim_engine::error::Result;
 
 /// Stiffness ratios (with AFB / without) at each frequency; `None` where the AFB run was
 /// unstable.
-type Ratios = Vec<(f64, Option<f64>)>;
+pub(super) type Ratios = Vec<(f64, Option<f64>)>;
 
 /// What the stiffness measurement shows, against the criteria.
-struct Findings {
-    low: Ratios,
-    high: Ratios,
-    observer: Ratios,
+pub(super) struct Findings {
+    pub(super) low: Ratios,
+    pub(super) high: Ratios,
+    pub(super) observer: Ratios,
     differentiation: Ratios,
-    model_dev: Vec<(f64, f64)>,
-    eq1_err: f64,
+    pub(super) model_dev: Vec<(f64, f64)>,
+    pub(super) eq1_err: f64,
     est_ratios: Vec<String>,
-    ok_model: bool,
-    ok_low: bool,
-    ok_high: bool,
+    pub(super) ok_model: bool,
+    pub(super) ok_low: bool,
+    pub(super) ok_high: bool,
 }
 
-fn findings(stiff: &[StiffnessPoint], bw: f64, w_obs: f64) -> Findings {
+pub(super) fn findings(stiff: &[StiffnessPoint], bw: f64, w_obs: f64) -> Findings {
     let ratio_at = |source: &str, w: f64| -> Option<f64> {
         let a = stiff
             .iter()
@@ -91,7 +91,18 @@ fn findings(stiff: &[StiffnessPoint], bw: f64, w_obs: f64) -> Findings {
     }
 }
 
-fn list(v: &[(f64, Option<f64>)]) -> String {
+impl Findings {
+    /// (a) and (b): agrees; (b) alone: partly agrees; else does not agree.
+    pub(super) fn verdict(&self) -> &'static str {
+        match (self.ok_model, self.ok_low && self.ok_high) {
+            (true, true) => "**agrees**",
+            (false, true) => "**partly agrees**",
+            _ => "**does not agree**",
+        }
+    }
+}
+
+pub(super) fn list(v: &[(f64, Option<f64>)]) -> String {
     v.iter()
         .map(|(w, r)| match r {
             Some(x) => format!("{x:.2} at {w} rad/s"),
@@ -101,7 +112,7 @@ fn list(v: &[(f64, Option<f64>)]) -> String {
         .join(", ")
 }
 
-fn holds(ok: bool) -> &'static str {
+pub(super) fn holds(ok: bool) -> &'static str {
     if ok {
         "holds"
     } else {
@@ -118,11 +129,7 @@ pub fn section(stiff: &[StiffnessPoint]) -> Result<Section> {
     let bw = f64::from(cfg.drive.velocity_bandwidth_rad_s);
     let w_obs = std::f64::consts::TAU * f64::from(cfg.drive.observer.bandwidth_hz);
     let f = findings(stiff, bw, w_obs);
-    let verdict = match (f.ok_model, f.ok_low && f.ok_high) {
-        (true, true) => "**agrees**",
-        (false, true) => "**partly agrees**",
-        _ => "**does not agree**",
-    };
+    let verdict = f.verdict();
     let g0 = sim_engine::engine::runner::regulator_gains(&cfg)?;
     let afb = &cfg.drive.accel_feedback;
     let model_dev = f

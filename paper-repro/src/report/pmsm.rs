@@ -1,0 +1,546 @@
+//! The paper on a PMSM: the `fig6` and `shock` pairs (with AFB, and without it at the AFB
+//! run's gains) and the stiffness measurement on `configs/machines/table1-pmsm.toml` (Table
+//! 1's mechanics on a three-phase permanent-magnet motor under field-oriented control),
+//! beside the same on the DC `table1.toml`, read by the criteria of the DC sections
+//! ([`super::fig6`], [`super::load`], [`super::stiffness`]) and one more, fixed before the
+//! runs ([`PMSM_RATIO_TOLERANCE`]): the PMSM's shaft-ripple ratio with AFB / without is
+//! within 15 % of the DC model's on the same scenario. Each pair also runs with its load step
+//! moved over commission's offsets ([`OFFSETS_S`]), so that the ratio's spread over the
+//! step's timing stands beside the difference between the motors.
+
+use super::fig6::fig6_failures;
+use super::load::shock_calmer;
+use super::section::{pct, verdict, Section};
+use super::step_timing::{Spread, OFFSETS_S};
+use super::stiffness::{findings, holds, list, Findings};
+use super::{PMSM_RATIO_TOLERANCE, SLIGHT_OVERSHOOT_PU};
+use machine_workflows::commission::shifted;
+use machine_workflows::stiffness::machine::{machine_base, measure_machine};
+use rayon::prelude::*;
+use sim_engine::config::{resolve, RunConfig};
+use sim_engine::engine::metrics::Metrics;
+use sim_engine::engine::runner::{regulator_gains, run_scenario, same_regulator_gains};
+use sim_engine::error::{HarnessError, Result};
+use sim_engine::run::{fmt_opt, write_run};
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// The DC machine file and the PMSM one (names under `configs/machines/`).
+pub const MACHINES: [&str; 2] = ["table1", "table1-pmsm"];
+
+/// Which DC section's criterion a pair is read by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Criterion {
+    /// Fig. 6/7's ([`super::fig6`]): stable, slight overshoot, no more shaft ripple with AFB.
+    Fig6,
+    /// Fig. 11/12's ([`super::load`]): less shaft ripple with AFB.
+    Shock,
+}
+
+/// The pairs: the AFB scenario (its run without AFB at its gains is `<scenario>-no-afb`)
+/// and its criterion.
+pub const PAIRS: [(&str, Criterion); 2] = [("fig6", Criterion::Fig6), ("shock", Criterion::Shock)];
+
+/// Where the pairs' runs at the scenario's own timing are written, under the report's
+/// directory: `<this>/<machine>/<scenario>/`.
+pub const RUN_DIR: &str = "on-pmsm";
+
+/// Shaft-torque ripple with AFB / without.
+fn ratio((a, b): &(Metrics, Metrics)) -> f64 {
+    a.shaft_torque_ripple_rms_pu / b.shaft_torque_ripple_rms_pu.max(1e-12)
+}
+
+/// Whether the PMSM's ratio is within [`PMSM_RATIO_TOLERANCE`] of the DC model's (false for
+/// a NaN).
+pub fn within_tolerance(pmsm: f64, dc: f64) -> bool {
+    (pmsm / dc - 1.0).abs() <= PMSM_RATIO_TOLERANCE
+}
+
+/// One pair on one machine file, at each offset of [`OFFSETS_S`].
+pub struct PairRuns {
+    /// The AFB scenario.
+    pub scenario: &'static str,
+    /// Its criterion.
+    pub criterion: Criterion,
+    /// The machine file.
+    pub machine: &'static str,
+    /// (with AFB, without) at each offset.
+    pub by_offset: Vec<(Metrics, Metrics)>,
+    /// Whether the run without AFB has the AFB run's regulator gains, bit for bit.
+    pub same_gains: bool,
+}
+
+impl PairRuns {
+    fn at_scenario(&self) -> Option<&(Metrics, Metrics)> {
+        let zero = OFFSETS_S.iter().position(|&d| d == 0.0)?;
+        self.by_offset.get(zero)
+    }
+
+    /// The ratio at the scenario's own timing.
+    pub fn ratio(&self) -> f64 {
+        self.at_scenario().map_or(f64::NAN, ratio)
+    }
+
+    fn spread(&self) -> Spread {
+        Spread::of(self.by_offset.iter().map(ratio).collect(), self.ratio())
+    }
+
+    /// What fails of the DC section's criterion at the scenario's timing (empty: agrees).
+    pub fn failures(&self) -> Vec<&'static str> {
+        let Some((a, b)) = self.at_scenario() else {
+            return vec!["did not run"];
+        };
+        match self.criterion {
+            Criterion::Fig6 => fig6_failures(a, b),
+            Criterion::Shock if shock_calmer(a, b) => Vec::new(),
+            Criterion::Shock => vec!["no less shaft-torque ripple with AFB than without"],
+        }
+    }
+}
+
+/// The stiffness measurement on one machine file.
+pub struct MachineStiffness {
+    /// The machine file.
+    pub machine: &'static str,
+    /// Its findings by the DC section's criteria.
+    findings: Findings,
+    /// Its velocity bandwidth and observer bandwidth \[rad/s\].
+    bands: (f64, f64),
+}
+
+/// What the section reads.
+pub struct Measured {
+    /// Per pair, per machine (in [`PAIRS`] then [`MACHINES`] order).
+    pub pairs: Vec<PairRuns>,
+    /// Per machine.
+    pub stiffness: Vec<MachineStiffness>,
+    /// `fig6` on each machine, for the motor values.
+    configs: Vec<RunConfig>,
+    /// The stiffness scenario's `set` table, applied on each machine.
+    stiffness_sets: Vec<String>,
+    /// Wall time of the section's runs \[s\].
+    pub wall_s: f64,
+}
+
+/// A pair's AFB and no-AFB configurations on a machine.
+type Base = (&'static str, Criterion, &'static str, RunConfig, RunConfig);
+
+/// Every pair on every machine at every offset, in parallel; the runs at the scenario's own
+/// timing are written to `dir/RUN_DIR/<machine>/<scenario>`.
+fn run_pairs(dir: &Path) -> Result<Vec<PairRuns>> {
+    let mut bases: Vec<Base> = Vec::new();
+    for (scenario, criterion) in PAIRS {
+        for machine in MACHINES {
+            let afb = resolve(scenario, Some(machine), &[])?;
+            let off = resolve(&format!("{scenario}-no-afb"), Some(machine), &[])?;
+            bases.push((scenario, criterion, machine, afb, off));
+        }
+    }
+    let jobs: Vec<(usize, f64, bool)> = (0..bases.len())
+        .flat_map(|i| {
+            OFFSETS_S
+                .iter()
+                .flat_map(move |&dt| [(i, dt, true), (i, dt, false)])
+        })
+        .collect();
+    let pb = sim_engine::progress::bar(jobs.len() as u64, "on a PMSM");
+    let outs: Vec<Metrics> = jobs
+        .par_iter()
+        .map(|&(i, dt, with)| {
+            let (scenario, _, machine, afb, off) = bases
+                .get(i)
+                .ok_or_else(|| HarnessError::Backend("pair index".to_string()))?;
+            let cfg = shifted(if with { afb } else { off }.clone(), dt);
+            let out = run_scenario(&cfg)?;
+            pb.inc(1);
+            if dt == 0.0 {
+                let name = if with {
+                    scenario.to_string()
+                } else {
+                    format!("{scenario}-no-afb")
+                };
+                write_run(&dir.join(RUN_DIR).join(machine).join(name), &cfg, &out)?;
+            }
+            Ok(out.metrics)
+        })
+        .collect::<Result<_>>()?;
+    pb.finish_and_clear();
+    let mut outs = outs.into_iter();
+    bases
+        .into_iter()
+        .map(|(scenario, criterion, machine, afb, off)| {
+            let by_offset = OFFSETS_S
+                .iter()
+                .map(|_| Some((outs.next()?, outs.next()?)))
+                .collect::<Option<Vec<_>>>()
+                .ok_or_else(|| HarnessError::Backend(format!("{scenario} on {machine}")))?;
+            let same_gains = same_regulator_gains(&regulator_gains(&afb)?, &regulator_gains(&off)?);
+            Ok(PairRuns {
+                scenario,
+                criterion,
+                machine,
+                by_offset,
+                same_gains,
+            })
+        })
+        .collect()
+}
+
+/// The stiffness scenario's `set` table as `--set` assignments: the DC section's
+/// experiment (Fig. 2's gains, a stiff coupling) on another machine file.
+fn stiffness_sets() -> Result<Vec<String>> {
+    let cfg = resolve("stiffness", None, &[])?;
+    Ok(cfg
+        .scenario
+        .set
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect())
+}
+
+/// The stiffness measurement on each machine, with the stiffness scenario's `set` table.
+fn run_stiffness(sets: &[String]) -> Result<Vec<MachineStiffness>> {
+    MACHINES
+        .iter()
+        .map(|&machine| {
+            let (base, _) = machine_base(machine, sets)?;
+            let bw = f64::from(base.drive.velocity_bandwidth_rad_s);
+            let w_obs = std::f64::consts::TAU * f64::from(base.drive.observer.bandwidth_hz);
+            let points = measure_machine(machine, sets)?;
+            Ok(MachineStiffness {
+                machine,
+                findings: findings(&points, bw, w_obs),
+                bands: (bw, w_obs),
+            })
+        })
+        .collect()
+}
+
+/// Runs the section's experiments, writing the pairs' runs under `dir`.
+pub fn measure(dir: &Path) -> Result<Measured> {
+    let t0 = Instant::now();
+    let stiffness_sets = stiffness_sets()?;
+    let (pairs, stiffness) = rayon::join(|| run_pairs(dir), || run_stiffness(&stiffness_sets));
+    let configs = MACHINES
+        .iter()
+        .map(|m| resolve("fig6", Some(m), &[]))
+        .collect::<Result<_>>()?;
+    Ok(Measured {
+        pairs: pairs?,
+        stiffness: stiffness?,
+        configs,
+        stiffness_sets,
+        wall_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// The PMSM's motor values, from the machine file, and why they are what they are.
+fn motor_text(m: &Measured) -> String {
+    let (Some(dc), Some(pm)) = (m.configs.first(), m.configs.get(1)) else {
+        return String::new();
+    };
+    let e = &pm.plant.electrics;
+    let opt = |x: Option<f64>| x.map_or_else(|| "unset".to_string(), |v| format!("{v}"));
+    let bus = e.dc_bus_pu.unwrap_or(f64::NAN);
+    let drive = pm.drive.pmsm.as_ref();
+    format!(
+        "`configs/machines/table1-pmsm.toml` is `table1.toml` (Table 1's mechanics, encoder, \
+         loop rates and bandwidths) with a three-phase PMSM under field-oriented control: {} \
+         pole pairs, phase resistance {} pu, Ld {} and Lq {} pu·s, flux linkage {} pu, DC bus \
+         {} pu (linear limit {:.3} pu), true encoder offset {}° electrical (the drive's \
+         calibrated value {}°), angle advance {} current ticks. Why (the file's comments): R \
+         and L are the DC winding's ({} pu, {} pu·s, L/R = 10 ms) and Ld = Lq is a surface \
+         magnet rotor, for which i_d = 0 is maximum torque per ampere; λ = 1 pu gives 1 pu \
+         torque per pu of q current, as the DC motor's per pu of current; the bus gives the \
+         DC drive's voltage limit ({} pu); the advance is Table 1's 0.18 ms delay plus half a \
+         tick; 4 pole pairs is a common servo motor. So the two drives differ by the current \
+         loop alone.",
+        e.pole_pairs
+            .map_or_else(|| "unset".to_string(), |p| p.to_string()),
+        e.winding_resistance_pu,
+        opt(e.d_inductance_pu_s),
+        opt(e.q_inductance_pu_s),
+        opt(e.flux_linkage_pu),
+        bus,
+        bus / 3f64.sqrt(),
+        opt(e.encoder_offset_elec_deg),
+        drive
+            .and_then(|p| p.encoder_offset_elec_deg)
+            .map_or_else(|| "unset".to_string(), |v| v.to_string()),
+        drive.map_or_else(
+            || "unset".to_string(),
+            |p| p.angle_advance_ticks.to_string()
+        ),
+        dc.plant.electrics.winding_resistance_pu,
+        dc.plant.electrics.winding_inductance_pu_s,
+        dc.drive.voltage_limit_pu,
+    )
+}
+
+/// One line per pair and machine: the DC section's figures and criterion, and the ratio's
+/// spread over the step's timing.
+fn pairs_table(m: &Measured) -> String {
+    let mut t = String::from(
+        "| pair | machine | gains bit-identical | stable with / without | overshoot (pu) | \
+         shaft ripple with / without (pu) | ratio | ratio over the timings: median, range | \
+         DC section's criterion |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for p in &m.pairs {
+        let Some((a, b)) = p.at_scenario() else {
+            continue;
+        };
+        let s = p.spread();
+        let failed = p.failures();
+        let _ = writeln!(
+            t,
+            "| `{}` | {} | {} | {} / {} | {} | {:.4} / {:.4} | {:.3} | {:.3}, {:.3} to {:.3} | \
+             {}{} |",
+            p.scenario,
+            p.machine,
+            if p.same_gains { "yes" } else { "**no**" },
+            a.stable,
+            b.stable,
+            fmt_opt(a.overshoot_pu),
+            a.shaft_torque_ripple_rms_pu,
+            b.shaft_torque_ripple_rms_pu,
+            s.at_scenario,
+            s.median,
+            s.min,
+            s.max,
+            verdict(failed.is_empty()),
+            if failed.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", failed.join(", "))
+            }
+        );
+    }
+    t
+}
+
+/// The pair on the DC machine and on the PMSM.
+fn both<'a>(m: &'a Measured, scenario: &str) -> Option<(&'a PairRuns, &'a PairRuns)> {
+    let on = |machine: &str| {
+        m.pairs
+            .iter()
+            .find(|p| p.scenario == scenario && p.machine == machine)
+    };
+    Some((on(MACHINES.first()?)?, on(MACHINES.get(1)?)?))
+}
+
+/// The PMSM's ratio against the DC model's, per pair: the criterion at the scenario's
+/// timing, then the two spreads over the step's timing and the criterion offset by offset.
+fn ratio_lines(m: &Measured) -> (String, Vec<(&'static str, bool)>) {
+    let mut text = String::new();
+    let mut verdicts = Vec::new();
+    for (scenario, _) in PAIRS {
+        let Some((dc, pm)) = both(m, scenario) else {
+            continue;
+        };
+        let ok = within_tolerance(pm.ratio(), dc.ratio());
+        let (sd, sp) = (dc.spread(), pm.spread());
+        let overlap = sp.min <= sd.max && sd.min <= sp.max;
+        let pointwise = dc
+            .by_offset
+            .iter()
+            .zip(&pm.by_offset)
+            .filter(|(d, p)| within_tolerance(ratio(p), ratio(d)))
+            .count();
+        let _ = writeln!(
+            text,
+            "- `{scenario}`: ratio {:.3} on the PMSM against {:.3} on the DC model, {:+.0} % \
+             ({}). Over the step's {} timings the DC ratio spans {:.3} to {:.3}, the PMSM's \
+             {:.3} to {:.3}: the ranges {}. Timing by timing, the PMSM's ratio is within {} \
+             of the DC model's at {pointwise} of {}.",
+            pm.ratio(),
+            dc.ratio(),
+            100.0 * (pm.ratio() / dc.ratio() - 1.0),
+            verdict(ok),
+            OFFSETS_S.len(),
+            sd.min,
+            sd.max,
+            sp.min,
+            sp.max,
+            if overlap {
+                "overlap, so part of the difference is the step's timing"
+            } else {
+                "do not overlap: the difference exceeds the figure's own spread"
+            },
+            pct(PMSM_RATIO_TOLERANCE),
+            OFFSETS_S.len(),
+        );
+        verdicts.push((scenario, ok));
+    }
+    (text, verdicts)
+}
+
+/// The stiffness ratios per machine and the DC section's criteria on each.
+fn stiffness_text(m: &Measured) -> String {
+    let mut t = format!(
+        "Stiffness: the `stiffness` scenario's sine load with its `set` table ({}) on each \
+         machine file, AFB off at the AFB design's gains, the DC section's criteria.\n\n\
+         | machine | with AFB / without (observer) | (a) within {} of J + Ka·F·G below the \
+         observer bandwidth | (b) low band {}-{} below bw/3 | (b) above {} from 3 bw to the \
+         observer bandwidth | verdict |\n|---|---|---|---|---|---|\n",
+        m.stiffness_sets.join(", "),
+        pct(super::STIFFNESS_MODEL_TOLERANCE),
+        super::STIFFNESS_LOW_BAND.0,
+        super::STIFFNESS_LOW_BAND.1,
+        super::STIFFNESS_HIGH_MIN,
+    );
+    for s in &m.stiffness {
+        let f = &s.findings;
+        let dev = f.model_dev.iter().map(|(_, d)| d.abs()).fold(0.0, f64::max);
+        let _ = writeln!(
+            t,
+            "| {} (bw {} rad/s, observer {:.0} rad/s) | {} | {} (largest {:.0} %) | {} | {} | \
+             {} |",
+            s.machine,
+            s.bands.0,
+            s.bands.1,
+            list(&f.observer),
+            holds(f.ok_model),
+            100.0 * dev,
+            holds(f.ok_low),
+            holds(f.ok_high),
+            f.verdict()
+        );
+    }
+    t
+}
+
+/// The section.
+pub fn section(m: &Measured) -> Result<Section> {
+    let (ratios, verdicts) = ratio_lines(m);
+    let (dc, pm) = both(m, "fig6")
+        .ok_or_else(|| HarnessError::Backend("fig6 did not run on both machines".to_string()))?;
+    let fig6_ok = pm.failures().is_empty();
+    let fig6_ratio = verdicts.iter().any(|(s, ok)| *s == "fig6" && *ok);
+    let measured = format!(
+        "{}\n\n{}\n{ratios}\n{}\nThe section's runs (the pairs at {} timings on both machines, \
+         the stiffness grid on both) took {:.1} s of wall time; the runs at the scenarios' own \
+         timing are in `{RUN_DIR}/`.",
+        motor_text(m),
+        pairs_table(m),
+        stiffness_text(m),
+        OFFSETS_S.len(),
+        m.wall_s
+    );
+    let row_verdict = match (fig6_ok, fig6_ratio) {
+        (true, true) => "**agrees**",
+        (true, false) => "**partly agrees**",
+        _ => "**does not agree**",
+    };
+    Ok(Section::claim(
+        "The paper on a PMSM",
+        &[&format!("{RUN_DIR}/table1-pmsm/fig6/trace.png")],
+        "The claims above are the paper's on its motor model; the same drive on Table 1's \
+         mechanics with a three-phase PMSM should keep them: fig6's slight overshoot and \
+         calmer load step, less ripple after a shock, more stiffness above the velocity \
+         bandwidth.",
+        measured,
+        format!(
+            "each pair by its DC section's criterion (table; fig6: stable, overshoot above 0 \
+             and at most {SLIGHT_OVERSHOOT_PU} pu, no more shaft ripple with AFB; shock: less \
+             shaft ripple with AFB), the stiffness by the Fig. 2 section's, and one criterion \
+             fixed before the runs: the PMSM's shaft-ripple ratio with AFB / without within {} \
+             of the DC model's on the same scenario, at the scenario's timing ({}). The \
+             spreads over the step's timing say how much of a difference is the moment of \
+             the step.",
+            pct(PMSM_RATIO_TOLERANCE),
+            verdicts
+                .iter()
+                .map(|(s, ok)| format!("`{s}` {}", verdict(*ok)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    )
+    .row(
+        "Fig. 6/7 on a PMSM (table1-pmsm): AFB calms the load step as on the DC model",
+        format!(
+            "slight overshoot; calmer load step; shaft-ripple ratio with / without AFB within \
+             {} of the DC model's",
+            pct(PMSM_RATIO_TOLERANCE)
+        ),
+        format!(
+            "DC section's criterion {} on the PMSM; ratio {:.3} on the PMSM, {:.3} on the DC \
+             model ({:+.0} %); over the step's timing {:.3}-{:.3} against {:.3}-{:.3}",
+            if pm.failures().is_empty() {
+                "met"
+            } else {
+                "missed"
+            },
+            pm.ratio(),
+            dc.ratio(),
+            100.0 * (pm.ratio() / dc.ratio() - 1.0),
+            pm.spread().min,
+            pm.spread().max,
+            dc.spread().min,
+            dc.spread().max,
+        ),
+        row_verdict,
+    ))
+}
+
+#[cfg(test)]
+#[allow(clippy::panic)]
+mod tests {
+    use super::*;
+
+    /// The experiments are the DC sections' on the other machine file: each pair's run
+    /// without AFB borrows its AFB run's gains on the same file, the PMSM file runs a PMSM
+    /// drive with the DC file's mechanics and loop, and the stiffness run carries the
+    /// stiffness scenario's `set` table onto both files.
+    #[test]
+    fn the_pairs_and_the_stiffness_run_are_the_dc_sections_on_each_machine() {
+        let ok = |r: Result<RunConfig>| r.unwrap_or_else(|e| panic!("{e}"));
+        for (scenario, _) in PAIRS {
+            let [dc, pm] = MACHINES.map(|m| {
+                let afb = ok(resolve(scenario, Some(m), &[]));
+                let off = ok(resolve(&format!("{scenario}-no-afb"), Some(m), &[]));
+                let g = |c: &RunConfig| regulator_gains(c).unwrap_or_else(|e| panic!("{e}"));
+                assert!(
+                    same_regulator_gains(&g(&afb), &g(&off)),
+                    "{scenario} on {m}"
+                );
+                assert_eq!(off.gains_of.map(|g| g.source), Some(scenario.to_string()));
+                afb
+            });
+            assert!(
+                dc.drive.pmsm.is_none() && pm.drive.pmsm.is_some(),
+                "{scenario}"
+            );
+            assert_eq!(dc.plant.mechanics, pm.plant.mechanics, "{scenario}");
+            assert_eq!(dc.scenario.load, pm.scenario.load, "{scenario}");
+            assert_eq!(
+                dc.drive.velocity_bandwidth_rad_s,
+                pm.drive.velocity_bandwidth_rad_s
+            );
+        }
+        let sets = stiffness_sets().unwrap_or_else(|e| panic!("{e}"));
+        let shipped = ok(resolve("stiffness", None, &[]));
+        for m in MACHINES {
+            let (cfg, _) = machine_base(m, &sets).unwrap_or_else(|e| panic!("{e}"));
+            assert_eq!(
+                cfg.drive.velocity_bandwidth_rad_s, shipped.drive.velocity_bandwidth_rad_s,
+                "{m}"
+            );
+            assert_eq!(cfg.drive.velocity_damping, shipped.drive.velocity_damping);
+            assert_eq!(
+                cfg.plant.mechanics.anti_resonance_hz,
+                shipped.plant.mechanics.anti_resonance_hz
+            );
+        }
+    }
+
+    #[test]
+    fn the_ratio_criterion_is_relative_to_the_dc_model_and_refuses_nan() {
+        assert!(within_tolerance(0.70, 0.62));
+        assert!(!within_tolerance(0.72, 0.62));
+        assert!(within_tolerance(0.54, 0.62));
+        assert!(!within_tolerance(0.52, 0.62));
+        assert!(!within_tolerance(f64::NAN, 0.62));
+        assert!(!within_tolerance(0.62, f64::NAN));
+    }
+}
