@@ -125,7 +125,7 @@ impl Gains {
 
 /// The observer pole θ = e^(−2π·f_o/f_cur) and its correction gains \[l1, l2, l3\] (three
 /// poles at θ).
-fn observer_poles(f_obs: f32, f_cur: f32) -> (f32, [f32; 3]) {
+pub(crate) fn observer_poles(f_obs: f32, f_cur: f32) -> (f32, [f32; 3]) {
     let theta =
         crate::cfgmath::exp(-2.0 * core::f64::consts::PI * f64::from(f_obs) / f64::from(f_cur))
             as f32;

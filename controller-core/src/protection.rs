@@ -97,12 +97,14 @@ impl Protection {
         let oc: Pu = fit(
             f.overcurrent_ratio * cfg.torque_limit_pu,
             of_torque_limit(&r::OVERCURRENT_RATIO, f.overcurrent_ratio),
+            |x| x * cfg.torque_limit_pu,
         )?;
         let ic: Pu = fit_setting(&r::CONTINUOUS_CURRENT_PU, f.continuous_current_pu, q16)?;
         let iol: Pu = fit_setting(&r::OVERLOAD_CURRENT_PU, f.overload_current_pu, q16)?;
         let stall_torque: Pu = fit(
             f.stall_torque_fraction * cfg.torque_limit_pu,
             of_torque_limit(&r::STALL_TORQUE_FRACTION, f.stall_torque_fraction),
+            |x| x * cfg.torque_limit_pu,
         )?;
         let stall: Pu = fit_setting(
             &r::STALL_SPEED_PU,

@@ -3,8 +3,12 @@
 
 use crate::config::{AfbRate, DriveConfig, FilterConfig, NotchConfig};
 use crate::error::ConfigError;
-use crate::per_unit::{counts_per_pu_s, quantize};
+use crate::per_unit::{Gain, TickGain, checked_q, counts_per_pu_s, quantize};
 use crate::ranges::{self, Range};
+
+mod scales;
+pub(crate) use scales::{Scales, fit, fit_setting, smallest_fitting, velocity_pi_gains};
+use scales::{largest_fitting, largest_whole, smallest_whole, velocity_loop_inertia};
 
 /// `v` if below the (exclusive) Nyquist limit `nyquist` of its loop.
 pub(crate) fn below_nyquist(v: f32, param: &'static str, nyquist: f32) -> Result<f32, ConfigError> {
@@ -218,18 +222,11 @@ impl DriveConfig {
     /// `encoder_cpr` against the range the other settings leave it
     /// ([`encoder_cpr_range`]).
     fn validate_encoder_cpr(&self) -> Result<(), ConfigError> {
-        let (min, max, given) = encoder_cpr_range(self);
+        let (min, max, _) = encoder_cpr_range(self);
         if (min..=max).contains(&self.encoder_cpr) {
             return Ok(());
         }
-        Err(ConfigError::OutOfRangeGiven {
-            param: ranges::ENCODER_CPR.key,
-            value: self.encoder_cpr as f32,
-            min: min as f32,
-            max: max as f32,
-            min_exclusive: false,
-            given,
-        })
+        Err(encoder_cpr_error(self))
     }
 
     /// The following-error limit in counts (`following_error_rev × encoder_cpr`) must fit
@@ -295,13 +292,27 @@ impl DriveConfig {
         let zeta = f64::from(self.velocity_damping);
         let ki_scale = 4.0 * zeta * zeta * f64::from(self.velocity_rate_hz) / j;
         let sqrt = crate::cfgmath::sqrt;
+        // The bottom keeps 50 steps of each format; `quantize` keeps down to about 49.5
+        // (within 1 %), far below any rounding of it. The top is where Kp or Ki·Ts, in the
+        // design's own f32 arithmetic, would round onto the format's bound: found exactly.
         let lo = (GAIN_MIN / j).max(sqrt(TICK_MIN * ki_scale)) as f32;
-        let hi_gains = (GAIN_MAX / j).min(sqrt(TICK_MAX * ki_scale)) as f32;
+        let j_loop = velocity_loop_inertia(self);
+        let fits = |w: f32| {
+            let (kp, ki_ts) = velocity_pi_gains(
+                w,
+                j_loop,
+                self.velocity_damping,
+                self.velocity_rate_hz as f32,
+            );
+            checked_q::<Gain>(kp).is_some() && checked_q::<TickGain>(ki_ts).is_some()
+        };
         let ratio = w_cur / ranges::MIN_CURRENT_TO_VELOCITY_BANDWIDTH;
-        let hi = hi_gains.min(ratio).min(nyquist.next_down());
-        if w >= lo && w <= hi {
+        let cap = nyquist.next_down();
+        if w >= lo && w <= ratio.min(cap) && fits(w) {
             return Ok(());
         }
+        let hi_gains = largest_fitting(f32::INFINITY, fits);
+        let hi = hi_gains.min(ratio).min(cap);
         Err(ConfigError::OutOfRangeGiven {
             param: r.key,
             value: w,
@@ -374,94 +385,61 @@ pub(crate) fn encoder_cpr_range(cfg: &DriveConfig) -> (u32, u32, &'static str) {
     // (`as` truncates a non-negative value: its floor, saturated to u32.)
     let max = hi.next_down().min(f64::from(r.max)).max(0.0) as u32;
     let min = ((lo.max(0.0) as u32).saturating_add(1)).max(r.min as u32);
+    // Narrowed to the counts whose coefficients, in the design's f32 arithmetic, stay below
+    // their formats' tops (those in f64 above could round onto a bound).
+    let max = largest_whole(max, |cpr| count_coefficients_fit(cfg, cpr).1);
+    let min = smallest_whole(min, |cpr| count_coefficients_fit(cfg, cpr).0);
     (min, max, ENCODER_CPR_GIVEN)
+}
+
+/// Whether the coefficients derived from `cpr` stay below their formats' tops, as `design`
+/// computes them (f32): `(those that fall with cpr, those that grow with it)`. Falling: the
+/// count scales 1/(cpps·Ts) (Q8.24) and 1/(cpps·Ts²) (Q16.16) at both rates (cpps the
+/// counts per pu·s); growing: the observer's torque scale Ts_cur²·cpps/J_model (Q8.24) and
+/// the encoder-jump limit in counts ([`max_count_step`], Q24.8). Their floors keep the
+/// 1 % slack of `quantize` and need no such check.
+fn count_coefficients_fit(cfg: &DriveConfig, cpr: u32) -> (bool, bool) {
+    let cpps = counts_per_pu_s(cpr, cfg.base_speed_rpm);
+    let falling = [cfg.current_rate_hz, cfg.velocity_rate_hz]
+        .iter()
+        .all(|&f| {
+            let ts = 1.0 / f as f32;
+            checked_q::<TickGain>(1.0 / (cpps * ts)).is_some()
+                && checked_q::<Gain>(1.0 / (cpps * ts * ts)).is_some()
+        });
+    let ts_cur = 1.0 / cfg.current_rate_hz as f32;
+    let j_obs = match cfg.observer.model_inertia {
+        crate::config::ObserverInertia::Total => cfg.total_inertia_s(),
+        crate::config::ObserverInertia::Motor => cfg.motor_inertia_s,
+    };
+    let with_cpr = DriveConfig {
+        encoder_cpr: cpr,
+        ..*cfg
+    };
+    let growing = checked_q::<TickGain>(ts_cur * ts_cur * cpps / j_obs).is_some()
+        && checked_q::<crate::per_unit::CountsErr>(max_count_step(&with_cpr)).is_some();
+    (falling, growing)
 }
 
 /// The error naming `encoder_cpr` with the range [`encoder_cpr_range`] gives: where a count
 /// scale or limit derived from the encoder does not fit its format.
+/// Its bounds are whole counts stated as f32, rounded inwards: above 2^24 counts not every
+/// whole count is an f32, and the nearest one could lie outside the range.
 pub(crate) fn encoder_cpr_error(cfg: &DriveConfig) -> ConfigError {
     let (min, max, given) = encoder_cpr_range(cfg);
+    let (mut lo, mut hi) = (min as f32, max as f32);
+    if f64::from(lo) < f64::from(min) {
+        lo = lo.next_up();
+    }
+    if f64::from(hi) > f64::from(max) {
+        hi = hi.next_down();
+    }
     ConfigError::OutOfRangeGiven {
         param: ranges::ENCODER_CPR.key,
         value: cfg.encoder_cpr as f32,
-        min: min as f32,
-        max: max as f32,
+        min: lo,
+        max: hi,
         min_exclusive: false,
         given,
     }
-}
-
-/// The user's setting a derived number scales with: `value = c · setting^power`, the other
-/// settings fixed. A quantization that fails ([`fit`]) is reported as this setting, with
-/// the range of it that fits ([`Scales::bounds`]).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Scales {
-    /// The setting's range (its key and its own bounds).
-    pub(crate) range: &'static Range,
-    /// The setting's value.
-    pub(crate) setting: f32,
-    /// How the derived number grows with it (1: in proportion, 2: with its square, −1:
-    /// inversely).
-    pub(crate) power: f64,
-    /// The other settings the range depends on, and the format.
-    pub(crate) given: &'static str,
-    /// A bound of the setting's own above the format's (the largest value below its loop's
-    /// Nyquist limit), or ∞.
-    pub(crate) cap: f32,
-}
-
-impl Scales {
-    /// The range of the setting that keeps `value` inside `T`: |value| at most `T`'s
-    /// maximum, and (non-zero) at least 50 of its steps, so that the rounding stays within
-    /// 1 % ([`quantize`]'s rule). Intersected with the setting's own range.
-    pub(crate) fn bounds<T: fixed::traits::Fixed>(&self, value: f32) -> (f32, f32) {
-        let r = self.range;
-        let (v, x) = (f64::from(value).abs(), f64::from(self.setting));
-        if v == 0.0 || x <= 0.0 || !v.is_finite() || self.power == 0.0 {
-            return (r.min, r.max.min(self.cap));
-        }
-        let step: f64 = T::DELTA.to_num();
-        let top: f64 = T::MAX.to_num::<f64>() - step;
-        let at = |target: f64| x * crate::cfgmath::exp(crate::cfgmath::ln(target / v) / self.power);
-        let (a, b) = (at(50.0 * step), at(top));
-        let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-        ((lo as f32).max(r.min), (hi as f32).min(r.max).min(self.cap))
-    }
-
-    /// The error for `value` not fitting `T`: this setting, its value and its range.
-    pub(crate) fn error<T: fixed::traits::Fixed>(&self, value: f32) -> ConfigError {
-        let (min, max) = self.bounds::<T>(value);
-        ConfigError::OutOfRangeGiven {
-            param: self.range.key,
-            value: self.setting,
-            min,
-            max,
-            min_exclusive: self.range.min_exclusive && min <= self.range.min,
-            given: self.given,
-        }
-    }
-}
-
-/// `value` quantized to `T`; if it does not fit, the error names the user's setting `s`
-/// and the range of it that fits.
-pub(crate) fn fit<T: fixed::traits::Fixed>(value: f32, s: Scales) -> Result<T, ConfigError> {
-    quantize::<T>(value, s.range.key).map_err(|_| s.error::<T>(value))
-}
-
-/// A setting quantized as itself (`power` 1) to `T`, whose format bounds it.
-pub(crate) fn fit_setting<T: fixed::traits::Fixed>(
-    range: &'static Range,
-    value: f32,
-    given: &'static str,
-) -> Result<T, ConfigError> {
-    fit(
-        value,
-        Scales {
-            range,
-            setting: value,
-            power: 1.0,
-            given,
-            cap: f32::INFINITY,
-        },
-    )
 }

@@ -17,7 +17,9 @@ use crate::per_unit::{Coef, CountsErr, Gain, PosGain, Pu, TickGain, counter_shif
 use crate::pi::PiCoefficients;
 use crate::protection::Protection;
 use crate::ranges as r;
-use crate::validate::{Scales, VELOCITY_GIVEN, encoder_cpr_error, fit, fit_setting};
+use crate::validate::{
+    Scales, VELOCITY_GIVEN, encoder_cpr_error, fit, fit_setting, smallest_fitting,
+};
 
 /// A limit L on the magnitude of a raw 32-bit value, |x| > L tested with one add and one
 /// unsigned compare: for L < 2^31, x + L (mod 2^32) is within [0, 2L] exactly when
@@ -172,7 +174,8 @@ const KA_TOP: f32 = 32_768.0 - 1.0 / 512.0;
 /// stays below Ka, so it fits from Ka = m/(1 − b·m) on, above Ka's own floor m: with the
 /// closed form, that is the range's bottom whichever of the two was refused (Ka's floor
 /// alone would state values the closed form refuses). If 1/b itself is below m, no Ka fits
-/// and the model inertia is too small. The top is Ka's: [`KA_TOP`] / J_total, rounded down
+/// and the model inertia is too small: from b0·m on, and from m (the observer's own floor
+/// for it). The top is Ka's: [`KA_TOP`] / J_total, rounded down
 /// to f32. The bottom needs no such care: `quantize` keeps a value down to about 49.5 steps
 /// (within 1 %), far below any f32 rounding of 50.
 pub(super) fn gain_fraction_error(g: &Gains, b0: Option<f32>) -> ConfigError {
@@ -183,10 +186,11 @@ pub(super) fn gain_fraction_error(g: &Gains, b0: Option<f32>) -> ConfigError {
     let b = b0.map_or(0.0, |b0| f64::from(b0) / f64::from(g.observer_inertia_s));
     if let Some(b0) = b0.filter(|_| b * GAIN_MIN >= 1.0) {
         let m = &r::MOTOR_INERTIA_S;
+        // J_model itself must keep 50 steps too (the observer's k_load names this key).
         return ConfigError::OutOfRangeGiven {
             param: m.key,
             value: cfg.motor_inertia_s,
-            min: (f64::from(b0) * GAIN_MIN * 1.001) as f32,
+            min: (f64::from(b0).max(1.0) * GAIN_MIN * 1.001) as f32,
             max: m.max,
             min_exclusive: false,
             given: "accel_feedback and observer.model_inertia: the closed form's \
@@ -214,25 +218,23 @@ fn observer(g: &Gains) -> Result<Observer, ConfigError> {
     let [l1, l2, l3] = g.observer_l;
     let cfg = &g.cfg;
     // Below the Nyquist limit every gain lies in (0, 1.5): none can overflow Q2.30, and
-    // the smallest, l3 = (1 − θ)³, grows with the cube of the bandwidth at its low end. So a
-    // gain that does not fit is too small: the bandwidth's range starts where l3 keeps 1 %.
-    let bw = Scales {
-        cap: (cfg.current_rate_hz as f32 / 2.0).next_down(),
-        range: &r::OBSERVER_BANDWIDTH_HZ,
-        setting: cfg.observer.bandwidth_hz,
-        power: 3.0,
-        given: "current_rate_hz: the observer's correction gains (Q2.30) must keep 1 %",
-    };
+    // the smallest, l3 = (1 − θ)³, grows with the bandwidth (with its cube at the low end).
+    // So a gain that does not fit is too small: the bandwidth's range starts at the smallest
+    // f32 at which l3, as the design computes it, keeps 50 steps of Q2.30 (1 %).
+    let bw = &r::OBSERVER_BANDWIDTH_HZ;
+    let f_cur = cfg.current_rate_hz as f32;
+    let cap = (f_cur / 2.0).next_down();
     let l = |v: f32| {
-        quantize::<Coef>(v, r::OBSERVER_BANDWIDTH_HZ.key).map_err(|_| {
-            let (min, _) = bw.bounds::<Coef>(l3);
+        quantize::<Coef>(v, bw.key).map_err(|_| {
+            let floor = 50.0 * Coef::DELTA.to_num::<f32>();
+            let l3_of = |f| crate::design::observer_poles(f, f_cur).1[2];
             ConfigError::OutOfRangeGiven {
-                param: bw.range.key,
-                value: bw.setting,
-                min,
-                max: bw.cap,
+                param: bw.key,
+                value: cfg.observer.bandwidth_hz,
+                min: smallest_fitting(cap, |f| l3_of(f) >= floor).max(bw.min),
+                max: cap,
                 min_exclusive: false,
-                given: bw.given,
+                given: "current_rate_hz: the observer's correction gains (Q2.30) must keep 1 %",
             }
         })
     };
@@ -253,6 +255,10 @@ fn observer(g: &Gains) -> Result<Observer, ConfigError> {
                 power: 1.0,
                 given: "observer.model_inertia: the observer's model inertia (Q16.16) must \
                         keep 1 %",
+            },
+            |jm| match cfg.observer.model_inertia {
+                crate::config::ObserverInertia::Total => -(jm + cfg.load_inertia_s),
+                crate::config::ObserverInertia::Motor => -jm,
             },
         )?,
         count_interval: CountInterval::of(fit_setting(
@@ -283,13 +289,14 @@ const CURRENT_GIVEN: &str = "winding_inductance_pu_s, winding_resistance_pu and 
     current_rate_hz: Kp = L·ω (Q16.16) and Ki·Ts = R·ω/current_rate_hz (Q8.24) must fit \
     within 1 %";
 
-/// A PI's gains `kp` (∝ ω) and `ki_ts` (∝ ω^`ki_power`) from the bandwidth `range`; if
-/// either does not fit, the error gives the bandwidth's range that fits both.
+/// A PI's gains `kp` (∝ ω) and `ki_ts` (∝ ω^`ki_power`) from the bandwidth `range`, each
+/// as `(value, how the design computes it from a bandwidth)`; if either does not fit, the
+/// error gives the bandwidth's range that fits both ([`Scales::bounds`]).
 pub(super) fn pi_gains(
     range: &'static crate::ranges::Range,
     w: f32,
-    kp: f32,
-    ki_ts: f32,
+    (kp, kp_of): (f32, impl Fn(f32) -> f32),
+    (ki_ts, ki_ts_of): (f32, impl Fn(f32) -> f32),
     ki_power: f64,
     given: &'static str,
     cap: f32,
@@ -311,8 +318,8 @@ pub(super) fn pi_gains(
     ) {
         (Ok(kp), Ok(ki)) => Ok((kp, ki)),
         _ => {
-            let (lo_p, hi_p) = p.bounds::<Gain>(kp);
-            let (lo_i, hi_i) = i.bounds::<TickGain>(ki_ts);
+            let (lo_p, hi_p) = p.bounds::<Gain>(kp, kp_of);
+            let (lo_i, hi_i) = i.bounds::<TickGain>(ki_ts, ki_ts_of);
             let min = lo_p.max(lo_i);
             Err(ConfigError::OutOfRangeGiven {
                 param: range.key,
@@ -333,11 +340,13 @@ pub(super) fn regulators(
     vlim: Pu,
 ) -> Result<(PiCoefficients, PiCoefficients), ConfigError> {
     let cfg = &g.cfg;
+    let f_vel = cfg.velocity_rate_hz as f32;
+    let vel = |w| crate::validate::velocity_pi_gains(w, g.j_loop_s, cfg.velocity_damping, f_vel);
     let (kp, ki_ts) = pi_gains(
         &r::VELOCITY_BANDWIDTH_RAD_S,
         cfg.velocity_bandwidth_rad_s,
-        g.kp_vel,
-        g.ki_vel / cfg.velocity_rate_hz as f32,
+        (g.kp_vel, |w| vel(w).0),
+        (g.ki_vel / f_vel, |w| vel(w).1),
         2.0,
         VELOCITY_GIVEN,
         (core::f32::consts::PI * cfg.velocity_rate_hz as f32).next_down(),
@@ -347,11 +356,12 @@ pub(super) fn regulators(
         ki_ts,
         limit: lim,
     };
+    let f_cur = cfg.current_rate_hz as f32;
     let (kp, ki_ts) = pi_gains(
         &r::CURRENT_BANDWIDTH_RAD_S,
         cfg.current_bandwidth_rad_s,
-        g.kp_cur,
-        g.ki_cur / cfg.current_rate_hz as f32,
+        (g.kp_cur, |w| cfg.winding_inductance_pu_s * w),
+        (g.ki_cur / f_cur, |w| cfg.winding_resistance_pu * w / f_cur),
         1.0,
         CURRENT_GIVEN,
         (core::f32::consts::PI * cfg.current_rate_hz as f32).next_down(),
@@ -378,8 +388,9 @@ fn differentiators(g: &Gains) -> Result<[Differentiator; 2], ConfigError> {
 fn fault_limits(g: &Gains) -> Result<[MagnitudeLimit; 3], ConfigError> {
     let cfg = &g.cfg;
     let rev = cfg.faults.following_error_rev;
+    let cpr = cfg.encoder_cpr as f32;
     let following = fit::<CountsErr>(
-        rev * cfg.encoder_cpr as f32,
+        rev * cpr,
         Scales {
             cap: f32::INFINITY,
             range: &r::FOLLOWING_ERROR_REV,
@@ -389,6 +400,7 @@ fn fault_limits(g: &Gains) -> Result<[MagnitudeLimit; 3], ConfigError> {
                     must fit the position error's format Q24.8 (below 2^23 counts, at least \
                     0.2 count)",
         },
+        |rev| rev * cpr,
     )?;
     Ok([
         MagnitudeLimit::new(
@@ -428,6 +440,7 @@ fn velocity_headroom(cfg: &DriveConfig) -> Result<i32, ConfigError> {
             given: "torque_limit_pu: the headroom (fraction × torque_limit_pu) must fit \
                     Q16.16 within 1 %; 0 for none",
         },
+        |f| f * cfg.torque_limit_pu,
     )?
     .to_bits())
 }
@@ -455,6 +468,7 @@ impl Coefficients {
                             / counts per pu·s must fit Q1.31 within 1 %; 0 turns the position \
                             loop off",
                 },
+                |w| w / crate::per_unit::counts_per_pu_s(cfg.encoder_cpr, cfg.base_speed_rpm),
             )?
         } else {
             PosGain::ZERO
@@ -473,6 +487,12 @@ impl Coefficients {
                 power: 1.0,
                 given: "motor_inertia_s + load_inertia_s (plus Ka in the plain form): \
                         accel_ff_gain × inertia must fit Q16.16 within 1 %; 0 turns it off",
+            },
+            |a| {
+                a * match cfg.accel_feedback.mode {
+                    AfbMode::Plain => g.j_total_s + g.ka,
+                    AfbMode::Off | AfbMode::Error => g.j_total_s,
+                }
             },
         )?;
         let (velocity_regulator, current_regulator) = regulators(g, lim, vlim)?;

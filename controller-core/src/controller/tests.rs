@@ -289,7 +289,15 @@ fn the_closed_form_error_states_the_range_of_its_branch() {
 #[test]
 fn a_proportional_gain_too_large_gives_the_bandwidth_s_top() {
     use crate::ranges::CURRENT_BANDWIDTH_RAD_S;
-    let e = coefficients::pi_gains(&CURRENT_BANDWIDTH_RAD_S, 1000.0, 1.0e6, 0.01, 1.0, "", 1e9);
+    let e = coefficients::pi_gains(
+        &CURRENT_BANDWIDTH_RAD_S,
+        1000.0,
+        (1.0e6, |w| w * 1000.0),
+        (0.01, |w| w * 1e-5),
+        1.0,
+        "",
+        1e9,
+    );
     match e {
         Err(ConfigError::OutOfRangeGiven {
             param,
@@ -310,7 +318,15 @@ fn a_proportional_gain_too_large_gives_the_bandwidth_s_top() {
         other => panic!("{other:?}"),
     }
     // Ki·Ts ∝ ω² (the velocity PI's): too large, the top is ω·√(Q8.24's largest/Ki·Ts).
-    let e = coefficients::pi_gains(&CURRENT_BANDWIDTH_RAD_S, 100.0, 1.0, 1000.0, 2.0, "", 1e9);
+    let e = coefficients::pi_gains(
+        &CURRENT_BANDWIDTH_RAD_S,
+        100.0,
+        (1.0, |w| w * 0.01),
+        (1000.0, |w| w * w * 0.1),
+        2.0,
+        "",
+        1e9,
+    );
     match e {
         Err(ConfigError::OutOfRangeGiven { max, .. }) => {
             let want = 100.0 * ((128.0 - 2.0 / 16_777_216.0) / 1000.0f64).sqrt();
@@ -332,11 +348,13 @@ fn a_regulator_s_bandwidth_range_stops_below_its_nyquist_limit() {
     let (lim, vlim) = (Pu::from_num(2), Pu::from_num(2));
     for (velocity, rate) in [(true, cfg.velocity_rate_hz), (false, cfg.current_rate_hz)] {
         let mut g = g;
-        // Both gains far below their formats: their ranges reach far above the limit.
+        // Both gains far below their formats, and the inertia or winding the range's top is
+        // worked out from: their ranges reach far above the limit.
         if velocity {
-            (g.kp_vel, g.ki_vel) = (1e-9, 1e-9);
+            (g.kp_vel, g.ki_vel, g.j_loop_s) = (1e-9, 1e-9, 1e-9);
         } else {
             (g.kp_cur, g.ki_cur) = (1e-9, 1e-9);
+            (g.cfg.winding_inductance_pu_s, g.cfg.winding_resistance_pu) = (1e-9, 1e-9);
         }
         match coefficients::regulators(&g, lim, vlim) {
             Err(ConfigError::OutOfRangeGiven { max, .. }) => {

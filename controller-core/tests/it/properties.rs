@@ -231,59 +231,167 @@ fn drawn(u: &[f64], cpr_bits: u32, bits: u8, ratio: u32, mode: u8) -> DriveConfi
     c
 }
 
+/// `c` with the setting `param` (a key the refusal properties vary) at `v` (`encoder_cpr`:
+/// its whole part); `None` for another key.
+fn with_setting(c: &DriveConfig, param: &str, v: f32) -> Option<DriveConfig> {
+    let mut d = *c;
+    match param {
+        "encoder_cpr" => d.encoder_cpr = v as u32,
+        "velocity_bandwidth_rad_s" => d.velocity_bandwidth_rad_s = v,
+        "current_bandwidth_rad_s" => d.current_bandwidth_rad_s = v,
+        "position_bandwidth_rad_s" => d.position_bandwidth_rad_s = v,
+        "observer.bandwidth_hz" => d.observer.bandwidth_hz = v,
+        "accel_feedback.gain_fraction" => d.accel_feedback.gain_fraction = v,
+        "accel_feedback.limit_headroom_fraction" => d.accel_feedback.limit_headroom_fraction = v,
+        "faults.following_error_rev" => d.faults.following_error_rev = v,
+        "faults.overcurrent_ratio" => d.faults.overcurrent_ratio = v,
+        "faults.stall_torque_fraction" => d.faults.stall_torque_fraction = v,
+        "torque_limit_pu" => d.torque_limit_pu = v,
+        "velocity_ff_gain" => d.velocity_ff_gain = v,
+        "accel_ff_gain" => d.accel_ff_gain = v,
+        "motor_inertia_s" => d.motor_inertia_s = v,
+        _ => return None,
+    }
+    Some(d)
+}
+
+/// The refusal properties' claim for the drive `c`: a refusal names a setting of the range
+/// table, the user's key, never a derived coefficient; a refusal with a range given the
+/// others (`OutOfRangeGiven`) has the value outside that range; and at the range's bottom
+/// (when it is closed), its geometric middle and its top, exactly as stated and the rest
+/// unchanged, the same key is not refused again. A bound worked out in f64 but not an f32,
+/// or not rounded towards the inside, fails at the ends.
+fn stated_range_holds(c: &DriveConfig) -> Result<(), TestCaseError> {
+    use controller_core::ConfigError;
+    use controller_core::ranges::range_of;
+    let Err(e) = Controller::new(c) else {
+        return Ok(());
+    };
+    let key = e.param();
+    prop_assert!(
+        range_of(key).is_some() || key == "velocity_rate_hz",
+        "not a user's key: {e}"
+    );
+    prop_assert!(
+        !matches!(
+            e,
+            ConfigError::CoefficientOverflow { .. } | ConfigError::CoefficientUnderflow { .. }
+        ),
+        "no range: {e}"
+    );
+    if let ConfigError::OutOfRangeGiven {
+        param,
+        value,
+        min,
+        max,
+        min_exclusive,
+        ..
+    } = e
+    {
+        prop_assert!(!(min..=max).contains(&value), "{e}");
+        if min > max {
+            // No value fits: another setting has to change (e.g. a current loop too slow
+            // for any velocity loop the gains can hold).
+            return Ok(());
+        }
+        let middle = if min > 0.0 {
+            (min * max).sqrt()
+        } else {
+            max / 2.0
+        };
+        let bottom = (!min_exclusive).then_some(min);
+        for inside in [bottom, Some(middle), Some(max)].into_iter().flatten() {
+            let Some(d) = with_setting(c, param, inside) else {
+                return Ok(());
+            };
+            if let Err(again) = Controller::new(&d) {
+                prop_assert!(again.param() != param, "{e}\nthen at {inside}: {again}");
+            }
+        }
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(4000))]
 
-    /// Settings drawn across their stated ranges (by decades): every refusal names a
-    /// setting of the range table, the user's key, never a derived coefficient; a refusal
-    /// with a range given the others (`OutOfRangeGiven`) has the value outside that range;
-    /// and a value inside it, the rest unchanged, is not refused for that key again.
+    /// Settings drawn across their stated ranges (by decades): every refusal states a range
+    /// that holds ([`stated_range_holds`]).
     #[test]
     fn every_refusal_names_the_users_key_and_a_range_that_holds(
         u in proptest::collection::vec(0.0f64..=1.0, 14),
         cpr_bits in 2u32..=30, bits in 16u8..=32, ratio in 1u32..=16, mode in 0u8..3,
     ) {
-        use controller_core::ConfigError;
-        use controller_core::ranges::range_of;
-        let c = drawn(&u, cpr_bits, bits, ratio, mode);
-        if let Err(e) = Controller::new(&c) {
-            let key = e.param();
-            prop_assert!(
-                range_of(key).is_some() || key == "velocity_rate_hz",
-                "not a user's key: {e}"
-            );
-            prop_assert!(
-                !matches!(e, ConfigError::CoefficientOverflow { .. } | ConfigError::CoefficientUnderflow { .. }),
-                "no range: {e}"
-            );
-            if let ConfigError::OutOfRangeGiven { param, value, min, max, .. } = e {
-                prop_assert!(!(min..=max).contains(&value), "{e}");
-                if min > max {
-                    // No value fits: another setting has to change (e.g. a current loop
-                    // too slow for any velocity loop the gains can hold).
-                    return Ok(());
-                }
-                // Inside the range (its geometric middle), the same key is not refused.
-                let inside = if min > 0.0 { (min * max).sqrt() } else { max / 2.0 };
-                let mut d = c;
-                match param {
-                    "encoder_cpr" => d.encoder_cpr = inside as u32,
-                    "velocity_bandwidth_rad_s" => d.velocity_bandwidth_rad_s = inside,
-                    "current_bandwidth_rad_s" => d.current_bandwidth_rad_s = inside,
-                    "position_bandwidth_rad_s" => d.position_bandwidth_rad_s = inside,
-                    "observer.bandwidth_hz" => d.observer.bandwidth_hz = inside,
-                    "accel_feedback.gain_fraction" => d.accel_feedback.gain_fraction = inside,
-                    "faults.following_error_rev" => d.faults.following_error_rev = inside,
-                    "torque_limit_pu" => d.torque_limit_pu = inside,
-                    "velocity_ff_gain" => d.velocity_ff_gain = inside,
-                    _ => return Ok(()),
-                }
-                if let Err(again) = Controller::new(&d) {
-                    prop_assert!(again.param() != param, "{e}\nthen at {inside}: {again}");
-                }
-            }
+        stated_range_holds(&drawn(&u, cpr_bits, bits, ratio, mode))?;
+    }
+
+    /// As above, on drives with one coefficient drawn across its format's top
+    /// ([`past_a_top`]), where a top worked out in f64 could round onto the format's bound.
+    #[test]
+    fn every_refusal_past_a_format_s_top_states_a_range_that_holds(
+        case in 0usize..7, u in proptest::collection::vec(0.0f64..=1.0, 4),
+    ) {
+        stated_range_holds(&past_a_top(case, &u))?;
+    }
+}
+
+/// Table 1's drive with the coefficient of `case` drawn across its format's top by `u` (four
+/// numbers in [0, 1]), the other settings chosen so that its check is the one that refuses:
+/// 0 the velocity PI's Kp = ω·J and Ki·Ts = Kp·ω/(4ζ²·f) (Q16.16, Q8.24); 1 the current
+/// PI's Kp = L·ω and Ki·Ts = R·ω/f; 2 the position gain ω/cpps (Q1.31); 3 the acceleration
+/// feed-forward accel_ff_gain × (J_total + Ka) in the plain form; 4 the overcurrent level
+/// ratio × torque_limit_pu; 5 the observer's torque scale Ts²·cpps/J_model (Q8.24, the top
+/// of `encoder_cpr`); 6 the count scale 1/(cpps·Ts²) (Q16.16, the bottom of `encoder_cpr`).
+fn past_a_top(case: usize, u: &[f64]) -> DriveConfig {
+    use controller_core::{ObserverInertia, PiInertia};
+    let mut c = common::table1();
+    c.counter_bits = 32;
+    match case {
+        0 => {
+            c.current_bandwidth_rad_s = 12_000.0;
+            c.motor_inertia_s = log_between(1e-3, 1000.0, u[0]);
+            c.velocity_bandwidth_rad_s = log_between(1.0, 6000.0, u[1]);
+            c.velocity_damping = log_between(0.1, 10.0, u[2]);
+        }
+        1 => {
+            c.winding_inductance_pu_s = log_between(1e-3, 100.0, u[0]);
+            c.winding_resistance_pu = log_between(1e-3, 100.0, u[1]);
+            c.current_bandwidth_rad_s = log_between(100.0, 12_000.0, u[2]);
+        }
+        2 => {
+            (c.current_rate_hz, c.velocity_rate_hz) = (1000, 1000);
+            c.encoder_cpr = 1 << (2 + (u[0] * 10.0) as u32);
+            c.base_speed_rpm = log_between(1.0, 1000.0, u[1]);
+            c.position_bandwidth_rad_s = log_between(1.0, 3000.0, u[2]);
+        }
+        3 => {
+            c.accel_feedback.mode = AfbMode::Plain;
+            c.velocity_pi_inertia = PiInertia::Total;
+            c.velocity_bandwidth_rad_s = 0.01;
+            // Ka just below Q16.16's top, so that J_total + Ka is near it too.
+            c.motor_inertia_s = log_between(820.0, 1000.0, u[1]);
+            c.load_inertia_s = log_between(820.0, 1000.0, u[2]);
+            let ka = log_between(0.9 * 32_768.0, 0.999 * 32_768.0, u[0]);
+            c.accel_feedback.gain_fraction = ka / c.total_inertia_s();
+            c.accel_ff_gain = log_between(0.9, 1.0, u[3]);
+        }
+        4 => {
+            c.torque_limit_pu = log_between(300.0, 1000.0, u[0]);
+            c.faults.overcurrent_ratio = log_between(10.0, 100.0, u[1]);
+        }
+        5 => {
+            c.observer.model_inertia = ObserverInertia::Motor;
+            c.motor_inertia_s = log_between(1e-5, 1e-2, u[0]);
+            c.encoder_cpr = 1 << (10 + (u[1] * 20.0) as u32);
+            c.base_speed_rpm = log_between(1.0, 100_000.0, u[2]);
+        }
+        _ => {
+            (c.current_rate_hz, c.velocity_rate_hz) = (20_000, 10_000);
+            c.encoder_cpr = 1 << (2 + (u[0] * 14.0) as u32);
+            c.base_speed_rpm = log_between(1.0, 100_000.0, u[1]);
         }
     }
+    c
 }
 
 /// The range a refusal of `c` states for `accel_feedback.gain_fraction` (`None` when `c`
