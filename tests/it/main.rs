@@ -15,6 +15,7 @@ mod elf_symbols;
 mod one_run_per_out;
 mod out_paths;
 mod plots;
+mod pmsm;
 mod same_gains;
 mod structure;
 mod trips;
