@@ -2,8 +2,12 @@
 //!
 //! 1. Linker scripts for embedded builds: the QEMU board uses the root `memory.x`
 //!    (mps2-an386) and `link/device-qemu.x`; the STM32F4 board uses
-//!    `link/memory-stm32f407.x` (its `device.x` comes from the `stm32f4` PAC). A
-//!    `board-check.x` assertion fails the link if the other board's layout got in.
+//!    `link/memory-stm32f407.x` (its `device.x` comes from the `stm32f4` PAC), the
+//!    three-phase board (`board-stm32f4-3ph`, a NUCLEO-F446RE) `link/memory-stm32f446re.x`.
+//!    A `board-check.x` assertion fails the link if the other board's layout got in; on
+//!    the three-phase board `link/check-three-phase-vectors.x` fails the `firmware` image's
+//!    link unless its current loop is on the ADC vector. A three-phase build refuses a
+//!    drive that is not a PMSM or whose current loop is not a whole number of PWM periods.
 //! 2. The loop-in-the-loop expectation: the recorded input sequence `lil/inputs.csv` is run
 //!    through the HOST build of controller-core (this script is compiled for the host), and
 //!    the inputs plus the expected output words are written to `$OUT_DIR/lil_data.rs` for the
@@ -30,6 +34,16 @@ use controller_core::DriveConfig;
 #[allow(dead_code)]
 mod words;
 
+// The three-phase board's table and arithmetic: the build refuses a drive whose current
+// loop is not a whole number of PWM periods there.
+#[path = "src/board/three_phase.rs"]
+#[allow(dead_code)]
+mod three_phase;
+
+/// TIM1's clock on the three-phase board [Hz] (`boards::stm32f4::CORE_CLOCK_HZ`: APB2
+/// timers at the core clock).
+const THREE_PHASE_TIMER_HZ: u32 = 168_000_000;
+
 fn main() {
     let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
     let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
@@ -38,6 +52,7 @@ fn main() {
     println!("cargo:rerun-if-changed=link");
     println!("cargo:rerun-if-changed=lil/inputs.csv");
     println!("cargo:rerun-if-changed=src/lil/words.rs");
+    println!("cargo:rerun-if-changed=src/board/three_phase.rs");
     println!("cargo:rerun-if-env-changed=STIFFDRIVE_DRIVE");
 
     let root = manifest.join("..");
@@ -46,7 +61,8 @@ fn main() {
         _ => root.join(machine_file::TABLE1_PATH),
     };
     println!("cargo:rerun-if-changed={}", drive_file.display());
-    let cfg = match bake_drive(&drive_file, &root, &out) {
+    let three_phase = env::var_os("CARGO_FEATURE_BOARD_STM32F4_3PH").is_some();
+    let cfg = match bake_drive(&drive_file, &root, &out, three_phase) {
         Ok(cfg) => cfg,
         Err(e) => {
             eprintln!("drive settings ({}): {e}", drive_file.display());
@@ -67,7 +83,13 @@ fn main() {
     // memory.x of the board (found through this -L path: link/lld.sh links from an empty
     // directory so the root memory.x in the working directory cannot shadow it), and a
     // check script that fails the link if the wrong layout got in anyway.
-    let copies: &[(&str, &str)] = if stm32 {
+    let copies: &[(&str, &str)] = if three_phase {
+        &[
+            ("link/memory-stm32f446re.x", "memory.x"),
+            ("link/check-stm32f446re.x", "board-check.x"),
+            ("link/check-three-phase-vectors.x", "three-phase-vectors.x"),
+        ]
+    } else if stm32 {
         &[
             ("link/memory-stm32f407.x", "memory.x"),
             ("link/check-stm32f407.x", "board-check.x"),
@@ -87,6 +109,11 @@ fn main() {
     }
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg=-Tboard-check.x");
+    if three_phase {
+        // The image's current loop must sit on the ADC vector (the other binaries of the
+        // package keep the DC board's timers).
+        println!("cargo:rustc-link-arg-bin=firmware=-Tthree-phase-vectors.x");
+    }
 }
 
 /// The `[plant]` of the machine file as the virtual motor's coupling: a Rust expression
@@ -121,9 +148,12 @@ fn bake_drive(
     toml_path: &std::path::Path,
     root: &std::path::Path,
     out: &std::path::Path,
+    three_phase: bool,
 ) -> Result<DriveConfig, String> {
     let machine = machine_file::load(toml_path).map_err(|e| e.to_string())?;
-    if machine.drive.pmsm.is_some() {
+    if three_phase {
+        check_three_phase(&machine.drive)?;
+    } else if machine.drive.pmsm.is_some() {
         return Err(format!(
             "{}: {}",
             toml_path.display(),
@@ -153,6 +183,26 @@ fn bake_drive(
     let name = format!("{} (settings crc {:08x})", shown.display(), crc32(bytes));
     fs::write(out.join("drive_name.txt"), name).map_err(|e| e.to_string())?;
     Ok(back)
+}
+
+/// The three-phase image (`board-stm32f4-3ph`) runs a PMSM drive whose current loop takes a
+/// whole number of PWM periods (`three_phase::periods_per_tick`).
+fn check_three_phase(cfg: &DriveConfig) -> Result<(), String> {
+    let Some(p) = cfg.pmsm else {
+        return Err(
+            "board-stm32f4-3ph drives a three-phase motor: STIFFDRIVE_DRIVE must name \
+                    a machine file whose [electrics] motor = \"pmsm\" (e.g. \
+                    configs/machines/table1-pmsm.toml)"
+                .into(),
+        );
+    };
+    three_phase::periods_per_tick(
+        THREE_PHASE_TIMER_HZ,
+        p.pwm_period_counts,
+        cfg.current_rate_hz,
+    )
+    .map(|_| ())
+    .map_err(|e| e.to_string())
 }
 
 /// Parse the recording, run the host core on it, write `lil_inputs.bin` and

@@ -18,6 +18,7 @@
 //!   drive (settings sector, fault history, scope tap) of the `board` image.
 //! * `board_console`: the board console image on any board (session loop, loop interrupt
 //!   bodies, settings sector behind a trait), target builds only.
+//! * `pmsm_image`: the PMSM drive on the three-phase STM32F4 board (`board-stm32f4-3ph`).
 //! * `boards::qemu` / `boards::stm32f4`, `rt`: the hardware edge, target builds only.
 //!
 //! The library builds on the host too (`cargo test -p firmware`), where the hardware
@@ -40,6 +41,8 @@ pub mod virtual_motor;
 pub mod board_console;
 #[cfg(target_os = "none")]
 pub mod boards;
+#[cfg(all(target_os = "none", feature = "board-stm32f4-3ph"))]
+pub mod pmsm_image;
 #[cfg(all(target_os = "none", feature = "board-qemu"))]
 pub mod rig;
 #[cfg(target_os = "none")]

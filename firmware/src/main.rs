@@ -4,7 +4,8 @@
 //!
 //! On the STM32F4 board (`board-stm32f4`) this is the board console image
 //! (`firmware::board_console`): it starts disabled, holding position, and serves
-//! `stiffdrive board --port` on USART2 until reset.
+//! `stiffdrive board --port` on USART2 until reset. On the three-phase board
+//! (`board-stm32f4-3ph`) it is the PMSM drive of `firmware::pmsm_image`.
 //!
 //! Under QEMU (`cargo fw-run`) it is the demo run: the drive enables itself, runs the
 //! Table 1 controller on the virtual motor for a 1 s move, asks for a dump of the trend
@@ -14,7 +15,11 @@
 //! the ARM target).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
-#[cfg(all(target_os = "none", feature = "board-stm32f4"))]
+#[cfg(all(
+    target_os = "none",
+    feature = "board-stm32f4",
+    not(feature = "board-stm32f4-3ph")
+))]
 mod stm32 {
     use cortex_m_rt::entry;
     use firmware::board_console::{current_loop, run, uart_rx, velocity_loop};
@@ -25,6 +30,25 @@ mod stm32 {
     #[entry]
     fn main() -> ! {
         run(BoardConsole)
+    }
+}
+
+/// The three-phase board (`board-stm32f4-3ph`): the PMSM drive, its current loop on ADC1's
+/// end of conversion (`firmware::pmsm_image`).
+#[cfg(all(target_os = "none", feature = "board-stm32f4-3ph"))]
+mod stm32_3ph {
+    use cortex_m_rt::entry;
+    use firmware::pmsm_image::{command, current_loop, run, velocity_loop};
+
+    firmware::bind_three_phase_interrupts!(
+        current: current_loop,
+        velocity: velocity_loop,
+        command: command
+    );
+
+    #[entry]
+    fn main() -> ! {
+        run()
     }
 }
 

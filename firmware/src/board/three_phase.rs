@@ -129,6 +129,21 @@ pub const IHM08M1: InverterBoard = InverterBoard {
     voltage_base_v: 12.0,
 };
 
+/// What a PMSM drive's current-loop interrupt needs of a three-phase stage.
+pub trait PmsmLoopIo {
+    /// Raw encoder count \[counts\].
+    fn encoder_count(&mut self) -> u32;
+    /// Phases U and V's currents of this tick's sample \[pu\]; `None` when no conversion
+    /// came (a fault).
+    fn phase_currents_pu(&mut self) -> Option<[Pu; 2]>;
+    /// The three duties \[timer counts\] for the next tick; false if refused.
+    fn set_duties(&mut self, duties: [u16; 3]) -> bool;
+    /// Switch the six outputs on or off; false if the stage would not do as asked.
+    fn set_enable(&mut self, enabled: bool) -> bool;
+    /// True while the stage's own protection (the break input) holds it off.
+    fn fault_input(&mut self) -> bool;
+}
+
 /// ADC counts to per unit: `pu = (raw − offset)·scale`, the scale a Q16.16 fraction of a
 /// per-unit bit per count. Built once (floats); applied per tick in integers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -141,8 +156,10 @@ impl AdcScale {
     /// The scale of `pu_per_count` per unit per count.
     #[must_use]
     pub fn new(pu_per_count: f64) -> Self {
+        let x = pu_per_count * 65_536.0 * 65_536.0;
+        // To nearest (no `f64::round` without std); `as` saturates a NaN or overflow.
         Self {
-            bits_per_count_q16: (pu_per_count * 65_536.0 * 65_536.0).round() as i64,
+            bits_per_count_q16: if x < 0.0 { x - 0.5 } else { x + 0.5 } as i64,
         }
     }
 

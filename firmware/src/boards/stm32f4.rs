@@ -212,6 +212,8 @@ macro_rules! register_block {
 }
 
 mod flash;
+#[cfg(feature = "board-stm32f4-3ph")]
+pub mod three_phase;
 pub use flash::{
     read_settings_sector, write_settings_sector, SETTINGS_SECTOR, SETTINGS_SECTOR_LEN,
 };

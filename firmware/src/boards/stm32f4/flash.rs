@@ -17,12 +17,21 @@ use stm32f4::stm32f407 as pac;
 
 use super::{iwdg, set_watchdog, tim6, tim7, Clocks, WATCHDOG_DRIVE, WATCHDOG_SAVE};
 
-/// Address of the settings sector (sector 11).
-pub const SETTINGS_SECTOR: usize = 0x080E_0000;
+/// Address of the settings sector (sector 11; sector 7 on the three-phase image's
+/// STM32F446RE, `link/memory-stm32f446re.x`).
+pub const SETTINGS_SECTOR: usize = if cfg!(feature = "board-stm32f4-3ph") {
+    0x0806_0000
+} else {
+    0x080E_0000
+};
 /// Bytes of the settings sector.
 pub const SETTINGS_SECTOR_LEN: usize = 128 * 1024;
 /// Its sector number (FLASH_CR.SNB).
-const SECTOR: u32 = 11;
+const SECTOR: u32 = if cfg!(feature = "board-stm32f4-3ph") {
+    7
+} else {
+    11
+};
 /// Words a record takes, the last padded with erased bytes (0xFF).
 const RECORD_WORDS: usize = RECORD_LEN.div_ceil(4);
 

@@ -20,7 +20,13 @@ use crate::board::{CurrentIo, VelocityIo};
 /// 168 MHz from the internal 16 MHz oscillator (HSI, M = 16). If the PLL does not lock
 /// either, the core stays on the internal oscillator at 16 MHz with every bus /1, the reset
 /// state, and the clocks returned say so.
-fn clocks(rcc: &pac::RCC, flash: &pac::FLASH) -> Clocks {
+///
+/// The NUCLEO-F446RE of the three-phase image (`board-stm32f4-3ph`) has no crystal: its
+/// 8 MHz comes from the ST-LINK's clock output, so the oscillator is bypassed (HSEBYP).
+pub(super) fn clocks(rcc: &pac::RCC, flash: &pac::FLASH) -> Clocks {
+    if cfg!(feature = "board-stm32f4-3ph") {
+        rmw!(rcc.cr(), 0, 1 << 18); // HSEBYP: an external clock, not a crystal
+    }
     rmw!(rcc.cr(), 0, 1 << 16); // HSEON
     let (source, pllm, pllsrc) = if wait(|| rcc.cr().read().bits() & (1 << 17) != 0) {
         (ClockSource::Crystal, 8, 1 << 22) // PLLSRC[22] = HSE
@@ -68,12 +74,12 @@ macro_rules! pin {
     }};
 }
 
-const MODE_IN: u32 = 0b00;
-const MODE_OUT: u32 = 0b01;
-const MODE_AF: u32 = 0b10;
-const MODE_ANALOG: u32 = 0b11;
-const PULL_NONE: u32 = 0b00;
-const PULL_DOWN: u32 = 0b10;
+pub(super) const MODE_IN: u32 = 0b00;
+pub(super) const MODE_OUT: u32 = 0b01;
+pub(super) const MODE_AF: u32 = 0b10;
+pub(super) const MODE_ANALOG: u32 = 0b11;
+pub(super) const PULL_NONE: u32 = 0b00;
+pub(super) const PULL_DOWN: u32 = 0b10;
 
 /// Clocks, pins, PWM, ADC, encoder, console; the power stage stays disabled and the loop
 /// timers stopped until [`start`](super::start).
@@ -192,7 +198,7 @@ fn encoder_tim3(t3: &pac::TIM3) {
 }
 
 /// USART2: the console, 115200 Bd from the APB1 clock `apb1_hz`, receive interrupt on.
-fn console_usart2(usart: &pac::USART2, apb1_hz: u32) {
+pub(super) fn console_usart2(usart: &pac::USART2, apb1_hz: u32) {
     // USART2: 115200 Bd (BRR = 42e6/115200 = 364.6 → 22 + 13/16 at 42 MHz; 139 on the
     // internal oscillator alone), TE, RE, RXNEIE, UE.
     let brr = ((apb1_hz + 57_600) / 115_200) as u16;
