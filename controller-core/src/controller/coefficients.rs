@@ -5,6 +5,9 @@
 //! ([`ConfigError::OutOfRangeGiven`]). The count scales and limits derived from the encoder
 //! are bounded by [`DriveConfig::validate`] already (`encoder_cpr`'s range).
 
+use super::current::DcCurrentLoop;
+use super::position::PositionLoop;
+use super::velocity::VelocityLoop;
 use crate::accel_feedback::AccelerationFeedback;
 use crate::config::{AfbFilterAtLimit, AfbMode, AfbRate, DriveConfig, Estimator, ObserverTorque};
 use crate::design::Gains;
@@ -13,7 +16,7 @@ use crate::error::ConfigError;
 use crate::filter::LowPass;
 use crate::notch::Notch;
 use crate::observer::{CountInterval, Observer};
-use crate::per_unit::{Coef, CountsErr, Gain, PosGain, Pu, TickGain, counter_shift, quantize};
+use crate::per_unit::{Coef, CountsErr, Gain, Pu, TickGain, counter_shift, quantize};
 use crate::pi::PiCoefficients;
 use crate::protection::Protection;
 use crate::ranges as r;
@@ -50,16 +53,12 @@ pub(super) struct Coefficients {
     pub(super) counter_bits: u8,
     /// [`counter_shift`] of `counter_bits`, for the per-tick wrap-safe difference.
     pub(super) counter_shift: u32,
-    pub(super) position_loop: bool,
-    pub(super) k_pos: PosGain,
-    pub(super) velocity_ff: Gain,
-    /// `velocity_ff` is exactly 1 (the default): ω_sp·1 rounded is ω_sp itself, so the tick
-    /// skips the product.
-    pub(super) velocity_ff_unity: bool,
-    pub(super) k_accel_ff: Gain,
-    pub(super) velocity_regulator: PiCoefficients,
-    pub(super) current_regulator: PiCoefficients,
-    pub(super) velocity_filter: LowPass,
+    /// The position loop ([`super::position`]).
+    pub(super) position: PositionLoop,
+    /// The velocity loop ([`super::velocity`]).
+    pub(super) velocity: VelocityLoop,
+    /// The DC current loop ([`super::current`]).
+    pub(super) current: DcCurrentLoop,
     pub(super) diff_velocity_rate: Differentiator,
     pub(super) diff_current_rate: Differentiator,
     pub(super) observer: Observer,
@@ -74,18 +73,11 @@ pub(super) struct Coefficients {
     /// The velocity-rate differentiator is used (velocity or acceleration source).
     pub(super) diff_in_velocity_tick: bool,
     pub(super) torque_limit: Pu,
-    /// |limit| of the AFB, the current and the velocity regulator (raw, saturating),
-    /// resolved here so the ticks do not take it again.
+    /// |limit| of the AFB (raw, saturating), resolved here so the ticks do not take it
+    /// again.
     pub(super) afb_limit_abs: Pu,
-    pub(super) current_limit_abs: i32,
-    pub(super) velocity_limit_abs: i32,
-    /// The velocity regulator's headroom beyond the limit while saturated (raw Q16.16;
-    /// `accel_feedback.limit_headroom_fraction` × the torque limit, 0 without AFB).
-    pub(super) velocity_headroom: i32,
     /// |overspeed| as raw Q16.16 bits (the tick compares magnitudes).
     pub(super) overspeed_abs: MagnitudeLimit,
-    /// |following error limit| as raw Q24.8 bits.
-    pub(super) following_error_abs: MagnitudeLimit,
     /// |largest encoder step per tick| \[counts\].
     pub(super) max_count_step_abs: MagnitudeLimit,
     /// Overcurrent, I²t and stall ([`crate::protection`]).
@@ -422,29 +414,6 @@ fn fault_limits(g: &Gains) -> Result<[MagnitudeLimit; 3], ConfigError> {
     ])
 }
 
-/// The velocity regulator's headroom beyond the torque limit (raw Q16.16): the fraction of
-/// the limit `accel_feedback.limit_headroom_fraction`, with AFB on; 0 with it off, where no
-/// term follows the regulator.
-fn velocity_headroom(cfg: &DriveConfig) -> Result<i32, ConfigError> {
-    if cfg.accel_feedback.mode == AfbMode::Off {
-        return Ok(0);
-    }
-    let f = cfg.accel_feedback.limit_headroom_fraction;
-    Ok(fit::<Pu>(
-        f * cfg.torque_limit_pu,
-        Scales {
-            cap: f32::INFINITY,
-            range: &r::AFB_LIMIT_HEADROOM_FRACTION,
-            setting: f,
-            power: 1.0,
-            given: "torque_limit_pu: the headroom (fraction × torque_limit_pu) must fit \
-                    Q16.16 within 1 %; 0 for none",
-        },
-        |f| f * cfg.torque_limit_pu,
-    )?
-    .to_bits())
-}
-
 impl Coefficients {
     /// Quantize `g` (designed from, and carrying, validated settings).
     pub(super) fn from_gains(g: &Gains) -> Result<Self, ConfigError> {
@@ -456,45 +425,9 @@ impl Coefficients {
         // notch.
         let afb = accel_feedback(g, lim)?;
         let observer = observer(g)?;
-        let k_pos = if g.kpp > 0.0 {
-            fit(
-                g.k_pos_pu_per_count,
-                Scales {
-                    cap: (core::f32::consts::PI * cfg.velocity_rate_hz as f32).next_down(),
-                    range: &r::POSITION_BANDWIDTH_RAD_S,
-                    setting: cfg.position_bandwidth_rad_s,
-                    power: 1.0,
-                    given: "encoder_cpr and base_speed_rpm: k_pos = position_bandwidth_rad_s \
-                            / counts per pu·s must fit Q1.31 within 1 %; 0 turns the position \
-                            loop off",
-                },
-                |w| w / crate::per_unit::counts_per_pu_s(cfg.encoder_cpr, cfg.base_speed_rpm),
-            )?
-        } else {
-            PosGain::ZERO
-        };
-        let velocity_ff = fit_setting(
-            &r::VELOCITY_FF_GAIN,
-            cfg.velocity_ff_gain,
-            "its format Q16.16 (0, or within 1 %)",
-        )?;
-        let k_accel_ff = fit(
-            g.k_accel_ff,
-            Scales {
-                cap: f32::INFINITY,
-                range: &r::ACCEL_FF_GAIN,
-                setting: cfg.accel_ff_gain,
-                power: 1.0,
-                given: "motor_inertia_s + load_inertia_s (plus Ka in the plain form): \
-                        accel_ff_gain × inertia must fit Q16.16 within 1 %; 0 turns it off",
-            },
-            |a| {
-                a * match cfg.accel_feedback.mode {
-                    AfbMode::Plain => g.j_total_s + g.ka,
-                    AfbMode::Off | AfbMode::Error => g.j_total_s,
-                }
-            },
-        )?;
+        let k_pos = PositionLoop::gain(g)?;
+        let velocity_ff = PositionLoop::feed_forward(cfg)?;
+        let k_accel_ff = VelocityLoop::accel_ff(g)?;
         let (velocity_regulator, current_regulator) = regulators(g, lim, vlim)?;
         let notch = match &g.notch {
             Some(d) => Some(Notch::quantize(d, r::NOTCH_CENTRE_HZ.key)?),
@@ -506,17 +439,13 @@ impl Coefficients {
         let [diff_velocity_rate, diff_current_rate] = differentiators(g)?;
         let [overspeed_abs, following_error_abs, max_count_step_abs] = fault_limits(g)?;
         let protection = Protection::new(cfg)?;
+        let headroom = VelocityLoop::headroom(cfg)?;
         Ok(Self {
             counter_bits: cfg.counter_bits,
             counter_shift: counter_shift(cfg.counter_bits),
-            position_loop: g.kpp > 0.0,
-            k_pos,
-            velocity_ff,
-            velocity_ff_unity: velocity_ff == Gain::ONE,
-            k_accel_ff,
-            velocity_regulator,
-            current_regulator,
-            velocity_filter,
+            position: PositionLoop::new(g, k_pos, velocity_ff, following_error_abs),
+            velocity: VelocityLoop::new(velocity_regulator, velocity_filter, k_accel_ff, headroom),
+            current: DcCurrentLoop::new(current_regulator),
             diff_velocity_rate,
             diff_current_rate,
             observer,
@@ -530,11 +459,7 @@ impl Coefficients {
                 || cfg.accel_feedback.source == Estimator::Differentiation,
             torque_limit: lim,
             afb_limit_abs: afb.abs_limit(),
-            current_limit_abs: current_regulator.abs_limit(),
-            velocity_limit_abs: velocity_regulator.abs_limit(),
-            velocity_headroom: velocity_headroom(cfg)?,
             overspeed_abs,
-            following_error_abs,
             max_count_step_abs,
             protection,
             notch,

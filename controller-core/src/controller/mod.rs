@@ -1,5 +1,13 @@
 //! The cascaded regulators of the paper's Fig. 5, split into the two ticks.
 //!
+//! The cascade is composed of blocks, each a module holding its quantized coefficients,
+//! its state and its step: the position loop (`position.rs`), the velocity loop
+//! (`velocity.rs`), the current loop (the DC winding's PI, `current.rs`; a PMSM's
+//! field-oriented loop, [`crate::foc`] through `pmsm.rs`) and the acceleration feedback
+//! (`afb.rs`, on [`crate::accel_feedback`] and the observer). Each block's linear form is
+//! its coefficients' stored bits ([`Controller::blocks`], `linear()`); each tick record's
+//! word layout is written once in [`crate::words`].
+//!
 //! Current tick (every 1/current_rate_hz):
 //! ```text
 //! position ← unwrap(encoder_count)                       (encoder-jump check)
@@ -34,11 +42,14 @@
 
 mod afb;
 mod coefficients;
+mod current;
 mod excite;
 mod io;
 mod pmsm;
+mod position;
 #[cfg(test)]
 mod tests;
+mod velocity;
 
 pub use io::{Blocks, CurrentInputs, CurrentOutputs, Setpoint, VelocityInputs, VelocityOutputs};
 pub use pmsm::{PmsmInputs, PmsmOutputs};
@@ -52,9 +63,7 @@ use crate::fault::Fault;
 use crate::filter::LowPassState;
 use crate::notch::NotchState;
 use crate::observer::ObserverState;
-use crate::per_unit::{
-    CountsErr, Pu, PuPerS, count_diff_by, count_signed, mul_bits, mul_gain, sat_i32, sat_shr,
-};
+use crate::per_unit::{Pu, PuPerS, count_diff_by, count_signed, sat_shr};
 use crate::pi::PiState;
 use crate::protection::ProtectionState;
 use coefficients::Coefficients;
@@ -65,9 +74,9 @@ struct State {
     primed: bool,
     last_raw: u32,
     position: i64,
-    velocity_regulator: PiState,
+    /// The velocity loop's integrator and feedback filter.
+    velocity: velocity::VelocityState,
     current_regulator: PiState,
-    velocity_filter: LowPassState,
     afb_filter: LowPassState,
     diff_velocity_rate: DifferentiatorState,
     diff_current_rate: DifferentiatorState,
@@ -189,14 +198,14 @@ impl Controller {
         let c = &self.coef;
         Blocks {
             observer: c.observer,
-            velocity_filter: c.velocity_filter,
+            velocity_filter: c.velocity.filter,
             accel_feedback: c.afb,
-            velocity_regulator: c.velocity_regulator,
-            current_regulator: c.current_regulator,
+            velocity_regulator: c.velocity.regulator,
+            current_regulator: c.current.regulator,
             notch: c.notch,
-            k_pos: c.k_pos,
-            velocity_ff: c.velocity_ff,
-            k_accel_ff: c.k_accel_ff,
+            k_pos: c.position.k_pos,
+            velocity_ff: c.position.velocity_ff,
+            k_accel_ff: c.velocity.k_accel_ff,
             diff_velocity_rate: c.diff_velocity_rate,
             diff_current_rate: c.diff_current_rate,
         }
@@ -242,7 +251,7 @@ impl Controller {
             self.state.fault = Some(fault);
         }
         let s = &mut self.state;
-        s.velocity_regulator = PiState::default();
+        s.velocity.regulator = PiState::default();
         s.afb_filter = LowPassState::default();
         s.i_vel = Pu::ZERO;
         s.afb = Pu::ZERO;
@@ -317,12 +326,10 @@ impl Controller {
         self.state.last_current = inp.current_pu;
         let i_ref = self.torque_stage(torque);
         let e = i_ref.saturating_sub(inp.current_pu);
-        let v = self.coef.current_regulator.update_within(
-            &mut self.state.current_regulator,
-            e,
-            Pu::ZERO,
-            self.coef.current_limit_abs,
-        );
+        let v = self
+            .coef
+            .current
+            .regulate(&mut self.state.current_regulator, e);
         // The protections last, on this tick's sample: a trip latches now, and this tick's
         // outputs already carry it (the board drops the enable in this tick).
         let mut i_ref = i_ref;
@@ -379,46 +386,6 @@ impl Controller {
         i_ref
     }
 
-    /// The position loop of a velocity tick: the position error (Q24.8 counts, saturating;
-    /// trips on a following error) and the velocity command ω_cmd = vff·ω_sp + k_pos·err
-    /// (ω_sp itself in velocity mode).
-    #[inline(always)]
-    fn position_loop(&mut self, position: i64, sp: &Setpoint) -> (CountsErr, Pu) {
-        // Position loop: error in Q24.8 counts (saturating), ω_cmd = vff·ω_sp + k_pos·err.
-        if self.coef.position_loop {
-            // Q48.16 ≫ 8 is below 2^55 in magnitude; while |position| < 2^54 counts (the
-            // bits from 2^54 up all the sign: one high-word compare) position·256 is below
-            // 2^62 and the difference below 2^63, so plain arithmetic gives the exact value
-            // the saturating form gives.
-            let sp_q8 = sp.position_counts.to_bits() >> 8;
-            let err_bits = if position >> 54 == position >> 63 {
-                sp_q8 - (position << 8)
-            } else {
-                sp_q8.saturating_sub(position.saturating_mul(256))
-            };
-            let err = CountsErr::from_bits(sat_i32(err_bits));
-            if self.coef.following_error_abs.exceeded_by(err.to_bits()) {
-                self.trip(Fault::FollowingError);
-            }
-            // Q24.8 · Q1.31 = Q.39 → Q16.16.
-            let p_term = Pu::from_bits(mul_bits::<23>(err.to_bits(), self.coef.k_pos.to_bits()));
-            (err, self.velocity_ff(sp.velocity_pu).saturating_add(p_term))
-        } else {
-            (CountsErr::ZERO, sp.velocity_pu)
-        }
-    }
-
-    /// vff·ω_sp, rounded and saturated; ω_sp itself when vff is exactly 1 (the product
-    /// rounds to it: (ω·2^16 + 2^15) ≫ 16 = ω), decided once at configuration.
-    #[inline(always)]
-    fn velocity_ff(&self, velocity_pu: Pu) -> Pu {
-        if self.coef.velocity_ff_unity {
-            velocity_pu
-        } else {
-            mul_gain(velocity_pu, self.coef.velocity_ff)
-        }
-    }
-
     /// The velocity tick: run every 1/velocity_rate_hz (every n-th current tick).
     ///
     /// ```
@@ -452,10 +419,7 @@ impl Controller {
             Estimator::Differentiation => v_diff,
             Estimator::Observer => obs.velocity_pu(&self.state.observer),
         };
-        let v_fb = self
-            .coef
-            .velocity_filter
-            .process(&mut self.state.velocity_filter, v_raw);
+        let v_fb = self.coef.velocity.feedback(&mut self.state.velocity, v_raw);
         let a_est = match self.coef.afb_source {
             Estimator::Differentiation => a_diff,
             Estimator::Observer => obs.acceleration_pu_s(&self.state.observer),
@@ -465,19 +429,20 @@ impl Controller {
             self.trip(Fault::Overspeed);
         }
 
-        let (pos_err, v_cmd) = self.position_loop(position, &sp);
+        let (pos_err, v_cmd, following) = self.coef.position.command(position, &sp);
+        if following {
+            self.trip(Fault::FollowingError);
+        }
         let v_cmd = v_cmd.saturating_add(self.excite(Injection::VelocityReference));
 
         if self.state.fault.is_none() {
-            let ff = mul_gain(sp.acceleration_pu_s, self.coef.k_accel_ff);
             let e = v_cmd.saturating_sub(v_fb);
             // Anti-windup judged on the final torque reference (PI + AFB term held now).
-            self.state.i_vel = self.coef.velocity_regulator.update_with_offset_within(
-                &mut self.state.velocity_regulator,
+            self.state.i_vel = self.coef.velocity.regulate(
+                &mut self.state.velocity,
                 e,
-                ff,
+                sp.acceleration_pu_s,
                 self.state.afb,
-                [self.coef.velocity_limit_abs, self.coef.velocity_headroom],
             );
             let _ = self.run_afb(self.coef.afb_velocity, |_| a_est);
         }
