@@ -202,16 +202,21 @@ pub fn run() -> ! {
         (cfg.current_rate_hz / cfg.velocity_rate_hz.max(1)).max(1),
         Ordering::Relaxed,
     );
+    let drive = Drive {
+        controller,
+        io: b.io,
+        hold: Setpoint::default(),
+        running: false,
+        sensor_fault: false,
+        half,
+        counter_bits: cfg.counter_bits,
+    };
+    // Before the loop interrupts are unmasked: nothing else holds the cell (`try_`: no
+    // panic path is linked).
     critical_section::with(|cs| {
-        DRIVE.borrow(cs).replace(Some(Drive {
-            controller,
-            io: b.io,
-            hold: Setpoint::default(),
-            running: false,
-            sensor_fault: false,
-            half,
-            counter_bits: cfg.counter_bits,
-        }));
+        if let Ok(mut slot) = DRIVE.borrow(cs).try_borrow_mut() {
+            *slot = Some(drive);
+        }
     });
     let mut out = b.console;
     let _ = write!(
