@@ -11,6 +11,7 @@ mod drive_files;
 mod identify;
 mod linear_model;
 mod notch;
+mod pmsm_commission;
 mod pmsm_identify;
 mod tune;
 mod tune_objective;

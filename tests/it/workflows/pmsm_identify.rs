@@ -1,10 +1,9 @@
 //! `identify` on a PMSM machine no shipped config describes (`tests/fixtures/pmsm-odd.toml`:
 //! 7 pole pairs, Ld 3e-4 and Lq 4.5e-4 pu·s, the encoder at 137° electrical, a soft
-//! coupling, dead time and noise) measures the motor first, and the drive without its
-//! encoder offset is refused until it has. Targets fixed before the runs: R within 3 %, Ld
-//! and Lq within 5 %, the offset within 2° electrical, the pole pairs and the direction
-//! exact; every calibration estimate in `identify.json` under its machine-file key with a
-//! standard error, and listed in `identify.md`.
+//! coupling, sensor noise): the motor calibration `identify` runs first, and the drive
+//! without its encoder offset refused until it has one. Targets fixed before the runs: R
+//! within 3 %, Ld and Lq within 5 %, the offset within 2° electrical, the pole pairs and the
+//! direction exact. `identify` and `commission` end to end on it: `pmsm_commission.rs`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use machine_workflows::identify::{self, motor};
