@@ -61,7 +61,13 @@ fn identified(c: &Commissioning, base: &RunConfig, ident: &Identification) -> St
             e.name, e.value, e.std_error, e.unit
         );
     }
-    md.push_str("\n`identified.toml` is the machine file with that `[plant]` table.\n\n");
+    md.push_str(if ident.motor.is_some() {
+        "\n`identified.toml` is the machine file with that `[plant]` table, the measured motor \
+         in `[electrics]` and the calibration in the drive's `winding_resistance_pu` and \
+         `[drive.pmsm]`; every drive below runs with that calibration.\n\n"
+    } else {
+        "\n`identified.toml` is the machine file with that `[plant]` table.\n\n"
+    });
     md
 }
 

@@ -99,6 +99,11 @@ fn commission_writes_the_calibration_into_a_drive_toml_that_runs_fig6_stable() {
     assert_eq!(json["no_design"], false, "{md}");
     let id = read_json(&out.join("identify/identify.json"));
     check_calibration(&id);
+    // commission.md's identified section has the calibration beside the machine's truth.
+    assert!(
+        md.contains("| encoder_offset_elec_deg | ") && md.contains(" | 137.000000 | deg"),
+        "{md}"
+    );
 
     // drive.toml: the calibration, as the drive holds it.
     let file = out.join("drive.toml");
