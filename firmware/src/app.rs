@@ -94,9 +94,12 @@ pub fn velocity_inputs<I: VelocityLoopIo, S: SetpointSource>(
 }
 
 /// The controller, the trend buffer and the bookkeeping the two ticks share.
+///
+/// Laid out in this order (`repr(C)`): the small fields the ticks touch first, the
+/// controller, the trend buffer last, so that the ticks reach every field within the
+/// Cortex-M4's immediate load offsets whatever the sizes of the controller and the buffer.
+#[repr(C)]
 pub struct App {
-    controller: Controller,
-    trace: AppTrace,
     /// Current-loop ticks since start (wraps after 12 days at 4 kHz).
     tick: u32,
     /// The power stage may be switched on (operator enable).
@@ -112,6 +115,8 @@ pub struct App {
     last_setpoint: Setpoint,
     /// The current tick at which the latched fault was first reported, for the log.
     fault_tick: Option<u32>,
+    controller: Controller,
+    trace: AppTrace,
 }
 
 impl App {

@@ -107,9 +107,14 @@ struct State {
 }
 
 /// The drive controller: coefficients plus state.
+///
+/// Laid out in declaration order (`repr(C)`): the state and the coefficients the ticks
+/// read first, the designed gains and a PMSM drive's FOC loop last, so that the DC ticks
+/// reach their fields within the Cortex-M4's short load offsets whatever those sizes.
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Controller {
-    gains: Gains,
+    state: State,
     coef: Coefficients,
     /// The identification excitation, if any ([`Controller::with_excitation`]); none by
     /// default, and then every output is what it is without this feature.
@@ -123,9 +128,9 @@ pub struct Controller {
     /// itself (see [`Controller::closed_total_exact`]): decided at configuration and when an
     /// excitation is set, so the current tick does not add and clamp the same sum twice.
     closed_total: bool,
+    gains: Gains,
     /// A PMSM drive's field-oriented current loop (`[drive.pmsm]`); `None` for DC.
     foc: Option<crate::foc::FocCoefficients>,
-    state: State,
 }
 
 impl Controller {
