@@ -104,7 +104,7 @@ mod tests {
 
     /// Open switches: no current, no torque, the mechanics coast (no friction on
     /// table1-pmsm, so the speeds keep their sum of momenta); below the limit nothing is
-    /// recorded, and at 1.2 pu (√3·1.2/2 = 1.04 > 1) the first step records it.
+    /// recorded, and at 1.3 pu (√3·1.3/2.0785 = 1.08 > 1) the first step records it.
     #[test]
     fn open_switches_hold_the_currents_at_zero_and_record_the_diode_limit() {
         let mut p = plant();
@@ -125,9 +125,10 @@ mod tests {
             "{}",
             p.motor_vel_pu()
         );
-        assert!((p.back_emf_over_bus() - 3f64.sqrt() / 2.0).abs() < 1e-9);
+        let bus = p.inverter().dc_bus_pu();
+        assert!((p.back_emf_over_bus() - 3f64.sqrt() / bus).abs() < 1e-9);
         assert_eq!(p.diode_limit_exceeded_s(), None);
-        p.set_state(0.0, 0.0, 1.2, 1.2, 0.0, 0.0);
+        p.set_state(0.0, 0.0, 1.3, 1.3, 0.0, 0.0);
         p.try_advance(250e-6, [0.5; 3], 0.0).unwrap();
         let t = p.diode_limit_exceeded_s().unwrap();
         assert!((t - 0.1).abs() < 1e-12, "{t}");
