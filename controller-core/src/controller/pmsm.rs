@@ -95,8 +95,7 @@ impl Controller {
         // too, so the difference is taken against the angle's own position, not the last
         // reading. The first tick after a reset sets the angle from the count itself.
         let delta = if self.state.foc_primed {
-            let d = position.wrapping_sub(self.state.foc_position);
-            i32::try_from(d).unwrap_or(if d < 0 { i32::MIN } else { i32::MAX })
+            crate::per_unit::sat_i32(position.wrapping_sub(self.state.foc_position))
         } else {
             self.state.foc = foc.state_at(position);
             self.state.foc_primed = true;
@@ -209,12 +208,43 @@ mod tests {
         cfg.pmsm = None;
         let mut c = Controller::new(&cfg).unwrap();
         assert!(c.foc().is_none());
-        let out = c.pmsm_tick(PmsmInputs {
+        let inp = PmsmInputs {
             encoder_count: 7,
             phase_current_pu: [pu(1.0), pu(-0.5)],
-        });
+        };
+        let out = c.pmsm_tick(inp);
         assert!(!out.enabled);
-        assert_eq!(out.duties, [0; 3]);
+        assert_eq!((out.duties, out.fault), ([0; 3], None));
+        // A latched fault is reported all the same.
+        let _ = c.velocity_tick(VelocityInputs {
+            fault_input: true,
+            ..VelocityInputs::default()
+        });
+        assert_eq!(c.pmsm_tick(inp).fault, Some(Fault::External));
+    }
+
+    /// While enabled the d and q integrators act (a constant current error moves the
+    /// voltage further every tick); a fault clears them.
+    #[test]
+    fn the_integrators_act_while_enabled_and_a_fault_clears_them() {
+        let mut c = Controller::new(&drive(Some(0.0))).unwrap();
+        // i_d = 0.2 pu at the d axis (count 0, offset 0): the d error is −0.2 every tick.
+        let inp = PmsmInputs {
+            encoder_count: 0,
+            phase_current_pu: [pu(0.2), pu(-0.1)],
+        };
+        let v: Vec<f64> = (0..3)
+            .map(|_| c.pmsm_tick(inp).voltage.d.to_num::<f64>())
+            .collect();
+        assert!(v[0] < 0.0 && v[1] < v[0] && v[2] < v[1], "{v:?}");
+        assert_ne!(c.state.foc.d, crate::pi::PiState::default());
+        let _ = c.velocity_tick(VelocityInputs {
+            fault_input: true,
+            ..VelocityInputs::default()
+        });
+        let _ = c.pmsm_tick(inp);
+        assert_eq!(c.state.foc.d, crate::pi::PiState::default());
+        assert_eq!(c.state.foc.q, crate::pi::PiState::default());
     }
 
     #[test]

@@ -124,3 +124,39 @@ impl VelocityLoop {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use crate::controller::{Controller, Setpoint, VelocityInputs};
+    use crate::{DriveConfig, PuPerS};
+
+    /// At rest with no speed error, the first velocity tick's torque reference is the
+    /// acceleration feed-forward alone: accel_ff_gain × J_total × a_sp.
+    #[test]
+    fn the_acceleration_feed_forward_is_the_inertia_times_the_commanded_acceleration() {
+        let mut cfg: DriveConfig = toml::from_str(include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/doc/example-drive.toml"
+        )))
+        .unwrap();
+        for (gain, a) in [(1.0_f32, 0.5_f64), (0.5, -0.8)] {
+            cfg.accel_ff_gain = gain;
+            let mut c = Controller::new(&cfg).unwrap();
+            let out = c.velocity_tick(VelocityInputs {
+                encoder_count: 0,
+                setpoint: Setpoint {
+                    acceleration_pu_s: PuPerS::from_num(a),
+                    ..Setpoint::default()
+                },
+                fault_input: false,
+            });
+            let want = f64::from(gain * cfg.total_inertia_s()) * a;
+            let got = out.current_ref_pu.to_num::<f64>();
+            assert!(
+                (got - want).abs() < 1e-3,
+                "{gain} {a}: {got} against {want}"
+            );
+        }
+    }
+}

@@ -308,6 +308,19 @@ fn stated_range_holds(c: &DriveConfig) -> Result<(), TestCaseError> {
                 prop_assert!(again.param() != param, "{e}\nthen at {inside}: {again}");
             }
         }
+        // The top is tight: the next value up is refused by the same key (the top is the
+        // largest value whose coefficients fit, or the key's own or the Nyquist bound).
+        // Not `encoder_cpr`: a whole number, stated rounded inwards to an f32 above 2^24.
+        let up = max.next_up();
+        if param != "encoder_cpr"
+            && let Some(d) = with_setting(c, param, up)
+            && Controller::new(&with_setting(c, param, max).unwrap_or(*c)).is_ok()
+        {
+            match Controller::new(&d) {
+                Err(above) => prop_assert!(above.param() == param, "{e}\nabove: {above}"),
+                Ok(_) => prop_assert!(false, "{e}\naccepted above the top, at {up}"),
+            }
+        }
     }
     Ok(())
 }
