@@ -519,3 +519,66 @@ proptest! {
         }
     }
 }
+
+/// The range a refusal of `c` states for `key`: `Some((min, max))` when `c` is refused by
+/// that key with a range given the others.
+fn stated(c: &DriveConfig, key: &str) -> Option<(f32, f32)> {
+    match Controller::new(c) {
+        Err(controller_core::ConfigError::OutOfRangeGiven {
+            param, min, max, ..
+        }) if param == key => Some((min, max)),
+        _ => None,
+    }
+}
+
+/// Three stated ends worked out from a formula, each exact: the gain fraction's top where
+/// Ka's top over J_total is an f32 (J_total = 1687 divides 2^24 − 1: 19.423828 exactly),
+/// the acceleration feed-forward's top in the plain form (32768 / (J_total + Ka)), and the
+/// motor inertia's bottom where the observer's model inertia keeps 1 % in Q16.16.
+#[test]
+fn stated_ends_worked_out_from_a_formula_are_exact() {
+    use controller_core::{AfbMode, Estimator, ObserverInertia, PiInertia};
+    let accepted = |c: &DriveConfig| Controller::new(c).is_ok();
+    // Gain fraction: Ka = f × 1687 must stay at or below 2^15 − 2^−9.
+    let mut c = common::table1();
+    (c.motor_inertia_s, c.load_inertia_s) = (1000.0, 687.0);
+    c.velocity_bandwidth_rad_s = 0.01;
+    c.accel_feedback.source = Estimator::Differentiation;
+    c.accel_feedback.gain_fraction = 20.0;
+    let (_, max) = stated(&c, "accel_feedback.gain_fraction")
+        .unwrap_or_else(|| panic!("{:?}", Controller::new(&c).err()));
+    assert_eq!(max, 19.423_828, "{max}");
+    c.accel_feedback.gain_fraction = max;
+    assert!(accepted(&c));
+    // Acceleration feed-forward, plain form: 1 × (2000 + 31500) does not fit Q16.16.
+    let mut c = common::table1();
+    c.accel_feedback.mode = AfbMode::Plain;
+    c.velocity_pi_inertia = PiInertia::Total;
+    c.velocity_bandwidth_rad_s = 0.01;
+    (c.motor_inertia_s, c.load_inertia_s) = (1000.0, 1000.0);
+    c.accel_feedback.gain_fraction = 15.75;
+    c.accel_ff_gain = 1.0;
+    let (_, max) = stated(&c, "accel_ff_gain").expect("refused");
+    let want = 32_768.0 / 33_500.0;
+    assert!(
+        (f64::from(max) / want - 1.0).abs() < 1e-4,
+        "{max} against {want}"
+    );
+    c.accel_ff_gain = max;
+    assert!(accepted(&c));
+    c.accel_ff_gain = max.next_up();
+    assert!(!accepted(&c));
+    // Motor inertia with the motor-inertia observer: J_model = 20.5 steps of Q16.16 rounds
+    // by 2.4 %; the stated bottom is where every value keeps 1 % (50 steps, 7.63e-4 s).
+    let mut c = common::table1();
+    c.observer.model_inertia = ObserverInertia::Motor;
+    c.motor_inertia_s = 20.5 / 65_536.0;
+    let (min, _) =
+        stated(&c, "motor_inertia_s").unwrap_or_else(|| panic!("{:?}", Controller::new(&c).err()));
+    assert!(
+        (f64::from(min) * 65_536.0 / 50.0 - 1.0).abs() < 1e-3,
+        "{min}"
+    );
+    c.motor_inertia_s = min;
+    assert!(accepted(&c), "{min}");
+}

@@ -391,10 +391,7 @@ mod payloads {
         // Everything before the notch is the same bytes.
         assert_eq!(&with[..N0 - 13], &without[..N0 - 13]);
         assert_eq!(with[N0 - 13], 1);
-        assert_eq!(
-            &with[N0 - 12..N0 - 8],
-            &65.25_f32.to_le_bytes()
-        );
+        assert_eq!(&with[N0 - 12..N0 - 8], &65.25_f32.to_le_bytes());
         assert_eq!(settings::decode(with).unwrap(), cfg);
         // Any truncation is refused.
         for k in 0..with.len() {
