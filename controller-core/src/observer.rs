@@ -338,7 +338,7 @@ mod tests {
             k_u: TickGain::from_num(0.0137),
             k_vel: TickGain::from_num(0.0586),
             k_acc: Gain::from_num(234.375),
-            k_load: Gain::from_num(-0.117),
+            k_load: Gain::from_num(-0.125),
             count_interval: CountInterval::PLAIN,
         };
         let lin = o.linear();
