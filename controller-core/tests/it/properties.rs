@@ -550,6 +550,14 @@ fn stated_ends_worked_out_from_a_formula_are_exact() {
     assert_eq!(max, 19.423_828, "{max}");
     c.accel_feedback.gain_fraction = max;
     assert!(accepted(&c));
+    // J_total = 1640.36: the largest f32 at or below 32768 / J_total times J_total rounds
+    // to 32768 in f32, which Q16.16 does not hold; the stated top is taken against
+    // 2^15 − 2^−9 instead and holds.
+    c.load_inertia_s = 640.36;
+    c.accel_feedback.gain_fraction = 20.0;
+    let (_, max) = stated(&c, "accel_feedback.gain_fraction").expect("refused");
+    c.accel_feedback.gain_fraction = max;
+    assert!(accepted(&c), "{max}");
     // Acceleration feed-forward, plain form: 1 × (2000 + 31500) does not fit Q16.16.
     let mut c = common::table1();
     c.accel_feedback.mode = AfbMode::Plain;
