@@ -17,15 +17,19 @@ use super::{PMSM_RATIO_TOLERANCE, SLIGHT_OVERSHOOT_PU};
 use machine_workflows::commission::shifted;
 use machine_workflows::stiffness::machine::{machine_base, measure_machine};
 use machine_workflows::stiffness::StiffnessPoint;
+use ratio::{both, fine_sets, fine_text, pairs_table, ratio, ratio_lines};
 use rayon::prelude::*;
 use sim_engine::config::{resolve, RunConfig};
 use sim_engine::engine::metrics::Metrics;
 use sim_engine::engine::runner::{regulator_gains, run_scenario, same_regulator_gains};
 use sim_engine::error::{HarnessError, Result};
-use sim_engine::run::{fmt_opt, write_run};
+use sim_engine::run::write_run;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
+
+mod ratio;
+pub use ratio::{within_tolerance, FINE_ENCODER_CPR};
 
 /// The DC machine file and the PMSM one (names under `configs/machines/`).
 pub const MACHINES: [&str; 2] = ["table1", "table1-pmsm"];
@@ -46,17 +50,6 @@ pub const PAIRS: [(&str, Criterion); 2] = [("fig6", Criterion::Fig6), ("shock", 
 /// Where the pairs' runs at the scenario's own timing are written, under the report's
 /// directory: `<this>/<machine>/<scenario>/`.
 pub const RUN_DIR: &str = "on-pmsm";
-
-/// Shaft-torque ripple with AFB / without.
-fn ratio((a, b): &(Metrics, Metrics)) -> f64 {
-    a.shaft_torque_ripple_rms_pu / b.shaft_torque_ripple_rms_pu.max(1e-12)
-}
-
-/// Whether the PMSM's ratio is within [`PMSM_RATIO_TOLERANCE`] of the DC model's (false for
-/// a NaN).
-pub fn within_tolerance(pmsm: f64, dc: f64) -> bool {
-    (pmsm / dc - 1.0).abs() <= PMSM_RATIO_TOLERANCE
-}
 
 /// One pair on one machine file, at each offset of [`OFFSETS_S`].
 pub struct PairRuns {
@@ -116,6 +109,8 @@ pub struct MachineStiffness {
 pub struct Measured {
     /// Per pair, per machine (in [`PAIRS`] then [`MACHINES`] order).
     pub pairs: Vec<PairRuns>,
+    /// The same with the hypothesis test's fine encoder ([`FINE_ENCODER_CPR`]).
+    pub fine: Vec<PairRuns>,
     /// Per machine.
     pub stiffness: Vec<MachineStiffness>,
     /// `fig6` on each machine, for the motor values.
@@ -127,14 +122,14 @@ pub struct Measured {
 /// A pair's AFB and no-AFB configurations on a machine.
 type Base = (&'static str, Criterion, &'static str, RunConfig, RunConfig);
 
-/// Every pair on every machine at every offset, in parallel; the runs at the scenario's own
-/// timing are written to `dir/RUN_DIR/<machine>/<scenario>`.
-fn run_pairs(dir: &Path) -> Result<Vec<PairRuns>> {
+/// Every pair on every machine at every offset, with `sets` applied, in parallel; with a
+/// `dir`, the runs at the scenario's own timing are written to `dir/RUN_DIR/<machine>/<scenario>`.
+fn run_pairs(dir: Option<&Path>, sets: &[String]) -> Result<Vec<PairRuns>> {
     let mut bases: Vec<Base> = Vec::new();
     for (scenario, criterion) in PAIRS {
         for machine in MACHINES {
-            let afb = resolve(scenario, Some(machine), &[])?;
-            let off = resolve(&format!("{scenario}-no-afb"), Some(machine), &[])?;
+            let afb = resolve(scenario, Some(machine), sets)?;
+            let off = resolve(&format!("{scenario}-no-afb"), Some(machine), sets)?;
             bases.push((scenario, criterion, machine, afb, off));
         }
     }
@@ -155,7 +150,7 @@ fn run_pairs(dir: &Path) -> Result<Vec<PairRuns>> {
             let cfg = shifted(if with { afb } else { off }.clone(), dt);
             let out = run_scenario(&cfg)?;
             pb.inc(1);
-            if dt == 0.0 {
+            if let (Some(dir), 0.0) = (dir, dt) {
                 let name = if with {
                     scenario.to_string()
                 } else {
@@ -211,13 +206,22 @@ fn run_stiffness() -> Result<Vec<MachineStiffness>> {
 /// Runs the section's experiments, writing the pairs' runs under `dir`.
 pub fn measure(dir: &Path) -> Result<Measured> {
     let t0 = Instant::now();
-    let (pairs, stiffness) = rayon::join(|| run_pairs(dir), run_stiffness);
+    let ((pairs, fine), stiffness) = rayon::join(
+        || {
+            rayon::join(
+                || run_pairs(Some(dir), &[]),
+                || run_pairs(None, &fine_sets()),
+            )
+        },
+        run_stiffness,
+    );
     let configs = MACHINES
         .iter()
         .map(|m| resolve("fig6", Some(m), &[]))
         .collect::<Result<_>>()?;
     Ok(Measured {
         pairs: pairs?,
+        fine: fine?,
         stiffness: stiffness?,
         configs,
         wall_s: t0.elapsed().as_secs_f64(),
@@ -265,106 +269,6 @@ fn motor_text(m: &Measured) -> String {
         dc.plant.electrics.winding_inductance_pu_s,
         dc.drive.voltage_limit_pu,
     )
-}
-
-/// One line per pair and machine: the DC section's figures and criterion, and the ratio's
-/// spread over the step's timing.
-fn pairs_table(m: &Measured) -> String {
-    let mut t = String::from(
-        "| pair | machine | gains bit-identical | stable with / without | overshoot (pu) | \
-         shaft ripple with / without (pu) | ratio | ratio over the timings: median, range | \
-         DC section's criterion |\n|---|---|---|---|---|---|---|---|---|\n",
-    );
-    for p in &m.pairs {
-        let Some((a, b)) = p.at_scenario() else {
-            continue;
-        };
-        let s = p.spread();
-        let failed = p.failures();
-        let _ = writeln!(
-            t,
-            "| `{}` | {} | {} | {} / {} | {} | {:.4} / {:.4} | {:.3} | {:.3}, {:.3} to {:.3} | \
-             {}{} |",
-            p.scenario,
-            p.machine,
-            if p.same_gains { "yes" } else { "**no**" },
-            a.stable,
-            b.stable,
-            fmt_opt(a.overshoot_pu),
-            a.shaft_torque_ripple_rms_pu,
-            b.shaft_torque_ripple_rms_pu,
-            s.at_scenario,
-            s.median,
-            s.min,
-            s.max,
-            verdict(failed.is_empty()),
-            if failed.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", failed.join(", "))
-            }
-        );
-    }
-    t
-}
-
-/// The pair on the DC machine and on the PMSM.
-fn both<'a>(m: &'a Measured, scenario: &str) -> Option<(&'a PairRuns, &'a PairRuns)> {
-    let on = |machine: &str| {
-        m.pairs
-            .iter()
-            .find(|p| p.scenario == scenario && p.machine == machine)
-    };
-    Some((on(MACHINES.first()?)?, on(MACHINES.get(1)?)?))
-}
-
-/// The PMSM's ratio against the DC model's, per pair: the criterion at the scenario's
-/// timing, then the two spreads over the step's timing and the criterion offset by offset.
-fn ratio_lines(m: &Measured) -> (String, Vec<(&'static str, bool)>) {
-    let mut text = String::new();
-    let mut verdicts = Vec::new();
-    for (scenario, _) in PAIRS {
-        let Some((dc, pm)) = both(m, scenario) else {
-            continue;
-        };
-        let ok = within_tolerance(pm.ratio(), dc.ratio());
-        let (sd, sp) = (dc.spread(), pm.spread());
-        let overlap = sp.min <= sd.max && sd.min <= sp.max;
-        let pointwise = dc
-            .by_offset
-            .iter()
-            .zip(&pm.by_offset)
-            .filter(|(d, p)| within_tolerance(ratio(p), ratio(d)))
-            .count();
-        let _ = writeln!(
-            text,
-            "- `{scenario}`: ratio {:.3} on the PMSM against {:.3} on the DC model, {:+.0} % \
-             ({}). Over the step's {} timings the DC ratio spans {:.3} to {:.3}, the PMSM's \
-             {:.3} to {:.3} (medians {:.3} and {:.3}, {:+.0} %): the ranges {}. Timing by timing, the PMSM's ratio is within {} \
-             of the DC model's at {pointwise} of {}.",
-            pm.ratio(),
-            dc.ratio(),
-            100.0 * (pm.ratio() / dc.ratio() - 1.0),
-            verdict(ok),
-            OFFSETS_S.len(),
-            sd.min,
-            sd.max,
-            sp.min,
-            sp.max,
-            sd.median,
-            sp.median,
-            100.0 * (sp.median / sd.median - 1.0),
-            if overlap {
-                "overlap, so part of the difference is the step's timing"
-            } else {
-                "do not overlap: the difference exceeds the figure's own spread"
-            },
-            pct(PMSM_RATIO_TOLERANCE),
-            OFFSETS_S.len(),
-        );
-        verdicts.push((scenario, ok));
-    }
-    (text, verdicts)
 }
 
 /// The largest relative difference of the measured stiffness between the motors, AFB off
@@ -447,17 +351,21 @@ fn stiffness_text(m: &Measured) -> String {
 
 /// The section.
 pub fn section(m: &Measured) -> Result<Section> {
-    let (ratios, verdicts) = ratio_lines(m);
-    let (dc, pm) = both(m, "fig6")
+    let (ratios, verdicts) = ratio_lines(&m.pairs);
+    let (fine, fine_holds) = fine_text(&m.fine);
+    let (fine_dc, fine_pm) = both(&m.fine, "fig6").ok_or_else(|| {
+        HarnessError::Backend("fig6 with the fine encoder did not run on both machines".into())
+    })?;
+    let (dc, pm) = both(&m.pairs, "fig6")
         .ok_or_else(|| HarnessError::Backend("fig6 did not run on both machines".to_string()))?;
     let fig6_ok = pm.failures().is_empty();
     let fig6_ratio = verdicts.iter().any(|(s, ok)| *s == "fig6" && *ok);
     let measured = format!(
-        "{}\n\n{}\n{ratios}\n{}\nThe section's runs (the pairs at {} timings on both machines, \
-         the stiffness grid on both) took {:.1} s of wall time; the runs at the scenarios' own \
+        "{}\n\n{}\n{ratios}\n{fine}\n{}\nThe section's runs (the pairs at {} timings on both \
+         machines with each encoder, the stiffness grid on both) took {:.1} s of wall time; the runs at the scenarios' own \
          timing are in `{RUN_DIR}/`.",
         motor_text(m),
-        pairs_table(m),
+        pairs_table(&m.pairs),
         stiffness_text(m),
         OFFSETS_S.len(),
         m.wall_s
@@ -500,7 +408,9 @@ pub fn section(m: &Measured) -> Result<Section> {
         ),
         format!(
             "DC section's criterion {} on the PMSM; ratio {:.3} on the PMSM, {:.3} on the DC \
-             model ({:+.0} %); over the step's timing {:.3}-{:.3} against {:.3}-{:.3}",
+             model ({:+.0} %); over the step's timing {:.3}-{:.3} against {:.3}-{:.3}; with a \
+             {FINE_ENCODER_CPR}-count encoder {:.3} against {:.3} ({:+.0} %, the limit-cycle \
+             hypothesis {})",
             if pm.failures().is_empty() {
                 "met"
             } else {
@@ -513,6 +423,10 @@ pub fn section(m: &Measured) -> Result<Section> {
             pm.spread().max,
             dc.spread().min,
             dc.spread().max,
+            fine_pm.ratio(),
+            fine_dc.ratio(),
+            100.0 * (fine_pm.ratio() / fine_dc.ratio() - 1.0),
+            if fine_holds { "holds" } else { "refuted" },
         ),
         row_verdict,
     ))
