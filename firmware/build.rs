@@ -44,6 +44,9 @@ mod three_phase;
 /// timers at the core clock).
 const THREE_PHASE_TIMER_HZ: u32 = 168_000_000;
 
+/// The reference PMSM drive (from the workspace root).
+const REFERENCE_PMSM_PATH: &str = "configs/machines/table1-pmsm.toml";
+
 fn main() {
     let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default());
     let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
@@ -69,6 +72,10 @@ fn main() {
             std::process::exit(1);
         }
     };
+    if let Err(e) = bake_reference_pmsm(&root, &out) {
+        eprintln!("reference PMSM drive ({REFERENCE_PMSM_PATH}): {e}");
+        std::process::exit(1);
+    }
     if let Err(e) = write_lil_data(&cfg, &manifest.join("lil/inputs.csv"), &out) {
         // A broken recording must fail the build, not produce an empty test.
         eprintln!("loop-in-the-loop data: {e}");
@@ -153,24 +160,12 @@ fn bake_drive(
     let machine = machine_file::load(toml_path).map_err(|e| e.to_string())?;
     if three_phase {
         check_three_phase(&machine.drive)?;
-    } else if machine.drive.pmsm.is_some() {
-        return Err(format!(
-            "{}: {}",
-            toml_path.display(),
-            pil_link::LinkError::UnsupportedMotor
-        ));
     }
+    // A PMSM drive builds for every QEMU image: fw-lil and fw-bench run it (`App::new_pmsm`),
+    // an image whose board drives one DC winding refuses it at start-up (`App::new`).
     write_coupling(&machine.plant, out)?;
-    let cfg = machine.drive;
-    controller_core::design(&cfg).map_err(|e| format!("drive.{}: {e}", e.param()))?;
-    let mut w = pil_link::wire::Writer::new();
-    pil_link::settings::encode(&cfg, &mut w).map_err(|e| format!("encode: {e}"))?;
-    let bytes = w.as_slice();
-    // The image decodes these very bytes; the reference run uses the decoded drive too.
-    let back = pil_link::settings::decode(bytes).map_err(|e| format!("decode: {e:?}"))?;
-    if back != cfg {
-        return Err("settings codec does not round-trip the drive".into());
-    }
+    let (back, bytes) = encode_drive(&machine.drive)?;
+    let bytes = bytes.as_slice();
     fs::write(out.join("drive_settings.bin"), bytes).map_err(|e| e.to_string())?;
     let shown = toml_path
         .canonicalize()
@@ -183,6 +178,34 @@ fn bake_drive(
     let name = format!("{} (settings crc {:08x})", shown.display(), crc32(bytes));
     fs::write(out.join("drive_name.txt"), name).map_err(|e| e.to_string())?;
     Ok(back)
+}
+
+/// Validate `cfg` by `design()` and encode it with pil-link's settings codec: the drive as
+/// the image decodes it (the reference runs use the decoded drive too) and the bytes.
+fn encode_drive(cfg: &DriveConfig) -> Result<(DriveConfig, Vec<u8>), String> {
+    controller_core::design(cfg).map_err(|e| format!("drive.{}: {e}", e.param()))?;
+    let mut w = pil_link::wire::Writer::new();
+    pil_link::settings::encode(cfg, &mut w).map_err(|e| format!("encode: {e}"))?;
+    let bytes = w.as_slice().to_vec();
+    let back = pil_link::settings::decode(&bytes).map_err(|e| format!("decode: {e:?}"))?;
+    if back != *cfg {
+        return Err("settings codec does not round-trip the drive".into());
+    }
+    Ok((back, bytes))
+}
+
+/// The reference PMSM drive, `configs/machines/table1-pmsm.toml` whatever `STIFFDRIVE_DRIVE`
+/// names, into `pmsm_settings.bin` (`firmware::drive::reference_pmsm`): `fw-bench`'s second
+/// drive and the host tests' PMSM.
+fn bake_reference_pmsm(root: &std::path::Path, out: &std::path::Path) -> Result<(), String> {
+    let path = root.join(REFERENCE_PMSM_PATH);
+    println!("cargo:rerun-if-changed={}", path.display());
+    let machine = machine_file::load(&path).map_err(|e| e.to_string())?;
+    if machine.drive.pmsm.is_none() {
+        return Err(format!("{REFERENCE_PMSM_PATH}: not a PMSM drive"));
+    }
+    let (_, bytes) = encode_drive(&machine.drive)?;
+    fs::write(out.join("pmsm_settings.bin"), bytes).map_err(|e| e.to_string())
 }
 
 /// The three-phase image (`board-stm32f4-3ph`) runs a PMSM drive whose current loop takes a

@@ -8,14 +8,20 @@
 //! The same functions serve the benchmark, the loop-in-the-loop replay and the
 //! processor-in-the-loop image ([`App::step_current`], [`App::step_velocity`]): there is
 //! one control path, whatever feeds it.
+//!
+//! A PMSM drive (`[drive.pmsm]`) is built with [`App::new_pmsm`]; its current-loop
+//! interrupt calls [`App::on_pmsm_tick`] (two phase currents in, three duties out, through
+//! [`PmsmLoopIo`]), or [`App::step_pmsm`] from sensor values, in place of
+//! [`App::on_current_tick`]; the velocity tick is the DC drive's.
 
 use controller_core::excitation::{ExcitationConfig, ExcitationParams};
 use controller_core::per_unit::Pu;
 use controller_core::{
-    ConfigError, Controller, CurrentInputs, CurrentOutputs, DriveConfig, Fault, Setpoint,
-    VelocityInputs, VelocityOutputs,
+    ConfigError, Controller, CurrentInputs, CurrentOutputs, DriveConfig, Fault, PmsmInputs,
+    PmsmOutputs, Setpoint, VelocityInputs, VelocityOutputs,
 };
 
+use crate::board::three_phase::PmsmLoopIo;
 use crate::board::{CurrentLoopIo, VelocityLoopIo};
 use crate::trace::{
     SignalSnapshot, TraceBuffer, TraceConfig, TraceConfigError, TraceSignal, TriggerCause,
@@ -47,7 +53,9 @@ pub enum AppError {
     Config(ConfigError),
     /// The trend-buffer settings are invalid.
     Trace(TraceConfigError),
-    /// The baked drive settings ([`crate::drive::BAKED`]) do not decode.
+    /// The baked drive settings ([`crate::drive::BAKED`]) do not decode, or name a motor
+    /// the constructor does not drive (`LinkError::UnsupportedMotor`: a PMSM drive given to
+    /// [`App::new`], a DC drive to [`App::new_pmsm`]).
     Settings(pil_link::LinkError),
     /// The board's encoder counter width differs from `DriveConfig::counter_bits`.
     CounterBits {
@@ -120,15 +128,38 @@ pub struct App {
 }
 
 impl App {
-    /// Build the app for a drive and a board whose encoder counter is `counter_bits` wide.
+    /// Build the app for a DC drive and a board whose encoder counter is `counter_bits`
+    /// wide (the current tick: [`App::on_current_tick`]).
     ///
     /// # Errors
-    /// [`AppError`] naming the bad setting.
+    /// [`AppError`] naming the bad setting; `AppError::Settings(UnsupportedMotor)` for a
+    /// PMSM drive (a DC board drives one winding: [`CurrentLoopIo`]).
     pub fn new(cfg: &DriveConfig, counter_bits: u8, trace: TraceConfig) -> Result<Self, AppError> {
         if cfg.pmsm.is_some() {
-            // The board layer drives one DC winding (`CurrentLoopIo`).
             return Err(AppError::Settings(pil_link::LinkError::UnsupportedMotor));
         }
+        Self::build(cfg, counter_bits, trace)
+    }
+
+    /// Build the app for a PMSM drive (`[drive.pmsm]`) and a board whose encoder counter is
+    /// `counter_bits` wide (the current tick: [`App::on_pmsm_tick`]).
+    ///
+    /// # Errors
+    /// [`AppError`] naming the bad setting (a PMSM drive without its measured encoder
+    /// offset is the core's `ConfigError::Missing`); `AppError::Settings(UnsupportedMotor)`
+    /// for a DC drive.
+    pub fn new_pmsm(
+        cfg: &DriveConfig,
+        counter_bits: u8,
+        trace: TraceConfig,
+    ) -> Result<Self, AppError> {
+        if cfg.pmsm.is_none() {
+            return Err(AppError::Settings(pil_link::LinkError::UnsupportedMotor));
+        }
+        Self::build(cfg, counter_bits, trace)
+    }
+
+    fn build(cfg: &DriveConfig, counter_bits: u8, trace: TraceConfig) -> Result<Self, AppError> {
         if counter_bits != cfg.counter_bits {
             return Err(AppError::CounterBits {
                 board: counter_bits,
@@ -337,6 +368,102 @@ impl App {
     pub fn step_velocity(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
         self.last_setpoint = inputs.setpoint;
         self.controller.velocity_tick(inputs)
+    }
+}
+
+/// The PMSM drive's current tick (an app built by [`App::new_pmsm`]).
+impl App {
+    /// The body of a PMSM drive's current-loop interrupt: sample the encoder and two phase
+    /// currents, run the core's `pmsm_tick`, set the three duties and the stage's enable,
+    /// record the trend buffer (the q axis: `CurrentPu` is i_q, `CurrentRefPu` i_q*,
+    /// `VoltageCmdPu` v_q).
+    ///
+    /// As [`App::on_current_tick`]: while held the core's ticks do not run (the duties of
+    /// 0 V, the stage off); a missing sample runs the tick on zero currents and latches the
+    /// sensor fault; the stage switches only while the core enables it, no fault is latched
+    /// or input and the operator enabled it. On a DC drive's app the core commands nothing
+    /// and the stage stays off.
+    #[inline]
+    pub fn on_pmsm_tick<I: PmsmLoopIo>(&mut self, io: &mut I) -> PmsmOutputs {
+        let encoder_count = io.encoder_count();
+        let phase_current_pu = match io.phase_currents_pu() {
+            Some(i) => i,
+            None => {
+                self.sensor_fault = true;
+                [Pu::ZERO; 2]
+            }
+        };
+        let inputs = PmsmInputs {
+            encoder_count,
+            phase_current_pu,
+        };
+        let zero = self.zero_voltage_duties();
+        let out = if self.held {
+            self.record_pmsm(encoder_count, &PmsmOutputs::default());
+            PmsmOutputs {
+                duties: zero,
+                ..PmsmOutputs::default()
+            }
+        } else {
+            self.step_pmsm(inputs)
+        };
+        let run = out.enabled
+            && out.fault.is_none()
+            && !self.sensor_fault
+            && !self.fault_input_active
+            && self.enable_request;
+        let applied = io.set_duties(if run { out.duties } else { zero });
+        let enabled = io.set_enable(run);
+        if !(applied && enabled) {
+            self.sensor_fault = true;
+        }
+        out
+    }
+
+    /// One PMSM current tick from sensor values, without a board: the code
+    /// [`App::on_pmsm_tick`] runs between its board reads and writes (the loop-in-the-loop
+    /// replay, the PIL image). Returns the core's outputs.
+    #[inline]
+    pub fn step_pmsm(&mut self, inputs: PmsmInputs) -> PmsmOutputs {
+        let out = self.controller.pmsm_tick(inputs);
+        if out.fault.is_some() {
+            self.trace.trigger(self.tick, TriggerCause::Fault);
+            if self.fault_tick.is_none() {
+                self.fault_tick = Some(self.tick);
+            }
+        }
+        self.record_pmsm(inputs.encoder_count, &out);
+        out
+    }
+
+    /// The trend buffer's record of a PMSM tick: its q axis as the DC winding's current,
+    /// reference and voltage.
+    #[inline]
+    fn record_pmsm(&mut self, encoder_count: u32, out: &PmsmOutputs) {
+        self.record_trace(
+            &CurrentInputs {
+                encoder_count,
+                current_pu: out.current.q,
+            },
+            &CurrentOutputs {
+                voltage_cmd_pu: out.voltage.q,
+                current_ref_pu: out.current_ref.q,
+                accel_fb_pu: out.accel_fb_pu,
+                fault: out.fault,
+            },
+        );
+    }
+
+    /// Whether the drive is a PMSM (its current tick is [`App::on_pmsm_tick`]).
+    #[must_use]
+    pub fn is_pmsm(&self) -> bool {
+        self.controller.foc().is_some()
+    }
+
+    /// The duties of 0 V (each half the PWM period) of a PMSM drive; zeros on a DC drive.
+    #[must_use]
+    pub fn zero_voltage_duties(&self) -> [u16; 3] {
+        [self.controller.foc().map_or(0, |f| f.svpwm.period() / 2); 3]
     }
 }
 

@@ -23,6 +23,18 @@ pub fn baked() -> Result<DriveConfig, LinkError> {
     pil_link::settings::decode(BAKED)
 }
 
+/// The reference PMSM drive, `configs/machines/table1-pmsm.toml` whatever
+/// `STIFFDRIVE_DRIVE` names (`build.rs`): `fw-bench`'s second drive and the host tests' PMSM.
+pub static REFERENCE_PMSM: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/pmsm_settings.bin"));
+
+/// The reference PMSM drive ([`REFERENCE_PMSM`]).
+///
+/// # Errors
+/// The settings codec's error for a payload it cannot decode.
+pub fn reference_pmsm() -> Result<DriveConfig, LinkError> {
+    pil_link::settings::decode(REFERENCE_PMSM)
+}
+
 /// The machine behind the `board` image's virtual motor: the baked machine file's motor
 /// inertia \[s\] and its load behind the shaft (`build.rs`, from the file's `[plant]`).
 #[must_use]

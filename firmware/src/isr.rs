@@ -18,10 +18,11 @@
 use core::cell::{Cell, UnsafeCell};
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
-use controller_core::{CurrentOutputs, VelocityOutputs};
+use controller_core::{CurrentOutputs, PmsmOutputs, VelocityOutputs};
 use critical_section::{CriticalSection, Mutex};
 
 use crate::app::{velocity_inputs, App, SetpointSource};
+use crate::board::three_phase::PmsmLoopIo;
 use crate::board::{CurrentLoopIo, VelocityLoopIo};
 use crate::trace::{TraceSample, TraceState};
 
@@ -167,7 +168,8 @@ pub struct VelocityTask<V, S> {
 }
 
 /// Everything the two loop interrupts share, for one board I/O type `C`/`V` and setpoint
-/// source `S`. A binary declares one as a `static` and calls [`Loops::current_isr`] and
+/// source `S`. A binary declares one as a `static` and calls [`Loops::current_isr`] (a DC
+/// drive, `C: CurrentLoopIo`) or [`Loops::pmsm_isr`] (a PMSM drive, `C: PmsmLoopIo`) and
 /// [`Loops::velocity_isr`] from its handlers.
 pub struct Loops<C, V, S> {
     /// The app and the current loop's I/O (one cell: one borrow per current tick).
@@ -179,7 +181,7 @@ pub struct Loops<C, V, S> {
 
 impl<C, V, S> Loops<C, V, S>
 where
-    C: CurrentLoopIo + Send,
+    C: Send,
     V: VelocityLoopIo + Send,
     S: SetpointSource + Send,
 {
@@ -208,12 +210,6 @@ where
         }) {
             self.overruns.fetch_add(1, Ordering::Relaxed);
         }
-    }
-
-    /// Body of the current-loop interrupt (4 kHz).
-    #[inline]
-    pub fn current_isr(&self) -> Option<CurrentOutputs> {
-        critical_section::with(|cs| self.app.with(cs, |(app, io)| app.on_current_tick(io)))
     }
 
     /// Body of the velocity-loop interrupt (2 kHz).
@@ -271,9 +267,35 @@ where
     }
 }
 
-impl<C, V, S> Default for Loops<C, V, S>
+impl<C, V, S> Loops<C, V, S>
 where
     C: CurrentLoopIo + Send,
+    V: VelocityLoopIo + Send,
+    S: SetpointSource + Send,
+{
+    /// Body of a DC drive's current-loop interrupt (4 kHz).
+    #[inline]
+    pub fn current_isr(&self) -> Option<CurrentOutputs> {
+        critical_section::with(|cs| self.app.with(cs, |(app, io)| app.on_current_tick(io)))
+    }
+}
+
+impl<C, V, S> Loops<C, V, S>
+where
+    C: PmsmLoopIo + Send,
+    V: VelocityLoopIo + Send,
+    S: SetpointSource + Send,
+{
+    /// Body of a PMSM drive's current-loop interrupt ([`App::on_pmsm_tick`]).
+    #[inline]
+    pub fn pmsm_isr(&self) -> Option<PmsmOutputs> {
+        critical_section::with(|cs| self.app.with(cs, |(app, io)| app.on_pmsm_tick(io)))
+    }
+}
+
+impl<C, V, S> Default for Loops<C, V, S>
+where
+    C: Send,
     V: VelocityLoopIo + Send,
     S: SetpointSource + Send,
 {
