@@ -9,7 +9,8 @@
 //! * [`isr`]: the interrupt glue (`Loops`: where the app, I/O and profile live between
 //!   interrupts; the handler bodies).
 //! * [`trace`]: the trend buffer (fixed-size capture of chosen signals, dumped on request).
-//! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU).
+//! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU);
+//!   [`virtual_pmsm`]: the three-phase inverter and PMSM there, for a PMSM drive.
 //! * [`identify`]: the board console's measurement record (`Identify`), written per current
 //!   tick, streamed from thread mode.
 //! * [`drive`]: the drive settings baked at build time (`STIFFDRIVE_DRIVE`, else `configs/machines/table1.toml`).
@@ -36,6 +37,7 @@ pub mod ring;
 pub mod synthetic;
 pub mod trace;
 pub mod virtual_motor;
+pub mod virtual_pmsm;
 
 #[cfg(target_os = "none")]
 pub mod board_console;

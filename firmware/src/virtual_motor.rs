@@ -86,7 +86,7 @@ impl Coupling {
     }
 
     /// The shaft torque at twist `twist_rad` and speed difference `slip_pu` (dead zone).
-    fn shaft_torque(&self, twist_rad: f32, slip_pu: f32) -> f32 {
+    pub(crate) fn shaft_torque(&self, twist_rad: f32, slip_pu: f32) -> f32 {
         let g = self.half_gap_rad;
         let dz = if twist_rad > g {
             twist_rad - g
@@ -278,7 +278,7 @@ fn step_coupled(
 }
 
 /// `floor` without libm (no_std): truncate and correct negatives.
-fn floor(x: f32) -> f32 {
+pub(crate) fn floor(x: f32) -> f32 {
     let t = x as i32 as f32;
     if t > x {
         t - 1.0
