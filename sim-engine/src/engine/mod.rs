@@ -2,6 +2,9 @@
 //! the plant with its sensors, the trace and the metrics computed from it, and the record
 //! of the drive's protections (when and why it tripped).
 
+mod dc;
+mod delay;
+mod frame;
 pub mod metrics;
 pub mod plant;
 mod pmsm;
