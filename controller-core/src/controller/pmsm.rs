@@ -5,7 +5,7 @@
 //! ```text
 //! position ← unwrap(encoder_count)                 (encoder-jump check)
 //! θe, (i_d, i_q) ← FOC measure(i_a, i_b, Δcount)
-//! i_ref ← torque side, as the DC tick, with the measured torque λ·i_q
+//! i_ref ← torque side, as the DC tick, with the measured torque λ·i_q + k·i_d·i_q
 //! duties ← FOC regulate(θe, (i_d, i_q), ω̂ (observer), i_ref)
 //! protection ← |i| = √(i_d² + i_q²)                 (overcurrent on the current vector)
 //! commutation ← the FOC's check                      (latches `commutation`)
@@ -17,7 +17,7 @@
 use super::Controller;
 use crate::fault::Fault;
 use crate::foc::{Dq, FocCoefficients};
-use crate::per_unit::{Pu, mul_gain};
+use crate::per_unit::Pu;
 
 /// Inputs of a PMSM current tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -103,7 +103,7 @@ impl Controller {
         };
         self.state.foc_position = position;
         let (phase, current) = foc.measure(&mut self.state.foc, inp.phase_current_pu, delta);
-        let torque = mul_gain(current.q, foc.flux);
+        let torque = foc.mtpa.torque(current);
         let observed = self.observer_torque(self.state.pmsm_torque, torque);
         self.state.pmsm_torque = torque;
         let i_ref = self.torque_stage(observed);

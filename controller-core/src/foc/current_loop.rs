@@ -3,8 +3,8 @@
 //!
 //! 1. angle: θe from the count ([`AngleCoefficients`]);
 //! 2. measurement: Clarke, then Park at θe;
-//! 3. references: `i_q* = clamp(T*/λ, ±i_max)`, `i_d* = 0` (the current circle is then
-//!    `|i_q*| ≤ i_max`);
+//! 3. references: maximum torque per ampere within the current circle ([`Mtpa`]): for
+//!    `L_d = L_q`, `i_q* = clamp(T*/λ, ±i_max)` and `i_d* = 0`;
 //! 4. d and q PIs (`kp = ω_c·L`, `ki = ω_c·R` per axis) with the feed-forward of the
 //!    cross-coupling and the back-EMF: `v_d,ff = −ω_e·L_q·i_q`, `v_q,ff = ω_e·L_d·i_d + ω·λ`,
 //!    on the measured currents. On the references instead, a q current that the voltage
@@ -24,6 +24,7 @@
 
 use super::angle::{AngleCoefficients, AngleState};
 use super::commutation::{CommutationCheck, CommutationState};
+use super::mtpa::Mtpa;
 use super::svpwm::Svpwm;
 use super::transforms::{CosSin, Dq, clarke, inverse_park, park};
 use super::voltage_limit::VoltageCircle;
@@ -91,10 +92,8 @@ pub struct FocCoefficients {
     pub wl_q: Gain,
     /// λ: the back-EMF per pu speed.
     pub flux: Gain,
-    /// 1/λ: the q current per pu torque.
-    pub inv_flux: Gain,
-    /// The current circle's radius.
-    pub current_limit: Pu,
+    /// The current references of a torque reference, and the torque of the currents.
+    pub mtpa: Mtpa,
     /// The voltage circle.
     pub circle: VoltageCircle,
     /// The modulator.
@@ -232,11 +231,11 @@ impl FocCoefficients {
         while shift < 15 && ((1u32 << shift) as f32) < 0.002 * rate {
             shift += 1;
         }
-        let wl_d = quantize(
+        let wl_d: Gain = quantize(
             w_e_base * ld,
             "ω_e·L_d (pole_pairs, base_speed_rpm, d_inductance_pu_s)",
         )?;
-        let wl_q = quantize(
+        let wl_q: Gain = quantize(
             w_e_base * lq,
             "ω_e·L_q (pole_pairs, base_speed_rpm, q_inductance_pu_s)",
         )?;
@@ -252,17 +251,10 @@ impl FocCoefficients {
                 "q current kp (current_bandwidth_rad_s × q_inductance_pu_s)",
                 "q current ki·Ts (current_bandwidth_rad_s × winding_resistance_pu / current_rate_hz)",
             )?,
-            wl_d: quantize(
-                w_e_base * ld,
-                "ω_e·L_d (pole_pairs, base_speed_rpm, d_inductance_pu_s)",
-            )?,
-            wl_q: quantize(
-                w_e_base * lq,
-                "ω_e·L_q (pole_pairs, base_speed_rpm, q_inductance_pu_s)",
-            )?,
+            wl_d,
+            wl_q,
             flux: quantize(flux, "pmsm.flux_linkage_pu")?,
-            inv_flux: quantize(1.0 / flux, "1/pmsm.flux_linkage_pu")?,
-            current_limit: quantize(i_max, "torque_limit_pu / pmsm.flux_linkage_pu")?,
+            mtpa: Mtpa::new(flux, wl_d.saturating_sub(wl_q), i_max)?,
             circle,
             svpwm,
             commutation: CommutationCheck {
@@ -318,14 +310,8 @@ impl FocCoefficients {
         speed_pu: Pu,
         torque_ref_pu: Pu,
     ) -> FocOutputs {
-        let inp = (speed_pu, torque_ref_pu);
-        let lim = self.current_limit;
-        let i_q_ref = mul_gain(inp.1, self.inv_flux).clamp(-lim, lim);
-        let current_ref = Dq {
-            d: Pu::ZERO,
-            q: i_q_ref,
-        };
-        let w = inp.0;
+        let current_ref = self.mtpa.references(torque_ref_pu);
+        let w = speed_pu;
         // ω·i in Q16.16 (64-bit product, saturated), then times ω_e,b·L.
         let w_times = |i: Pu| {
             Pu::from_bits(sat_shr::<16>(

@@ -26,6 +26,7 @@ pub mod calibration;
 pub mod commutation;
 pub mod config;
 pub mod current_loop;
+pub mod mtpa;
 pub mod svpwm;
 pub mod transforms;
 pub mod voltage_limit;
