@@ -25,7 +25,7 @@ fn app_path_matches_host_core_bit_for_bit() {
         "enabled {}",
         report.enabled_ticks
     );
-    assert_eq!(controller_core::words::fault_code(report.last.fault), 4);
+    assert_eq!(controller_core::words::fault_code(report.final_fault), 4);
 }
 
 #[test]

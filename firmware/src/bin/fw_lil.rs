@@ -28,7 +28,7 @@ mod target {
             report.missing_words,
             report.digest,
             report.enabled_ticks,
-            controller_core::words::fault_code(report.last.fault)
+            controller_core::words::fault_code(report.final_fault)
         );
         if let Some(m) = report.first_mismatch {
             defmt::error!(

@@ -8,7 +8,18 @@
 //! wrap at 65,000 so the run crosses it) and the current quantized like a 12-bit ADC
 //! (1/1024 pu per LSB) with ±3 LSB of deterministic pseudo-random noise. The replay is open
 //! loop: the recording stays valid input whatever the core's gains become.
+//!
+//! With a PMSM drive baked (`STIFFDRIVE_DRIVE=configs/machines/table1-pmsm.toml cargo run -p
+//! firmware --features record --bin lil-record > firmware/lil/inputs-pmsm.csv`) the App's PMSM
+//! tick closes the loop around plant-host's PMSM of the same machine file (`PmsmPlant`: the
+//! three duties after the file's computational delay, the two phase currents through its
+//! ADC model), the same motion, load step and fault input. Recorded: the 16-bit encoder
+//! counter (the motor starts at 65,000, −536 counts) and the phase currents a and b with
+//! ±2 LSB of the same deterministic noise.
 #![allow(clippy::print_stdout)]
+
+#[path = "lil_record/pmsm.rs"]
+mod pmsm;
 
 use controller_core::Pu;
 use firmware::app::{velocity_inputs, App, DEFAULT_TRACE};
@@ -16,18 +27,22 @@ use firmware::lil::words::{self, LilInput};
 use firmware::lil::ReplayIo;
 use firmware::virtual_motor::{VirtualMotor, VirtualMotorConfig};
 
-const PERIODS: u32 = 4400;
-const LOAD_STEP_PERIOD: u32 = 1600;
-const LOAD_STEP_PU: f32 = 0.3;
-const FAULT_FROM_PERIOD: u32 = 4300;
+pub(crate) const PERIODS: u32 = 4400;
+pub(crate) const LOAD_STEP_PERIOD: u32 = 1600;
+pub(crate) const LOAD_STEP_PU: f32 = 0.3;
+pub(crate) const FAULT_FROM_PERIOD: u32 = 4300;
 const START_COUNTS: u32 = 65_000;
 /// ADC resolution [pu per LSB] and noise amplitude [LSB].
 const ADC_PU_PER_LSB: f32 = 1.0 / 1024.0;
 const NOISE_LSB: i32 = 3;
 
 fn main() {
-    if let Err(e) = run() {
-        eprintln!("lil-record: {e:?}");
+    let result = match firmware::drive::baked() {
+        Ok(cfg) if cfg.pmsm.is_some() => pmsm::run(&cfg),
+        _ => run().map_err(|e| format!("{e:?}")),
+    };
+    if let Err(e) = result {
+        eprintln!("lil-record: {e}");
         std::process::exit(1);
     }
 }
@@ -41,12 +56,7 @@ fn run() -> Result<(), firmware::app::AppError> {
     let ratio = words::tick_ratio(&cfg);
     let mut motor =
         VirtualMotor::new(VirtualMotorConfig::for_drive(&cfg)).with_counts(START_COUNTS);
-    // Park–Miller LCG: deterministic noise, same file on every machine.
-    let mut seed: u32 = 12_345;
-    let mut noise = move || {
-        seed = ((u64::from(seed) * 48_271) % 0x7FFF_FFFF) as u32;
-        (seed % (2 * NOISE_LSB as u32 + 1)) as i32 - NOISE_LSB
-    };
+    let mut noise = noise(NOISE_LSB);
     println!("# stiffdrive loop-in-the-loop recording: written by `cargo run -p firmware --features record --bin lil-record`");
     println!("# one line per 4 kHz period; current_pu_bits = Q16.16 bits; see firmware/src/bin/lil_record.rs");
     println!("period,encoder_count,current_pu_bits,fault_input");
@@ -81,4 +91,13 @@ fn run() -> Result<(), firmware::app::AppError> {
         app.fault()
     );
     Ok(())
+}
+
+/// Park–Miller LCG: deterministic noise in ±`lsb`, the same file on every machine.
+fn noise(lsb: i32) -> impl FnMut() -> i32 {
+    let mut seed: u32 = 12_345;
+    move || {
+        seed = ((u64::from(seed) * 48_271) % 0x7FFF_FFFF) as u32;
+        (seed % (2 * lsb as u32 + 1)) as i32 - lsb
+    }
 }

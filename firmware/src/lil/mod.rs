@@ -1,22 +1,28 @@
 //! Loop-in-the-loop: replay a recorded sensor sequence through the firmware's tick code and
 //! compare every output word, bit for bit, with the host build of controller-core.
 //!
-//! `build.rs` reads the recording `lil/inputs.csv`, runs [`words::reference_run`] (host
-//! core) on it and embeds both the inputs ([`INPUTS`]) and the expected words
-//! ([`EXPECTED`]) in the image. [`replay`] feeds the records to [`App::on_current_tick`] and
-//! [`App::on_velocity_tick`] through a board stand-in, exactly as the timer interrupts do,
-//! and compares. The `fw-lil` image runs it on the Cortex-M4F under QEMU; the host test
-//! `tests/loop_in_loop.rs` runs it on the host.
+//! `build.rs` reads the recording of the baked drive's motor (`lil/inputs.csv` for a DC
+//! drive, `lil/inputs-pmsm.csv` for a PMSM), runs [`words::reference_run`] (or
+//! [`words::reference_run_pmsm`]; host core) on it and embeds both the inputs ([`INPUTS`])
+//! and the expected words ([`EXPECTED`]) in the image. [`replay`] feeds the records to
+//! [`App::on_current_tick`] and [`App::on_velocity_tick`] through a board stand-in, exactly
+//! as the timer interrupts do, and compares; [`replay_pmsm`] the same with
+//! [`App::on_pmsm_tick`]. The `fw-lil` image runs it on the Cortex-M4F under QEMU; the host
+//! tests `tests/loop_in_loop.rs` and `tests/loop_in_loop_pmsm.rs` run it on the host.
 
 pub mod words;
 
-use controller_core::{CurrentOutputs, Pu};
+use controller_core::{Fault, Pu};
 
 use crate::app::{velocity_inputs, App, SetpointSource};
+use crate::board::three_phase::PmsmLoopIo;
 use crate::board::{CurrentLoopIo, VelocityLoopIo};
-use words::{tick_ratio, velocity_after, LilInput, INPUT_RECORD_BYTES};
+use words::{
+    tick_ratio, velocity_after, LilInput, PmsmLilInput, INPUT_RECORD_BYTES, PMSM_INPUT_RECORD_BYTES,
+};
 
-/// The recorded inputs, [`INPUT_RECORD_BYTES`] per 4 kHz period.
+/// The recorded inputs, [`INPUT_RECORD_BYTES`] per period ([`PMSM_INPUT_RECORD_BYTES`] for
+/// a PMSM drive).
 pub static INPUTS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/lil_inputs.bin"));
 /// The expected output words (u32 LE), in run order, from the host build of the core.
 pub static EXPECTED: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/lil_expected.bin"));
@@ -59,6 +65,47 @@ impl VelocityLoopIo for ReplayIo {
     }
 }
 
+/// The three-phase board stand-in of a PMSM replay: serves one record to both loops and
+/// keeps what the current loop applied.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PmsmReplayIo {
+    /// The record of this period.
+    pub record: PmsmLilInput,
+    /// Duties the current tick applied [timer counts].
+    pub duties: [u16; 3],
+    /// Enable output the current tick set.
+    pub enabled: bool,
+}
+
+impl PmsmLoopIo for PmsmReplayIo {
+    fn encoder_count(&mut self) -> u32 {
+        self.record.encoder_count
+    }
+    fn phase_currents_pu(&mut self) -> Option<[Pu; 2]> {
+        Some(self.record.phase_current_pu)
+    }
+    fn set_duties(&mut self, duties: [u16; 3]) -> bool {
+        self.duties = duties;
+        true
+    }
+    fn set_enable(&mut self, enabled: bool) -> bool {
+        self.enabled = enabled;
+        true
+    }
+    fn fault_input(&mut self) -> bool {
+        self.record.fault_input
+    }
+}
+
+impl VelocityLoopIo for PmsmReplayIo {
+    fn encoder_count(&mut self) -> u32 {
+        self.record.encoder_count
+    }
+    fn fault_input(&mut self) -> bool {
+        self.record.fault_input
+    }
+}
+
 /// The first output word that differed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mismatch {
@@ -89,8 +136,8 @@ pub struct ReplayReport {
     pub missing_words: u32,
     /// Current ticks that ran with the power stage enabled.
     pub enabled_ticks: u32,
-    /// Last current-tick outputs.
-    pub last: CurrentOutputs,
+    /// The fault the last current tick reported.
+    pub final_fault: Option<Fault>,
 }
 
 /// FNV-1a over 32-bit words (byte-wise, little endian).
@@ -106,34 +153,35 @@ pub fn fnv1a(mut hash: u32, word: u32) -> u32 {
 /// FNV-1a offset basis.
 pub const FNV_OFFSET: u32 = 0x811C_9DC5;
 
-/// Replay `inputs` through `app` (the interrupts' code) with `profile`, comparing with
-/// `expected` words.
-pub fn replay<S: SetpointSource>(
-    app: &mut App,
-    profile: &mut S,
-    ratio: u32,
-    inputs: &[u8],
-    expected: &[u8],
-) -> ReplayReport {
-    let mut expected_words = expected.chunks_exact(4).map(|c| {
-        c.iter()
-            .rev()
-            .fold(0_u32, |acc, b| (acc << 8) | u32::from(*b))
-    });
-    let mut report = ReplayReport {
-        periods: 0,
-        words: 0,
-        mismatches: 0,
-        first_mismatch: None,
-        digest: FNV_OFFSET,
-        missing_words: 0,
-        enabled_ticks: 0,
-        last: CurrentOutputs::default(),
-    };
-    let mut check = |report: &mut ReplayReport, period: u32, words: &[u32]| {
+/// The comparison of a replay's output words with the expected ones.
+struct Checker<I> {
+    expected: I,
+    report: ReplayReport,
+}
+
+impl<I: Iterator<Item = u32>> Checker<I> {
+    fn new(expected: I) -> Self {
+        Self {
+            expected,
+            report: ReplayReport {
+                periods: 0,
+                words: 0,
+                mismatches: 0,
+                first_mismatch: None,
+                digest: FNV_OFFSET,
+                missing_words: 0,
+                enabled_ticks: 0,
+                final_fault: None,
+            },
+        }
+    }
+
+    /// Compare one tick's `words` of `period`.
+    fn check(&mut self, period: u32, words: &[u32]) {
+        let report = &mut self.report;
         for &actual in words {
             report.digest = fnv1a(report.digest, actual);
-            match expected_words.next() {
+            match self.expected.next() {
                 Some(expected) if expected == actual => {}
                 Some(expected) => {
                     report.mismatches += 1;
@@ -150,7 +198,34 @@ pub fn replay<S: SetpointSource>(
             }
             report.words += 1;
         }
-    };
+    }
+
+    /// The report, with the expected words left over.
+    fn finish(mut self) -> ReplayReport {
+        self.report.missing_words = self.expected.count() as u32;
+        self.report
+    }
+}
+
+/// The expected words (u32 LE) of `expected`.
+fn expected_words(expected: &[u8]) -> impl Iterator<Item = u32> + '_ {
+    expected.chunks_exact(4).map(|c| {
+        c.iter()
+            .rev()
+            .fold(0_u32, |acc, b| (acc << 8) | u32::from(*b))
+    })
+}
+
+/// Replay `inputs` through `app` (the interrupts' code) with `profile`, comparing with
+/// `expected` words.
+pub fn replay<S: SetpointSource>(
+    app: &mut App,
+    profile: &mut S,
+    ratio: u32,
+    inputs: &[u8],
+    expected: &[u8],
+) -> ReplayReport {
+    let mut c = Checker::new(expected_words(expected));
     let mut io = ReplayIo::default();
     for (k, chunk) in (0_u32..).zip(inputs.chunks_exact(INPUT_RECORD_BYTES)) {
         let mut rec = [0_u8; INPUT_RECORD_BYTES];
@@ -158,37 +233,74 @@ pub fn replay<S: SetpointSource>(
         // A record that names no input (a fault-input word other than 0 or 1) is a
         // mismatch, and the replay stops there.
         let Ok(record) = LilInput::from_bytes(&rec) else {
-            report.mismatches += 1;
+            c.report.mismatches += 1;
             break;
         };
         io.record = record;
         let out = app.on_current_tick(&mut io);
-        report.enabled_ticks += u32::from(io.enabled);
-        report.last = out;
-        check(&mut report, k, &out.to_words());
+        c.report.enabled_ticks += u32::from(io.enabled);
+        c.report.final_fault = out.fault;
+        c.check(k, &out.to_words());
         if velocity_after(k, ratio) {
             let v = app.on_velocity_tick(velocity_inputs(&mut io, profile));
-            check(&mut report, k, &v.to_words());
+            c.check(k, &v.to_words());
         }
-        report.periods += 1;
+        c.report.periods += 1;
     }
-    report.missing_words = expected_words.count() as u32;
-    report
+    c.finish()
+}
+
+/// As [`replay`], for a PMSM drive's app ([`App::new_pmsm`]): the records are
+/// [`PmsmLilInput`]s, the current ticks [`App::on_pmsm_tick`] (13 words each).
+pub fn replay_pmsm<S: SetpointSource>(
+    app: &mut App,
+    profile: &mut S,
+    ratio: u32,
+    inputs: &[u8],
+    expected: &[u8],
+) -> ReplayReport {
+    let mut c = Checker::new(expected_words(expected));
+    let mut io = PmsmReplayIo::default();
+    for (k, chunk) in (0_u32..).zip(inputs.chunks_exact(PMSM_INPUT_RECORD_BYTES)) {
+        let mut rec = [0_u8; PMSM_INPUT_RECORD_BYTES];
+        rec.copy_from_slice(chunk);
+        let Ok(record) = PmsmLilInput::from_bytes(&rec) else {
+            c.report.mismatches += 1;
+            break;
+        };
+        io.record = record;
+        let out = app.on_pmsm_tick(&mut io);
+        c.report.enabled_ticks += u32::from(io.enabled);
+        c.report.final_fault = out.fault;
+        c.check(k, &out.to_words());
+        if velocity_after(k, ratio) {
+            let v = app.on_velocity_tick(velocity_inputs(&mut io, profile));
+            c.check(k, &v.to_words());
+        }
+        c.report.periods += 1;
+    }
+    c.finish()
 }
 
 /// Build the run's app (the baked drive, [`crate::drive::baked`]) and profile and replay the
-/// embedded recording.
+/// embedded recording (a PMSM drive's with [`replay_pmsm`]).
 ///
 /// # Errors
 /// The app's configuration error (a baked drive that does not decode is
 /// [`crate::app::AppError::Settings`]).
 pub fn replay_embedded() -> Result<ReplayReport, crate::app::AppError> {
     let cfg = crate::drive::baked().map_err(crate::app::AppError::Settings)?;
-    let mut app = App::new(&cfg, cfg.counter_bits, crate::app::DEFAULT_TRACE)?;
+    let pmsm = cfg.pmsm.is_some();
+    let mut app = if pmsm {
+        App::new_pmsm(&cfg, cfg.counter_bits, crate::app::DEFAULT_TRACE)?
+    } else {
+        App::new(&cfg, cfg.counter_bits, crate::app::DEFAULT_TRACE)?
+    };
     app.set_enable_request(true);
     let mut profile = controller_core::Profile::new(&words::profile_config(), &cfg)
         .map_err(crate::app::AppError::Config)?;
-    Ok(replay(
+    let run = if pmsm { replay_pmsm } else { replay };
+    Ok(run(
         &mut app,
         &mut profile,
         tick_ratio(&cfg),

@@ -1,7 +1,10 @@
 //! Loop-in-the-loop: the run's settings, the record layout and the reference run.
 //!
-//! The drive of the run is the one `build.rs` bakes from `configs/machines/table1.toml`
-//! (`firmware::drive::baked` in the image). This file depends on controller-core and `core`
+//! The drive of the run is the one `build.rs` bakes (`STIFFDRIVE_DRIVE`, else
+//! `configs/machines/table1.toml`; `firmware::drive::baked` in the image). A DC drive replays
+//! `lil/inputs.csv` ([`LilInput`]: encoder count, current, fault input); a PMSM drive
+//! `lil/inputs-pmsm.csv` ([`PmsmLilInput`]: encoder count, phase currents a and b, fault
+//! input), its current ticks `Controller::pmsm_tick` (outputs: `PmsmOutputs`' words). This file depends on controller-core and `core`
 //! only, because it is compiled twice: into
 //! the firmware library (target and host) and into `build.rs` (host), where
 //! [`reference_run`] computes the expected outputs with the HOST build of the core.
@@ -12,7 +15,7 @@
 //! setpoint: the order the aligned timer interrupts give on the target.
 
 use controller_core::{
-    CurrentInputs, DriveConfig, Profile, ProfileConfig, ProfileKind, Pu, VelocityInputs,
+    CurrentInputs, DriveConfig, PmsmInputs, Profile, ProfileConfig, ProfileKind, Pu, VelocityInputs,
 };
 
 /// Bytes per input record: encoder count (u32 LE), current (Q16.16 bits, i32 LE), fault
@@ -36,28 +39,83 @@ controller_core::tick_words!(LilInput {
     fault_input: bool,
 });
 
+/// Bytes per PMSM input record: encoder count (u32 LE), phase currents a and b (Q16.16
+/// bits, i32 LE), fault input (u32 LE, 0 or 1).
+pub const PMSM_INPUT_RECORD_BYTES: usize = 4 * PmsmLilInput::WORDS;
+
+/// One recorded period of a PMSM drive's sensor inputs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PmsmLilInput {
+    /// Raw encoder counter [counts].
+    pub encoder_count: u32,
+    /// Measured phase currents a and b [pu].
+    pub phase_current_pu: [Pu; 2],
+    /// External fault input.
+    pub fault_input: bool,
+}
+
+controller_core::tick_words!(PmsmLilInput {
+    encoder_count: u32,
+    phase_current_pu: [Pu; 2],
+    fault_input: bool,
+});
+
+/// Words as little-endian bytes (`N` = 4 × the words).
+fn words_to_bytes<const N: usize>(words: &[u32]) -> [u8; N] {
+    let mut b = [0_u8; N];
+    for (chunk, w) in b.chunks_exact_mut(4).zip(words) {
+        chunk.copy_from_slice(&w.to_le_bytes());
+    }
+    b
+}
+
+/// Little-endian bytes as words.
+fn bytes_to_words<const W: usize>(b: &[u8]) -> [u32; W] {
+    let mut words = [0_u32; W];
+    for (w, chunk) in words.iter_mut().zip(b.chunks_exact(4)) {
+        let mut le = [0_u8; 4];
+        le.copy_from_slice(chunk);
+        *w = u32::from_le_bytes(le);
+    }
+    words
+}
+
 impl LilInput {
     /// The record as bytes: its words ([`controller_core::words`]), little-endian.
     #[must_use]
     pub fn to_bytes(self) -> [u8; INPUT_RECORD_BYTES] {
-        let mut b = [0_u8; INPUT_RECORD_BYTES];
-        for (chunk, w) in b.chunks_exact_mut(4).zip(self.to_words()) {
-            chunk.copy_from_slice(&w.to_le_bytes());
-        }
-        b
+        words_to_bytes(&self.to_words())
     }
 
     /// A record from bytes; a fault-input word other than 0 or 1 is an error.
     pub fn from_bytes(
         b: &[u8; INPUT_RECORD_BYTES],
     ) -> Result<Self, controller_core::words::BadWord> {
-        let mut words = [0_u32; Self::WORDS];
-        for (w, chunk) in words.iter_mut().zip(b.chunks_exact(4)) {
-            let mut le = [0_u8; 4];
-            le.copy_from_slice(chunk);
-            *w = u32::from_le_bytes(le);
+        Self::from_words(&bytes_to_words(b))
+    }
+}
+
+impl PmsmLilInput {
+    /// The record as bytes: its words, little-endian.
+    #[must_use]
+    pub fn to_bytes(self) -> [u8; PMSM_INPUT_RECORD_BYTES] {
+        words_to_bytes(&self.to_words())
+    }
+
+    /// A record from bytes; a fault-input word other than 0 or 1 is an error.
+    pub fn from_bytes(
+        b: &[u8; PMSM_INPUT_RECORD_BYTES],
+    ) -> Result<Self, controller_core::words::BadWord> {
+        Self::from_words(&bytes_to_words(b))
+    }
+
+    /// The core's inputs for this record's current tick.
+    #[must_use]
+    pub fn pmsm_inputs(&self) -> PmsmInputs {
+        PmsmInputs {
+            encoder_count: self.encoder_count,
+            phase_current_pu: self.phase_current_pu,
         }
-        Self::from_words(&words)
     }
 }
 
@@ -112,6 +170,33 @@ pub fn reference_run(
     let ratio = tick_ratio(cfg);
     for (k, rec) in (0_u32..).zip(inputs) {
         emit(&controller.current_tick(current_inputs(&rec)).to_words());
+        if velocity_after(k, ratio) {
+            let out = controller.velocity_tick(VelocityInputs {
+                encoder_count: rec.encoder_count,
+                setpoint: profile.next(),
+                fault_input: rec.fault_input,
+            });
+            emit(&out.to_words());
+        }
+    }
+    Ok(())
+}
+
+/// As [`reference_run`], for a PMSM drive: its current ticks are `Controller::pmsm_tick`
+/// (13 words each: [`controller_core::PmsmOutputs`]).
+///
+/// # Errors
+/// The core's configuration error for the run's settings.
+pub fn reference_run_pmsm(
+    cfg: &DriveConfig,
+    inputs: impl IntoIterator<Item = PmsmLilInput>,
+    mut emit: impl FnMut(&[u32]),
+) -> Result<(), controller_core::ConfigError> {
+    let mut controller = controller_core::Controller::new(cfg)?;
+    let mut profile = Profile::new(&profile_config(), cfg)?;
+    let ratio = tick_ratio(cfg);
+    for (k, rec) in (0_u32..).zip(inputs) {
+        emit(&controller.pmsm_tick(rec.pmsm_inputs()).to_words());
         if velocity_after(k, ratio) {
             let out = controller.velocity_tick(VelocityInputs {
                 encoder_count: rec.encoder_count,
