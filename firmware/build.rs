@@ -25,7 +25,9 @@
 //!    as plant-host derives its constants (`MechanicsConfig::derived`: K, D, g, ω_b), with
 //!    the motor inertia and the two viscous frictions, into `$OUT_DIR/virtual_machine.rs`
 //!    (`firmware::drive::coupling`). Always the dead zone; the file's sensors' noise and
-//!    the computational delay are not modelled there.
+//!    the computational delay are not modelled there. For a PMSM file, its `[electrics]`
+//!    into `$OUT_DIR/virtual_pmsm.rs` (`firmware::drive::pmsm_machine`): the QEMU images'
+//!    virtual PMSM (`firmware::virtual_pmsm`), the motor's truth.
 use std::{env, fs, path::PathBuf};
 
 use controller_core::DriveConfig;
@@ -148,6 +150,49 @@ fn write_coupling(plant: &plant_host::PlantConfig, out: &std::path::Path) -> Res
     fs::write(out.join("virtual_machine.rs"), text).map_err(|e| e.to_string())
 }
 
+/// The `[electrics]` of a PMSM machine file as the QEMU images' virtual PMSM: a Rust
+/// expression `Option<PmsmMachine>` for `include!` (`None` for a DC motor), the file's
+/// values as they are (`firmware::virtual_pmsm` works out the rest).
+fn write_pmsm_machine(
+    plant: &plant_host::PlantConfig,
+    out: &std::path::Path,
+) -> Result<(), String> {
+    let e = &plant.electrics;
+    let text = match (
+        e.motor,
+        e.pole_pairs,
+        e.d_inductance_pu_s,
+        e.q_inductance_pu_s,
+        e.dc_bus_pu,
+        e.encoder_offset_elec_deg,
+    ) {
+        (plant_host::MotorKind::Pmsm, Some(p), Some(ld), Some(lq), Some(bus), Some(offset)) => {
+            let fields = [
+                ("resistance_pu", e.winding_resistance_pu),
+                ("d_inductance_pu_s", ld),
+                ("q_inductance_pu_s", lq),
+                ("flux_linkage_pu", e.flux_linkage_pu.unwrap_or(1.0)),
+                ("dc_bus_pu", bus),
+                ("encoder_offset_elec_deg", offset),
+                ("computational_delay_s", e.computational_delay_s),
+                ("current_full_scale_pu", e.current_full_scale_pu),
+            ];
+            let mut text = format!(
+                "Some(crate::virtual_pmsm::PmsmMachine {{\n    pole_pairs: {p},\n    \
+                 current_adc_bits: {},\n",
+                e.current_adc_bits
+            );
+            for (name, v) in fields {
+                text.push_str(&format!("    {name}: {:?}_f32,\n", v as f32));
+            }
+            text.push_str("})\n");
+            text
+        }
+        _ => "None\n".to_string(),
+    };
+    fs::write(out.join("virtual_pmsm.rs"), text).map_err(|e| e.to_string())
+}
+
 /// Compose, validate and encode the drive of `toml_path` into `drive_settings.bin`, and its
 /// name (path below `root`, settings checksum) into `drive_name.txt`; the drive as the image
 /// will decode it.
@@ -164,6 +209,7 @@ fn bake_drive(
     // A PMSM drive builds for every QEMU image: fw-lil and fw-bench run it (`App::new_pmsm`),
     // an image whose board drives one DC winding refuses it at start-up (`App::new`).
     write_coupling(&machine.plant, out)?;
+    write_pmsm_machine(&machine.plant, out)?;
     let (back, bytes) = encode_drive(&machine.drive)?;
     let bytes = bytes.as_slice();
     fs::write(out.join("drive_settings.bin"), bytes).map_err(|e| e.to_string())?;

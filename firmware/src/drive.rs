@@ -41,3 +41,10 @@ pub fn reference_pmsm() -> Result<DriveConfig, LinkError> {
 pub fn coupling() -> (f32, crate::virtual_motor::Coupling) {
     include!(concat!(env!("OUT_DIR"), "/virtual_machine.rs"))
 }
+
+/// The PMSM behind the QEMU images' virtual inverter: the baked machine file's
+/// `[electrics]` (`build.rs`); `None` for a DC motor.
+#[must_use]
+pub fn pmsm_machine() -> Option<crate::virtual_pmsm::PmsmMachine> {
+    include!(concat!(env!("OUT_DIR"), "/virtual_pmsm.rs"))
+}

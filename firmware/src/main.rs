@@ -67,7 +67,14 @@ mod target {
     use firmware::rt::exit;
     use firmware::trace::{TraceSample, TraceState};
 
+    use board::inverter::VirtualInverter;
+
     static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, GatedMove> = Loops::new();
+    /// The loops of a PMSM drive (the baked file's `[drive.pmsm]`): its current tick on the
+    /// virtual three-phase stage.
+    static PMSM_LOOPS: Loops<VirtualInverter, board::VelocityIoImpl, GatedMove> = Loops::new();
+    /// Set once a PMSM drive is installed in [`PMSM_LOOPS`] (before the timers start).
+    static PMSM: AtomicBool = AtomicBool::new(false);
     static DUMP_REQUESTED: AtomicBool = AtomicBool::new(false);
     /// The move runs while set (by `e`); otherwise the setpoint holds where it is.
     static MOVE_GO: AtomicBool = AtomicBool::new(false);
@@ -109,11 +116,28 @@ mod target {
     }
 
     fn current_loop() {
-        let _ = LOOPS.current_isr();
+        if PMSM.load(Ordering::Relaxed) {
+            let _ = PMSM_LOOPS.pmsm_isr();
+        } else {
+            let _ = LOOPS.current_isr();
+        }
     }
 
     fn velocity_loop() {
-        let _ = LOOPS.velocity_isr();
+        if PMSM.load(Ordering::Relaxed) {
+            let _ = PMSM_LOOPS.velocity_isr();
+        } else {
+            let _ = LOOPS.velocity_isr();
+        }
+    }
+
+    /// Run `f` on the installed drive's app (thread mode, the UART command).
+    fn with_app<R>(f: impl FnOnce(&mut App) -> R) -> Option<R> {
+        if PMSM.load(Ordering::Relaxed) {
+            PMSM_LOOPS.with_app(f)
+        } else {
+            LOOPS.with_app(f)
+        }
     }
 
     fn command() {
@@ -122,14 +146,14 @@ mod target {
             Some(b'e') => enable(true),
             Some(b'x') => enable(false),
             Some(b'r') => {
-                LOOPS.with_app(|app| app.reset());
+                with_app(|app| app.reset());
             }
             _ => {}
         }
     }
 
     fn enable(on: bool) {
-        LOOPS.with_app(|app| app.set_enable_request(on));
+        with_app(|app| app.set_enable_request(on));
         MOVE_GO.store(on, Ordering::Relaxed);
     }
 
@@ -176,7 +200,21 @@ mod target {
             mem.flash_bytes,
             mem.static_ram_bytes
         );
-        LOOPS.install(app, b.current_io, b.velocity_io, motion);
+        if cfg.pmsm.is_some() {
+            // The baked file's PMSM behind the virtual three-phase stage.
+            let Some(stage) = board::inverter::virtual_pmsm_config(&cfg) else {
+                defmt::error!(
+                    "the drive has [drive.pmsm] but the baked machine file's motor is not a \
+                     PMSM (electrics.motor)"
+                );
+                exit(false)
+            };
+            PMSM_LOOPS.install(app, VirtualInverter::new(stage), b.velocity_io, motion);
+            PMSM.store(true, Ordering::Relaxed);
+            defmt::info!("PMSM drive on the virtual three-phase stage");
+        } else {
+            LOOPS.install(app, b.current_io, b.velocity_io, motion);
+        }
         let console = b.console;
         // The demo enables at once.
         enable(true);
@@ -198,7 +236,13 @@ mod target {
 
     /// The app for `cfg` and the gated demo move; exits on bad settings.
     fn app_and_motion(cfg: &DriveConfig) -> (App, GatedMove) {
-        let app = match App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+        let bits = board::Encoder::COUNTER_BITS;
+        let app = if cfg.pmsm.is_some() {
+            App::new_pmsm(cfg, bits, DEFAULT_TRACE)
+        } else {
+            App::new(cfg, bits, DEFAULT_TRACE)
+        };
+        let app = match app {
             Ok(app) => app,
             Err(e) => {
                 defmt::error!("bad settings: {}", defmt::Debug2Format(&e));
@@ -230,9 +274,9 @@ mod target {
         let (mut fault_logged, mut warning_logged) = (false, false);
         loop {
             cortex_m::asm::wfi();
-            let ticks = LOOPS.with_app(|app| app.ticks()).unwrap_or(0);
+            let ticks = with_app(|app| app.ticks()).unwrap_or(0);
             // When and why the drive tripped, once per latch; the I²t warning once per rise.
-            match LOOPS.with_app(|app| app.fault_record()).flatten() {
+            match with_app(|app| app.fault_record()).flatten() {
                 Some((fault, tick)) if !fault_logged => {
                     fault_logged = true;
                     defmt::error!(
@@ -245,7 +289,7 @@ mod target {
                 Some(_) => {}
                 None => fault_logged = false,
             }
-            let warm = LOOPS.with_app(|app| app.thermal_warning()).unwrap_or(false);
+            let warm = with_app(|app| app.thermal_warning()).unwrap_or(false);
             if warm && !warning_logged {
                 defmt::warn!(
                     "I2t warning: winding at its thermal warning level, tick {=u32}",
@@ -259,7 +303,7 @@ mod target {
             }
             if DUMP_REQUESTED.swap(false, Ordering::Relaxed) {
                 defmt::info!("dump requested at tick {=u32}", ticks);
-                LOOPS.with_app(|app| app.request_dump());
+                with_app(|app| app.request_dump());
             }
             if let Some(n) = dump(&mut console) {
                 dumps += 1;
@@ -278,9 +322,9 @@ mod target {
 
     /// Write a frozen trend buffer to the console as CSV; `None` if none is frozen.
     fn dump(console: &mut board::Console) -> Option<usize> {
-        let channels = LOOPS.with_app(|app| app.trace().config().channels)?;
+        let channels = with_app(|app| app.trace().config().channels)?;
         let mut count = 0;
-        let state = LOOPS.dump_trace(|index, sample: &TraceSample| {
+        let sink = |index: usize, sample: &TraceSample| {
             if index == 0 {
                 let _ = write!(console, "tick");
                 for c in channels {
@@ -294,7 +338,12 @@ mod target {
             }
             let _ = writeln!(console);
             count = index + 1;
-        })?;
+        };
+        let state = if PMSM.load(Ordering::Relaxed) {
+            PMSM_LOOPS.dump_trace(sink)
+        } else {
+            LOOPS.dump_trace(sink)
+        }?;
         if let TraceState::Frozen {
             cause,
             trigger_tick,
@@ -311,11 +360,15 @@ mod target {
 
     /// QEMU: check the run and exit with its status.
     fn finish(dumps: u32) -> ! {
-        let status = LOOPS.with_app(|app| (app.ticks(), app.fault()));
+        let status = with_app(|app| (app.ticks(), app.fault()));
         let Some((ticks, fault)) = status else {
             exit(false)
         };
-        let overruns = LOOPS.overruns();
+        let overruns = if PMSM.load(Ordering::Relaxed) {
+            PMSM_LOOPS.overruns()
+        } else {
+            LOOPS.overruns()
+        };
         // The move's end position: 0.5 pu for (0.4/2 + 0.2 + 0.4/2) s at the baked drive's
         // counts per pu·s. The motor must have got there and stopped.
         let Ok(cfg) = firmware::drive::baked() else {

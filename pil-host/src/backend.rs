@@ -1,6 +1,8 @@
 //! The firmware in QEMU as a [`ControlBackend`], and a recorder of any backend's ticks.
 
-use controller_core::{CurrentInputs, CurrentOutputs, Fault, VelocityInputs, VelocityOutputs};
+use controller_core::{
+    CurrentInputs, CurrentOutputs, Fault, PmsmInputs, PmsmOutputs, VelocityInputs, VelocityOutputs,
+};
 use pil_link::host::{HostError, HostLink, Stream};
 use pil_link::tick::{Commands, Sensors};
 use pil_link::wire::Writer;
@@ -13,6 +15,8 @@ pub struct TickLog {
     pub current: Vec<(CurrentInputs, CurrentOutputs)>,
     /// Velocity ticks.
     pub velocity: Vec<(VelocityInputs, VelocityOutputs)>,
+    /// Current ticks of a PMSM drive (in place of `current`).
+    pub pmsm: Vec<(PmsmInputs, PmsmOutputs)>,
 }
 
 /// A backend that records every tick of another.
@@ -46,6 +50,12 @@ impl<B: ControlBackend> ControlBackend for Recorder<B> {
         let out = self.inner.velocity_tick(inputs);
         self.log.velocity.push((inputs, out));
         out
+    }
+
+    fn pmsm_tick(&mut self, inputs: PmsmInputs) -> sim_engine::error::Result<PmsmOutputs> {
+        let out = self.inner.pmsm_tick(inputs)?;
+        self.log.pmsm.push((inputs, out));
+        Ok(out)
     }
 }
 
@@ -119,6 +129,15 @@ const SAFE_CURRENT: CurrentOutputs = CurrentOutputs {
     fault: Some(Fault::External),
 };
 
+/// A PMSM tick's safe state: the switches open, the fault set.
+fn safe_pmsm() -> PmsmOutputs {
+    PmsmOutputs {
+        enabled: false,
+        fault: Some(Fault::External),
+        ..PmsmOutputs::default()
+    }
+}
+
 impl ControlBackend for PilBackend {
     fn halted(&self) -> bool {
         self.fault.is_some()
@@ -141,7 +160,7 @@ impl ControlBackend for PilBackend {
                 self.excitation_bits = applied.excitation_bits;
                 out
             }
-            Some(Commands::Velocity(_)) => {
+            Some(Commands::Velocity(_) | Commands::Pmsm(..)) => {
                 self.fault = Some((wrong_reply(), self.current_ticks));
                 SAFE_CURRENT
             }
@@ -149,6 +168,23 @@ impl ControlBackend for PilBackend {
         };
         self.current_ticks += 1;
         out
+    }
+
+    fn pmsm_tick(&mut self, inputs: PmsmInputs) -> sim_engine::error::Result<PmsmOutputs> {
+        let out = match self.exchange(Sensors::Pmsm(inputs)) {
+            Some(Commands::Pmsm(out, applied)) => {
+                self.log.pmsm.push((inputs, out));
+                self.excitation_bits = applied.excitation_bits;
+                out
+            }
+            Some(Commands::Current(..) | Commands::Velocity(_)) => {
+                self.fault = Some((wrong_reply(), self.current_ticks));
+                safe_pmsm()
+            }
+            None => safe_pmsm(),
+        };
+        self.current_ticks += 1;
+        Ok(out)
     }
 
     fn velocity_tick(&mut self, inputs: VelocityInputs) -> VelocityOutputs {
@@ -161,7 +197,7 @@ impl ControlBackend for PilBackend {
                 self.log.velocity.push((inputs, out));
                 out
             }
-            Some(Commands::Current(..)) => {
+            Some(Commands::Current(..) | Commands::Pmsm(..)) => {
                 self.fault = Some((wrong_reply(), self.current_ticks));
                 safe
             }

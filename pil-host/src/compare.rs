@@ -3,7 +3,7 @@
 
 use super::backend::TickLog;
 use controller_core::words::{CURRENT_FIELDS, VELOCITY_FIELDS};
-use controller_core::{CurrentOutputs, VelocityOutputs};
+use controller_core::{CurrentOutputs, PmsmOutputs, VelocityOutputs};
 use serde::{Deserialize, Serialize};
 use sim_engine::engine::runner::RunOutput;
 use std::collections::BTreeMap;
@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 pub struct Comparison {
     /// Scenario.
     pub scenario: String,
-    /// Current ticks compared (both runs).
+    /// Current ticks compared (both runs; a PMSM drive's `pmsm` ticks).
     pub current_ticks: usize,
     /// Velocity ticks compared (both runs).
     pub velocity_ticks: usize,
@@ -38,7 +38,7 @@ pub struct Comparison {
 /// One differing output value.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Mismatch {
-    /// `current` or `velocity` loop.
+    /// `current`, `pmsm` (a PMSM drive's current loop) or `velocity` loop.
     pub tick_loop: String,
     /// Tick index within that loop.
     pub index: usize,
@@ -66,6 +66,27 @@ fn current_fields(o: &CurrentOutputs) -> Vec<(&'static str, i64)> {
 
 fn velocity_fields(o: &VelocityOutputs) -> Vec<(&'static str, i64)> {
     named(VELOCITY_FIELDS, &o.to_words())
+}
+
+/// The name of each word of [`PmsmOutputs::to_words`] (`controller_core::words`' layout).
+const PMSM_FIELDS: [&str; PmsmOutputs::WORDS] = [
+    "duty_a",
+    "duty_b",
+    "duty_c",
+    "enabled",
+    "i_d",
+    "i_q",
+    "i_d_ref",
+    "i_q_ref",
+    "v_d",
+    "v_q",
+    "torque_ref_pu",
+    "accel_fb_pu",
+    "fault",
+];
+
+fn pmsm_fields(o: &PmsmOutputs) -> Vec<(&'static str, i64)> {
+    named(&PMSM_FIELDS, &o.to_words())
 }
 
 /// The output-value tally of a comparison.
@@ -132,20 +153,26 @@ pub fn compare(
     for (i, ((_, h), (_, p))) in host.current.iter().zip(&pil.current).enumerate() {
         tally.note("current", i, &current_fields(h), &current_fields(p));
     }
+    for (i, ((_, h), (_, p))) in host.pmsm.iter().zip(&pil.pmsm).enumerate() {
+        tally.note("pmsm", i, &pmsm_fields(h), &pmsm_fields(p));
+    }
     for (i, ((_, h), (_, p))) in host.velocity.iter().zip(&pil.velocity).enumerate() {
         tally.note("velocity", i, &velocity_fields(h), &velocity_fields(p));
     }
-    let inputs_identical =
-        same_inputs(&host.current, &pil.current) && same_inputs(&host.velocity, &pil.velocity);
+    let inputs_identical = same_inputs(&host.current, &pil.current)
+        && same_inputs(&host.pmsm, &pil.pmsm)
+        && same_inputs(&host.velocity, &pil.velocity);
     let trace_identical = same_trace(host_run, pil_run);
     let complete = host.current.len() == pil.current.len()
+        && host.pmsm.len() == pil.pmsm.len()
         && host.velocity.len() == pil.velocity.len()
-        && !pil.current.is_empty();
+        && !(pil.current.is_empty() && pil.pmsm.is_empty());
+    let current = |l: &TickLog| l.current.len() + l.pmsm.len();
     Comparison {
         scenario: scenario.to_string(),
-        current_ticks: host.current.len().min(pil.current.len()),
+        current_ticks: current(host).min(current(pil)),
         velocity_ticks: host.velocity.len().min(pil.velocity.len()),
-        host_ticks: (host.current.len(), host.velocity.len()),
+        host_ticks: (current(host), host.velocity.len()),
         values_compared: tally.compared,
         mismatches: tally.mismatches,
         per_field: tally.per_field,

@@ -19,7 +19,7 @@ use crate::crc::Crc32;
 /// Two sync bytes open every frame; the decoder hunts for them after noise or an error.
 pub const SYNC: [u8; 2] = [0xA5, 0x5A];
 /// Version of this protocol. Bump it whenever a payload layout changes.
-pub const PROTOCOL_VERSION: u8 = 8;
+pub const PROTOCOL_VERSION: u8 = 9;
 /// Largest payload, in bytes.
 pub const MAX_PAYLOAD: usize = 240;
 /// Bytes before the payload: sync (2), version, kind, sequence (2), length.

@@ -11,15 +11,24 @@
 //!                                     enable, isr_ticks, and the controller's latest
 //!                                     excitation sample, 0 without one)
 //! Commands, velocity tick (33 bytes): tag 2 | VelocityOutputs words (8)
+//! Sensors, PMSM current tick   (13 bytes): tag 3 | PmsmInputs words (3)
+//! Commands, PMSM current tick  (69 bytes): tag 3 | PmsmOutputs words (13) | Applied words (4)
+//!                                     (Applied: voltage 0, the enable pin, isr_ticks, the
+//!                                     excitation sample)
 //! ```
+//!
+//! A PMSM drive (`[drive.pmsm]`) runs its current ticks with tag 3 in place of tag 1.
 
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
 use controller_core::words::{BadWord, WordField};
-use controller_core::{CurrentInputs, CurrentOutputs, Pu, VelocityInputs, VelocityOutputs};
+use controller_core::{
+    CurrentInputs, CurrentOutputs, PmsmInputs, PmsmOutputs, Pu, VelocityInputs, VelocityOutputs,
+};
 
 const TAG_CURRENT: u8 = 1;
 const TAG_VELOCITY: u8 = 2;
+const TAG_PMSM: u8 = 3;
 
 /// A tick's inputs, harness → firmware.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,6 +37,8 @@ pub enum Sensors {
     Current(CurrentInputs),
     /// Inputs of a velocity tick.
     Velocity(VelocityInputs),
+    /// Inputs of a PMSM drive's current tick.
+    Pmsm(PmsmInputs),
 }
 
 /// What the board layer applied in a current tick, read back from its outputs.
@@ -88,6 +99,8 @@ pub enum Commands {
     Current(CurrentOutputs, Applied),
     /// Outputs of a velocity tick.
     Velocity(VelocityOutputs),
+    /// Outputs of a PMSM drive's current tick and what the board applied.
+    Pmsm(PmsmOutputs, Applied),
 }
 
 /// Writes a record's words.
@@ -126,6 +139,7 @@ impl Sensors {
         match self {
             Self::Current(i) => put(w.u8(TAG_CURRENT)?, i, &mut scratch),
             Self::Velocity(i) => put(w.u8(TAG_VELOCITY)?, i, &mut scratch),
+            Self::Pmsm(i) => put(w.u8(TAG_PMSM)?, i, &mut scratch),
         }
     }
 
@@ -136,6 +150,7 @@ impl Sensors {
         let out = match r.u8()? {
             TAG_CURRENT => Self::Current(take(&mut r, k)?),
             TAG_VELOCITY => Self::Velocity(take(&mut r, k)?),
+            TAG_PMSM => Self::Pmsm(take(&mut r, k)?),
             _ => return Err(bad(k, payload)),
         };
         r.finish()?;
@@ -153,6 +168,10 @@ impl Commands {
                 put(w, &AppliedWords::from(*a), &mut scratch)
             }
             Self::Velocity(o) => put(w.u8(TAG_VELOCITY)?, o, &mut scratch),
+            Self::Pmsm(o, a) => {
+                put(w.u8(TAG_PMSM)?, o, &mut scratch)?;
+                put(w, &AppliedWords::from(*a), &mut scratch)
+            }
         }
     }
 
@@ -166,6 +185,10 @@ impl Commands {
                 Self::Current(o, take::<AppliedWords>(&mut r, k)?.into())
             }
             TAG_VELOCITY => Self::Velocity(take(&mut r, k)?),
+            TAG_PMSM => {
+                let o = take(&mut r, k)?;
+                Self::Pmsm(o, take::<AppliedWords>(&mut r, k)?.into())
+            }
             _ => return Err(bad(k, payload)),
         };
         r.finish()?;

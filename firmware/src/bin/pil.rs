@@ -3,8 +3,8 @@
 //!
 //! Per `Sensors` frame the link loop (thread mode) fills the link board's mailboxes, pends
 //! the TIMER0 (current loop) or TIMER1 (velocity loop) interrupt, and the very handlers the
-//! drive firmware binds run `Loops::current_isr` / `velocity_isr`; the outputs go back in a
-//! `Commands` frame. Lock step: nothing here depends on how fast QEMU runs.
+//! drive firmware binds run `Loops::current_isr` (a PMSM drive: `Loops::pmsm_isr`) /
+//! `velocity_isr`; the outputs go back in a `Commands` frame. Lock step: nothing here depends on how fast QEMU runs.
 //!
 //! A bad, lost (sequence gap or silence) or late frame latches the safe state: the link
 //! board's fault input goes active, so the controller latches `Fault::External`, the enable
@@ -22,10 +22,10 @@ mod pil_board;
 
 #[cfg(all(target_os = "none", feature = "board-qemu"))]
 mod target {
-    use core::sync::atomic::{AtomicU32, Ordering};
+    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
     use controller_core::excitation::ExcitationParams;
-    use controller_core::{CurrentOutputs, VelocityOutputs};
+    use controller_core::{CurrentOutputs, PmsmOutputs, VelocityOutputs};
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m::peripheral::NVIC;
     use cortex_m_rt::{entry, exception};
@@ -33,7 +33,7 @@ mod target {
     use firmware::boards::qemu::{enable_interrupts, Irq, Uart0, SYSCLK_HZ};
     use firmware::isr::Loops;
     use firmware::rt::exit;
-    use pil_link::tick::{Commands, Sensors};
+    use pil_link::tick::{Applied, Commands, Sensors};
     use pil_link::wire::Writer;
     use pil_link::{
         run_config, FaultCode, FirmwareSession, Frame, SafeOutputs, SessionState, Target, MAX_FRAME,
@@ -43,11 +43,13 @@ mod target {
 
     use super::pil_board::{
         LinkCurrentIo, LinkSetpoint, LinkVelocityIo, APPLIED, CURRENT_IN, CURRENT_ISR_TICKS,
-        CURRENT_OUT, LINK_FAULT, VELOCITY_IN, VELOCITY_OUT,
+        CURRENT_OUT, LINK_FAULT, PMSM_IN, PMSM_OUT, VELOCITY_IN, VELOCITY_OUT,
     };
 
     static LOOPS: Loops<LinkCurrentIo, LinkVelocityIo, LinkSetpoint> = Loops::new();
     static RX: ByteRing = ByteRing::new();
+    /// The configured drive is a PMSM: TIMER0 runs `Loops::pmsm_isr`.
+    static PMSM: AtomicBool = AtomicBool::new(false);
     /// Milliseconds of virtual time since boot (advanced by SysTick in 10 ms steps).
     static NOW_MS: AtomicU32 = AtomicU32::new(0);
     const SYSTICK_MS: u32 = 10;
@@ -66,9 +68,15 @@ mod target {
     }
 
     fn current_loop() {
-        let out = LOOPS.current_isr();
-        CURRENT_ISR_TICKS.fetch_add(1, Ordering::Relaxed);
-        critical_section::with(|cs| CURRENT_OUT.borrow(cs).set(out));
+        if PMSM.load(Ordering::Relaxed) {
+            let out = LOOPS.pmsm_isr();
+            CURRENT_ISR_TICKS.fetch_add(1, Ordering::Relaxed);
+            critical_section::with(|cs| PMSM_OUT.borrow(cs).set(out));
+        } else {
+            let out = LOOPS.current_isr();
+            CURRENT_ISR_TICKS.fetch_add(1, Ordering::Relaxed);
+            critical_section::with(|cs| CURRENT_OUT.borrow(cs).set(out));
+        }
     }
 
     fn velocity_loop() {
@@ -109,6 +117,17 @@ mod target {
         None
     }
 
+    /// What the board layer applied in the last current tick, with the interrupt count and
+    /// the excitation's latest sample.
+    fn applied() -> Applied {
+        let mut applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
+        applied.isr_ticks = CURRENT_ISR_TICKS.load(Ordering::Relaxed);
+        applied.excitation_bits = LOOPS
+            .with_app(|app| app.excitation_pu().to_bits())
+            .unwrap_or(0);
+        applied
+    }
+
     /// The fields a refused excitation names (the `Config` payload's excitation section).
     const EXCITATION_NAMES: ExcitationParams = ExcitationParams {
         amplitude_pu: "excitation.amplitude_pu",
@@ -126,11 +145,16 @@ mod target {
             let (cfg, excitation) =
                 run_config::decode(payload).map_err(|_| FaultCode::BadPayload)?;
             // The link board delivers counts already wrapped at the configured width.
-            let app =
-                App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE).and_then(|app| match excitation {
-                    Some(e) => app.with_excitation(&e, EXCITATION_NAMES),
-                    None => Ok(app),
-                });
+            let pmsm = cfg.pmsm.is_some();
+            let app = if pmsm {
+                App::new_pmsm(&cfg, cfg.counter_bits, DEFAULT_TRACE)
+            } else {
+                App::new(&cfg, cfg.counter_bits, DEFAULT_TRACE)
+            };
+            let app = app.and_then(|app| match excitation {
+                Some(e) => app.with_excitation(&e, EXCITATION_NAMES),
+                None => Ok(app),
+            });
             let app = match app {
                 Ok(app) => app,
                 Err(e) => {
@@ -138,6 +162,7 @@ mod target {
                     return Err(FaultCode::Config);
                 }
             };
+            PMSM.store(pmsm, Ordering::Relaxed);
             LOOPS.install(app, LinkCurrentIo, LinkVelocityIo, LinkSetpoint);
             LOOPS.with_app(|app| app.set_enable_request(true));
             defmt::info!(
@@ -157,18 +182,19 @@ mod target {
                     critical_section::with(|cs| CURRENT_IN.borrow(cs).set(inputs));
                     let out: CurrentOutputs =
                         run_isr(Irq::Timer0, &CURRENT_OUT).ok_or(FaultCode::Protocol)?;
-                    let mut applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
-                    applied.isr_ticks = CURRENT_ISR_TICKS.load(Ordering::Relaxed);
-                    applied.excitation_bits = LOOPS
-                        .with_app(|app| app.excitation_pu().to_bits())
-                        .unwrap_or(0);
-                    Commands::Current(out, applied)
+                    Commands::Current(out, applied())
                 }
                 Sensors::Velocity(inputs) => {
                     critical_section::with(|cs| VELOCITY_IN.borrow(cs).set(Some(inputs)));
                     let out: VelocityOutputs =
                         run_isr(Irq::Timer1, &VELOCITY_OUT).ok_or(FaultCode::Protocol)?;
                     Commands::Velocity(out)
+                }
+                Sensors::Pmsm(inputs) => {
+                    critical_section::with(|cs| PMSM_IN.borrow(cs).set(inputs));
+                    let out: PmsmOutputs =
+                        run_isr(Irq::Timer0, &PMSM_OUT).ok_or(FaultCode::Protocol)?;
+                    Commands::Pmsm(out, applied())
                 }
             };
             reply.encode(commands).map_err(|_| FaultCode::BadPayload)
@@ -189,14 +215,19 @@ mod target {
             if !keep_on {
                 LOOPS.with_app(|app| app.set_enable_request(false));
             }
-            let out = run_isr(Irq::Timer0, &CURRENT_OUT);
-            // What the board layer wrote to the PWM and the enable pin, not what the
-            // controller meant to write.
+            // The torque the tick commands (a PMSM: its q current reference).
+            let out = if PMSM.load(Ordering::Relaxed) {
+                run_isr(Irq::Timer0, &PMSM_OUT).map(|o| o.current_ref.q)
+            } else {
+                run_isr(Irq::Timer0, &CURRENT_OUT).map(|o| o.current_ref_pu)
+            };
+            // What the board layer wrote to the PWM (a PMSM: the duties' spread) and the
+            // enable pin, not what the controller meant to write.
             let applied = critical_section::with(|cs| APPLIED.borrow(cs).get());
             let outputs = SafeOutputs {
                 current_tick_ran: out.is_some(),
                 // Unknown when the tick did not run: say so with a value that is never safe.
-                torque_cmd_bits: out.map_or(i32::MIN, |o| o.current_ref_pu.to_bits()),
+                torque_cmd_bits: out.map_or(i32::MIN, |t| t.to_bits()),
                 pwm_voltage_bits: applied.voltage_bits,
                 enable_pin: applied.enabled,
             };

@@ -5,7 +5,8 @@
 //! clocked at SYSCLK = 25 MHz; CMSDK UART0 at 0x4000_4000 (RX IRQ 0, TX IRQ 1); the FPGA
 //! I/O block at 0x4002_8000 (LED0 register at +0x0, BUTTON register at +0x8, which QEMU
 //! reads as 0). The machine has no PWM, ADC or encoder: the power stage and motor are the
-//! [`crate::virtual_motor::VirtualMotor`] behind the PWM, current and encoder handles here.
+//! [`crate::virtual_motor::VirtualMotor`] behind the PWM, current and encoder handles here,
+//! or for a PMSM drive the three-phase stage of [`inverter`] (the baked file's PMSM).
 //!
 //! | drive signal    | QEMU resource                         |
 //! |-----------------|---------------------------------------|
@@ -26,6 +27,8 @@ use pil_link::board::store::{SaveError, RECORD_LEN};
 
 use crate::board::{CurrentIo, CurrentSense, EncoderCounter, VelocityIo};
 use crate::virtual_motor::{VirtualMotor, VirtualMotorConfig};
+
+pub mod inverter;
 
 /// Core clock and APB timer clock [Hz].
 pub const SYSCLK_HZ: u32 = 25_000_000;

@@ -238,10 +238,11 @@ proptest! {
 
 mod payloads {
     use super::common;
+    use controller_core::foc::Dq;
     use controller_core::per_unit::{Counts, CountsErr, Pu, PuPerS};
     use controller_core::{
-        CurrentInputs, CurrentOutputs, Fault, FilterConfig, Setpoint, VelocityInputs,
-        VelocityOutputs,
+        CurrentInputs, CurrentOutputs, Fault, FilterConfig, PmsmInputs, PmsmOutputs, Setpoint,
+        VelocityInputs, VelocityOutputs,
     };
     use pil_link::tick::{Applied, Commands, Sensors};
     use pil_link::wire::Writer;
@@ -272,6 +273,10 @@ mod payloads {
                         acceleration_pu_s: PuPerS::from_bits(a),
                     },
                     fault_input: fi,
+                }),
+                Sensors::Pmsm(PmsmInputs {
+                    encoder_count: enc,
+                    phase_current_pu: [Pu::from_bits(i), Pu::from_bits(v)],
                 }),
             ] {
                 let mut w = Writer::new();
@@ -307,6 +312,19 @@ mod payloads {
                     disturbance_est_pu: Pu::from_bits(x[6]),
                     fault: fault(k),
                 }),
+                Commands::Pmsm(
+                    PmsmOutputs {
+                        duties: [x[0] as u16, (x[1] >> 16) as u16, x[2] as u16],
+                        enabled: en,
+                        current: Dq { d: Pu::from_bits(x[3]), q: Pu::from_bits(x[4]) },
+                        current_ref: Dq { d: Pu::from_bits(x[5]), q: Pu::from_bits(x[6]) },
+                        voltage: Dq { d: Pu::from_bits(x[7]), q: Pu::from_bits(x[0]) },
+                        torque_ref_pu: Pu::from_bits(x[1]),
+                        accel_fb_pu: Pu::from_bits(x[2]),
+                        fault: fault(k),
+                    },
+                    Applied { voltage_bits: 0, enabled: en, isr_ticks: t, excitation_bits: x[7] },
+                ),
             ] {
                 let mut w = Writer::new();
                 c.encode(&mut w).unwrap();
