@@ -8,8 +8,9 @@
 //!    the three-phase board `link/check-three-phase-vectors.x` fails the `firmware` image's
 //!    link unless its current loop is on the ADC vector. A three-phase build refuses a
 //!    drive that is not a PMSM or whose current loop is not a whole number of PWM periods.
-//! 2. The loop-in-the-loop expectation: the recorded input sequence `lil/inputs.csv` is run
-//!    through the HOST build of controller-core (this script is compiled for the host), and
+//! 2. The loop-in-the-loop expectation: the recorded input sequence (`lil/inputs.csv`, or
+//!    `lil/inputs-pmsm.csv` for a PMSM drive) is run through the HOST build of
+//!    controller-core (this script is compiled for the host), and
 //!    the inputs plus the expected output words are written to `$OUT_DIR/lil_data.rs` for the
 //!    `fw-lil` image, which runs the same sequence on the target and compares bit for bit.
 //! 3. The drive: the machine file named by `STIFFDRIVE_DRIVE` (a path; a relative one is
@@ -56,6 +57,7 @@ fn main() {
     println!("cargo:rerun-if-changed=../memory.x");
     println!("cargo:rerun-if-changed=link");
     println!("cargo:rerun-if-changed=lil/inputs.csv");
+    println!("cargo:rerun-if-changed=lil/inputs-pmsm.csv");
     println!("cargo:rerun-if-changed=src/lil/words.rs");
     println!("cargo:rerun-if-changed=src/board/three_phase.rs");
     println!("cargo:rerun-if-env-changed=STIFFDRIVE_DRIVE");
@@ -78,7 +80,7 @@ fn main() {
         eprintln!("reference PMSM drive ({REFERENCE_PMSM_PATH}): {e}");
         std::process::exit(1);
     }
-    if let Err(e) = write_lil_data(&cfg, &manifest.join("lil/inputs.csv"), &out) {
+    if let Err(e) = write_lil_data(&cfg, &manifest.join("lil"), &out) {
         // A broken recording must fail the build, not produce an empty test.
         eprintln!("loop-in-the-loop data: {e}");
         std::process::exit(1);
@@ -274,15 +276,30 @@ fn check_three_phase(cfg: &DriveConfig) -> Result<(), String> {
     .map_err(|e| e.to_string())
 }
 
-/// Parse the recording, run the host core on it, write `lil_inputs.bin` and
-/// `lil_expected.bin`. A missing recording gives empty files (the replay then fails loudly
-/// for having no periods); a malformed one is an error.
+/// Parse the recording of the drive's motor (`lil/inputs.csv`, or `lil/inputs-pmsm.csv` for
+/// a PMSM drive), run the host core on it, write `lil_inputs.bin` and `lil_expected.bin`.
+/// A missing recording gives empty files (the replay then fails loudly for having no
+/// periods); a malformed one is an error.
 fn write_lil_data(
     cfg: &DriveConfig,
-    csv: &std::path::Path,
+    lil: &std::path::Path,
     out: &std::path::Path,
 ) -> Result<(), String> {
-    let text = match fs::read_to_string(csv) {
+    // A PMSM drive without its calibration cannot run (the core refuses it): no
+    // expectation, as for a missing recording. Its `board` image calibrates it
+    // (`stiffdrive identify --board`).
+    if cfg.pmsm.is_some_and(|p| p.encoder_offset_elec_deg.is_none()) {
+        for f in ["lil_inputs.bin", "lil_expected.bin"] {
+            fs::write(out.join(f), []).map_err(|e| e.to_string())?;
+        }
+        return Ok(());
+    }
+    let csv = lil.join(if cfg.pmsm.is_some() {
+        "inputs-pmsm.csv"
+    } else {
+        "inputs.csv"
+    });
+    let text = match fs::read_to_string(&csv) {
         Ok(t) => t,
         Err(_) => {
             println!(
@@ -292,47 +309,96 @@ fn write_lil_data(
             String::new()
         }
     };
-    let mut inputs = Vec::new();
+    let rows = csv_rows(&text)?;
+    let mut input_bytes = Vec::new();
+    let mut expected = Vec::new();
+    let mut emit = |w: &[u32]| {
+        for x in w {
+            expected.extend_from_slice(&x.to_le_bytes());
+        }
+    };
+    let run = if cfg.pmsm.is_some() {
+        let inputs = pmsm_records(&rows)?;
+        for rec in &inputs {
+            input_bytes.extend_from_slice(&rec.to_bytes());
+        }
+        words::reference_run_pmsm(cfg, inputs.iter().copied(), &mut emit)
+    } else {
+        let inputs = dc_records(&rows)?;
+        for rec in &inputs {
+            input_bytes.extend_from_slice(&rec.to_bytes());
+        }
+        words::reference_run(cfg, inputs.iter().copied(), &mut emit)
+    };
+    run.map_err(|e| format!("host controller-core rejected the run's settings: {e}"))?;
+    fs::write(out.join("lil_inputs.bin"), input_bytes).map_err(|e| e.to_string())?;
+    fs::write(out.join("lil_expected.bin"), expected).map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// The recording's data lines (the period column dropped), with their line numbers.
+fn csv_rows(text: &str) -> Result<Vec<(usize, Vec<&str>)>, String> {
+    let mut rows = Vec::new();
     for (n, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') || line.starts_with("period") {
             continue;
         }
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        let [_, enc, cur, flt] = f.as_slice() else {
-            return Err(format!(
-                "line {}: expected 4 fields, got {}",
-                n + 1,
-                f.len()
-            ));
-        };
-        let bad = |what: &str| format!("line {}: bad {what}", n + 1);
-        inputs.push(words::LilInput {
-            encoder_count: enc.parse().map_err(|_| bad("encoder_count"))?,
-            current_pu: controller_core::Pu::from_bits(
-                cur.parse().map_err(|_| bad("current_pu_bits"))?,
-            ),
-            fault_input: match *flt {
-                "0" => false,
-                "1" => true,
-                _ => return Err(bad("fault_input")),
-            },
-        });
-    }
-    let mut input_bytes = Vec::with_capacity(inputs.len() * words::INPUT_RECORD_BYTES);
-    for rec in &inputs {
-        input_bytes.extend_from_slice(&rec.to_bytes());
-    }
-    let mut expected = Vec::new();
-    words::reference_run(cfg, inputs.iter().copied(), |w| {
-        for x in w {
-            expected.extend_from_slice(&x.to_le_bytes());
+        // The period column is dropped.
+        let f: Vec<&str> = line.split(',').map(str::trim).skip(1).collect();
+        if f.is_empty() {
+            return Err(format!("line {}: expected a period and its inputs", n + 1));
         }
-    })
-    .map_err(|e| format!("host controller-core rejected the run's settings: {e}"))?;
-    fs::write(out.join("lil_inputs.bin"), input_bytes).map_err(|e| e.to_string())?;
-    fs::write(out.join("lil_expected.bin"), expected).map_err(|e| e.to_string())?;
-    Ok(())
+        rows.push((n + 1, f));
+    }
+    Ok(rows)
+}
+
+/// A field of line `n` parsed, or the error naming it.
+fn field<T: std::str::FromStr>(n: usize, text: &str, what: &str) -> Result<T, String> {
+    text.parse().map_err(|_| format!("line {n}: bad {what}"))
+}
+
+/// A fault-input field: 0 or 1.
+fn flag(n: usize, text: &str) -> Result<bool, String> {
+    match text {
+        "0" => Ok(false),
+        "1" => Ok(true),
+        _ => Err(format!("line {n}: bad fault_input")),
+    }
+}
+
+/// A DC drive's records: encoder_count, current_pu_bits, fault_input.
+fn dc_records(rows: &[(usize, Vec<&str>)]) -> Result<Vec<words::LilInput>, String> {
+    rows.iter()
+        .map(|(n, f)| {
+            let [enc, cur, flt] = f.as_slice() else {
+                return Err(format!("line {n}: expected 4 fields, got {}", f.len() + 1));
+            };
+            Ok(words::LilInput {
+                encoder_count: field(*n, enc, "encoder_count")?,
+                current_pu: controller_core::Pu::from_bits(field(*n, cur, "current_pu_bits")?),
+                fault_input: flag(*n, flt)?,
+            })
+        })
+        .collect()
+}
+
+/// A PMSM drive's records: encoder_count, i_a_pu_bits, i_b_pu_bits, fault_input.
+fn pmsm_records(rows: &[(usize, Vec<&str>)]) -> Result<Vec<words::PmsmLilInput>, String> {
+    rows.iter()
+        .map(|(n, f)| {
+            let [enc, a, b, flt] = f.as_slice() else {
+                return Err(format!("line {n}: expected 5 fields, got {}", f.len() + 1));
+            };
+            let pu = |t: &str, what: &str| field(*n, t, what).map(controller_core::Pu::from_bits);
+            Ok(words::PmsmLilInput {
+                encoder_count: field(*n, enc, "encoder_count")?,
+                phase_current_pu: [pu(a, "i_a_pu_bits")?, pu(b, "i_b_pu_bits")?],
+                fault_input: flag(*n, flt)?,
+            })
+        })
+        .collect()
 }
 
 /// CRC-32 (IEEE 802.3, reflected, polynomial 0xEDB88320) of the baked settings: names the
