@@ -8,7 +8,7 @@
 //! flushed at once, so the file is whole however QEMU exits.
 //!
 //! Arguments (`-plugin libfw_runner.so,out=FILE,arm_current=ADDR[,arm_velocity=ADDR]
-//! [,preempt=ADDR]`): the output file and the mark functions' addresses (see
+//! [,preempt=ADDR][,next_group=ADDR]`): the output file and the mark functions' addresses (see
 //! [`crate::cycles`]).
 //!
 //! The plugin API (QEMU 7.2, plugin API version 1) is looked up with `dlsym` in QEMU's
@@ -128,6 +128,8 @@ struct State {
     /// Windows already written.
     written: usize,
     dropped: u32,
+    /// Group marks already written.
+    groups: u32,
 }
 
 static API: OnceLock<Api> = OnceLock::new();
@@ -153,7 +155,10 @@ fn flush(state: &mut State) {
         .windows
         .get(state.written..)
         .unwrap_or_default();
-    if new.is_empty() && state.tracker.dropped == state.dropped {
+    if new.is_empty()
+        && state.tracker.dropped == state.dropped
+        && state.tracker.groups == state.groups
+    {
         return;
     }
     for (which, w) in new {
@@ -167,6 +172,11 @@ fn flush(state: &mut State) {
         );
         state.dropped = state.tracker.dropped;
     }
+    // The windows so far belong to the groups before the mark.
+    for _ in state.groups..state.tracker.groups {
+        let _ = writeln!(state.out, "group");
+    }
+    state.groups = state.tracker.groups;
     state.written = state.tracker.windows.len();
     let _ = state.out.flush();
 }
@@ -176,7 +186,7 @@ extern "C" fn on_exec(_vcpu: c_uint, userdata: *mut c_void) {
     let rec = unsafe { &*(userdata as *const Rec) };
     with_state(|s| {
         s.tracker.exec(rec.pc, rec.insn);
-        if s.tracker.dropped != s.dropped {
+        if s.tracker.dropped != s.dropped || s.tracker.groups != s.groups {
             flush(s);
         }
     });
@@ -237,6 +247,7 @@ fn parse_args(args: &[String]) -> Option<(String, Marks)> {
             "arm_current" => marks.arm_current = Some(addr()?),
             "arm_velocity" => marks.arm_velocity = Some(addr()?),
             "preempt" => marks.preempt = Some(addr()?),
+            "next_group" => marks.next_group = Some(addr()?),
             _ => return None,
         }
     }
@@ -283,6 +294,7 @@ pub unsafe extern "C" fn qemu_plugin_install(
         out: BufWriter::new(file),
         written: 0,
         dropped: 0,
+        groups: 0,
     });
     let register = api.register_tb_trans;
     let _ = API.set(api);

@@ -21,7 +21,7 @@
 //! exceeds the `period_cycle_budget` the firmware logged (`cargo fw-bench`). Further
 //! arguments go to QEMU.
 
-use crate::cycles::{log_value, BenchFigures, Marks, Trace};
+use crate::cycles::{log_values, BenchFigures, Marks, Trace};
 use crate::defmt_log::{LineFormat, LogDecoder};
 use crate::provision::{ensure_qemu, QEMU_BINARY};
 use std::ffi::OsString;
@@ -156,7 +156,8 @@ pub fn plugin_path() -> Result<PathBuf, String> {
 }
 
 /// The window marks of the image at `elf` (its symbols `cycle_window_arm_current`,
-/// required, `cycle_window_arm_velocity` and `cycle_window_preempt`).
+/// required, `cycle_window_arm_velocity`, `cycle_window_preempt` and
+/// `cycle_window_next_group`).
 pub fn elf_marks(elf: &Path) -> Result<Marks, String> {
     use object::{Object, ObjectSymbol};
     let bytes = std::fs::read(elf).map_err(|e| format!("{}: {e}", elf.display()))?;
@@ -172,6 +173,7 @@ pub fn elf_marks(elf: &Path) -> Result<Marks, String> {
         arm_current: find("cycle_window_arm_current"),
         arm_velocity: find("cycle_window_arm_velocity"),
         preempt: find("cycle_window_preempt"),
+        next_group: find("cycle_window_next_group"),
     };
     if marks.arm_current.is_none() {
         return Err(format!(
@@ -190,6 +192,7 @@ pub fn plugin_arg(plugin: &Path, out: &Path, marks: &Marks) -> String {
         ("arm_current", marks.arm_current),
         ("arm_velocity", marks.arm_velocity),
         ("preempt", marks.preempt),
+        ("next_group", marks.next_group),
     ] {
         if let Some(a) = addr {
             arg.push_str(&format!(",{name}={a:#x}"));
@@ -199,34 +202,54 @@ pub fn plugin_arg(plugin: &Path, out: &Path, marks: &Marks) -> String {
 }
 
 /// The cycle report of a traced run and its verdict: the lines to print, and whether the
-/// worst period is within the firmware's `period_cycle_budget` (true when it logged none).
+/// worst period of every group of windows is within its `period_cycle_budget` (true for a
+/// group the firmware logged none for). The firmware logs, per group (per drive of the
+/// bench) in order, `period_velocity_share` (current ticks per velocity tick of a period,
+/// 2 if not logged), `period_cycle_budget` and its SysTick `current_tick_instructions` and
+/// `velocity_tick_instructions`.
 #[must_use]
-pub fn cycle_report(trace: &Trace, log: &[String]) -> (Vec<String>, bool) {
-    let figures = BenchFigures::of(trace);
-    let mut lines = figures.lines();
-    if let Some(n) = log_value(log, "period_instructions") {
-        lines.push(format!(
-            "trace check: the traced mean period is {:.1} instructions, the SysTick figure {n}",
-            figures.period_instructions_mean
-        ));
+pub fn cycle_report(groups: &[Trace], log: &[String]) -> (Vec<String>, bool) {
+    let budgets = log_values(log, "period_cycle_budget");
+    let shares = log_values(log, "period_velocity_share");
+    let currents = log_values(log, "current_tick_instructions");
+    let velocities = log_values(log, "velocity_tick_instructions");
+    let mut lines = Vec::new();
+    let mut pass = true;
+    for (g, trace) in groups.iter().enumerate() {
+        let figures = BenchFigures::of(trace, shares.get(g).copied().unwrap_or(2));
+        if groups.len() > 1 {
+            lines.push(format!(
+                "cycle estimate of the bench's drive {} of {}:",
+                g + 1,
+                groups.len()
+            ));
+        }
+        lines.extend(figures.lines());
+        if let (Some(c), Some(v)) = (currents.get(g), velocities.get(g)) {
+            lines.push(format!(
+                "trace check: the traced mean ticks are {:.1} (current) and {:.1} (velocity) instructions, the SysTick figures {c} and {v}",
+                figures.current.instructions.mean, figures.velocity.instructions.mean
+            ));
+        }
+        let Some(&budget) = budgets.get(g) else {
+            continue;
+        };
+        let ok = figures.current.cycles.n > 0 && figures.period_worst <= budget;
+        pass &= ok;
+        lines.push(if figures.current.cycles.n == 0 {
+            "FAIL: the cycle trace holds no current tick".to_string()
+        } else if ok {
+            format!(
+                "PASS: worst period {} cycles within the budget of {budget}",
+                figures.period_worst
+            )
+        } else {
+            format!(
+                "FAIL: worst period {} cycles exceeds the budget of {budget}",
+                figures.period_worst
+            )
+        });
     }
-    let Some(budget) = log_value(log, "period_cycle_budget") else {
-        return (lines, true);
-    };
-    let pass = figures.current.cycles.n > 0 && figures.period_worst <= budget;
-    lines.push(if figures.current.cycles.n == 0 {
-        "FAIL: the cycle trace holds no current tick".to_string()
-    } else if pass {
-        format!(
-            "PASS: worst period {} cycles within the budget of {budget}",
-            figures.period_worst
-        )
-    } else {
-        format!(
-            "FAIL: worst period {} cycles exceeds the budget of {budget}",
-            figures.period_worst
-        )
-    });
     (lines, pass)
 }
 
@@ -360,7 +383,7 @@ fn print_log(
 }
 
 /// The plugin's trace of the run, kept in `CYCLE_TRACE` when that is set.
-fn read_trace(trace_file: &Path) -> Result<Trace, String> {
+fn read_trace(trace_file: &Path) -> Result<Vec<Trace>, String> {
     if let Some(keep) = std::env::var_os("CYCLE_TRACE") {
         if let Err(e) = std::fs::copy(trace_file, &keep) {
             eprintln!("fw-runner: cannot keep the cycle trace in {keep:?}: {e}");
@@ -373,7 +396,7 @@ fn read_trace(trace_file: &Path) -> Result<Trace, String> {
                 trace_file.display()
             )
         })
-        .and_then(|t| Trace::parse(&t))
+        .and_then(|t| Trace::parse_groups(&t))
 }
 
 /// The runner's exit status from QEMU's `code`: the crash check with `--expect-crash`, else
@@ -383,7 +406,7 @@ fn verdict(
     args: &RunnerArgs,
     code: Option<i32>,
     crash_logged: bool,
-    traced: Option<Result<Trace, String>>,
+    traced: Option<Result<Vec<Trace>, String>>,
     log: &[String],
     out: &mut impl Write,
 ) -> i32 {

@@ -27,6 +27,12 @@
 #[path = "fw_bench/blocks.rs"]
 mod blocks;
 #[cfg(target_os = "none")]
+#[path = "fw_bench/pmsm.rs"]
+mod pmsm;
+#[cfg(target_os = "none")]
+#[path = "fw_bench/pmsm_blocks.rs"]
+mod pmsm_blocks;
+#[cfg(target_os = "none")]
 #[path = "fw_bench/report.rs"]
 mod report;
 #[cfg(target_os = "none")]
@@ -72,7 +78,7 @@ mod target {
     /// as the instruction budget's margin.
     pub(crate) const PERIOD_CYCLE_BUDGET: u32 = 1160;
     /// Current ticks before measuring (start-up: estimator priming).
-    const WARMUP_TICKS: u32 = 100;
+    pub(crate) const WARMUP_TICKS: u32 = 100;
     /// Measured current ticks (and half as many velocity ticks).
     pub(crate) const MEASURED_TICKS: u32 = 2000;
 
@@ -139,6 +145,10 @@ mod target {
     }
 
     fn current_loop() {
+        if crate::pmsm::ACTIVE.load(Ordering::Relaxed) {
+            crate::pmsm::current_loop();
+            return;
+        }
         cycle_window_preempt();
         let tick = CURRENT_TICKS.fetch_add(1, Ordering::Relaxed);
         if measuring(tick) {
@@ -206,6 +216,10 @@ mod target {
     }
 
     fn velocity_loop() {
+        if crate::pmsm::ACTIVE.load(Ordering::Relaxed) {
+            crate::pmsm::velocity_loop();
+            return;
+        }
         IN_VELOCITY.store(true, Ordering::Relaxed);
         velocity_loop_body();
         IN_VELOCITY.store(false, Ordering::Relaxed);
@@ -300,7 +314,7 @@ mod target {
     firmware::bind_interrupts!(current: current_loop, velocity: velocity_loop, command: command);
 
     /// The motion the synthetic drive follows: 0.5 pu in 0.25 s, then at speed.
-    const MOVE: ProfileConfig = ProfileConfig {
+    pub(crate) const MOVE: ProfileConfig = ProfileConfig {
         kind: ProfileKind::Trapezoid,
         peak_velocity_pu: 0.5,
         accel_time_s: 0.25,
@@ -332,7 +346,13 @@ mod target {
         board::stop();
         let results = results(calibration);
         report::print(&results);
-        report::verdict(&results)
+        let baked = report::verdict(&results);
+        // The second drive, the reference PMSM, through the same interrupts.
+        let pmsm = crate::pmsm::run(&mut core.NVIC, calibration);
+        if baked && pmsm {
+            defmt::info!("PASS: both drives within budget");
+        }
+        exit(baked && pmsm)
     }
 
     /// The app and its synthetic I/O in the loops, the bare controller and its block bench,

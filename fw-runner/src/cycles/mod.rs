@@ -10,6 +10,8 @@
 //! register and closes at the one after; every instruction between the two loads is priced.
 //! A window into which the current-loop interrupt came (its handler first calls
 //! `cycle_window_preempt`) is dropped, as `fw-bench` drops a disturbed SysTick window.
+//! Executing `cycle_window_next_group` starts another group of windows (`fw-bench`'s
+//! next drive), reported and gated on its own.
 //!
 //! The price of one instruction ([`cycles`]):
 //! - data processing, moves, compares, shifts, extends, saturation, `MUL`, `MLA`, `MLS`
@@ -47,7 +49,7 @@ mod trace;
 mod tracker;
 
 pub use decode::{decode, Insn, Kind};
-pub use figures::{log_value, BenchFigures, Stat, TickFigures};
+pub use figures::{log_value, log_values, BenchFigures, Stat, TickFigures};
 pub use price::{
     cycles, DIVIDE_CYCLES, EXCEPTION_CYCLES, EXCEPTION_ENTRY, EXCEPTION_EXIT, FLASH_WAIT_STATES,
     FP_DIVIDE_CYCLES, PIPELINE_REFILL,

@@ -1,4 +1,6 @@
-//! The plugin's output file: one line per priced window, and one for the dropped ones.
+//! The plugin's output file: one line per priced window, one for the dropped ones, and a
+//! `group` line where the firmware started another group of windows (`fw-bench`'s next
+//! drive).
 
 use super::tracker::{Which, Window};
 
@@ -60,6 +62,21 @@ impl Trace {
             ));
         }
         Ok(t)
+    }
+
+    /// Parses the plugin's output file into its groups (split at its `group` lines), in
+    /// order; a file without one is one group.
+    pub fn parse_groups(text: &str) -> Result<Vec<Self>, String> {
+        let mut groups = vec![String::new()];
+        for line in text.lines() {
+            if line.trim() == "group" {
+                groups.push(String::new());
+            } else if let Some(g) = groups.last_mut() {
+                g.push_str(line);
+                g.push('\n');
+            }
+        }
+        groups.iter().map(|g| Self::parse(g)).collect()
     }
 
     /// The windows of one kind.

@@ -42,6 +42,9 @@ pub struct Marks {
     pub arm_velocity: Option<u64>,
     /// `cycle_window_preempt`.
     pub preempt: Option<u64>,
+    /// `cycle_window_next_group`: the windows after it are another group (the bench's
+    /// next drive).
+    pub next_group: Option<u64>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,6 +68,8 @@ pub struct Tracker {
     pub windows: Vec<(Which, Window)>,
     /// Windows dropped because an interrupt came into them.
     pub dropped: u32,
+    /// Group marks passed so far (each starts a new group of windows).
+    pub groups: u32,
 }
 
 impl Tracker {
@@ -79,6 +84,7 @@ impl Tracker {
             acc: Window::default(),
             windows: Vec::new(),
             dropped: 0,
+            groups: 0,
         }
     }
 
@@ -100,6 +106,10 @@ impl Tracker {
         let m = self.marks;
         if Some(pc) == m.preempt && self.state != State::Idle {
             self.dropped += 1;
+            self.state = State::Idle;
+        }
+        if Some(pc) == m.next_group {
+            self.groups += 1;
             self.state = State::Idle;
         }
         if Some(pc) == m.arm_current {
@@ -183,6 +193,7 @@ mod tests {
             arm_current: Some(0x100),
             arm_velocity: Some(0x200),
             preempt: Some(0x300),
+            next_group: Some(0x400),
         };
         let mut t = Tracker::new(marks);
         // An unarmed SysTick read is ignored; the armed pair bounds a loop of 3 iterations.
@@ -225,5 +236,8 @@ mod tests {
         ];
         run(&mut t, &prog);
         assert_eq!((t.windows.len(), t.dropped), (1, 1));
+        // The group mark counts a new group.
+        run(&mut t, &[(0x400, "bx lr", 2, false)]);
+        assert_eq!(t.groups, 1);
     }
 }

@@ -5,7 +5,7 @@ use core::sync::atomic::Ordering;
 
 use controller_core::Fault;
 use firmware::boards::active as board;
-use firmware::rt::{exit, MemoryUse};
+use firmware::rt::MemoryUse;
 
 use crate::blocks::{per_block, Block};
 use crate::stack::SPAN_BYTES;
@@ -107,7 +107,9 @@ pub(crate) fn print(r: &Results) {
             above
         );
     }
-    // Read by the runner (`fw-runner --cycles`), which gates the traced worst period on it.
+    // Read by the runner (`fw-runner --cycles`), which gates the traced worst period of this
+    // group of windows on it.
+    defmt::info!("period_velocity_share: {=u32}", 2);
     defmt::info!("period_cycle_budget: {=u32}", PERIOD_CYCLE_BUDGET);
 }
 
@@ -161,9 +163,9 @@ fn print_blocks(current: u32, velocity: u32) {
     );
 }
 
-/// Exit 1 if the drive faulted, the measurement was incomplete or disturbed, the current
-/// loop did not preempt the velocity loop, or the period is over budget; else exit 0.
-pub(crate) fn verdict(r: &Results) -> ! {
+/// False if the drive faulted, the measurement was incomplete or disturbed, the current
+/// loop did not preempt the velocity loop, or the period is over budget.
+pub(crate) fn verdict(r: &Results) -> bool {
     let ok_samples = CURRENT_SAMPLES.load(Ordering::Relaxed) == MEASURED_TICKS
         && VELOCITY_SAMPLES.load(Ordering::Relaxed) >= MEASURED_TICKS / 2 - 1;
     if r.fault.is_some() {
@@ -171,11 +173,11 @@ pub(crate) fn verdict(r: &Results) -> ! {
             "FAIL: the drive faulted ({}): the figures would not be the full path",
             defmt::Debug2Format(&r.fault)
         );
-        exit(false)
+        return false;
     }
     if !ok_samples || LOOPS.overruns() != 0 {
         defmt::error!("FAIL: measurement incomplete or disturbed");
-        exit(false)
+        return false;
     }
     let stack_body = CURRENT_STACK.get().0.max(VELOCITY_STACK.get().0);
     if stack_body == 0 || stack_body >= SPAN_BYTES {
@@ -184,7 +186,7 @@ pub(crate) fn verdict(r: &Results) -> ! {
             stack_body,
             SPAN_BYTES
         );
-        exit(false)
+        return false;
     }
     let preemptions = PREEMPTIONS.load(Ordering::Relaxed);
     defmt::info!(
@@ -193,7 +195,7 @@ pub(crate) fn verdict(r: &Results) -> ! {
     );
     if preemptions < 2 {
         defmt::error!("FAIL: the current loop did not preempt the velocity loop");
-        exit(false)
+        return false;
     }
     if r.period > PERIOD_BUDGET {
         defmt::error!(
@@ -201,8 +203,8 @@ pub(crate) fn verdict(r: &Results) -> ! {
             r.period,
             PERIOD_BUDGET
         );
-        exit(false)
+        return false;
     }
     defmt::info!("PASS: within budget");
-    exit(true)
+    true
 }

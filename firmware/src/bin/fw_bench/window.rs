@@ -115,3 +115,12 @@ pub extern "C" fn cycle_window_arm_velocity() {
 pub extern "C" fn cycle_window_preempt() {
     mark(0);
 }
+
+/// Called once between the bench's two drives: the cycle tracer starts a new group of
+/// windows here (the runner reports and gates each group on its own budget).
+#[allow(unsafe_code)]
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn cycle_window_next_group() {
+    mark(3);
+}
