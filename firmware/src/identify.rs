@@ -1,5 +1,6 @@
-//! The board console's measurement record (`pil_link::board::identify`): the current-loop
-//! interrupt writes one sample per tick of the run into a ring of `N` samples and counts
+//! The board console's measurement record (`pil_link::board::identify`, and a PMSM's
+//! calibration, `pil_link::board::calibrate`, two samples a tick): the current-loop
+//! interrupt writes the samples of each tick of the run into a ring of `N` samples and counts
 //! it; thread mode streams what is written, [`CHUNK_SAMPLES`] to a `ScopeData` frame,
 //! numbered from 0, and so frees the slots it has sent. A run is as long as the console
 //! link keeps up with it, whatever `N`: the ring only has to hold what the link is behind.
@@ -86,14 +87,26 @@ impl<const N: usize> Recorder<N> {
     /// # Errors
     /// [`IdentifyError::NoTicks`] for a run of zero ticks.
     pub fn start(&self, run: &IdentifyRun) -> Result<(), IdentifyError> {
-        if run.ticks == 0 {
+        self.arm(run.ticks, Some(*run))
+    }
+
+    /// Arms a run of `samples` samples without a load-torque schedule (a calibration).
+    ///
+    /// # Errors
+    /// [`IdentifyError::NoTicks`] for zero samples.
+    pub fn start_samples(&self, samples: u32) -> Result<(), IdentifyError> {
+        self.arm(samples, None)
+    }
+
+    fn arm(&self, ticks: u32, run: Option<IdentifyRun>) -> Result<(), IdentifyError> {
+        if ticks == 0 {
             return Err(IdentifyError::NoTicks);
         }
         self.written.store(0, Ordering::Relaxed);
         self.released.store(0, Ordering::Relaxed);
         self.overran.store(false, Ordering::Relaxed);
-        self.ticks.store(run.ticks, Ordering::Relaxed);
-        critical_section::with(|cs| self.run.borrow(cs).set(Some(*run)));
+        self.ticks.store(ticks, Ordering::Relaxed);
+        critical_section::with(|cs| self.run.borrow(cs).set(run));
         self.active.store(true, Ordering::Release);
         Ok(())
     }

@@ -11,8 +11,9 @@
 //! * [`trace`]: the trend buffer (fixed-size capture of chosen signals, dumped on request).
 //! * [`virtual_motor`]: the power stage and motor of boards that have none (QEMU);
 //!   [`virtual_pmsm`]: the three-phase inverter and PMSM there, for a PMSM drive.
-//! * [`identify`]: the board console's measurement record (`Identify`), written per current
-//!   tick, streamed from thread mode.
+//! * [`identify`]: the board console's measurement record (`Identify`, `Calibrate`), written
+//!   per current tick, streamed from thread mode; [`calibrate`]: a PMSM's motor calibration
+//!   run on the three-phase stage.
 //! * [`drive`]: the drive settings baked at build time (`STIFFDRIVE_DRIVE`, else `configs/machines/table1.toml`).
 //! * [`lil`]: the loop-in-the-loop record format and its reference run.
 //! * [`ring`]: the UART receive ring of the link images; [`console`]: the board console's
@@ -28,6 +29,7 @@
 
 pub mod app;
 pub mod board;
+pub mod calibrate;
 pub mod console;
 pub mod drive;
 pub mod identify;

@@ -3,25 +3,44 @@
 //! during an `Identify` run and its record, and the velocity tick run from the current
 //! tick so the two loops stay in step however late QEMU runs.
 //!
-//! The console owns the loops ([`ConsoleLoops`]) and hands them to the rig's calls: the
-//! rig depends on the board layer and the interrupt glue, never on the console, and the
-//! board layer on neither.
+//! The console owns the DC drive's loops ([`ConsoleLoops`]) and hands them to the rig's
+//! calls: the rig depends on the board layer and the interrupt glue, never on the console,
+//! and the board layer on neither.
+//!
+//! A PMSM drive (the baked machine file's `[electrics]` motor = "pmsm") runs on the virtual
+//! three-phase stage instead ([`PmsmRig`], its loops [`PMSM_LOOPS`]): the same rig (the
+//! load torque of an `Identify` run, its record, the velocity tick from the current tick),
+//! and the motor calibration (`crate::calibrate`), whose ticks replace the drive's while it
+//! runs.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use controller_core::{CurrentOutputs, DriveConfig, Pu, Setpoint};
 
+use crate::app::App;
+use crate::board::three_phase::PmsmLoopIo;
 use crate::board::CurrentLoopIo;
+use crate::boards::qemu::inverter::{virtual_pmsm_config, VirtualInverter};
 use crate::boards::qemu::{CurrentIoImpl, PeriodicTimer, VelocityIoImpl};
+use crate::calibrate::CalibrationRun;
 use crate::identify::{Recorder, RECORD_CAPACITY};
-use crate::isr::Loops;
+use crate::isr::{Loops, Shared};
 use crate::virtual_motor::VirtualMotor;
+use crate::virtual_pmsm::VirtualPmsm;
 
 /// The board console's loops on the QEMU board: the app, its I/O, a fixed setpoint.
 pub type ConsoleLoops = Loops<CurrentIoImpl, VelocityIoImpl, Setpoint>;
 
 /// The record of an `Identify` run.
 pub static RECORD: Recorder<RECORD_CAPACITY> = Recorder::new();
+/// The PMSM drive's loops: the app and the virtual three-phase stage.
+pub type PmsmLoops = Loops<VirtualInverter, VelocityIoImpl, Setpoint>;
+/// The loops of a PMSM drive (installed instead of the console's DC loops).
+pub static PMSM_LOOPS: PmsmLoops = Loops::new();
+/// A PMSM drive is installed in [`PMSM_LOOPS`].
+static PMSM: AtomicBool = AtomicBool::new(false);
+/// The motor calibration running (its ticks replace the drive's).
+static CALIBRATION: Shared<CalibrationRun> = Shared::new();
 /// Current ticks per velocity tick, and the current ticks since the last velocity tick.
 static VELOCITY_EVERY: AtomicU32 = AtomicU32::new(1);
 static PHASE: AtomicU32 = AtomicU32::new(0);
@@ -60,12 +79,8 @@ impl Rig {
                 loops.with_app(|app| app.set_enable_request(false));
             }
         }
-        let since = PHASE.load(Ordering::Relaxed).wrapping_add(1);
-        if since >= VELOCITY_EVERY.load(Ordering::Relaxed) {
-            PHASE.store(0, Ordering::Relaxed);
+        if velocity_due() {
             let _ = loops.velocity_isr();
-        } else {
-            PHASE.store(since, Ordering::Relaxed);
         }
     }
 
@@ -90,5 +105,136 @@ impl Rig {
             crate::boards::qemu::virtual_motor_config(cfg).with_coupling(motor_inertia_s, coupling),
         )
         .with_counts(counts)
+    }
+}
+
+/// After each current tick: whether the velocity tick is due (every
+/// `current_rate_hz / velocity_rate_hz`-th).
+fn velocity_due() -> bool {
+    let since = PHASE.load(Ordering::Relaxed).wrapping_add(1);
+    let due = since >= VELOCITY_EVERY.load(Ordering::Relaxed);
+    PHASE.store(if due { 0 } else { since }, Ordering::Relaxed);
+    due
+}
+
+/// The rig of a PMSM drive: its loops on the virtual three-phase stage.
+pub struct PmsmRig;
+
+impl PmsmRig {
+    /// Whether the board runs a PMSM drive.
+    pub fn active() -> bool {
+        PMSM.load(Ordering::Relaxed)
+    }
+
+    /// Installs the PMSM drive `app` of `cfg` on the baked file's virtual PMSM (before the
+    /// timers start); false when the baked machine is not a PMSM.
+    pub fn install(app: App, cfg: &DriveConfig, velocity_io: VelocityIoImpl) -> bool {
+        let Some(machine) = virtual_pmsm_config(cfg) else {
+            return false;
+        };
+        PMSM_LOOPS.install(
+            app,
+            VirtualInverter::new(machine),
+            velocity_io,
+            Setpoint::default(),
+        );
+        PMSM.store(true, Ordering::Relaxed);
+        true
+    }
+
+    /// The current-loop interrupt: a calibration's tick while one runs, else the drive's
+    /// (with an `Identify` run's load torque and record); then the velocity tick when due.
+    pub fn tick() {
+        if !Self::calibration_tick() {
+            let inputs = RECORD.load_now().and_then(|load| {
+                PMSM_LOOPS.with_current_io(|io| {
+                    io.motor_mut().set_load_torque_pu(load);
+                    io.encoder_count()
+                })
+            });
+            let out = PMSM_LOOPS.pmsm_isr();
+            if let (Some(counts), Some(out)) = (inputs, out) {
+                let excitation = PMSM_LOOPS.with_app(|app| app.excitation_pu().to_bits());
+                let values = [
+                    excitation.unwrap_or(0),
+                    out.current.q.to_bits(),
+                    out.current_ref.q.to_bits(),
+                    counts as i32,
+                ];
+                if RECORD.record(values) {
+                    PMSM_LOOPS.with_app(|app| app.set_enable_request(false));
+                }
+            }
+        }
+        if velocity_due() {
+            let _ = PMSM_LOOPS.velocity_isr();
+        }
+    }
+
+    /// A calibration tick, its row into the record (its stage off after the last, or when
+    /// the stage fails or the ring overruns); false when no calibration runs.
+    fn calibration_tick() -> bool {
+        critical_section::with(|cs| {
+            CALIBRATION.with_slot(cs, |slot| {
+                let Some(run) = slot.as_mut() else {
+                    return false;
+                };
+                let over = PMSM_LOOPS.with_current_io(|io| match run.tick(io) {
+                    Ok(row) => {
+                        let [first, second] = row.to_samples();
+                        let over = RECORD.record(first) || RECORD.record(second);
+                        if over {
+                            run.stop(io);
+                        }
+                        over
+                    }
+                    Err(_) => {
+                        RECORD.abort();
+                        true
+                    }
+                });
+                if over != Some(false) {
+                    *slot = None;
+                }
+                true
+            })
+        })
+        .unwrap_or(false)
+    }
+
+    /// Starts the calibration `run` at the next tick (the record armed first).
+    pub fn start_calibration(run: CalibrationRun) {
+        critical_section::with(|cs| CALIBRATION.with_slot(cs, |slot| *slot = Some(run)));
+    }
+
+    /// Ends a calibration early: the stage off.
+    pub fn end_calibration() {
+        critical_section::with(|cs| {
+            CALIBRATION.with_slot(cs, |slot| {
+                if let Some(run) = slot.take() {
+                    PMSM_LOOPS.with_current_io(|io| run.stop(io));
+                }
+            })
+        });
+    }
+
+    /// The rig's load torque \[pu\] on the motor from now on.
+    pub fn set_load(load_pu: f32) {
+        PMSM_LOOPS.with_current_io(|io| io.motor_mut().set_load_torque_pu(load_pu));
+    }
+
+    /// The rig's brake: the motor at rest where it is, no current.
+    pub fn brake() {
+        PMSM_LOOPS.with_current_io(|io| io.motor_mut().stop());
+    }
+
+    /// The virtual PMSM stepped at `cfg`'s current-loop period, at rest where it was.
+    pub fn rebuild_machine(cfg: &DriveConfig) {
+        PMSM_LOOPS.with_current_io(|io| {
+            let counts = io.motor_mut().counts();
+            if let Some(machine) = virtual_pmsm_config(cfg) {
+                *io.motor_mut() = VirtualPmsm::new(machine).with_counts(counts);
+            }
+        });
     }
 }

@@ -56,8 +56,10 @@ pub struct BoardArgs {
     #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..=60_000))]
     pub reply_timeout_ms: u64,
     /// In order: status, get KEY, set KEY=VALUE, save, reset, faults, enable, disable,
-    /// scope --seconds S --out DIR. KEY is a machine file's `[drive]` key, e.g.
-    /// drive.velocity_bandwidth_rad_s.
+    /// scope --seconds S --out DIR, calibrate. KEY is a machine file's `[drive]` key, e.g.
+    /// drive.velocity_bandwidth_rad_s, or drive.pmsm.encoder_offset_elec_deg. `calibrate`
+    /// calibrates a PMSM drive's motor on the board (as `identify --board` does first) and
+    /// sets and saves the calibration; until then the board refuses to enable a PMSM drive.
     #[arg(
         required = true,
         trailing_var_arg = true,
@@ -97,6 +99,7 @@ impl BoardArgs {
             &target,
             &actions,
             Duration::from_millis(self.reply_timeout_ms),
+            &mut machine_workflows::calibrate::board::calibrate_action,
         )
     }
 }

@@ -40,7 +40,15 @@ pub enum Action {
     Disable,
     /// Record the scope for `seconds` into `out/scope.csv` and a plot.
     Scope(Scope),
+    /// Calibrate a PMSM drive's motor on the board and set and save the calibration (the
+    /// estimation is the caller's: [`board_command`]'s `calibrate`).
+    Calibrate,
 }
+
+/// What runs the `calibrate` action on a session: it calibrates, sets the calibration on
+/// the board, saves it and returns the line to print (`stiffdrive board` passes
+/// machine-workflows' own, whose estimation is `identify`'s).
+pub type Calibrator<'a> = &'a mut dyn FnMut(&mut BoardClient<Stream>) -> Result<String>;
 
 /// Where the board is.
 #[derive(Clone, Debug)]
@@ -68,7 +76,7 @@ pub enum BoardTarget {
 }
 
 const USAGE: &str = "actions: status, get KEY, set KEY=VALUE, save, reset, faults, enable, \
-                     disable, scope --seconds S --out DIR";
+                     disable, scope --seconds S --out DIR, calibrate";
 
 fn bad(reason: impl Into<String>) -> HarnessError {
     HarnessError::config("board", format!("{}; {USAGE}", reason.into()))
@@ -89,6 +97,7 @@ pub fn parse_actions(words: &[String]) -> Result<Vec<Action>> {
             "faults" => Action::Faults,
             "enable" => Action::Enable,
             "disable" => Action::Disable,
+            "calibrate" => Action::Calibrate,
             "get" => Action::Get(it.next().ok_or_else(|| bad("get needs a KEY"))?.clone()),
             "set" => {
                 let arg = it.next().ok_or_else(|| bad("set needs KEY=VALUE"))?;
@@ -140,7 +149,7 @@ pub fn parse_actions(words: &[String]) -> Result<Vec<Action>> {
 }
 
 /// `stiffdrive board`: runs `actions` on the board at `target`, printing a line for each;
-/// each reply must come within `reply_timeout`.
+/// each reply must come within `reply_timeout`; `calibrate` runs the `calibrate` action.
 ///
 /// # Errors
 /// The first action that fails or is refused (its message names the key and range), a
@@ -149,6 +158,7 @@ pub fn board_command(
     target: &BoardTarget,
     actions: &[Action],
     reply_timeout: Duration,
+    calibrate: Calibrator<'_>,
 ) -> Result<String> {
     // A scope's --out is checked before anything runs (and again when it is written).
     for a in actions {
@@ -156,7 +166,9 @@ pub fn board_command(
             sim_engine::output::check_dir_target(&s.out)?;
         }
     }
-    with_board(target, reply_timeout, |client| run_actions(client, actions))
+    with_board(target, reply_timeout, |client| {
+        run_actions(client, actions, calibrate)
+    })
 }
 
 /// Opens a console session with the board at `target` (for `--qemu`: builds the image if
@@ -242,13 +254,20 @@ fn link(e: BoardError) -> HarnessError {
 ///
 /// # Errors
 /// As [`board_command`].
-pub fn run_actions(client: &mut BoardClient<Stream>, actions: &[Action]) -> Result<String> {
+pub fn run_actions(
+    client: &mut BoardClient<Stream>,
+    actions: &[Action],
+    calibrate: Calibrator<'_>,
+) -> Result<String> {
     // The board may still be booting (QEMU just started it).
     client
         .wait_ready(Duration::from_secs(10), Duration::from_millis(300))
         .map_err(link)?;
     for action in actions {
-        let line = run_action(client, action)?;
+        let line = match action {
+            Action::Calibrate => calibrate(client)?,
+            other => run_action(client, other)?,
+        };
         println!("{line}");
     }
     Ok(format!("board: {} action(s) done", actions.len()))
@@ -312,6 +331,9 @@ fn run_action(client: &mut BoardClient<Stream>, action: &Action) -> Result<Strin
             "drive disabled".to_string()
         }
         Action::Scope(s) => scope(client, s)?,
+        Action::Calibrate => {
+            return Err(bad("calibrate runs only from `stiffdrive board`"));
+        }
     })
 }
 

@@ -26,7 +26,7 @@ pub struct BoardRecord {
     pub samples: Vec<[i32; SCOPE_CHANNELS]>,
 }
 
-fn link(e: BoardError) -> HarnessError {
+pub(crate) fn link(e: BoardError) -> HarnessError {
     match e {
         BoardError::Refused { message, .. } => {
             HarnessError::Backend(format!("board refused: {message}"))
@@ -52,36 +52,74 @@ fn place(samples: &mut Vec<[i32; SCOPE_CHANNELS]>, c: &ScopeChunk, wanted: usize
 /// Refused (enabled, a latched fault, settings or excitation out of range: the board's
 /// message names the key), a link failure, a gap, other channels, a fault during the run.
 pub fn run_identify(client: &mut BoardClient<Stream>, run: &IdentifyRun) -> Result<BoardRecord> {
+    stream_record(
+        client,
+        &Request::Identify(*run),
+        &Streamed {
+            samples: run.ticks,
+            per_tick: 1,
+            channels: CHANNELS,
+            what: "identify",
+            shorter: "fewer identify.prbs_periods",
+            lower: "lower identify.amplitude_pu or identify.reversal_torque_pu",
+        },
+    )
+}
+
+/// What a streamed record is: its length, its channels, how the errors name it.
+pub(crate) struct Streamed {
+    /// Samples of the whole record.
+    pub samples: u32,
+    /// Samples a current tick takes.
+    pub per_tick: u32,
+    /// The channels the board must record.
+    pub channels: &'static str,
+    /// The command, as the errors name it.
+    pub what: &'static str,
+    /// How to make the run shorter (an overrun's remedy).
+    pub shorter: &'static str,
+    /// How to excite less (a fault's remedy).
+    pub lower: &'static str,
+}
+
+/// Sends `request` and collects the record the board streams after its reply (module
+/// docs); the wait is four times the run at its rate, and 10 s.
+pub(crate) fn stream_record(
+    client: &mut BoardClient<Stream>,
+    request: &Request<'_>,
+    rec: &Streamed,
+) -> Result<BoardRecord> {
+    let what = rec.what;
     let faults_before = client.faults().map_err(link)?.total();
-    let wanted = run.ticks as usize;
+    let wanted = rec.samples as usize;
     let mut samples = Vec::with_capacity(wanted);
     let mut broken = false;
-    // The ticks of a run the board ended early.
+    // The samples of a run the board ended early.
     let mut cut: Option<u32> = None;
     let body = client
-        .request_with(&Request::Identify(*run), &mut |c| {
-            if is_cut_end(&c, run.ticks) {
+        .request_with(request, &mut |c| {
+            if is_cut_end(&c, rec.samples) {
                 cut = Some(c.first);
             }
             broken |= !place(&mut samples, &c, wanted);
         })
         .map_err(link)?;
     let info = ScopeInfo::decode(&body).map_err(|e| link(BoardError::Reply(e)))?;
-    if info.channels != CHANNELS {
+    if info.channels != rec.channels {
         return Err(HarnessError::Backend(format!(
-            "board identify: the board records {:?}, not {CHANNELS:?}",
-            info.channels
+            "board {what}: the board records {:?}, not {:?}",
+            info.channels, rec.channels
         )));
     }
     let rate_hz = info.rate_hz.max(1);
-    let seconds = f64::from(run.ticks) / f64::from(rate_hz);
-    let bar = sim_engine::progress::bar(wanted as u64, "identify (board)");
+    let seconds = f64::from(rec.samples / rec.per_tick.max(1)) / f64::from(rate_hz);
+    let bar = sim_engine::progress::bar(wanted as u64, &format!("{what} (board)"));
     let deadline = Instant::now() + Duration::from_secs_f64(4.0 * seconds + 10.0);
     let received = if cut.is_some() {
         Ok(())
     } else {
         client.scope_receive(deadline, &mut |c| {
-            if is_cut_end(&c, run.ticks) {
+            if is_cut_end(&c, rec.samples) {
                 cut = Some(c.first);
             }
             broken |= !place(&mut samples, &c, wanted);
@@ -96,18 +134,24 @@ pub fn run_identify(client: &mut BoardClient<Stream>, run: &IdentifyRun) -> Resu
         let overran = history.total() != faults_before
             && history.entries().last().map(|e| e.code) == Some(LINK_FAULT_CODE);
         let why = if overran {
-            "the console link fell behind the record and the board's buffer overran: a \
-             faster link, or fewer identify.prbs_periods"
+            format!(
+                "the console link fell behind the record and the board's buffer overran: a \
+                 faster link, or {}",
+                rec.shorter
+            )
         } else {
-            "the drive was disabled or faulted"
+            "the drive was disabled or faulted".to_string()
         };
+        let per_tick = rec.per_tick.max(1);
         return Err(HarnessError::Backend(format!(
-            "board identify: the board ended the run after {recorded} of {wanted} ticks: {why}"
+            "board {what}: the board ended the run after {} of {} ticks: {why}",
+            recorded / per_tick,
+            rec.samples / per_tick
         )));
     }
     if broken || samples.len() != wanted {
         return Err(HarnessError::Backend(format!(
-            "board identify: the record has a gap ({} of {wanted} samples in order)",
+            "board {what}: the record has a gap ({} of {wanted} samples in order)",
             samples.len()
         )));
     }
@@ -115,9 +159,9 @@ pub fn run_identify(client: &mut BoardClient<Stream>, run: &IdentifyRun) -> Resu
     if history.total() != faults_before {
         let last = history.entries().last().map_or(0, |e| e.code);
         return Err(HarnessError::Backend(format!(
-            "board identify: the drive faulted during the measurement ({}); lower \
-             identify.amplitude_pu or identify.reversal_torque_pu",
-            fault_name(last)
+            "board {what}: the drive faulted during the measurement ({}); {}",
+            fault_name(last),
+            rec.lower
         )));
     }
     Ok(BoardRecord { rate_hz, samples })
@@ -140,7 +184,7 @@ mod tests {
     use std::os::unix::net::UnixStream;
 
     /// A board whose measurement ends after two chunks, as the firmware's console ends a
-    /// run cut short (`firmware/src/board_console.rs`): the samples recorded, an overrun's
+    /// run cut short (`firmware/src/board_console/`): the samples recorded, an overrun's
     /// link fault in the history (or none: a disable), then the empty mark.
     struct CutBoard {
         history: FaultHistory,

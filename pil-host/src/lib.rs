@@ -10,7 +10,8 @@
 //! * [`compare`](mod@compare): the bit-for-bit comparison with the host run;
 //! * [`comparison_markdown`]: its Markdown (`pil-comparison.md`), from the typed results;
 //! * [`board`](mod@board), [`board_scope`]: `stiffdrive board`, the board console session (on a
-//!   serial port, or the `board` image in QEMU) and its scope recording.
+//!   serial port, or the `board` image in QEMU) and its scope recording; [`board_identify`],
+//!   [`board_calibrate`]: the records of the board's own measurements and calibration.
 //!
 //! Files in `--out` DIR: `trace.csv`, `summary.json`, `trace.svg/png` (as `run`), plus
 //! `pil.json` (link statistics, fault), `pil-comparison.json` and `pil-comparison.md` (the
@@ -29,6 +30,7 @@
 
 pub mod backend;
 pub mod board;
+pub mod board_calibrate;
 pub mod board_identify;
 pub mod board_scope;
 pub mod compare;

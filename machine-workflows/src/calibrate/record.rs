@@ -5,6 +5,7 @@ use controller_core::foc::calibration::{
 };
 use controller_core::foc::{clarke, Svpwm};
 use controller_core::per_unit::Pu;
+use pil_host::board_calibrate::BoardCalibration;
 use plant_host::{PlantConfig, PmsmPlant};
 use sim_engine::error::{HarnessError, Result};
 
@@ -84,4 +85,54 @@ pub fn record_on_plant(config: &PlantConfig, settings: &CalibrationSettings) -> 
         encoder_cpr: config.counts_per_rev(),
         rows,
     })
+}
+
+impl Record {
+    /// The board's record (`pil_host::board_calibrate`) as [`super::estimate`] reads it:
+    /// per-unit values from their Q16.16 bits, the commanded angle unwrapped into turns, the
+    /// encoder counter (`counter_bits` wide) read signed at the first tick, as the drive
+    /// primes its position, and unwrapped from there; `encoder_cpr` the drive's.
+    #[must_use]
+    pub fn from_board(board: &BoardCalibration, encoder_cpr: u32, counter_bits: u8) -> Self {
+        let pu = |x: Pu| f64::from(x.to_bits()) / 65_536.0;
+        let span = 1_i64 << counter_bits.clamp(1, 32);
+        let (mut turns, mut last_phase) = (0.0, 0_u32);
+        let mut unwrapped: Option<(i64, i64)> = None;
+        let rows = board
+            .rows
+            .iter()
+            .map(|r| {
+                // Less than half a turn (or half the counter) a tick: the wrapped step
+                // unwraps it.
+                turns += f64::from(r.phase.wrapping_sub(last_phase) as i32) / 4_294_967_296.0;
+                last_phase = r.phase;
+                let raw = i64::from(r.count) & (span - 1);
+                let count = match unwrapped {
+                    // Signed, as the drive primes its position from the counter (so the
+                    // offset is the one the drive's angle needs).
+                    None if raw >= span / 2 => raw - span,
+                    None => raw,
+                    Some((last_raw, last)) => {
+                        let step = (raw - last_raw).rem_euclid(span);
+                        last + if step >= span / 2 { step - span } else { step }
+                    }
+                };
+                unwrapped = Some((raw, count));
+                Row {
+                    stage: r.stage,
+                    v_alpha: pu(r.v_alpha),
+                    v_beta: pu(r.v_beta),
+                    phase_turns: turns,
+                    i_a: pu(r.i_a),
+                    i_b: pu(r.i_b),
+                    count,
+                }
+            })
+            .collect();
+        Self {
+            rate_hz: f64::from(board.rate_hz),
+            encoder_cpr,
+            rows,
+        }
+    }
 }

@@ -19,14 +19,22 @@
 //! image's virtual machine takes it); a real board has no rig and ignores it, so there the
 //! lost-motion test shows nothing and the preload must come from the machine itself.
 //!
+//! On a PMSM machine the board first calibrates its motor ([`crate::calibrate::board`]:
+//! the sequence in the board's own current loop, the estimation identify's own), sets the
+//! calibration on the board and saves it in the settings sector; the two measurements then
+//! run on the calibrated drive, as identify's do on the simulated machine, and the
+//! calibration is in `identify.json` and `identify.md`.
+//!
 //! With `--qemu` the image is built with the machine file, so its virtual machine is the
-//! file's `[plant]` (`firmware/build.rs`) and its drive the file's `[drive]`. The board's
+//! file's `[plant]` (and for a PMSM its `[electrics]`; `firmware/build.rs`) and its drive
+//! the file's `[drive]`. The board's
 //! drive must be the file's where the estimation uses it (rates, encoder, counter, base
 //! speed): checked over the console before anything runs. `--set` may change `identify.`
 //! keys only: the board's machine and drive are what it carries.
 
 use super::measure::{frequency_response_setup, frequency_response_tail, reversal_load, Record};
-use super::{identify_records, load, spec::IdentifySpec, write};
+use super::{identify_records, load, motor, spec::IdentifySpec, write, Identification};
+use crate::calibrate::board::{calibrate_on_board, save_on_board};
 use pil_host::board::{with_board, BoardTarget, Machine};
 use pil_host::board_identify::{run_identify, BoardRecord};
 use pil_link::board::client::BoardClient;
@@ -125,6 +133,44 @@ fn check_drive(client: &mut BoardClient<Stream>, base: &RunConfig) -> Result<()>
     Ok(())
 }
 
+/// What the board measured: a PMSM's calibration, the drive calibrated by it, the two
+/// records.
+struct OnBoard {
+    motor: Option<crate::calibrate::MotorEstimates>,
+    base: RunConfig,
+    rec: Record,
+    reversal: Record,
+}
+
+/// On the board: a PMSM's motor calibration (set and saved), then the two records with the
+/// drive calibrated by it.
+fn on_board(
+    client: &mut BoardClient<Stream>,
+    base: &RunConfig,
+    spec: &IdentifySpec,
+) -> Result<OnBoard> {
+    client
+        .wait_ready(Duration::from_secs(10), Duration::from_millis(300))
+        .map_err(|e| HarnessError::Backend(format!("board identify: {e}")))?;
+    check_drive(client, base)?;
+    let motor = match base.drive.pmsm {
+        Some(_) => {
+            let est = calibrate_on_board(client)?;
+            save_on_board(client, &est)?;
+            Some(est)
+        }
+        None => None,
+    };
+    let base = motor::with_calibration(base, motor.as_ref())?;
+    let (rec, reversal) = measure_on_board(client, &base, spec)?;
+    Ok(OnBoard {
+        motor,
+        base,
+        rec,
+        reversal,
+    })
+}
+
 /// The two records from the board: the frequency response after its settling, the
 /// lost-motion test whole.
 fn measure_on_board(
@@ -132,10 +178,6 @@ fn measure_on_board(
     base: &RunConfig,
     spec: &IdentifySpec,
 ) -> Result<(Record, Record)> {
-    client
-        .wait_ready(Duration::from_secs(10), Duration::from_millis(300))
-        .map_err(|e| HarnessError::Backend(format!("board identify: {e}")))?;
-    check_drive(client, base)?;
     let (cfg, _) = frequency_response_setup(base, spec)?;
     let (frequency, reversal) = board_runs(spec, base.drive.current_rate_hz)?;
     let bits = base.drive.counter_bits;
@@ -178,13 +220,6 @@ pub fn identify_board(
         ));
     }
     let (base, spec) = load(config, sets)?;
-    if base.drive.pmsm.is_some() {
-        return Err(HarnessError::config(
-            "electrics.motor",
-            "\"pmsm\": the board's firmware drives a DC motor only; identify a PMSM machine \
-             (its motor calibration and mechanics) on the simulated machine, without --board",
-        ));
-    }
     let staging = Staging::new(out)?;
     let target = match target {
         // The `board` image on mps2-an386: the QEMU board with a rig.
@@ -196,10 +231,14 @@ pub fn identify_board(
         },
         port => port.clone(),
     };
-    let (rec, reversal) = with_board(&target, REPLY_TIMEOUT, |client| {
-        measure_on_board(client, &base, &spec)
+    let m = with_board(&target, REPLY_TIMEOUT, |client| {
+        on_board(client, &base, &spec)
     })?;
-    let ident = identify_records(&base, &spec, &rec, &reversal, &describe(&target))?;
+    let ident = identify_records(&m.base, &spec, &m.rec, &m.reversal, &describe(&target))?;
+    let ident = Identification {
+        motor: m.motor,
+        ..ident
+    };
     write::write_all(staging.dir(), &base, &spec, &ident)?;
     staging.commit()?;
     Ok(super::summary(&base, &ident, out))

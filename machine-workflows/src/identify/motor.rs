@@ -21,10 +21,18 @@ pub fn settings(base: &RunConfig) -> CalibrationSettings {
     let bus = base
         .drive
         .pmsm
-        .map_or(1.0, |p| f64::from(p.dc_bus_pu) / 3f64.sqrt());
+        .map_or(3f64.sqrt(), |p| f64::from(p.dc_bus_pu));
+    settings_for(f64::from(base.drive.current_rate_hz), bus)
+}
+
+/// The calibration's settings for a drive whose current loop runs at `current_rate_hz` on
+/// a bus of `dc_bus_pu` (the voltage limit `dc_bus_pu/√3`), [`CalibrationSettings`]'
+/// defaults otherwise: [`settings`], and the board's (`crate::calibrate::board`).
+#[must_use]
+pub fn settings_for(current_rate_hz: f64, dc_bus_pu: f64) -> CalibrationSettings {
     CalibrationSettings {
-        current_rate_hz: base.drive.current_rate_hz as f32,
-        voltage_limit_pu: bus as f32,
+        current_rate_hz: current_rate_hz as f32,
+        voltage_limit_pu: (dc_bus_pu / 3f64.sqrt()) as f32,
         ..CalibrationSettings::default()
     }
 }

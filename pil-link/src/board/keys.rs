@@ -3,6 +3,12 @@
 //! sides look a key up here; the wire carries the key as text, so an error names it as the
 //! operator typed it. A key is a field of [`DriveConfig`] reached through [`field`].
 //!
+//! A PMSM drive's motor calibration are keys too ([`PMSM_RANGES`]: `drive.pmsm.pole_pairs`,
+//! the d and q inductances, `drive.pmsm.encoder_offset_elec_deg`,
+//! `drive.pmsm.encoder_reversed` as 0 or 1), and its bus `drive.pmsm.dc_bus_pu`: what the
+//! calibration measures, set on the board and saved with the rest; a DC drive has none of
+//! them, and an uncalibrated drive has no offset to get.
+//!
 //! The enumerated settings are keys too ([`CHOICES`]): on the wire their value is the index
 //! of the value's name in [`Choice::names`], which are spelled as in the machine file. The
 //! kind of a filter and the presence of the notch are not keys: a change of kind needs its
@@ -17,10 +23,33 @@ use controller_core::{
 /// How the machine file spells a key of its `[drive]` table: `drive.` + the range key.
 pub const PREFIX: &str = "drive.";
 
+/// The `[drive.pmsm]` keys of the console, with the ranges controller-core's FOC loop
+/// checks them against (`controller_core::foc`); `design` checks them as a whole (the pole
+/// pairs below the encoder's counts, the loop's formats).
+pub static PMSM_RANGES: [Range; 6] = [
+    pmsm_range("pmsm.pole_pairs", 1.0, 65_535.0, true),
+    pmsm_range("pmsm.d_inductance_pu_s", 1e-6, 10.0, false),
+    pmsm_range("pmsm.q_inductance_pu_s", 1e-6, 10.0, false),
+    pmsm_range("pmsm.dc_bus_pu", 0.01, 1000.0, false),
+    pmsm_range("pmsm.encoder_offset_elec_deg", -360.0, 360.0, false),
+    pmsm_range("pmsm.encoder_reversed", 0.0, 1.0, true),
+];
+
+const fn pmsm_range(key: &'static str, min: f32, max: f32, whole: bool) -> Range {
+    Range {
+        key,
+        min,
+        max,
+        min_exclusive: false,
+        whole,
+    }
+}
+
 /// The range table entry of `key` (`drive.velocity_damping`, or without the prefix).
 #[must_use]
 pub fn range(key: &str) -> Option<&'static Range> {
-    ranges::range_of(key.strip_prefix(PREFIX).unwrap_or(key))
+    let key = key.strip_prefix(PREFIX).unwrap_or(key);
+    ranges::range_of(key).or_else(|| PMSM_RANGES.iter().find(|r| r.key == key))
 }
 
 /// A setting of a [`DriveConfig`], by reference, in its own type.
@@ -32,6 +61,10 @@ pub enum Field<'a> {
     Whole(&'a mut u32),
     /// A whole-number setting stored in a byte (`counter_bits`).
     Byte(&'a mut u8),
+    /// A measured setting, `None` until measured (`pmsm.encoder_offset_elec_deg`).
+    Measured(&'a mut Option<f32>),
+    /// A flag, 0 or 1 (`pmsm.encoder_reversed`).
+    Flag(&'a mut bool),
 }
 
 /// Why a key cannot be read or written.
@@ -261,8 +294,11 @@ fn choice_set(cfg: &mut DriveConfig, c: &Choice, i: usize) {
 /// The field of `cfg` the range `r` belongs to; `None` when this drive lacks it.
 pub fn field<'a>(cfg: &'a mut DriveConfig, r: &Range) -> Option<Field<'a>> {
     use ranges as k;
-    let f = &mut cfg.faults;
     let key = r.key;
+    if key.starts_with("pmsm.") {
+        return pmsm_field(cfg, key);
+    }
+    let f = &mut cfg.faults;
     let real = |x: &'a mut f32| Some(Field::Real(x));
     match key {
         _ if key == k::BASE_SPEED_RPM.key => real(&mut cfg.base_speed_rpm),
@@ -319,6 +355,20 @@ pub fn field<'a>(cfg: &'a mut DriveConfig, r: &Range) -> Option<Field<'a>> {
     }
 }
 
+/// The `[drive.pmsm]` field of `key` ([`PMSM_RANGES`]); `None` without one.
+fn pmsm_field<'a>(cfg: &'a mut DriveConfig, key: &str) -> Option<Field<'a>> {
+    let p = cfg.pmsm.as_mut()?;
+    Some(match key {
+        "pmsm.pole_pairs" => Field::Whole(&mut p.pole_pairs),
+        "pmsm.d_inductance_pu_s" => Field::Real(&mut p.d_inductance_pu_s),
+        "pmsm.q_inductance_pu_s" => Field::Real(&mut p.q_inductance_pu_s),
+        "pmsm.dc_bus_pu" => Field::Real(&mut p.dc_bus_pu),
+        "pmsm.encoder_offset_elec_deg" => Field::Measured(&mut p.encoder_offset_elec_deg),
+        "pmsm.encoder_reversed" => Field::Flag(&mut p.encoder_reversed),
+        _ => return None,
+    })
+}
+
 fn corner(f: &mut FilterConfig) -> Option<Field<'_>> {
     match f {
         FilterConfig::None => None,
@@ -349,6 +399,8 @@ pub fn get(cfg: &DriveConfig, key: &str) -> Result<f64, KeyError> {
         Field::Real(v) => f64::from(*v),
         Field::Whole(v) => f64::from(*v),
         Field::Byte(v) => f64::from(*v),
+        Field::Measured(v) => f64::from(v.ok_or(KeyError::NotPresent(r))?),
+        Field::Flag(v) => f64::from(u8::from(*v)),
     })
 }
 
@@ -380,6 +432,8 @@ pub fn set(cfg: &mut DriveConfig, key: &str, value: f64) -> Result<(), KeyError>
         // In range, so within u32 (and within u8 for `counter_bits`, at most 32).
         Field::Whole(v) => *v = value as u32,
         Field::Byte(v) => *v = value as u8,
+        Field::Measured(v) => *v = Some(narrow),
+        Field::Flag(v) => *v = value != 0.0,
     }
     Ok(())
 }

@@ -15,6 +15,7 @@
 //! | `ScopeStart`  |                          | [`ScopeInfo`]; then `ScopeData` frames      |
 //! | `ScopeStop`   |                          |                                             |
 //! | `Identify`    | [`IdentifyRun`]          | [`ScopeInfo`]; then the record in `ScopeData` frames |
+//! | `Calibrate`   | [`CalibrationSettings`] ([`super::calibrate::encode`]) | [`ScopeInfo`]; then the record in `ScopeData` frames |
 //!
 //! A `ScopeData` frame is a [`ScopeChunk`]. Values travel as raw bits (`f64::to_bits`).
 
@@ -22,6 +23,7 @@ use super::BOARD_VERSION;
 use super::identify::IdentifyRun;
 use crate::wire::{Reader, Writer};
 use crate::{FrameKind, LinkError};
+use controller_core::foc::calibration::CalibrationSettings;
 
 /// What a request asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,6 +51,8 @@ pub enum Op {
     ScopeStop = 10,
     /// Run a measurement and stream its record ([`super::identify`]).
     Identify = 11,
+    /// Run a PMSM's motor calibration and stream its record ([`super::calibrate`]).
+    Calibrate = 12,
 }
 
 impl Op {
@@ -67,6 +71,7 @@ impl Op {
             9 => Self::ScopeStart,
             10 => Self::ScopeStop,
             11 => Self::Identify,
+            12 => Self::Calibrate,
             _ => return None,
         })
     }
@@ -97,6 +102,8 @@ pub enum Request<'a> {
     ScopeStop,
     /// See [`Op::Identify`].
     Identify(IdentifyRun),
+    /// See [`Op::Calibrate`].
+    Calibrate(CalibrationSettings),
 }
 
 /// Why a request was refused (the reply's status byte).
@@ -119,6 +126,8 @@ pub enum Refusal {
     Faulted = 7,
     /// The settings sector could not be written.
     Storage = 8,
+    /// A PMSM drive without its motor calibration (enable or a measurement refused).
+    Uncalibrated = 9,
 }
 
 impl Refusal {
@@ -134,6 +143,7 @@ impl Refusal {
             6 => Self::Invalid,
             7 => Self::Faulted,
             8 => Self::Storage,
+            9 => Self::Uncalibrated,
             _ => return None,
         })
     }
@@ -155,6 +165,7 @@ impl<'a> Request<'a> {
             Self::ScopeStart => Op::ScopeStart,
             Self::ScopeStop => Op::ScopeStop,
             Self::Identify(_) => Op::Identify,
+            Self::Calibrate(_) => Op::Calibrate,
         }
     }
 
@@ -173,6 +184,7 @@ impl<'a> Request<'a> {
                     .bytes(key.as_bytes())?;
             }
             Self::Identify(run) => run.encode(w)?,
+            Self::Calibrate(settings) => super::calibrate::encode(&settings, w)?,
             _ => {}
         }
         Ok(())
@@ -211,6 +223,7 @@ impl<'a> Request<'a> {
             Op::ScopeStart => Self::ScopeStart,
             Op::ScopeStop => Self::ScopeStop,
             Op::Identify => Self::Identify(IdentifyRun::decode(&mut r).map_err(|_| bad)?),
+            Op::Calibrate => Self::Calibrate(super::calibrate::decode(&mut r).map_err(|_| bad)?),
         };
         r.finish().map_err(|_| bad)?;
         Ok(request)

@@ -7,9 +7,11 @@
 //!   with controller-core's ranges;
 //! * [`message`]: requests and replies; [`scope`]: the scope stream; [`faults`]: the fault
 //!   history; [`store`]: the saved-settings record; [`identify`]: a measurement run on the
-//!   board, streamed as the scope is;
+//!   board, streamed as the scope is; [`calibrate`]: a PMSM's motor calibration run on the
+//!   board, streamed the same way;
 //! * [`session`]: the firmware side, host-testable; with `std`, [`client`]: the host side.
 
+pub mod calibrate;
 #[cfg(feature = "std")]
 pub mod client;
 pub mod faults;
@@ -21,4 +23,4 @@ pub mod session;
 pub mod store;
 
 /// Version of the board console protocol. Bump it whenever a board payload changes.
-pub const BOARD_VERSION: u8 = 1;
+pub const BOARD_VERSION: u8 = 2;

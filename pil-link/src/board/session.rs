@@ -8,10 +8,15 @@
 //! it to the drive; anything refused leaves the settings and the drive as they were. `Set`
 //! is refused while the drive is enabled.
 //!
+//! A PMSM drive without its motor calibration (`[drive.pmsm]` with no
+//! `encoder_offset_elec_deg`) refuses `Enable` and `Identify` ([`ConsoleError::Uncalibrated`],
+//! naming the command that measures it); `Calibrate` ([`super::calibrate`]) runs on it.
+//!
 //! Safe state: a frame that fails its checks (CRC, length, version, kind) while the drive
 //! is enabled turns the drive off ([`Drive::enter_safe_state`]): the console that drives it
 //! is no longer trusted. A corrupt frame never changes a setting, enabled or not.
 
+use super::calibrate::{self, CalibrateError};
 use super::faults::FaultHistory;
 use super::identify::{IdentifyError, IdentifyRun};
 use super::keys::{self, KeyError};
@@ -20,6 +25,7 @@ use super::scope::ScopeInfo;
 use super::store::{self, RECORD_LEN, SaveError};
 use crate::wire::Writer;
 use crate::{Decoder, Frame, FrameKind, crc32, settings};
+use controller_core::foc::calibration::Calibration;
 use controller_core::{ConfigError, DriveConfig};
 use core::fmt::Write as _;
 
@@ -65,7 +71,26 @@ pub trait Drive {
         let _ = (cfg, running, run);
         Err(IdentifyError::Unsupported)
     }
+    /// Starts the motor calibration `seq` on the PMSM drive `cfg` (the running settings;
+    /// only called while disabled and without a latched fault), the power stage on for its
+    /// ticks. Returns the record's rate and channels
+    /// ([`super::calibrate::CHANNELS`]).
+    ///
+    /// # Errors
+    /// What the board cannot run (no calibration on this board, the drive's modulator
+    /// refused).
+    fn calibrate(
+        &mut self,
+        cfg: &DriveConfig,
+        seq: &Calibration,
+    ) -> Result<ScopeInfo<'_>, CalibrateError> {
+        let _ = (cfg, seq);
+        Err(CalibrateError::Unsupported)
+    }
 }
+
+/// The command that calibrates a PMSM drive on the board, as the refusals name it.
+pub const CALIBRATE_COMMAND: &str = "stiffdrive identify --board --config FILE";
 
 /// The firmware's console session.
 #[derive(Clone, Debug)]
@@ -111,6 +136,10 @@ pub enum ConsoleError<'a> {
     RunWhileEnabled,
     /// `Identify` refused by the settings or the board.
     Identify(IdentifyError),
+    /// `Calibrate` refused.
+    Calibrate(CalibrateError),
+    /// `Enable` or `Identify` of a PMSM drive without its motor calibration.
+    Uncalibrated,
 }
 
 impl ConsoleError<'_> {
@@ -128,6 +157,9 @@ impl ConsoleError<'_> {
             Self::Storage(_) => Refusal::Storage,
             Self::RunWhileEnabled => Refusal::Enabled,
             Self::Identify(_) => Refusal::Invalid,
+            Self::Calibrate(CalibrateError::Enabled) => Refusal::Enabled,
+            Self::Calibrate(_) => Refusal::Invalid,
+            Self::Uncalibrated => Refusal::Uncalibrated,
         }
     }
 }
@@ -167,6 +199,13 @@ impl core::fmt::Display for ConsoleError<'_> {
                  measurement is its own enable)"
             ),
             Self::Identify(e) => write!(f, "{e}"),
+            Self::Calibrate(e) => write!(f, "{e}"),
+            Self::Uncalibrated => write!(
+                f,
+                "{p}pmsm.encoder_offset_elec_deg is not set: the PMSM drive runs only once \
+                 its motor is calibrated; run `{CALIBRATE_COMMAND}` or `stiffdrive board \
+                 ... calibrate` (both save it on the board)"
+            ),
         }
     }
 }
@@ -282,6 +321,7 @@ impl BoardSession {
                 Ok(())
             }
             Request::Faults => drive.fault_history().encode(out).map_err(full),
+            Request::Enable if !calibrated(&self.cfg) => Err(ConsoleError::Uncalibrated),
             Request::Enable => match drive.fault_code() {
                 0 => {
                     drive.set_enabled(true);
@@ -306,12 +346,31 @@ impl BoardSession {
                     0 => {}
                     code => return Err(ConsoleError::Faulted(code)),
                 }
+                if !calibrated(&self.cfg) {
+                    return Err(ConsoleError::Uncalibrated);
+                }
                 let cfg = run
                     .drive_config(&self.cfg)
                     .map_err(ConsoleError::Identify)?;
                 drive
                     .identify(&cfg, &self.cfg, &run)
                     .map_err(ConsoleError::Identify)?
+                    .encode(out)
+                    .map_err(full)
+            }
+            Request::Calibrate(settings) => {
+                let refused = ConsoleError::Calibrate;
+                if drive.enabled() {
+                    return Err(refused(CalibrateError::Enabled));
+                }
+                match drive.fault_code() {
+                    0 => {}
+                    code => return Err(ConsoleError::Faulted(code)),
+                }
+                let seq = calibrate::sequence(&self.cfg, &settings).map_err(refused)?;
+                drive
+                    .calibrate(&self.cfg, &seq)
+                    .map_err(refused)?
                     .encode(out)
                     .map_err(full)
             }
@@ -362,6 +421,12 @@ impl BoardSession {
         self.origin = Origin::Saved;
         Ok(())
     }
+}
+
+/// Whether `cfg` may run: a DC drive, or a PMSM drive with its measured encoder offset.
+#[must_use]
+pub fn calibrated(cfg: &DriveConfig) -> bool {
+    cfg.pmsm.is_none_or(|p| p.encoder_offset_elec_deg.is_some())
 }
 
 /// CRC-32 of `cfg` in pil-link's settings encoding: how the boot log names a drive.

@@ -32,19 +32,31 @@
 //! loop orders them. A late QEMU then loses whole ticks of both loops alike, and a
 //! measurement is the same in tick time however the host is loaded. The STM32F4 image has
 //! no rig and does not serve `Identify` (the session's default refusal).
+//!
+//! On QEMU a PMSM drive (the baked machine file's motor a PMSM) runs on the virtual
+//! three-phase stage (`crate::rig::PmsmRig`), and `Calibrate` (`pil_link::board::calibrate`)
+//! runs its motor calibration there: the current-loop interrupt runs the sequencer in
+//! place of the drive's tick and records two samples a tick, streamed as an `Identify`
+//! record is. Until the drive carries its calibration (`[drive.pmsm]`'s
+//! `encoder_offset_elec_deg`, set over the console and saved with the rest), its app is
+//! built at offset 0 and held: the session refuses `Enable` and `Identify`, naming the
+//! command that calibrates. Saved settings for another motor than the baked machine's are
+//! not run (the baked drive is).
 
 use core::fmt::Write as _;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use controller_core::{ConfigError, DriveConfig, Setpoint};
 use heapless::Deque;
+#[cfg(feature = "board-qemu")]
+use pil_link::board::calibrate::{self, CalibrateError, SAMPLES_PER_TICK};
 use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
 #[cfg(feature = "board-qemu")]
 use pil_link::board::identify::{IdentifyError, IdentifyRun, CHANNELS, EXCITATION_NAMES};
 use pil_link::board::message::Origin;
 use pil_link::board::scope::{ScopeChunk, ScopeInfo, ScopeSample, CHUNK_SAMPLES};
 use pil_link::board::session::{settings_crc, BoardSession, Drive};
-use pil_link::board::store::{self, SaveError, StoreError, RECORD_LEN};
+use pil_link::board::store::{SaveError, RECORD_LEN};
 use pil_link::wire::Writer;
 use pil_link::{Frame, FrameKind, MAX_FRAME};
 
@@ -58,10 +70,17 @@ use crate::ring::ByteRing;
 use crate::rt::exit;
 use crate::trace::TraceState;
 
+mod boot;
+use boot::boot_settings;
+
+#[cfg(feature = "board-qemu")]
+use crate::calibrate::CalibrationRun;
 #[cfg(feature = "board-qemu")]
 use crate::identify::StreamEnd;
 #[cfg(feature = "board-qemu")]
-use crate::rig::{Rig, RECORD};
+use crate::rig::{PmsmRig, Rig, PMSM_LOOPS, RECORD};
+#[cfg(feature = "board-qemu")]
+use controller_core::foc::calibration::Calibration;
 
 /// The app and the loops' I/O (handed to `crate::rig` on QEMU).
 static LOOPS: Loops<board::CurrentIoImpl, board::VelocityIoImpl, Setpoint> = Loops::new();
@@ -76,13 +95,18 @@ static SCOPE: Shared<(ScopeTap, Deque<(u32, ScopeSample), 256>)> = Shared::new()
 /// The current-loop interrupt's body.
 pub fn current_loop() {
     #[cfg(feature = "board-qemu")]
-    let inputs = Rig::before_tick(&LOOPS);
-    let _out = LOOPS.current_isr();
-    #[cfg(feature = "board-qemu")]
-    Rig::after_tick(&LOOPS, inputs, _out);
+    if PmsmRig::active() {
+        PmsmRig::tick();
+    } else {
+        let inputs = Rig::before_tick(&LOOPS);
+        let out = LOOPS.current_isr();
+        Rig::after_tick(&LOOPS, inputs, out);
+    }
+    #[cfg(not(feature = "board-qemu"))]
+    let _ = LOOPS.current_isr();
     BOOT_TICKS.fetch_add(1, Ordering::Relaxed);
     if SCOPE_ON.load(Ordering::Relaxed) {
-        let newest = LOOPS.with_app(|app| app.trace().newest()).flatten();
+        let newest = with_app(|app| app.trace().newest()).flatten();
         critical_section::with(|cs| {
             SCOPE.with(cs, |(tap, queue)| {
                 if let Some(item) = tap.offer(newest) {
@@ -95,7 +119,35 @@ pub fn current_loop() {
 
 /// The velocity-loop interrupt's body.
 pub fn velocity_loop() {
+    #[cfg(feature = "board-qemu")]
+    if PmsmRig::active() {
+        let _ = PMSM_LOOPS.velocity_isr();
+        return;
+    }
     let _ = LOOPS.velocity_isr();
+}
+
+/// Runs `f` on the drive's app (the DC loops', or on QEMU the PMSM rig's).
+fn with_app<R>(f: impl FnOnce(&mut App) -> R) -> Option<R> {
+    #[cfg(feature = "board-qemu")]
+    if PmsmRig::active() {
+        return PMSM_LOOPS.with_app(f);
+    }
+    LOOPS.with_app(f)
+}
+
+/// The app of `cfg`: a DC drive's; on QEMU a PMSM drive's, held at offset 0 until its
+/// calibration is set (module docs: the session refuses to run it until then).
+fn new_app(cfg: &DriveConfig) -> Result<App, AppError> {
+    let bits = board::Encoder::COUNTER_BITS;
+    #[cfg(feature = "board-qemu")]
+    if let Some(mut p) = cfg.pmsm {
+        let mut held = *cfg;
+        p.encoder_offset_elec_deg = p.encoder_offset_elec_deg.or(Some(0.0));
+        held.pmsm = Some(p);
+        return App::new_pmsm(&held, bits, DEFAULT_TRACE);
+    }
+    App::new(cfg, bits, DEFAULT_TRACE)
 }
 
 /// The serial port's receive interrupt: every byte there into the ring thread mode reads.
@@ -123,6 +175,9 @@ struct BoardDrive<H> {
     /// A run's stream is not over yet.
     #[cfg_attr(not(feature = "board-qemu"), allow(dead_code))]
     record_open: bool,
+    /// A motor calibration runs (the stage on for it).
+    #[cfg_attr(not(feature = "board-qemu"), allow(dead_code))]
+    calibrating: bool,
 }
 
 impl<H: ConsoleBoard> BoardDrive<H> {
@@ -136,16 +191,16 @@ impl<H: ConsoleBoard> BoardDrive<H> {
     /// Thread mode, each pass: a new fault latch into the history; a trend buffer a
     /// fault froze armed again, so the scope goes on.
     fn poll(&mut self) {
-        let record = LOOPS.with_app(|app| app.fault_record()).flatten();
+        let record = with_app(|app| app.fault_record()).flatten();
         let now = self.now_ms();
         self.tracker.poll(record, now, &mut self.history);
-        LOOPS.with_app(|app| {
+        with_app(|app| {
             if matches!(app.trace().state(), TraceState::Frozen { .. }) {
                 app.trace_mut().rearm();
             }
         });
         #[cfg(feature = "board-qemu")]
-        if self.restore.is_some() && !RECORD.active() {
+        if (self.restore.is_some() || self.calibrating) && !RECORD.active() {
             if RECORD.overran() {
                 // The link fell a whole ring behind the record: the run stopped there.
                 self.history.push(FaultEntry {
@@ -165,13 +220,22 @@ impl<H: ConsoleBoard> BoardDrive<H> {
     /// the rig's load torque off.
     fn end_run(&mut self) {
         #[cfg(feature = "board-qemu")]
-        RECORD.abort();
+        {
+            RECORD.abort();
+            if core::mem::take(&mut self.calibrating) {
+                PmsmRig::end_calibration();
+            }
+        }
         if let Some(cfg) = self.restore.take() {
-            if let Ok(app) = App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
-                LOOPS.with_app(|slot| *slot = app);
+            if let Ok(app) = new_app(&cfg) {
+                with_app(|slot| *slot = app);
             }
             #[cfg(feature = "board-qemu")]
-            LOOPS.with_current_io(|io| io.pwm.motor_mut().set_load_torque_pu(0.0));
+            if PmsmRig::active() {
+                PmsmRig::set_load(0.0);
+            } else {
+                LOOPS.with_current_io(|io| io.pwm.motor_mut().set_load_torque_pu(0.0));
+            }
         }
         self.enabled = false;
         defmt::info!("console: measurement over, running settings back");
@@ -271,8 +335,8 @@ fn app_error(e: AppError) -> ConfigError {
 
 impl<H: ConsoleBoard> Drive for BoardDrive<H> {
     fn apply(&mut self, cfg: &DriveConfig) -> Result<(), ConfigError> {
-        let app = App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE).map_err(app_error)?;
-        LOOPS.with_app(|slot| *slot = app);
+        let app = new_app(cfg).map_err(app_error)?;
+        with_app(|slot| *slot = app);
         if (cfg.current_rate_hz, cfg.velocity_rate_hz) != self.rates_hz {
             self.hw
                 .set_loop_rates(cfg.current_rate_hz, cfg.velocity_rate_hz);
@@ -280,10 +344,14 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
             {
                 Rig::lock_velocity_to_current(cfg);
                 // The machine stepped at the new period, at rest where it was.
-                LOOPS.with_current_io(|io| {
-                    let counts = io.pwm.motor_mut().counts();
-                    *io.pwm.motor_mut() = Rig::machine(cfg, counts);
-                });
+                if PmsmRig::active() {
+                    PmsmRig::rebuild_machine(cfg);
+                } else {
+                    LOOPS.with_current_io(|io| {
+                        let counts = io.pwm.motor_mut().counts();
+                        *io.pwm.motor_mut() = Rig::machine(cfg, counts);
+                    });
+                }
             }
         }
         self.rates_hz = (cfg.current_rate_hz, cfg.velocity_rate_hz);
@@ -299,11 +367,11 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
     }
 
     fn set_enabled(&mut self, on: bool) {
-        if !on && self.restore.is_some() {
+        if !on && (self.restore.is_some() || self.calibrating) {
             self.end_run();
             return;
         }
-        LOOPS.with_app(|app| app.set_enable_request(on));
+        with_app(|app| app.set_enable_request(on));
         self.enabled = on;
         defmt::info!(
             "console: drive {=str}",
@@ -312,7 +380,7 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
     }
 
     fn fault_code(&self) -> u8 {
-        LOOPS.with_app(|app| fault_code(app.fault())).unwrap_or(0)
+        with_app(|app| fault_code(app.fault())).unwrap_or(0)
     }
 
     fn save(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError> {
@@ -349,8 +417,7 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
         run: &IdentifyRun,
     ) -> Result<ScopeInfo<'_>, IdentifyError> {
         let refused = |e| IdentifyError::Config(app_error(e));
-        let mut app =
-            App::new(cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE).map_err(refused)?;
+        let mut app = new_app(cfg).map_err(refused)?;
         if let Some(e) = run.excitation() {
             app = app.with_excitation(&e, EXCITATION_NAMES).map_err(refused)?;
         }
@@ -360,8 +427,12 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
         critical_section::with(|_| {
             RECORD.start(run)?;
             Rig::align_velocity();
-            LOOPS.with_current_io(|io| io.pwm.brake());
-            LOOPS.with_app(|slot| *slot = app);
+            if PmsmRig::active() {
+                PmsmRig::brake();
+            } else {
+                LOOPS.with_current_io(|io| io.pwm.brake());
+            }
+            with_app(|slot| *slot = app);
             Ok::<(), IdentifyError>(())
         })?;
         self.restore = Some(*running);
@@ -375,6 +446,39 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
         })
     }
 
+    #[cfg(feature = "board-qemu")]
+    fn calibrate(
+        &mut self,
+        cfg: &DriveConfig,
+        seq: &Calibration,
+    ) -> Result<ScopeInfo<'_>, CalibrateError> {
+        if !PmsmRig::active() {
+            return Err(CalibrateError::NotPmsm);
+        }
+        let run = CalibrationRun::new(cfg, *seq).map_err(CalibrateError::Config)?;
+        let samples = run.total_ticks().saturating_mul(SAMPLES_PER_TICK);
+        // One critical section: the record armed, the run's first tick the next one.
+        critical_section::with(|_| {
+            RECORD
+                .start_samples(samples)
+                .map_err(|_| CalibrateError::Unsupported)?;
+            PmsmRig::start_calibration(run);
+            Ok::<(), CalibrateError>(())
+        })?;
+        self.calibrating = true;
+        self.record_sent = 0;
+        self.record_open = true;
+        self.enabled = true;
+        defmt::info!(
+            "console: motor calibration of {=u32} ticks",
+            run.total_ticks()
+        );
+        Ok(ScopeInfo {
+            rate_hz: self.rates_hz.0,
+            channels: calibrate::CHANNELS,
+        })
+    }
+
     fn enter_safe_state(&mut self) {
         self.set_enabled(false);
         let ms = self.now_ms();
@@ -384,51 +488,6 @@ impl<H: ConsoleBoard> Drive for BoardDrive<H> {
         });
         defmt::warn!("console: corrupt frame while enabled: drive disabled");
     }
-}
-
-/// What the boot says of the settings it runs.
-type Note = heapless::String<128>;
-
-/// The settings to run: the sector's record if it passes its checks and `design`, else
-/// the baked drive; the boot log (and the note) says which and why.
-fn boot_settings<H: ConsoleBoard>(hw: &mut H, baked: DriveConfig) -> (DriveConfig, Origin, Note) {
-    let mut sector = [0_u8; RECORD_LEN];
-    hw.read_settings(&mut sector);
-    let mut note = Note::new();
-    match store::decode(&sector) {
-        Ok(cfg) => match controller_core::design(&cfg) {
-            Ok(_) => {
-                defmt::info!(
-                    "drive: saved on the board (settings crc {=u32:08x}), in place of the baked {=str}",
-                    settings_crc(&cfg),
-                    crate::drive::NAME
-                );
-                let _ = write!(
-                    note,
-                    "saved on the board (settings crc {:08x})",
-                    settings_crc(&cfg)
-                );
-                return (cfg, Origin::Saved, note);
-            }
-            Err(e) => {
-                defmt::warn!(
-                    "saved settings refused (drive.{=str}): running the baked drive",
-                    e.param()
-                );
-                let _ = write!(note, "saved settings refused (drive.{}): baked", e.param());
-            }
-        },
-        Err(StoreError::Empty) => {
-            defmt::info!("no saved settings on the board");
-            let _ = write!(note, "baked (no saved settings on the board)");
-        }
-        Err(e) => {
-            defmt::warn!("{}: running the baked drive", defmt::Display2Format(&e));
-            let _ = write!(note, "baked ({e})");
-        }
-    }
-    defmt::info!("drive: {=str}", crate::drive::NAME);
-    (baked, Origin::Baked, note)
 }
 
 /// The board console image's `main`: the settings, the app, the board and its loops, then
@@ -449,7 +508,7 @@ pub fn run<H: ConsoleBoard>(mut hw: H) -> ! {
         pil_link::board::BOARD_VERSION
     );
     let (mut cfg, mut origin, mut note) = boot_settings(&mut hw, baked);
-    let app = match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+    let app = match new_app(&cfg) {
         Ok(app) => app,
         Err(e) => {
             defmt::warn!(
@@ -459,7 +518,7 @@ pub fn run<H: ConsoleBoard>(mut hw: H) -> ! {
             (cfg, origin) = (baked, Origin::Baked);
             note.clear();
             let _ = write!(note, "baked (saved settings refused by the board)");
-            match App::new(&cfg, board::Encoder::COUNTER_BITS, DEFAULT_TRACE) {
+            match new_app(&cfg) {
                 Ok(app) => app,
                 Err(_) => exit(false),
             }
@@ -472,6 +531,18 @@ pub fn run<H: ConsoleBoard>(mut hw: H) -> ! {
         *b.current_io.pwm.motor_mut() = Rig::machine(&cfg, 0);
     }
     hw.booted(&note);
+    #[cfg(feature = "board-qemu")]
+    if cfg.pmsm.is_some() {
+        // The baked file's PMSM behind the virtual three-phase stage.
+        if !PmsmRig::install(app, &cfg, b.velocity_io) {
+            defmt::error!("the drive is a PMSM and the baked machine's motor is not");
+            exit(false)
+        }
+        defmt::info!("PMSM drive on the virtual three-phase stage");
+    } else {
+        LOOPS.install(app, b.current_io, b.velocity_io, Setpoint::default());
+    }
+    #[cfg(not(feature = "board-qemu"))]
     LOOPS.install(app, b.current_io, b.velocity_io, Setpoint::default());
     let mut drive = BoardDrive {
         hw,
@@ -483,6 +554,7 @@ pub fn run<H: ConsoleBoard>(mut hw: H) -> ! {
         restore: None,
         record_sent: 0,
         record_open: false,
+        calibrating: false,
     };
     let mut session = BoardSession::new(cfg, origin, crate::version(), crate::drive::NAME);
     board::start(&mut core.NVIC, cfg.current_rate_hz, cfg.velocity_rate_hz);
