@@ -129,6 +129,49 @@ pub fn count_signed(raw: u32, counter_bits: u8) -> i32 {
     ((raw << shift) as i32) >> shift
 }
 
+/// ⌊√x⌋, the same as `u64::isqrt` for every `x`, with 32-bit divides only: core's `isqrt`
+/// divides 64-bit numbers, a library call of some hundred instructions on a Cortex-M4.
+///
+/// Below 2^32 it is `u32::isqrt`. Above, one step of Zimmermann's Karatsuba square root on
+/// `x` normalized by an even shift (`x·4^k ≥ 2^62`, digits of 16 bits): the root `s'` and
+/// remainder `r'` of the top 32 bits (`u32::isqrt`), then `q = ⌊(r'·2^16 + a1)/(2s')⌋` —
+/// a 33-bit numerator, so taken as `⌊⌊n/2⌋/s'⌋`, which is the same — and
+/// `s = s'·2^16 + q`, less one where the remainder `u·2^16 + a0 − q²` is negative; then
+/// `s/2^k`.
+///
+/// ```
+/// use controller_core::per_unit::isqrt_u64;
+/// assert_eq!(isqrt_u64((1 << 62) - 1), (1 << 31) - 1);
+/// assert_eq!(isqrt_u64(u64::MAX), u64::from(u32::MAX));
+/// ```
+#[must_use]
+#[inline]
+pub fn isqrt_u64(x: u64) -> u64 {
+    if x >> 32 == 0 {
+        return u64::from((x as u32).isqrt());
+    }
+    // x ≥ 2^32: at most 31 leading zeros, so the even shift k2 ≤ 30.
+    let k2 = x.leading_zeros() & !1;
+    let xn = x << k2;
+    let hi = (xn >> 32) as u32;
+    // hi ≥ 2^30: s1 ∈ [2^15, 2^16), r1 ≤ 2·s1.
+    let s1 = hi.isqrt();
+    let r1 = hi - s1 * s1;
+    let n = (u64::from(r1) << 16) | ((xn >> 16) & 0xFFFF);
+    // n < 2^33; ⌊n/(2·s1)⌋ = ⌊⌊n/2⌋/s1⌋, and ⌊n/2⌋ < 2^32.
+    let q = ((n >> 1) as u32) / s1;
+    let u = n - 2 * u64::from(q) * u64::from(s1);
+    let s = (u64::from(s1) << 16) + u64::from(q);
+    // u < 2·s1 < 2^17 and q ≤ 2^16: both sides fit.
+    let rest = (u << 16) | (xn & 0xFFFF);
+    let s = if rest < u64::from(q) * u64::from(q) {
+        s - 1
+    } else {
+        s
+    };
+    s >> (k2 / 2)
+}
+
 /// Saturate an `i64` to `i32`.
 #[inline(always)]
 pub(crate) fn sat_i32(x: i64) -> i32 {
@@ -280,6 +323,52 @@ pub fn checked_q<T: fixed::traits::Fixed>(value: f32) -> Option<T> {
 
 #[cfg(test)]
 mod tests {
+    /// `isqrt_u64` is `u64::isqrt` at and around every square and power of two, at the ends
+    /// and on 200,000 scattered values.
+    #[test]
+    fn isqrt_u64_is_the_exact_root() {
+        let mut xs = vec![
+            0u64,
+            1,
+            2,
+            3,
+            u64::MAX,
+            u64::MAX - 1,
+            1 << 62,
+            (1 << 62) - 1,
+        ];
+        for b in 0..64 {
+            let p = 1u64 << b;
+            xs.extend([p - 1, p, p + 1]);
+        }
+        for r in (0..=u64::from(u32::MAX)).step_by(65_537).chain([
+            u64::from(u32::MAX),
+            65_535,
+            65_536,
+            (1 << 31) - 1,
+        ]) {
+            let sq = r * r;
+            xs.extend([
+                sq.wrapping_sub(1),
+                sq,
+                sq.wrapping_add(1),
+                sq.wrapping_add(2 * r),
+                sq.wrapping_add(2 * r + 1),
+            ]);
+        }
+        let mut z = 0x9E37_79B9_7F4A_7C15u64;
+        for k in 0..200_000u32 {
+            z = z
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            // All magnitudes: shift by 0..=63.
+            xs.push(z >> (k % 64));
+        }
+        for x in xs {
+            assert_eq!(super::isqrt_u64(x), x.isqrt(), "{x}");
+        }
+    }
+
     /// `sat_i32` against the plain range comparison, at and around every boundary.
     #[test]
     fn sat_i32_matches_the_range_definition() {

@@ -56,7 +56,7 @@ fn magnitude(i: Dq) -> Pu {
     let q = i64::from(i.q.to_bits());
     // d², q² ≤ 2^62 each: their sum fits u64.
     let sq = (d * d) as u64 + (q * q) as u64;
-    Pu::from_bits(i32::try_from(sq.isqrt()).unwrap_or(i32::MAX))
+    Pu::from_bits(i32::try_from(crate::per_unit::isqrt_u64(sq)).unwrap_or(i32::MAX))
 }
 
 impl Controller {
@@ -83,32 +83,26 @@ impl Controller {
     /// ```
     #[inline]
     pub fn pmsm_tick(&mut self, inp: PmsmInputs) -> PmsmOutputs {
-        let Some(foc) = self.foc else {
+        if self.foc.is_none() {
             return PmsmOutputs {
                 fault: self.state.fault,
                 ..PmsmOutputs::default()
             };
-        };
+        }
         self.read_encoder(inp.encoder_count);
-        let position = self.state.position;
-        // The counts since the angle's last update: the velocity tick reads the encoder
-        // too, so the difference is taken against the angle's own position, not the last
-        // reading. The first tick after a reset sets the angle from the count itself.
-        let delta = if self.state.foc_primed {
-            crate::per_unit::sat_i32(position.wrapping_sub(self.state.foc_position))
-        } else {
-            self.state.foc = foc.state_at(position);
-            self.state.foc_primed = true;
-            0
-        };
-        self.state.foc_position = position;
-        let (phase, current) = foc.measure(&mut self.state.foc, inp.phase_current_pu, delta);
-        let torque = foc.mtpa.torque(current);
+        let (phase, current, torque) = self.foc_measure(inp.phase_current_pu);
         let observed = self.observer_torque(self.state.pmsm_torque, torque);
         self.state.pmsm_torque = torque;
         let i_ref = self.torque_stage(observed);
         let speed = self.coef.observer.velocity_pu(&self.state.observer);
-        let out = foc.regulate(&mut self.state.foc, phase, current, speed, i_ref);
+        // The coefficients by reference (a copy would move their 160 bytes every tick).
+        let (out, half) = match self.foc.as_ref() {
+            Some(foc) => (
+                foc.regulate(&mut self.state.foc, phase, current, speed, i_ref),
+                foc.svpwm.period() / 2,
+            ),
+            None => (crate::foc::FocOutputs::default(), 0),
+        };
         let size = magnitude(current);
         // The velocity tick's I²t model and stall check read the current's magnitude.
         self.state.last_current = size;
@@ -128,7 +122,6 @@ impl Controller {
             self.state.foc.d = crate::pi::PiState::default();
             self.state.foc.q = crate::pi::PiState::default();
         }
-        let half = foc.svpwm.period() / 2;
         PmsmOutputs {
             duties: if enabled { out.duties } else { [half; 3] },
             enabled,
@@ -143,6 +136,29 @@ impl Controller {
             accel_fb_pu: self.state.afb,
             fault: self.state.fault,
         }
+    }
+
+    /// The FOC's measurement of a tick, after the encoder's read: the electrical phase,
+    /// the currents in the rotor frame and their torque.
+    #[inline(always)]
+    fn foc_measure(&mut self, phase_current_pu: [Pu; 2]) -> (u32, Dq, Pu) {
+        let position = self.state.position;
+        let Some(foc) = self.foc.as_ref() else {
+            return (0, Dq::default(), Pu::ZERO);
+        };
+        // The counts since the angle's last update: the velocity tick reads the encoder
+        // too, so the difference is taken against the angle's own position, not the last
+        // reading. The first tick after a reset sets the angle from the count itself.
+        let delta = if self.state.foc_primed {
+            crate::per_unit::sat_i32(position.wrapping_sub(self.state.foc_position))
+        } else {
+            self.state.foc = foc.state_at(position);
+            self.state.foc_primed = true;
+            0
+        };
+        self.state.foc_position = position;
+        let (phase, current) = foc.measure(&mut self.state.foc, phase_current_pu, delta);
+        (phase, current, foc.mtpa.torque(current))
     }
 }
 

@@ -95,7 +95,7 @@ impl Mtpa {
         // 2k·i_q,0 and λ in Q16.16; their squares in Q32.32 fit u64 together.
         let two_kq = mul_gain(q0, k).saturating_add(mul_gain(q0, k));
         let (a, b) = (i64::from(two_kq.to_bits()), i64::from(self.flux.to_bits()));
-        let root = ((a * a) as u64 + (b * b) as u64).isqrt();
+        let root = crate::per_unit::isqrt_u64((a * a) as u64 + (b * b) as u64);
         let den = b + i64::try_from(root).unwrap_or(i64::MAX);
         // 2k·i_q,0² in Q32.32 over λ + √(…) in Q16.16, then shifted back to Q16.16.
         let d = div((a * i64::from(q0.to_bits())) >> 16, den);

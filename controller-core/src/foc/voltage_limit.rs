@@ -44,6 +44,6 @@ impl VoltageCircle {
         let d = u64::from(v_d.to_bits().unsigned_abs());
         let rest = self.radius_sq.saturating_sub(d * d);
         // rest < 2^62, so its root is below 2^31.
-        rest.isqrt() as i32
+        crate::per_unit::isqrt_u64(rest) as i32
     }
 }

@@ -84,7 +84,9 @@ fn inputs() -> PmsmInputs {
     }
 }
 
-/// The current-loop handler's body in the PMSM phase.
+/// The current-loop handler's body in the PMSM phase (out of line: the DC phase's
+/// handler frame, part of its stack figure, stays its own).
+#[inline(never)]
 pub(crate) fn current_loop() {
     cycle_window_preempt();
     let tick = CURRENT_TICKS.fetch_add(1, Ordering::Relaxed);
@@ -140,7 +142,8 @@ pub(crate) fn current_loop() {
     });
 }
 
-/// The velocity-loop handler's body in the PMSM phase.
+/// The velocity-loop handler's body in the PMSM phase (out of line, as `current_loop`).
+#[inline(never)]
 pub(crate) fn velocity_loop() {
     IN_VELOCITY.store(true, Ordering::Relaxed);
     velocity_body();
