@@ -94,6 +94,8 @@ pub struct PmsmPlant {
     searches: u64,
     /// The switches (open once the drive turns the inverter off: `off`).
     switches: off::Switches,
+    /// The series of the step in progress, refilled by each step (scratch).
+    series: Series,
 }
 
 impl PmsmPlant {
@@ -132,6 +134,7 @@ impl PmsmPlant {
             sign_changes: 0,
             searches: 0,
             switches: off::Switches::default(),
+            series: Series::default(),
         };
         plant.set_state(0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         Ok(plant)
@@ -456,28 +459,34 @@ impl PmsmPlant {
     fn integrate(&mut self, dt_s: f64, duties: [f64; 3], tl: f64) {
         let mut remaining = dt_s;
         let mut changes = 0;
+        // cos θe and sin θe are the angle's on entry (every method that moves the state
+        // refreshes them); after a step they are the series', so they are refreshed then.
+        let mut fresh = true;
         while remaining > 0.0 {
-            self.refresh_angle();
+            if !fresh {
+                self.refresh_angle();
+            }
+            fresh = false;
             let x0 = self.x;
             let pattern = (self.contact, self.signs);
             let currents = pattern.1.map(f64::from);
             let v_ab = self.inverter.voltage_ab(duties, currents);
             let eq = self.equations(self.contact, v_ab, tl);
             let mut h = remaining.min(self.step_limit(&x0));
-            let mut series = Series::new(&eq, &x0, h);
+            self.series.fill(&eq, &x0, h);
             for _ in 0..MAX_HALVINGS {
-                if series.converged() {
+                if self.series.converged() {
                     break;
                 }
                 h *= 0.5;
-                series = Series::new(&eq, &x0, h);
+                self.series.fill(&eq, &x0, h);
             }
             let whole = h >= remaining;
             let guarded = changes < MAX_CHANGES_PER_CALL;
-            if guarded && self.suspect(&series, &x0) {
+            if guarded && self.suspect(&self.series, &x0) {
                 self.searches += 1;
-                if let Some(tau) = self.first_change(&series, pattern) {
-                    self.x = series.at(tau);
+                if let Some(tau) = self.first_change(&self.series, pattern) {
+                    self.x = self.series.at(tau);
                     let (contact, signs) = self.pattern_of(&self.x, self.signs);
                     if contact != self.contact {
                         self.events += 1;
@@ -491,14 +500,16 @@ impl PmsmPlant {
                     continue;
                 }
             }
-            self.x = series.at(h);
+            self.x = self.series.at(h);
             if !guarded {
                 // Past the cap each step takes the signs its start has.
                 self.signs = self.pattern_of(&self.x, self.signs).1;
             }
             remaining = if whole { 0.0 } else { remaining - h };
         }
-        self.refresh_angle();
+        if !fresh {
+            self.refresh_angle();
+        }
     }
 
     /// Whether a guard may change sign within the step: the lost motion's edges (and, for

@@ -63,17 +63,17 @@ impl Vars {
         }
     }
 
-    /// max over the variables of |self| / (1 + |x0|).
-    fn relative_to(&self, x0: &Self) -> f64 {
-        let r = |a: f64, b: f64| a.abs() / (1.0 + b.abs());
-        r(self.delta, x0.delta)
-            .max(r(self.theta_l, x0.theta_l))
-            .max(r(self.w_m, x0.w_m))
-            .max(r(self.w_l, x0.w_l))
-            .max(r(self.i_d, x0.i_d))
-            .max(r(self.i_q, x0.i_q))
-            .max(r(self.cos, x0.cos))
-            .max(r(self.sin, x0.sin))
+    /// Whether every variable's |self| is at most its `limit`.
+    fn within(&self, limit: &Self) -> bool {
+        let ok = |a: f64, l: f64| a.abs() <= l;
+        ok(self.delta, limit.delta)
+            && ok(self.theta_l, limit.theta_l)
+            && ok(self.w_m, limit.w_m)
+            && ok(self.w_l, limit.w_l)
+            && ok(self.i_d, limit.i_d)
+            && ok(self.i_q, limit.i_q)
+            && ok(self.cos, limit.cos)
+            && ok(self.sin, limit.sin)
     }
 
     /// Phase currents (a, b, c) of the d/q current at this angle (amplitude-invariant).
@@ -120,17 +120,17 @@ impl Equations {
     /// The k-th Taylor coefficient of the right-hand side, from the coefficients 0..=k
     /// of the solution (`done`, last one k).
     fn rate(&self, done: &[Vars], first: bool) -> Vars {
-        let cauchy = |f: fn(&Vars) -> f64, g: fn(&Vars) -> f64| -> f64 {
-            done.iter()
-                .zip(done.iter().rev())
-                .map(|(a, b)| f(a) * g(b))
-                .sum()
-        };
-        let wm_iq = cauchy(|v| v.w_m, |v| v.i_q);
-        let wm_id = cauchy(|v| v.w_m, |v| v.i_d);
-        let id_iq = cauchy(|v| v.i_d, |v| v.i_q);
-        let wm_sin = cauchy(|v| v.w_m, |v| v.sin);
-        let wm_cos = cauchy(|v| v.w_m, |v| v.cos);
+        // The five Cauchy sums Σ_j a_j·b_{k−j}, each summed in j order from −0.0 (as
+        // `Iterator::sum` does), in one pass.
+        let (mut wm_iq, mut wm_id, mut id_iq, mut wm_sin, mut wm_cos) =
+            (-0.0, -0.0, -0.0, -0.0, -0.0);
+        for (a, b) in done.iter().zip(done.iter().rev()) {
+            wm_iq += a.w_m * b.i_q;
+            wm_id += a.w_m * b.i_d;
+            id_iq += a.i_d * b.i_q;
+            wm_sin += a.w_m * b.sin;
+            wm_cos += a.w_m * b.cos;
+        }
         let x = done.last().copied().unwrap_or_default();
         let once = |c: f64| if first { c } else { 0.0 };
         let rel = x.w_m - x.w_l;
@@ -163,40 +163,59 @@ pub(crate) struct Series {
     converged: bool,
 }
 
+impl Default for Series {
+    fn default() -> Self {
+        Self {
+            terms: [Vars::default(); MAX_TERMS],
+            len: 1,
+            h: 0.0,
+            converged: false,
+        }
+    }
+}
+
 impl Series {
     /// The series of `eq` from `x0` over a step of `h`, summed until two successive terms
     /// (times h^k) are below round-off, or [`MAX_TERMS`] (then [`Self::converged`] is
     /// false).
+    #[cfg(test)]
     pub fn new(eq: &Equations, x0: &Vars, h: f64) -> Self {
-        let mut terms = [Vars::default(); MAX_TERMS];
-        if let Some(t0) = terms.first_mut() {
+        let mut series = Self::default();
+        series.fill(eq, x0, h);
+        series
+    }
+
+    /// [`Self::new`] in place: the plant keeps one series and refills it each step, so
+    /// that no step clears or copies its [`MAX_TERMS`] terms.
+    pub fn fill(&mut self, eq: &Equations, x0: &Vars, h: f64) {
+        if let Some(t0) = self.terms.first_mut() {
             *t0 = *x0;
         }
+        // |term·h^k| / (1 + |x0|) ≤ TOLERANCE, as |term·h^k| ≤ TOLERANCE·(1 + |x0|): a power
+        // of two times the denominator, exact.
+        let limit = x0.map(|v| TOLERANCE * (1.0 + v.abs()));
         let mut len = 1;
         let mut small_before = false;
         let mut converged = false;
         let mut hk = 1.0;
         for k in 0..MAX_TERMS - 1 {
-            let (done, rest) = terms.split_at_mut(k + 1);
+            let (done, rest) = self.terms.split_at_mut(k + 1);
             let Some(next) = rest.first_mut() else { break };
             let f = eq.rate(done, k == 0);
             let inv = 1.0 / (k as f64 + 1.0);
             *next = f.map(|v| v * inv);
             len = k + 2;
             hk *= h;
-            let small = next.map(|v| v * hk).relative_to(x0) <= TOLERANCE;
+            let small = next.map(|v| v * hk).within(&limit);
             if small && small_before {
                 converged = true;
                 break;
             }
             small_before = small;
         }
-        Self {
-            terms,
-            len,
-            h,
-            converged,
-        }
+        self.len = len;
+        self.h = h;
+        self.converged = converged;
     }
 
     /// Whether the terms fell below round-off within [`MAX_TERMS`].
