@@ -288,7 +288,10 @@ fn write_lil_data(
     // A PMSM drive without its calibration cannot run (the core refuses it): no
     // expectation, as for a missing recording. Its `board` image calibrates it
     // (`stiffdrive identify --board`).
-    if cfg.pmsm.is_some_and(|p| p.encoder_offset_elec_deg.is_none()) {
+    if cfg
+        .pmsm
+        .is_some_and(|p| p.encoder_offset_elec_deg.is_none())
+    {
         for f in ["lil_inputs.bin", "lil_expected.bin"] {
             fs::write(out.join(f), []).map_err(|e| e.to_string())?;
         }
