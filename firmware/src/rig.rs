@@ -172,7 +172,10 @@ impl PmsmRig {
     }
 
     /// A calibration tick, its row into the record (its stage off after the last, or when
-    /// the stage fails or the ring overruns); false when no calibration runs.
+    /// the stage fails or the ring overruns); false when no calibration runs. After the
+    /// last tick the rig brakes the machine where it stands, as it does before an
+    /// `Identify` run: what follows starts from the same state however late the host asks
+    /// for it.
     fn calibration_tick() -> bool {
         critical_section::with(|cs| {
             CALIBRATION.with_slot(cs, |slot| {
@@ -185,6 +188,7 @@ impl PmsmRig {
                         let over = RECORD.record(first) || RECORD.record(second);
                         if over {
                             run.stop(io);
+                            io.motor_mut().stop();
                         }
                         over
                     }

@@ -44,7 +44,8 @@ pub enum Command {
     /// DIR/plant.toml, DIR/identify.json, DIR/identify.md and DIR/bode.png|svg. On a PMSM
     /// machine the motor is calibrated first (phase resistance, Ld, Lq, pole pairs,
     /// encoder direction and offset, in identify.json and identify.md). With
-    /// `--board --qemu | --port PATH` the board runs the measurements in its own loops.
+    /// `--board --qemu | --port PATH` the board runs the measurements in its own loops (on
+    /// a PMSM machine the calibration too, which is then set and saved on the board).
     Identify {
         /// Configuration (path, or name under configs/); its optional `[identify]` table
         /// holds the measurement settings. With `--board` it is the board's machine file

@@ -27,6 +27,7 @@ use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 mod board;
+mod board_calibrate;
 mod board_identify;
 mod pil_identify;
 
@@ -39,8 +40,9 @@ mod pil_identify;
 ///    fault cases use a 500 ms link watchdog);
 /// 3. beside `identify --board` (which records from the board's own tick source, the same
 ///    record however loaded the host is), one after another: the two serial-device cases
-///    (lock step with the default 1 s watchdog, as in phase 1) and the board console's
-///    cases (the console waits for replies).
+///    (lock step with the default 1 s watchdog, as in phase 1), the board console's
+///    cases (the console waits for replies) and the PMSM board's calibration and
+///    `identify --board` (from the board's tick source too).
 ///
 /// So at most two QEMU sessions run at once, and no other test binary runs meanwhile (cargo
 /// runs test binaries one after another). A failing case is named in the test's output.
@@ -84,7 +86,7 @@ fn qemu_sessions() {
             crate::pil_identify::the_firmware_refuses_a_bad_excitation_with_a_config_fault,
         ),
     ];
-    let beside_identify: [(&str, fn()); 7] = [
+    let beside_identify: [(&str, fn()); 9] = [
         (
             "the_link_over_a_serial_device_is_bit_identical_too",
             the_link_over_a_serial_device_is_bit_identical_too,
@@ -112,6 +114,14 @@ fn qemu_sessions() {
         (
             "board: netduinoplus2_serves_the_console_and_save_reports_the_missing_flash_controller",
             crate::board::netduinoplus2_serves_the_console_and_save_reports_the_missing_flash_controller,
+        ),
+        (
+            "board: a_pmsm_board_refuses_to_enable_until_calibrated_and_keeps_its_calibration",
+            crate::board_calibrate::a_pmsm_board_refuses_to_enable_until_calibrated_and_keeps_its_calibration,
+        ),
+        (
+            "board: identify_on_the_board_calibrates_a_pmsm_no_config_describes",
+            crate::board_calibrate::identify_on_the_board_calibrates_a_pmsm_no_config_describes,
         ),
     ];
     let long = [

@@ -34,7 +34,9 @@
 //! does steps 1 to 5 on them, as on the simulated records. With `--qemu` the board is the
 //! `board` image built with the machine file, whose virtual machine is the file's `[plant]`
 //! (two inertias, shaft, dead-zone lost motion, viscous friction; `firmware/build.rs`).
-//! The twin of step 4 is still simulated on the host.
+//! The twin of step 4 is still simulated on the host. On a PMSM machine the board runs step
+//! 0 too ([`crate::calibrate::board`]: the sequence in its current loop, the estimate
+//! here), and the calibration is set and saved on the board before the two measurements.
 
 pub mod board;
 pub mod lost_motion;

@@ -10,7 +10,9 @@
 )]
 
 use crate::common::table1;
+use controller_core::foc::calibration::{Calibration, CalibrationSettings};
 use controller_core::{ConfigError, DriveConfig};
+use pil_link::board::calibrate::{self, CalibrateError};
 use pil_link::board::faults::{FaultEntry, FaultHistory, LINK_FAULT_CODE};
 use pil_link::board::identify::{CHANNELS, IdentifyError, IdentifyRun, is_cut_end};
 use pil_link::board::message::{Origin, Refusal, Reply, Request, get_f64};
@@ -30,6 +32,7 @@ struct MockDrive {
     history: FaultHistory,
     scope_on: bool,
     identified: Option<(DriveConfig, IdentifyRun)>,
+    calibrated: Option<(DriveConfig, Calibration)>,
     /// What `save` answers instead of storing the record.
     save_error: Option<SaveError>,
 }
@@ -76,6 +79,18 @@ impl Drive for MockDrive {
         Ok(ScopeInfo {
             rate_hz: cfg.current_rate_hz,
             channels: CHANNELS,
+        })
+    }
+    fn calibrate(
+        &mut self,
+        cfg: &DriveConfig,
+        seq: &Calibration,
+    ) -> Result<ScopeInfo<'_>, CalibrateError> {
+        self.calibrated = Some((*cfg, *seq));
+        self.enabled = true;
+        Ok(ScopeInfo {
+            rate_hz: cfg.current_rate_hz,
+            channels: calibrate::CHANNELS,
         })
     }
     fn enter_safe_state(&mut self) {
@@ -645,4 +660,133 @@ fn a_board_without_measurements_refuses_identify() {
     assert_eq!(code, Refusal::Invalid);
     assert!(msg.contains("does not run measurements"), "{msg}");
     assert!(!d.0.enabled);
+}
+
+/// Table 1's drive with a `[drive.pmsm]` whose encoder offset is not measured.
+fn uncalibrated_pmsm() -> BoardSession {
+    let mut cfg = table1();
+    cfg.pmsm = Some(controller_core::foc::PmsmConfig {
+        pole_pairs: 7,
+        d_inductance_pu_s: 3e-4,
+        q_inductance_pu_s: 4.5e-4,
+        flux_linkage_pu: 1.0,
+        dc_bus_pu: 2.2,
+        encoder_offset_elec_deg: None,
+        encoder_reversed: false,
+        angle_advance_ticks: 1.5,
+        pwm_period_counts: 4200,
+        commutation_min_speed_pu: 0.05,
+        commutation_trip_s: 0.02,
+    });
+    BoardSession::new(cfg, Origin::Baked, 0x0001_0000, "pmsm")
+}
+
+fn settings() -> CalibrationSettings {
+    CalibrationSettings {
+        current_rate_hz: 4000.0,
+        ..CalibrationSettings::default()
+    }
+}
+
+#[test]
+fn an_uncalibrated_pmsm_drive_refuses_to_run_until_its_calibration_is_set() {
+    let (mut s, mut d) = (uncalibrated_pmsm(), MockDrive::default());
+    for request in [Request::Enable, Request::Identify(RUN)] {
+        let (code, msg) = ask(&mut s, &mut d, &request).unwrap_err();
+        assert_eq!(code, Refusal::Uncalibrated, "{msg}");
+        assert!(
+            msg.contains("drive.pmsm.encoder_offset_elec_deg is not set")
+                && msg.contains("stiffdrive identify --board")
+                && msg.contains("calibrate"),
+            "{msg}"
+        );
+        assert!(!d.enabled && d.identified.is_none());
+    }
+    // No offset to get yet; the calibration's keys set, the offset last.
+    let get = |s: &mut BoardSession, d: &mut MockDrive, key| {
+        ask(s, d, &Request::Get(key)).map(|b| get_f64(&b).unwrap())
+    };
+    let (code, _) = get(&mut s, &mut d, "drive.pmsm.encoder_offset_elec_deg").unwrap_err();
+    assert_eq!(code, Refusal::NotPresent);
+    for (key, value) in [
+        ("drive.pmsm.pole_pairs", 5.0),
+        ("drive.pmsm.d_inductance_pu_s", 2e-4),
+        ("drive.pmsm.q_inductance_pu_s", 2.5e-4),
+        ("drive.pmsm.encoder_reversed", 1.0),
+        ("drive.pmsm.encoder_offset_elec_deg", 137.25),
+    ] {
+        ask(&mut s, &mut d, &Request::Set(key, value)).unwrap();
+        assert_eq!(get(&mut s, &mut d, key).unwrap(), f64::from(value as f32));
+    }
+    let p = s.settings().pmsm.unwrap();
+    assert_eq!(p.encoder_offset_elec_deg, Some(137.25));
+    assert!(p.encoder_reversed);
+    assert_eq!(d.applied.and_then(|c| c.pmsm), Some(p), "the drive rebuilt");
+    // Out of range, or not 0 or 1: refused naming the key.
+    for (key, value) in [
+        ("drive.pmsm.encoder_offset_elec_deg", 400.0),
+        ("drive.pmsm.encoder_reversed", 0.5),
+        ("drive.pmsm.pole_pairs", 0.0),
+    ] {
+        let (code, msg) = ask(&mut s, &mut d, &Request::Set(key, value)).unwrap_err();
+        assert_eq!(code, Refusal::Invalid, "{msg}");
+        assert!(msg.contains(key), "{msg}");
+    }
+    ask(&mut s, &mut d, &Request::Enable).unwrap();
+    assert!(d.enabled);
+    // A DC drive has none of these keys.
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let (code, _) = get(&mut s, &mut d, "drive.pmsm.pole_pairs").unwrap_err();
+    assert_eq!(code, Refusal::NotPresent);
+}
+
+#[test]
+fn calibrate_runs_the_sequence_on_a_pmsm_drive_and_is_refused_naming_why() {
+    let (mut s, mut d) = (uncalibrated_pmsm(), MockDrive::default());
+    let body = ask(&mut s, &mut d, &Request::Calibrate(settings())).unwrap();
+    let info = ScopeInfo::decode(&body).unwrap();
+    assert_eq!((info.rate_hz, info.channels), (4000, calibrate::CHANNELS));
+    let (cfg, seq) = d.calibrated.unwrap();
+    assert_eq!(cfg, *s.settings(), "on the running settings");
+    assert_eq!(
+        seq,
+        Calibration::new(&settings()).unwrap(),
+        "the request's sequence"
+    );
+    // Its own enable: nothing else beside it.
+    let (code, msg) = ask(&mut s, &mut d, &Request::Calibrate(settings())).unwrap_err();
+    assert_eq!(code, Refusal::Enabled, "{msg}");
+    let mut d = MockDrive {
+        fault: 3,
+        ..MockDrive::default()
+    };
+    let (code, _) = ask(&mut s, &mut d, &Request::Calibrate(settings())).unwrap_err();
+    assert_eq!(code, Refusal::Faulted);
+    let mut d = MockDrive::default();
+    for (bad, says) in [
+        (
+            CalibrationSettings {
+                current_rate_hz: 8000.0,
+                ..settings()
+            },
+            "current_rate_hz",
+        ),
+        (
+            CalibrationSettings {
+                sweep_hz: 0.0,
+                ..settings()
+            },
+            "sweep_hz",
+        ),
+    ] {
+        let (code, msg) = ask(&mut s, &mut d, &Request::Calibrate(bad)).unwrap_err();
+        assert_eq!(code, Refusal::Invalid, "{msg}");
+        assert!(msg.contains(says), "{says}: {msg}");
+        assert!(d.calibrated.is_none() && !d.enabled);
+    }
+    // A DC drive has no motor calibration.
+    let (mut s, mut d) = (session(), MockDrive::default());
+    let (code, msg) = ask(&mut s, &mut d, &Request::Calibrate(settings())).unwrap_err();
+    assert_eq!(code, Refusal::Invalid);
+    assert!(msg.contains("[drive.pmsm]"), "{msg}");
 }
