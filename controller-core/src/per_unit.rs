@@ -147,29 +147,75 @@ pub fn count_signed(raw: u32, counter_bits: u8) -> i32 {
 #[must_use]
 #[inline]
 pub fn isqrt_u64(x: u64) -> u64 {
-    if x >> 32 == 0 {
-        return u64::from((x as u32).isqrt());
+    let (hi, lo) = ((x >> 32) as u32, x as u32);
+    if hi == 0 {
+        if lo == 0 {
+            return 0;
+        }
+        // Normalized by an even shift k: ⌊√(lo·2^k)⌋ >> k/2 = ⌊√lo⌋.
+        let k = lo.leading_zeros() & !1;
+        return u64::from(isqrt_top(lo << k) >> (k / 2));
     }
-    // x ≥ 2^32: at most 31 leading zeros, so the even shift k2 ≤ 30.
-    let k2 = x.leading_zeros() & !1;
-    let xn = x << k2;
-    let hi = (xn >> 32) as u32;
-    // hi ≥ 2^30: s1 ∈ [2^15, 2^16), r1 ≤ 2·s1.
-    let s1 = hi.isqrt();
-    let r1 = hi - s1 * s1;
-    let n = (u64::from(r1) << 16) | ((xn >> 16) & 0xFFFF);
-    // n < 2^33; ⌊n/(2·s1)⌋ = ⌊⌊n/2⌋/s1⌋, and ⌊n/2⌋ < 2^32.
-    let q = ((n >> 1) as u32) / s1;
-    let u = n - 2 * u64::from(q) * u64::from(s1);
+    // x ≥ 2^32: the even shift k2 ≤ 30 puts x's top two bits into the high word of
+    // xn = x << k2, formed in 32-bit words (`(lo >> 1) >> (31 − k2)` is `lo >> (32 − k2)`,
+    // 0 for k2 = 0).
+    let k2 = hi.leading_zeros() & !1;
+    let top = (hi << k2) | ((lo >> 1) >> (31 - k2));
+    let low = lo << k2;
+    // top ≥ 2^30: s1 ∈ [2^15, 2^16), r1 ≤ 2·s1.
+    let s1 = isqrt_top(top);
+    let r1 = top - s1 * s1;
+    // n = r1·2^16 + (low >> 16) < 2^33; ⌊n/(2·s1)⌋ = ⌊⌊n/2⌋/s1⌋, and ⌊n/2⌋ < 2^32.
+    let half = (r1 << 15) | (low >> 17);
+    let q = half / s1;
+    // u = n − 2·q·s1 = 2·(⌊n/2⌋ mod s1) + (n mod 2) < 2·s1 < 2^17.
+    let u = ((half - q * s1) << 1) | ((low >> 16) & 1);
     let s = (u64::from(s1) << 16) + u64::from(q);
-    // u < 2·s1 < 2^17 and q ≤ 2^16: both sides fit.
-    let rest = (u << 16) | (xn & 0xFFFF);
+    // q ≤ 2^16: both sides fit.
+    let rest = (u64::from(u) << 16) | u64::from(low & 0xFFFF);
     let s = if rest < u64::from(q) * u64::from(q) {
         s - 1
     } else {
         s
     };
-    s >> (k2 / 2)
+    // s < 2^32 after the correction.
+    u64::from((s as u32) >> (k2 / 2))
+}
+
+/// √ at the middle of each 2^24-wide slice of `[2^30, 2^32)` (index: the top byte),
+/// rounded; the first 64 entries (below 2^30) are never read. (Evaluated by the compiler:
+/// an index out of range would fail the build, not a tick.)
+#[allow(clippy::indexing_slicing)]
+const ISQRT_SEED: [u16; 256] = {
+    let mut t = [0u16; 256];
+    let mut i = 64;
+    while i < 256 {
+        t[i] = ((((i as u64) << 24) + (1 << 23)).isqrt()) as u16;
+        i += 1;
+    }
+    t
+};
+
+/// `⌊√t⌋` of a normalized `t` in `[2^30, 2^32)`: the slice's seed s0 (within 2^-8 of the
+/// root, relatively), one Newton step `⌊(s0 + ⌊t/s0⌋)/2⌋`, which is at least `⌊√t⌋` and
+/// within (2^-8)²/2·2^16 < 1 above the root, then one correction.
+#[inline(always)]
+fn isqrt_top(t: u32) -> u32 {
+    let s0 = u32::from(
+        ISQRT_SEED
+            .get((t >> 24) as usize)
+            .copied()
+            .unwrap_or(1 << 15),
+    )
+    .max(1);
+    // s0 ≥ 2^15 and t/s0 < 2^17: the sum fits.
+    let s = (s0 + t / s0) >> 1;
+    // s ≤ 2^16: s² fits u64 (and u32 unless s = 2^16).
+    if u64::from(s) * u64::from(s) > u64::from(t) {
+        s - 1
+    } else {
+        s
+    }
 }
 
 /// Saturate an `i64` to `i32`.
@@ -323,6 +369,27 @@ pub fn checked_q<T: fixed::traits::Fixed>(value: f32) -> Option<T> {
 
 #[cfg(test)]
 mod tests {
+    /// `isqrt_top` is exact on `[2^30, 2^32)`, and `isqrt_u64` below 2^20.
+    #[test]
+    fn isqrt_top_is_the_exact_root_of_every_normalized_word() {
+        // Every square and its neighbours in [2^30, 2^32), and a dense scatter.
+        for r in (1u64 << 15)..(1 << 16) {
+            for x in [r * r - 1, r * r, r * r + 1, r * r + r, r * r + 2 * r] {
+                if ((1 << 30)..(1 << 32)).contains(&x) {
+                    assert_eq!(u64::from(super::isqrt_top(x as u32)), x.isqrt(), "{x}");
+                }
+            }
+        }
+        for x in ((1u32 << 30)..=u32::MAX).step_by(997) {
+            assert_eq!(super::isqrt_top(x), x.isqrt(), "{x}");
+        }
+        assert_eq!(super::isqrt_top(u32::MAX), u32::MAX.isqrt());
+        // The normalizing path below 2^32, on every value below 2^20.
+        for x in 0..(1u64 << 20) {
+            assert_eq!(super::isqrt_u64(x), x.isqrt(), "{x}");
+        }
+    }
+
     /// `isqrt_u64` is `u64::isqrt` at and around every square and power of two, at the ends
     /// and on 200,000 scattered values.
     #[test]

@@ -164,6 +164,21 @@ impl Protection {
         s.over_count >= self.overcurrent_ticks
     }
 
+    /// [`Self::current_tick`] on a current vector's squared magnitude `sq` (raw Q32.32, a
+    /// PMSM's `i_d² + i_q²`), without its root: `⌊√sq⌋ > L` exactly when `sq ≥ (L + 1)²`,
+    /// so the count is the one `current_tick` keeps on `⌊√sq⌋`.
+    #[inline(always)]
+    pub fn current_tick_sq(&self, s: &mut ProtectionState, sq: u64) -> bool {
+        // L ≤ 2^31, so (L + 1)² < 2^63.
+        let above = u64::from(self.overcurrent_abs) + 1;
+        s.over_count = if sq >= above * above {
+            s.over_count.saturating_add(1)
+        } else {
+            0
+        };
+        s.over_count >= self.overcurrent_ticks
+    }
+
     /// One velocity tick: the I²t model on `current` (the latest current sample), then the
     /// stall check on `torque` (this tick's torque reference) and `speed` (the velocity
     /// estimate). Returns the fault that trips now, overload first.
@@ -175,9 +190,22 @@ impl Protection {
         torque: Pu,
         speed: Pu,
     ) -> Option<Fault> {
-        // |bits| ≤ 2^31, so i² ≤ 2^62; H ≤ H_trip ≤ 2^61 (`new`): the sum does not wrap.
         let bits = i64::from(current.to_bits());
-        let heat = (s.heat + (bits * bits - self.continuous_sq)).max(0);
+        self.velocity_tick_sq(s, bits * bits, torque, speed)
+    }
+
+    /// [`Self::velocity_tick`] with the I²t model fed the current's square `sq` (raw
+    /// Q32.32, in `[0, 2^62]`; a PMSM's `i_d² + i_q²`).
+    #[inline(always)]
+    pub fn velocity_tick_sq(
+        &self,
+        s: &mut ProtectionState,
+        sq: i64,
+        torque: Pu,
+        speed: Pu,
+    ) -> Option<Fault> {
+        // i² ≤ 2^62; H ≤ H_trip ≤ 2^61 (`new`): the sum does not wrap.
+        let heat = (s.heat + (sq - self.continuous_sq)).max(0);
         let overload = heat >= self.heat_trip;
         s.heat = if overload { self.heat_trip } else { heat };
         let stalled = torque.to_bits().unsigned_abs() >= self.stall_torque_abs
@@ -263,6 +291,35 @@ mod tests {
     /// A stall tick alone: the I²t model at its continuous current (neither heats nor cools).
     fn stall(p: &Protection, s: &mut ProtectionState, torque: Pu, speed: Pu) -> Option<Fault> {
         p.velocity_tick(s, pu(1.0), torque, speed)
+    }
+
+    /// The squared entry judges as the plain one on the square's root: at, around and
+    /// between the squares of the level and the level plus one LSB, and on scattered
+    /// squares, for several levels.
+    #[test]
+    fn the_squared_overcurrent_entry_judges_as_the_root() {
+        for level in [0.01f32, 1.0, 2.5, 3.0, 1000.0] {
+            let mut c = cfg();
+            c.torque_limit_pu = level;
+            c.faults.overcurrent_ratio = 1.0;
+            c.faults.overcurrent_ticks = 1;
+            let p = Protection::new(&c).unwrap();
+            let l = u64::from(p.overcurrent_abs);
+            let mut xs: Vec<u64> = [l * l, (l + 1) * (l + 1), (l + 2) * (l + 2)]
+                .iter()
+                .flat_map(|&x| [x - 1, x, x + 1])
+                .collect();
+            xs.extend((0..10_000u64).map(|k| k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 2));
+            for sq in xs {
+                let root = i32::try_from(sq.isqrt()).unwrap_or(i32::MAX);
+                let (mut a, mut b) = (ProtectionState::default(), ProtectionState::default());
+                assert_eq!(
+                    p.current_tick_sq(&mut a, sq),
+                    p.current_tick(&mut b, Pu::from_bits(root)),
+                    "level {level}, sq {sq}"
+                );
+            }
+        }
     }
 
     #[test]

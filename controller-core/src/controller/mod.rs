@@ -102,8 +102,11 @@ struct State {
     foc_primed: bool,
     foc_position: i64,
     /// A PMSM drive's measured torque λ·i_q of the last tick (the DC drive's is
-    /// `last_current`, which a PMSM drive sets to the current's magnitude).
+    /// `last_current`).
     pmsm_torque: Pu,
+    /// A PMSM drive's i_d² + i_q² of the last tick (raw Q32.32, at most 2^62): the I²t
+    /// model's input in place of `last_current`'s square (0 on a DC drive).
+    pmsm_current_sq: i64,
 }
 
 /// The drive controller: coefficients plus state.
@@ -455,9 +458,13 @@ impl Controller {
         // reference, formed by the speed regulator just now (at the limit exactly when the
         // regulator is), and the speed.
         let mut current_ref = self.total_ref();
-        if let Some(f) = self.coef.protection.velocity_tick(
+        // One of the two terms is zero: a DC drive never sets `pmsm_current_sq`, a PMSM
+        // drive never sets `last_current` (its tick replaces the DC one). No branch.
+        let bits = i64::from(self.state.last_current.to_bits());
+        let current_sq = bits * bits + self.state.pmsm_current_sq;
+        if let Some(f) = self.coef.protection.velocity_tick_sq(
             &mut self.state.protection,
-            self.state.last_current,
+            current_sq,
             current_ref,
             v_fb,
         ) {

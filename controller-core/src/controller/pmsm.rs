@@ -7,10 +7,10 @@
 //! θe, (i_d, i_q) ← FOC measure(i_a, i_b, Δcount)
 //! i_ref ← torque side, as the DC tick, with the measured torque λ·i_q + k·i_d·i_q
 //! duties ← FOC regulate(θe, (i_d, i_q), ω̂ (observer), i_ref)
-//! protection ← |i| = √(i_d² + i_q²)                 (overcurrent on the current vector)
+//! protection ← |i|² = i_d² + i_q²                    (overcurrent on the current vector)
 //! commutation ← the FOC's check                      (latches `commutation`)
 //! ```
-//! The I²t model and the stall check of the velocity tick see |i| too. A fault turns the
+//! The velocity tick's I²t model takes |i|² too (no square root on either path). A fault turns the
 //! inverter off (`enabled = false`, the duties at half the period): the currents then
 //! decay through the free-wheeling diodes while the back-EMF stays below the bus.
 
@@ -49,8 +49,17 @@ pub struct PmsmOutputs {
     pub fault: Option<Fault>,
 }
 
-/// |(d, q)| in Q16.16, saturating at the format's top.
+/// |(d, q)|² in Q32.32 (d², q² ≤ 2^62 each: their sum fits u64).
 #[inline(always)]
+fn magnitude_sq(i: Dq) -> u64 {
+    let d = i64::from(i.d.to_bits());
+    let q = i64::from(i.q.to_bits());
+    (d * d) as u64 + (q * q) as u64
+}
+
+/// |(d, q)| in Q16.16, saturating at the format's top: what the protections judged before
+/// they took the square (the tests' reference).
+#[cfg(test)]
 fn magnitude(i: Dq) -> Pu {
     let d = i64::from(i.d.to_bits());
     let q = i64::from(i.q.to_bits());
@@ -103,16 +112,17 @@ impl Controller {
             ),
             None => (crate::foc::FocOutputs::default(), 0),
         };
-        let size = magnitude(current);
-        // The velocity tick's I²t model and stall check read the current's magnitude.
-        self.state.last_current = size;
+        // The protections on the current vector's square (no root): overcurrent here, the
+        // velocity tick's I²t model (its input held within 2^62).
+        let size_sq = magnitude_sq(current);
+        self.state.pmsm_current_sq = size_sq.min(1 << 62) as i64;
         if out.commutation_off {
             self.trip(Fault::Commutation);
         }
         if self
             .coef
             .protection
-            .current_tick(&mut self.state.protection, size)
+            .current_tick_sq(&mut self.state.protection, size_sq)
         {
             self.trip(Fault::Overcurrent);
         }

@@ -63,21 +63,41 @@ impl CommutationCheck {
                 i64::from(w.to_bits()) * i64::from(x.to_bits()),
             ))
         };
+        let coupling = Dq {
+            d: mul_gain(wi(i.q), self.wl_q),
+            q: mul_gain(wi(i.d), self.wl_d),
+        };
+        self.update_with(st, i, w, coupling, v)
+    }
+
+    /// [`Self::update`] with the cross-coupling terms already formed:
+    /// `coupling = (ω_e·L_q·i_q, ω_e·L_d·i_d)`, each as `mul_gain(ω·i, ω_e,b·L)` (the
+    /// current loop's feed-forward has them).
+    #[inline(always)]
+    pub fn update_with(
+        &self,
+        st: &mut CommutationState,
+        i: Dq,
+        w: Pu,
+        coupling: Dq,
+        v: Dq,
+    ) -> bool {
         let last = st.last_voltage;
         st.last_voltage = v;
         let e_d = last
             .d
             .saturating_sub(mul_gain(i.d, self.resistance))
-            .saturating_add(mul_gain(wi(i.q), self.wl_q));
+            .saturating_add(coupling.d);
         let e_q = last
             .q
             .saturating_sub(mul_gain(i.q, self.resistance))
-            .saturating_sub(mul_gain(wi(i.d), self.wl_d));
+            .saturating_sub(coupling.q);
         let k = self.shift.min(15);
         for (f, x) in st.residual.iter_mut().zip([e_d, e_q]) {
-            // |x − f| < 2^32, so the shifted step is within i32 after the add.
-            let step = (i64::from(x.to_bits()) - i64::from(*f)) >> k;
-            *f = crate::per_unit::sat_i32(i64::from(*f) + step);
+            // 32-bit words: the step has the sign of x − f and at most its size, so f plus
+            // the step lies between f and x (the difference saturates only beyond ±2^31).
+            let step = x.to_bits().saturating_sub(*f) >> k;
+            *f = f.wrapping_add(step);
         }
         let [fd, fq] = st.residual;
         let speed = w.to_bits();

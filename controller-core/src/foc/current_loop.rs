@@ -161,19 +161,21 @@ fn axis(c: &PiCoefficients, st: &mut PiState, e: Pu, ff: Pu, bound: i32) -> Pu {
     let b = i64::from(bound.max(0)) << 16;
     let ff = i64::from(ff.to_bits()) << 16;
     let e = i64::from(e.to_bits());
-    // Q16.16 · Q8.24 = Q.40 → Q.32; |e·ki| < 2^62.
+    // Q16.16 · Q8.24 = Q.40 → Q.32; |e·ki| < 2^54.
     let inc = (e * i64::from(c.ki_ts.to_bits())) >> 8;
-    // |ff| < 2^47 and b < 2^47: the bounds are exact, and lo ≤ hi.
+    // |ff| < 2^47 and b < 2^47: the bounds are exact, and lo ≤ hi. The integral this
+    // function keeps is within them (|I| < 2^48), so the sums below cannot wrap: plain
+    // adds (wrapping, so that a state set from outside cannot panic).
     let i = st
         .integral
         .to_bits()
-        .saturating_add(inc)
+        .wrapping_add(inc)
         .clamp(-b - ff, b - ff);
     st.integral = I32F32::from_bits(i);
-    // Q16.16 · Q16.16 = Q.32.
+    // Q16.16 · Q16.16 = Q.32: |e·kp| < 2^62, |I + ff| < 2^49.
     let v = (e * i64::from(c.kp.to_bits()))
-        .saturating_add(i)
-        .saturating_add(ff);
+        .wrapping_add(i)
+        .wrapping_add(ff);
     let out = v.clamp(-b, b);
     st.saturated = out != v;
     Pu::from_bits(sat_round_shr::<16>(out))
@@ -318,8 +320,14 @@ impl FocCoefficients {
                 i64::from(w.to_bits()) * i64::from(i.to_bits()),
             ))
         };
-        let ff_d = mul_gain(w_times(current.q), self.wl_q).saturating_neg();
-        let ff_q = mul_gain(w_times(current.d), self.wl_d).saturating_add(mul_gain(w, self.flux));
+        // The cross-coupling ω_e·L_q·i_q and ω_e·L_d·i_d: the feed-forward's, and the
+        // commutation check's (its `update` forms the same products).
+        let coupling = Dq {
+            d: mul_gain(w_times(current.q), self.wl_q),
+            q: mul_gain(w_times(current.d), self.wl_d),
+        };
+        let ff_d = coupling.d.saturating_neg();
+        let ff_q = coupling.q.saturating_add(mul_gain(w, self.flux));
         let v_d = axis(
             &self.d,
             &mut state.d,
@@ -336,9 +344,9 @@ impl FocCoefficients {
         );
         let voltage = Dq { d: v_d, q: v_q };
         let applied = CosSin::of(self.angle.advanced(phase, w));
-        let commutation_off = self
-            .commutation
-            .update(&mut state.commutation, current, w, voltage);
+        let commutation_off =
+            self.commutation
+                .update_with(&mut state.commutation, current, w, coupling, voltage);
         FocOutputs {
             duties: self.svpwm.duties(inverse_park(voltage, applied)),
             current,

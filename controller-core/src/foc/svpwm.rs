@@ -15,14 +15,17 @@ use crate::error::ConfigError;
 
 /// √3/2 in Q1.31.
 const SQRT3_2_Q31: i64 = 1_859_775_393;
+/// The largest |α| and |β| the modulator takes (raw Q16.16, 4,096 pu).
+const IN_LIMIT: i32 = 1 << 28;
 
 /// The modulator's coefficients.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Svpwm {
     /// Timer counts of a whole PWM period (the largest duty).
     period: u16,
-    /// V_dc/2, Q16.16 raw: the largest phase voltage about the bus midpoint.
-    half_bus: i64,
+    /// V_dc/2, Q16.16 raw (at most 500 pu, < 2^25): the largest phase voltage about the
+    /// bus midpoint.
+    half_bus: i32,
     /// period/V_dc as Q32.32 counts per pu (raw i64).
     counts_per_pu: i64,
 }
@@ -50,7 +53,7 @@ impl Svpwm {
         let bus = f64::from(dc_bus_pu);
         Ok(Self {
             period,
-            half_bus: (bus / 2.0 * 65_536.0) as i64,
+            half_bus: (bus / 2.0 * 65_536.0) as i32,
             // Positive: + 0.5 then truncation rounds to nearest.
             counts_per_pu: (f64::from(period) / bus * 65_536.0 + 0.5) as i64,
         })
@@ -66,10 +69,14 @@ impl Svpwm {
     #[inline]
     #[must_use]
     pub fn duties(&self, v: AlphaBeta) -> [u16; 3] {
-        let a = i64::from(v.alpha.to_bits());
-        let b = i64::from(v.beta.to_bits());
+        // In 32-bit words: α and β held within ±2^28 (4,096 pu, eight times the largest
+        // bus) keep every sum below 2^30; the duties of a vector that far out are clamped
+        // to the bus all the same.
+        let a = v.alpha.to_bits().clamp(-IN_LIMIT, IN_LIMIT);
+        let b = v.beta.to_bits().clamp(-IN_LIMIT, IN_LIMIT);
         let half_a = a >> 1;
-        let sb = (b * SQRT3_2_Q31 + (1 << 30)) >> 31;
+        // |b·√3/2| < 2^59: rounded to nearest, within ±2^28.
+        let sb = ((i64::from(b) * SQRT3_2_Q31 + (1 << 30)) >> 31) as i32;
         let va = a;
         let vb = sb - half_a;
         let vc = -sb - half_a;
@@ -81,11 +88,12 @@ impl Svpwm {
 
     /// One phase's duty for a voltage `v` (Q16.16 raw) about the bus midpoint.
     #[inline(always)]
-    fn duty(&self, v: i64) -> u16 {
-        // Within ±V_dc/2 the product is at most period/2·2^32 < 2^47.
+    fn duty(&self, v: i32) -> u16 {
+        // Within ±V_dc/2 the product is at most period/2·2^32 < 2^47, and the duty's
+        // high word at most the period.
         let v = v.clamp(-self.half_bus, self.half_bus);
-        let half = i64::from(self.period) << 31;
-        let d = (half + v * self.counts_per_pu + (1 << 31)) >> 32;
-        d.clamp(0, i64::from(self.period)) as u16
+        let half = (i64::from(self.period) << 31) + (1 << 31);
+        let d = ((half + i64::from(v) * self.counts_per_pu) >> 32) as i32;
+        d.clamp(0, i32::from(self.period)) as u16
     }
 }

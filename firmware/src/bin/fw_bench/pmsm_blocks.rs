@@ -25,13 +25,13 @@ pub(crate) enum Block {
     Regulate,
     /// `Mtpa::references` alone.
     Mtpa,
-    /// `VoltageCircle::q_bound` alone (a 64-bit integer square root).
+    /// `VoltageCircle::q_bound` alone (a 64-bit integer square root, `per_unit::isqrt_u64`).
     QBound,
     /// `Svpwm::duties` alone (with its inverse Park).
     Svpwm,
     /// `CommutationCheck::update` alone.
     Commutation,
-    /// The current vector's magnitude for the protections (a 64-bit integer square root).
+    /// The current vector's squared magnitude for the protections (no root).
     Magnitude,
 }
 
@@ -44,7 +44,7 @@ pub(crate) const BLOCKS: [(Block, &str); 8] = [
     (Block::QBound, "  of which the voltage circle's q bound (u64 isqrt) alone"),
     (Block::Svpwm, "  of which inverse Park + SVPWM duties alone"),
     (Block::Commutation, "  of which the commutation check alone"),
-    (Block::Magnitude, "|i| for the protections (u64 isqrt) alone"),
+    (Block::Magnitude, "|i|² for the protections (i_d² + i_q², no root) alone"),
 ];
 const BLOCK_COUNT: usize = 8;
 static BLOCK_COUNTS: [AtomicU32; BLOCK_COUNT] = [const { AtomicU32::new(0) }; BLOCK_COUNT];
@@ -118,7 +118,7 @@ fn blocks(
     let _ = timed(Block::Magnitude, tick % 5, || {
         let d = i64::from(i.d.to_bits());
         let q = i64::from(i.q.to_bits());
-        ((d * d) as u64 + (q * q) as u64).isqrt()
+        ((d * d) as u64 + (q * q) as u64).min(1 << 62)
     });
 }
 
