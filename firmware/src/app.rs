@@ -399,6 +399,9 @@ impl App {
         };
         let zero = self.zero_voltage_duties();
         let out = if self.held {
+            // The electrical angle follows the shaft while held (see
+            // `Controller::pmsm_track`).
+            self.controller.pmsm_track(encoder_count);
             self.record_pmsm(encoder_count, &PmsmOutputs::default());
             PmsmOutputs {
                 duties: zero,

@@ -62,12 +62,17 @@ impl Drive {
         let encoder_count = self.io.encoder_count();
         let currents = self.io.phase_currents_pu();
         self.sensor_fault |= currents.is_none();
-        let out = self.running.then(|| {
-            self.controller.pmsm_tick(PmsmInputs {
+        let out = if self.running {
+            Some(self.controller.pmsm_tick(PmsmInputs {
                 encoder_count,
                 phase_current_pu: currents.unwrap_or([Pu::ZERO; 2]),
-            })
-        });
+            }))
+        } else {
+            // Held: the electrical angle still follows the shaft, so that an enable
+            // after the rotor turned starts at the right angle.
+            self.controller.pmsm_track(encoder_count);
+            None
+        };
         let on = out.is_some_and(|o| o.enabled) && !self.sensor_fault;
         let duties = match out {
             Some(o) if on => o.duties,

@@ -97,10 +97,13 @@ struct State {
     fault: Option<Fault>,
     /// A PMSM drive's FOC state (untouched on a DC drive).
     foc: crate::foc::FocState,
-    /// Whether the FOC angle has been set from a count, and the unwrapped position it
-    /// was last moved to.
+    /// Whether the FOC angle has been set from a count, and the raw counter it was last
+    /// moved to. Both, and the angle, outlive [`Controller::reset`]: the angle follows
+    /// the shaft from the first reading on ([`Controller::pmsm_track`] while no tick
+    /// runs), since the counter's wraps are not whole turns of an encoder whose counts
+    /// per turn do not divide them.
     foc_primed: bool,
-    foc_position: i64,
+    foc_last_raw: u32,
     /// A PMSM drive's measured torque λ·i_q of the last tick (the DC drive's is
     /// `last_current`).
     pmsm_torque: Pu,
@@ -246,11 +249,23 @@ impl Controller {
 
     /// Clear a latched fault and all regulator and estimator state. The next encoder
     /// reading becomes the position reference again (the raw counter read as signed).
-    /// The I²t model's heat is kept: clearing a fault does not cool the winding.
+    /// The I²t model's heat is kept: clearing a fault does not cool the winding. A PMSM
+    /// drive's electrical angle is kept too: it is where the rotor stands, not a state of
+    /// a regulator.
     pub fn reset(&mut self) {
         let protection = self.state.protection.after_reset();
+        let angle = (
+            self.state.foc_primed,
+            self.state.foc_last_raw,
+            self.state.foc.angle,
+        );
         self.state = State::default();
         self.state.protection = protection;
+        (
+            self.state.foc_primed,
+            self.state.foc_last_raw,
+            self.state.foc.angle,
+        ) = angle;
     }
 
     /// Latch a fault (the first one wins) and drop every torque-producing state.

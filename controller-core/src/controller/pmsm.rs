@@ -17,7 +17,7 @@
 use super::Controller;
 use crate::fault::Fault;
 use crate::foc::{Dq, FocCoefficients};
-use crate::per_unit::Pu;
+use crate::per_unit::{Pu, count_signed};
 
 /// Inputs of a PMSM current tick.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -99,7 +99,7 @@ impl Controller {
             };
         }
         self.read_encoder(inp.encoder_count);
-        let (phase, current, torque) = self.foc_measure(inp.phase_current_pu);
+        let (phase, current, torque) = self.foc_measure(inp.encoder_count, inp.phase_current_pu);
         let observed = self.observer_torque(self.state.pmsm_torque, torque);
         self.state.pmsm_torque = torque;
         let i_ref = self.torque_stage(observed);
@@ -151,24 +151,45 @@ impl Controller {
     /// The FOC's measurement of a tick, after the encoder's read: the electrical phase,
     /// the currents in the rotor frame and their torque.
     #[inline(always)]
-    fn foc_measure(&mut self, phase_current_pu: [Pu; 2]) -> (u32, Dq, Pu) {
-        let position = self.state.position;
+    fn foc_measure(&mut self, raw: u32, phase_current_pu: [Pu; 2]) -> (u32, Dq, Pu) {
+        let delta = self.foc_follow(raw);
         let Some(foc) = self.foc.as_ref() else {
             return (0, Dq::default(), Pu::ZERO);
         };
-        // The counts since the angle's last update: the velocity tick reads the encoder
-        // too, so the difference is taken against the angle's own position, not the last
-        // reading. The first tick after a reset sets the angle from the count itself.
+        let (phase, current) = foc.measure(&mut self.state.foc, phase_current_pu, delta);
+        (phase, current, foc.mtpa.torque(current))
+    }
+
+    /// The counts the rotor moved since the angle's last update, from the raw counter (the
+    /// velocity tick reads the encoder too, and a reset takes the position again from the
+    /// counter, so neither the last reading nor the position will do). The first reading
+    /// of all sets the angle from the count itself and moves it by 0.
+    #[inline(always)]
+    fn foc_follow(&mut self, raw: u32) -> i32 {
         let delta = if self.state.foc_primed {
-            crate::per_unit::sat_i32(position.wrapping_sub(self.state.foc_position))
+            crate::per_unit::count_diff_by(raw, self.state.foc_last_raw, self.coef.counter_shift)
         } else {
-            self.state.foc = foc.state_at(position);
+            if let Some(foc) = self.foc.as_ref() {
+                let count = i64::from(count_signed(raw, self.coef.counter_bits));
+                self.state.foc = foc.state_at(count);
+            }
             self.state.foc_primed = true;
             0
         };
-        self.state.foc_position = position;
-        let (phase, current) = foc.measure(&mut self.state.foc, phase_current_pu, delta);
-        (phase, current, foc.mtpa.torque(current))
+        self.state.foc_last_raw = raw;
+        delta
+    }
+
+    /// Keeps a PMSM drive's electrical angle on the rotor while no tick runs (the drive
+    /// held, the inverter off): call it with the encoder counter every current period in
+    /// which [`Controller::pmsm_tick`] is not called, so that the angle is right when the
+    /// ticks start again, however far the shaft turned and the counter wrapped meanwhile.
+    /// Nothing else moves. A DC drive ignores it.
+    pub fn pmsm_track(&mut self, encoder_count: u32) {
+        let delta = self.foc_follow(encoder_count);
+        if let Some(foc) = self.foc.as_ref() {
+            let _ = foc.angle.update(&mut self.state.foc.angle, delta);
+        }
     }
 }
 
@@ -247,6 +268,52 @@ mod tests {
             ..VelocityInputs::default()
         });
         assert_eq!(c.pmsm_tick(inp).fault, Some(Fault::External));
+    }
+
+    /// The electrical angle follows the shaft through the counter's wraps, across a reset
+    /// and while the drive is held (`pmsm_track`): the 16-bit counter wraps where the
+    /// encoder's 10,000 counts per turn do not, so an angle taken again from the counter
+    /// after a reset would be off (here by 128° electrical). A d-axis current at the true
+    /// angle must read as d, before and after each reset.
+    #[test]
+    fn the_angle_survives_a_reset_after_the_counter_wrapped() {
+        let mut cfg = drive(Some(0.0));
+        cfg.encoder_cpr = 10_000;
+        cfg.counter_bits = 16;
+        let mut c = Controller::new(&cfg).unwrap();
+        let raw = |total: i64| (total & 0xffff) as u32;
+        let sample = |total: i64| {
+            let th = core::f64::consts::TAU * 4.0 * total as f64 / 10_000.0;
+            let b = th - core::f64::consts::TAU / 3.0;
+            PmsmInputs {
+                encoder_count: raw(total),
+                phase_current_pu: [pu(0.5 * th.cos()), pu(0.5 * b.cos())],
+            }
+        };
+        let on_d = |out: PmsmOutputs, when: &str| {
+            let (d, q) = (out.current.d.to_num::<f64>(), out.current.q.to_num::<f64>());
+            assert!(
+                (d - 0.5).abs() < 0.01 && q.abs() < 0.01,
+                "{when}: (d, q) = ({d}, {q})"
+            );
+        };
+        let mut total = 0;
+        for _ in 0..6_000 {
+            total += 37;
+            on_d(c.pmsm_tick(sample(total)), "turning");
+        }
+        c.reset();
+        for _ in 0..3 {
+            total += 37;
+            on_d(c.pmsm_tick(sample(total)), "after a reset");
+        }
+        for _ in 0..3_000 {
+            total += 37;
+            c.pmsm_track(raw(total));
+        }
+        c.reset();
+        total += 37;
+        on_d(c.pmsm_tick(sample(total)), "after turning held and a reset");
     }
 
     /// While enabled the d and q integrators act (a constant current error moves the
