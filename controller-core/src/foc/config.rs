@@ -35,7 +35,11 @@ pub struct PmsmConfig {
     /// voltage vector's linear limit is `dc_bus_pu/√3`.
     pub dc_bus_pu: f32,
     /// The machine's electrical angle at encoder count 0 \[deg\], −360..=360: measured by
-    /// calibration, never defaulted. `None`: the drive refuses to enable.
+    /// calibration, never defaulted. `None`: the drive refuses to enable. Count 0 is the
+    /// counter's value at the drive's first reading (from there the angle follows the
+    /// counter, across resets too), so a saved offset stays true across a power cycle only
+    /// where count 0 is the same shaft angle at every power-up (an absolute encoder); an
+    /// incremental encoder needs a calibration after each power-up.
     #[cfg_attr(
         feature = "serde",
         serde(default, skip_serializing_if = "Option::is_none")
