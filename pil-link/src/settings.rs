@@ -442,18 +442,23 @@ fn put_notch(w: &mut Writer, notch: Option<NotchConfig>) -> Result<(), LinkError
     Ok(())
 }
 
+/// A flag byte: 0 or 1, anything else `bad`.
+fn flag(r: &mut Reader<'_>, bad: LinkError) -> Result<bool, LinkError> {
+    match r.u8()? {
+        0 => Ok(false),
+        1 => Ok(true),
+        _ => Err(bad),
+    }
+}
+
 fn get_notch(r: &mut Reader<'_>, bad: LinkError) -> Result<Option<NotchConfig>, LinkError> {
-    let present = r.u8()?;
+    let present = flag(r, bad)?;
     let n = NotchConfig {
         centre_hz: f(r)?,
         width_hz: f(r)?,
         depth_db: f(r)?,
     };
-    match present {
-        0 => Ok(None),
-        1 => Ok(Some(n)),
-        _ => Err(bad),
-    }
+    Ok(present.then_some(n))
 }
 
 fn put_pmsm(w: &mut Writer, pmsm: Option<PmsmConfig>) -> Result<(), LinkError> {
@@ -490,18 +495,13 @@ fn put_pmsm(w: &mut Writer, pmsm: Option<PmsmConfig>) -> Result<(), LinkError> {
 }
 
 fn get_pmsm(r: &mut Reader<'_>, bad: LinkError) -> Result<Option<PmsmConfig>, LinkError> {
-    let flag = |b: u8| match b {
-        0 => Ok(false),
-        1 => Ok(true),
-        _ => Err(bad),
-    };
-    let present = flag(r.u8()?)?;
+    let present = flag(r, bad)?;
     let pole_pairs = r.u32()?;
     let d_inductance_pu_s = f(r)?;
     let q_inductance_pu_s = f(r)?;
     let flux_linkage_pu = f(r)?;
     let dc_bus_pu = f(r)?;
-    let has_offset = flag(r.u8()?)?;
+    let has_offset = flag(r, bad)?;
     let offset = f(r)?;
     let p = PmsmConfig {
         pole_pairs,
@@ -510,7 +510,7 @@ fn get_pmsm(r: &mut Reader<'_>, bad: LinkError) -> Result<Option<PmsmConfig>, Li
         flux_linkage_pu,
         dc_bus_pu,
         encoder_offset_elec_deg: has_offset.then_some(offset),
-        encoder_reversed: flag(r.u8()?)?,
+        encoder_reversed: flag(r, bad)?,
         angle_advance_ticks: f(r)?,
         pwm_period_counts: r.u16()?,
         commutation_min_speed_pu: f(r)?,
