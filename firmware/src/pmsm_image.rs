@@ -1,5 +1,5 @@
 //! The PMSM drive on the three-phase STM32F4 board (`board-stm32f4-3ph`, the `firmware`
-//! image; `cargo fw-build-stm32-3ph`): the baked drive's `Controller::pmsm_tick` in the
+//! image; `cargo fw-build-stm32`): the baked drive's `Controller::pmsm_tick` in the
 //! current-loop interrupt, which ADC1's injected end of conversion raises every k-th PWM
 //! period (`boards::stm32f4::three_phase`), and its `velocity_tick` every
 //! `current_rate_hz / velocity_rate_hz`-th current tick, pended by the current loop at a

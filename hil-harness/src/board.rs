@@ -39,7 +39,7 @@ pub struct BoardArgs {
     pub baud: u32,
     /// With `--qemu`: the image to run; default: build the machine's image with cargo
     /// (`cargo build -p firmware --release --target thumbv7em-none-eabihf --bin board`;
-    /// on netduinoplus2 `cargo fw-build-stm32`).
+    /// on netduinoplus2 `cargo fw-build-stm32-dc`).
     // `requires = "qemu"` would always hold (a flag is present as its default, false);
     // one of --qemu and --port is required, so conflicting with --port is the same rule.
     #[arg(long, conflicts_with = "port")]
