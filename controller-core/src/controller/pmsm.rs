@@ -316,6 +316,59 @@ mod tests {
         on_d(c.pmsm_tick(sample(total)), "after turning held and a reset");
     }
 
+    /// The protections read the whole current vector's square, d and q alike: a current
+    /// on the d axis alone (no torque, so nothing else notices it) trips `overcurrent`
+    /// after `overcurrent_ticks`, and held above the continuous current the I²t model trips
+    /// `overload` at its closed-form time.
+    #[test]
+    fn the_protections_judge_the_current_on_the_d_axis_too() {
+        let mut cfg = drive(Some(0.0));
+        cfg.torque_limit_pu = 2.0;
+        cfg.faults.overcurrent_ratio = 1.5;
+        cfg.faults.overcurrent_ticks = 3;
+        cfg.faults.continuous_current_pu = 1.0;
+        cfg.faults.overload_current_pu = 1.5;
+        cfg.faults.overload_time_s = 0.05;
+        cfg.faults.stall_time_s = 0.0;
+        // Count 0, offset 0: the d axis is phase a's, so i_a = i and i_b = −i/2 is i_d = i.
+        let on_d = |i: f64| PmsmInputs {
+            encoder_count: 0,
+            phase_current_pu: [pu(i), pu(-0.5 * i)],
+        };
+        let mut c = Controller::new(&cfg).unwrap();
+        let faults: Vec<_> = (0..4).map(|_| c.pmsm_tick(on_d(3.3)).fault).collect();
+        assert_eq!(
+            faults,
+            [
+                None,
+                None,
+                Some(Fault::Overcurrent),
+                Some(Fault::Overcurrent)
+            ]
+        );
+
+        let mut c = Controller::new(&cfg).unwrap();
+        let closed = c.protection().trip_time_s(1.3).unwrap();
+        let ratio = cfg.current_rate_hz / cfg.velocity_rate_hz;
+        let mut tripped = None;
+        for k in 0..(2.0 * closed * f64::from(cfg.current_rate_hz)) as u32 {
+            let _ = c.pmsm_tick(on_d(1.3));
+            if k % ratio == 0 {
+                let out = c.velocity_tick(VelocityInputs::default());
+                if out.fault.is_some() {
+                    tripped = Some((out.fault, f64::from(k) / f64::from(cfg.current_rate_hz)));
+                    break;
+                }
+            }
+        }
+        let (fault, t) = tripped.expect("the I²t model trips");
+        assert_eq!(fault, Some(Fault::Overload));
+        assert!(
+            (t / closed - 1.0).abs() < 0.02,
+            "tripped at {t} s, closed form {closed} s"
+        );
+    }
+
     /// While enabled the d and q integrators act (a constant current error moves the
     /// voltage further every tick); a fault clears them.
     #[test]
