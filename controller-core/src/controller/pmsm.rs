@@ -361,7 +361,8 @@ mod tests {
                 }
             }
         }
-        let (fault, t) = tripped.expect("the I²t model trips");
+        assert!(tripped.is_some(), "the I²t model never tripped");
+        let (fault, t) = tripped.unwrap();
         assert_eq!(fault, Some(Fault::Overload));
         assert!(
             (t / closed - 1.0).abs() < 0.02,
