@@ -334,8 +334,8 @@ pub fn counts_to_pu(counts: i32, k: TickGain) -> Pu {
 }
 
 /// `value` quantized to `T` for the coefficient `param`: an error naming `T`'s Q-format if it
-/// does not fit ([`ConfigError::CoefficientOverflow`]) or, being non-zero, would lose more
-/// than 1 % to the quantization ([`ConfigError::CoefficientUnderflow`]). Configuration code
+/// does not fit ([`ConfigError::CoefficientOverflow`](crate::ConfigError::CoefficientOverflow)) or, being non-zero, would lose more
+/// than 1 % to the quantization ([`ConfigError::CoefficientUnderflow`](crate::ConfigError::CoefficientUnderflow)). Configuration code
 /// only.
 ///
 /// ```

@@ -14,7 +14,7 @@
 //! added after the regulator (the velocity loop passes the acceleration-feedback term), so the
 //! integrator also holds when it is the sum that sits at the torque limit, and clamps the
 //! output so that the sum, not the regulator alone, meets the limit. With a headroom h
-//! ([`PiCoefficients::update_with_offset_within`]) the output may reach h beyond that
+//! (`PiCoefficients::update_with_offset_within`) the output may reach h beyond that
 //! bound while the regulator asks for more, so that a downstream term that changes after
 //! the regulator ran (the acceleration feedback, recomputed every current tick) by less
 //! than h cannot take the sum off the limit. The headroom holds no state: the integral's
