@@ -7,8 +7,9 @@
 //! and the expected words ([`EXPECTED`]) in the image. [`replay`] feeds the records to
 //! [`App::on_current_tick`] and [`App::on_velocity_tick`] through a board stand-in, exactly
 //! as the timer interrupts do, and compares; [`replay_pmsm`] the same with
-//! [`App::on_pmsm_tick`]. The `fw-lil` image runs it on the Cortex-M4F under QEMU; the host
-//! tests `tests/loop_in_loop.rs` and `tests/loop_in_loop_pmsm.rs` run it on the host.
+//! [`App::on_pmsm_tick`] (both [`replay_on`] with their [`ReplayBoard`]). The `fw-lil` image
+//! runs it on the Cortex-M4F under QEMU; the host tests `tests/loop_in_loop.rs` and
+//! `tests/loop_in_loop_pmsm.rs` run it on the host.
 
 pub mod words;
 
@@ -17,12 +18,10 @@ use controller_core::{Fault, Pu};
 use crate::app::{velocity_inputs, App, SetpointSource};
 use crate::board::three_phase::PmsmLoopIo;
 use crate::board::{CurrentLoopIo, VelocityLoopIo};
-use words::{
-    tick_ratio, velocity_after, LilInput, PmsmLilInput, INPUT_RECORD_BYTES, PMSM_INPUT_RECORD_BYTES,
-};
+use words::{tick_ratio, velocity_after, LilInput, LilRecord, PmsmLilInput};
 
-/// The recorded inputs, [`INPUT_RECORD_BYTES`] per period ([`PMSM_INPUT_RECORD_BYTES`] for
-/// a PMSM drive).
+/// The recorded inputs, [`words::INPUT_RECORD_BYTES`] per period
+/// ([`words::PMSM_INPUT_RECORD_BYTES`] for a PMSM drive).
 pub static INPUTS: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/lil_inputs.bin"));
 /// The expected output words (u32 LE), in run order, from the host build of the core.
 pub static EXPECTED: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/lil_expected.bin"));
@@ -216,9 +215,55 @@ fn expected_words(expected: &[u8]) -> impl Iterator<Item = u32> + '_ {
     })
 }
 
-/// Replay `inputs` through `app` (the interrupts' code) with `profile`, comparing with
-/// `expected` words.
-pub fn replay<S: SetpointSource>(
+/// A motor kind's replay: its board stand-in ([`ReplayIo`], [`PmsmReplayIo`]), the record
+/// that stand-in serves and the current tick that reads it.
+pub trait ReplayBoard: Default + VelocityLoopIo {
+    /// One period's record.
+    type Record: LilRecord;
+    /// Serve `record` to this period's ticks and run `app`'s current tick on it; hand the
+    /// tick's output words to `check` and return the fault it reported and the enable
+    /// output it set.
+    fn current_tick(
+        &mut self,
+        record: Self::Record,
+        app: &mut App,
+        check: impl FnOnce(&[u32]),
+    ) -> (Option<Fault>, bool);
+}
+
+impl ReplayBoard for ReplayIo {
+    type Record = LilInput;
+    fn current_tick(
+        &mut self,
+        record: LilInput,
+        app: &mut App,
+        check: impl FnOnce(&[u32]),
+    ) -> (Option<Fault>, bool) {
+        self.record = record;
+        let out = app.on_current_tick(self);
+        check(&out.to_words());
+        (out.fault, self.enabled)
+    }
+}
+
+impl ReplayBoard for PmsmReplayIo {
+    type Record = PmsmLilInput;
+    fn current_tick(
+        &mut self,
+        record: PmsmLilInput,
+        app: &mut App,
+        check: impl FnOnce(&[u32]),
+    ) -> (Option<Fault>, bool) {
+        self.record = record;
+        let out = app.on_pmsm_tick(self);
+        check(&out.to_words());
+        (out.fault, self.enabled)
+    }
+}
+
+/// Replay `inputs` (records of `B`) through `app` (the interrupts' code) on board stand-in
+/// `B` with `profile`, comparing with `expected` words.
+pub fn replay_on<B: ReplayBoard, S: SetpointSource>(
     app: &mut App,
     profile: &mut S,
     ratio: u32,
@@ -226,21 +271,17 @@ pub fn replay<S: SetpointSource>(
     expected: &[u8],
 ) -> ReplayReport {
     let mut c = Checker::new(expected_words(expected));
-    let mut io = ReplayIo::default();
-    for (k, chunk) in (0_u32..).zip(inputs.chunks_exact(INPUT_RECORD_BYTES)) {
-        let mut rec = [0_u8; INPUT_RECORD_BYTES];
-        rec.copy_from_slice(chunk);
+    let mut io = B::default();
+    for (k, chunk) in (0_u32..).zip(inputs.chunks_exact(B::Record::BYTES)) {
         // A record that names no input (a fault-input word other than 0 or 1) is a
         // mismatch, and the replay stops there.
-        let Ok(record) = LilInput::from_bytes(&rec) else {
+        let Some(record) = B::Record::from_chunk(chunk) else {
             c.report.mismatches += 1;
             break;
         };
-        io.record = record;
-        let out = app.on_current_tick(&mut io);
-        c.report.enabled_ticks += u32::from(io.enabled);
-        c.report.final_fault = out.fault;
-        c.check(k, &out.to_words());
+        let (fault, enabled) = io.current_tick(record, app, |w| c.check(k, w));
+        c.report.final_fault = fault;
+        c.report.enabled_ticks += u32::from(enabled);
         if velocity_after(k, ratio) {
             let v = app.on_velocity_tick(velocity_inputs(&mut io, profile));
             c.check(k, &v.to_words());
@@ -248,6 +289,18 @@ pub fn replay<S: SetpointSource>(
         c.report.periods += 1;
     }
     c.finish()
+}
+
+/// Replay `inputs` ([`LilInput`]s) through a DC drive's `app` ([`App::on_current_tick`])
+/// with `profile`, comparing with `expected` words.
+pub fn replay<S: SetpointSource>(
+    app: &mut App,
+    profile: &mut S,
+    ratio: u32,
+    inputs: &[u8],
+    expected: &[u8],
+) -> ReplayReport {
+    replay_on::<ReplayIo, S>(app, profile, ratio, inputs, expected)
 }
 
 /// As [`replay`], for a PMSM drive's app ([`App::new_pmsm`]): the records are
@@ -259,27 +312,7 @@ pub fn replay_pmsm<S: SetpointSource>(
     inputs: &[u8],
     expected: &[u8],
 ) -> ReplayReport {
-    let mut c = Checker::new(expected_words(expected));
-    let mut io = PmsmReplayIo::default();
-    for (k, chunk) in (0_u32..).zip(inputs.chunks_exact(PMSM_INPUT_RECORD_BYTES)) {
-        let mut rec = [0_u8; PMSM_INPUT_RECORD_BYTES];
-        rec.copy_from_slice(chunk);
-        let Ok(record) = PmsmLilInput::from_bytes(&rec) else {
-            c.report.mismatches += 1;
-            break;
-        };
-        io.record = record;
-        let out = app.on_pmsm_tick(&mut io);
-        c.report.enabled_ticks += u32::from(io.enabled);
-        c.report.final_fault = out.fault;
-        c.check(k, &out.to_words());
-        if velocity_after(k, ratio) {
-            let v = app.on_velocity_tick(velocity_inputs(&mut io, profile));
-            c.check(k, &v.to_words());
-        }
-        c.report.periods += 1;
-    }
-    c.finish()
+    replay_on::<PmsmReplayIo, S>(app, profile, ratio, inputs, expected)
 }
 
 /// Build the run's app (the baked drive, [`crate::drive::baked`]) and profile and replay the

@@ -80,35 +80,45 @@ fn bytes_to_words<const W: usize>(b: &[u8]) -> [u32; W] {
     words
 }
 
-impl LilInput {
-    /// The record as bytes: its words ([`controller_core::words`]), little-endian.
-    #[must_use]
-    pub fn to_bytes(self) -> [u8; INPUT_RECORD_BYTES] {
-        words_to_bytes(&self.to_words())
-    }
+/// A record type's bytes (`to_bytes`, `from_bytes` with `$bytes` bytes, and [`LilRecord`]):
+/// its words ([`controller_core::words`]), little-endian.
+macro_rules! record_bytes {
+    ($ty:ident, $bytes:ident) => {
+        impl $ty {
+            /// The record as bytes: its words, little-endian.
+            #[must_use]
+            pub fn to_bytes(self) -> [u8; $bytes] {
+                words_to_bytes(&self.to_words())
+            }
 
-    /// A record from bytes; a fault-input word other than 0 or 1 is an error.
-    pub fn from_bytes(
-        b: &[u8; INPUT_RECORD_BYTES],
-    ) -> Result<Self, controller_core::words::BadWord> {
-        Self::from_words(&bytes_to_words(b))
-    }
+            /// A record from bytes; a fault-input word other than 0 or 1 is an error.
+            pub fn from_bytes(b: &[u8; $bytes]) -> Result<Self, controller_core::words::BadWord> {
+                Self::from_words(&bytes_to_words(b))
+            }
+        }
+
+        impl LilRecord for $ty {
+            const BYTES: usize = $bytes;
+            fn from_chunk(chunk: &[u8]) -> Option<Self> {
+                Self::from_bytes(chunk.try_into().ok()?).ok()
+            }
+        }
+    };
 }
 
+/// A recorded period's inputs as they are stored: [`LilRecord::BYTES`] bytes.
+pub trait LilRecord: Sized {
+    /// Bytes per record.
+    const BYTES: usize;
+    /// The record of `chunk`; `None` if it is not [`Self::BYTES`] long or a word names no
+    /// input (a fault-input word other than 0 or 1).
+    fn from_chunk(chunk: &[u8]) -> Option<Self>;
+}
+
+record_bytes!(LilInput, INPUT_RECORD_BYTES);
+record_bytes!(PmsmLilInput, PMSM_INPUT_RECORD_BYTES);
+
 impl PmsmLilInput {
-    /// The record as bytes: its words, little-endian.
-    #[must_use]
-    pub fn to_bytes(self) -> [u8; PMSM_INPUT_RECORD_BYTES] {
-        words_to_bytes(&self.to_words())
-    }
-
-    /// A record from bytes; a fault-input word other than 0 or 1 is an error.
-    pub fn from_bytes(
-        b: &[u8; PMSM_INPUT_RECORD_BYTES],
-    ) -> Result<Self, controller_core::words::BadWord> {
-        Self::from_words(&bytes_to_words(b))
-    }
-
     /// The core's inputs for this record's current tick.
     #[must_use]
     pub fn pmsm_inputs(&self) -> PmsmInputs {
