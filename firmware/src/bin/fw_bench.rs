@@ -65,7 +65,7 @@ mod target {
     use crate::stack::{self, StackMark};
     use crate::window::{
         calibrate, cycle_window_arm_current, cycle_window_arm_velocity, cycle_window_preempt,
-        dither, elapsed, per_call,
+        dither, elapsed, per_call, tally, timed,
     };
 
     /// Budget of one 4 kHz period: current tick + half a velocity tick [instructions]: the
@@ -152,21 +152,20 @@ mod target {
         cycle_window_preempt();
         let tick = CURRENT_TICKS.fetch_add(1, Ordering::Relaxed);
         if measuring(tick) {
-            dither(tick % 23);
-            let t0 = SYST::get_current();
-            let t1 = SYST::get_current();
-            CURRENT_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-            let sp = stack::sp();
-            stack::paint(sp);
-            cycle_window_arm_current();
-            dither(tick % 17);
-            let t0 = SYST::get_current();
-            let _ = LOOPS.current_isr();
-            let t1 = SYST::get_current();
-            CURRENT_STACK.record(sp, stack::depth(sp), IN_VELOCITY.load(Ordering::Relaxed));
-            CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-            CURRENT_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
-            CURRENT_SAMPLES.fetch_add(1, Ordering::Relaxed);
+            let isr = || LOOPS.current_isr();
+            let w = timed(
+                tick,
+                &CURRENT_OVERHEAD,
+                cycle_window_arm_current,
+                || (),
+                isr,
+            );
+            CURRENT_STACK.record(
+                w.sp,
+                stack::depth(w.sp),
+                IN_VELOCITY.load(Ordering::Relaxed),
+            );
+            tally(w.counts(), &CURRENT_COUNTS, &CURRENT_MAX, &CURRENT_SAMPLES);
             let mut io = SyntheticCurrentIo;
             let inputs = CurrentInputs {
                 encoder_count: io.encoder_count(),
@@ -231,20 +230,16 @@ mod target {
             preemption_check();
         }
         if measuring(tick * 2) {
-            dither(tick % 23);
-            let t0 = SYST::get_current();
-            let t1 = SYST::get_current();
-            VELOCITY_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-            let sp = stack::sp();
-            stack::paint(sp);
-            cycle_window_arm_velocity();
-            dither(tick % 17);
-            let before = CURRENT_TICKS.load(Ordering::Relaxed);
-            let t0 = SYST::get_current();
-            let out = LOOPS.velocity_isr();
-            let t1 = SYST::get_current();
-            let _ = out;
-            let velocity_depth = stack::depth(sp);
+            let before = || CURRENT_TICKS.load(Ordering::Relaxed);
+            let isr = || LOOPS.velocity_isr();
+            let w = timed(
+                tick,
+                &VELOCITY_OVERHEAD,
+                cycle_window_arm_velocity,
+                before,
+                isr,
+            );
+            let velocity_depth = stack::depth(w.sp);
             dither(tick % 13);
             let _ = BARE
                 .with(|(c, profile)| {
@@ -269,11 +264,14 @@ mod target {
                     let e = out.velocity_cmd_pu.saturating_sub(out.velocity_est_pu);
                     velocity_blocks(tick, e, setpoint.acceleration_pu_s, out.accel_fb_pu);
                 });
-            if CURRENT_TICKS.load(Ordering::Relaxed) == before {
-                VELOCITY_STACK.record(sp, velocity_depth, false);
-                VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-                VELOCITY_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
-                VELOCITY_SAMPLES.fetch_add(1, Ordering::Relaxed);
+            if CURRENT_TICKS.load(Ordering::Relaxed) == w.before {
+                VELOCITY_STACK.record(w.sp, velocity_depth, false);
+                tally(
+                    w.counts(),
+                    &VELOCITY_COUNTS,
+                    &VELOCITY_MAX,
+                    &VELOCITY_SAMPLES,
+                );
             } else {
                 // Preempted by the current loop: the window holds both ticks.
                 DISTURBED.fetch_add(1, Ordering::Relaxed);

@@ -33,7 +33,7 @@ use crate::stack::{self, StackMark, SPAN_BYTES};
 use crate::target::{MEASURED_TICKS, MOVE, WARMUP_TICKS};
 use crate::window::{
     cycle_window_arm_current, cycle_window_arm_velocity, cycle_window_next_group,
-    cycle_window_preempt, dither, elapsed, longest, per_call, INSTRUCTIONS_PER_COUNT,
+    cycle_window_preempt, dither, elapsed, longest, per_call, tally, timed, INSTRUCTIONS_PER_COUNT,
 };
 
 /// Target of one period at the drive's rates [instructions]: 1.4 × the DC drive's 650.
@@ -102,21 +102,21 @@ pub(crate) fn current_loop() {
     cycle_window_preempt();
     let tick = CURRENT_TICKS.fetch_add(1, Ordering::Relaxed);
     let out = if measuring(tick) {
-        dither(tick % 23);
-        let t0 = SYST::get_current();
-        let t1 = SYST::get_current();
-        CURRENT_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-        let sp = stack::sp();
-        stack::paint(sp);
-        cycle_window_arm_current();
-        dither(tick % 17);
-        let t0 = SYST::get_current();
-        let out = LOOPS.pmsm_isr();
-        let t1 = SYST::get_current();
-        CURRENT_STACK.record(sp, stack::depth(sp), IN_VELOCITY.load(Ordering::Relaxed));
-        CURRENT_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-        CURRENT_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
-        CURRENT_SAMPLES.fetch_add(1, Ordering::Relaxed);
+        let isr = || LOOPS.pmsm_isr();
+        let w = timed(
+            tick,
+            &CURRENT_OVERHEAD,
+            cycle_window_arm_current,
+            || (),
+            isr,
+        );
+        CURRENT_STACK.record(
+            w.sp,
+            stack::depth(w.sp),
+            IN_VELOCITY.load(Ordering::Relaxed),
+        );
+        tally(w.counts(), &CURRENT_COUNTS, &CURRENT_MAX, &CURRENT_SAMPLES);
+        let out = w.out;
         let inputs = inputs();
         dither(tick % 13);
         let bare = BARE.with(|(c, _)| {
@@ -189,26 +189,26 @@ fn velocity_body() {
         bare_velocity_tick(false);
         return;
     }
-    dither(tick % 23);
-    let t0 = SYST::get_current();
-    let t1 = SYST::get_current();
-    VELOCITY_OVERHEAD.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-    let sp = stack::sp();
-    stack::paint(sp);
-    cycle_window_arm_velocity();
-    dither(tick % 17);
-    let before = CURRENT_TICKS.load(Ordering::Relaxed);
-    let t0 = SYST::get_current();
-    let _ = LOOPS.velocity_isr();
-    let t1 = SYST::get_current();
-    let depth = stack::depth(sp);
+    let before = || CURRENT_TICKS.load(Ordering::Relaxed);
+    let isr = || LOOPS.velocity_isr();
+    let w = timed(
+        tick,
+        &VELOCITY_OVERHEAD,
+        cycle_window_arm_velocity,
+        before,
+        isr,
+    );
+    let depth = stack::depth(w.sp);
     dither(tick % 13);
     bare_velocity_tick(true);
-    if CURRENT_TICKS.load(Ordering::Relaxed) == before {
-        VELOCITY_STACK.record(sp, depth, false);
-        VELOCITY_COUNTS.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-        VELOCITY_MAX.fetch_max(elapsed(t0, t1), Ordering::Relaxed);
-        VELOCITY_SAMPLES.fetch_add(1, Ordering::Relaxed);
+    if CURRENT_TICKS.load(Ordering::Relaxed) == w.before {
+        VELOCITY_STACK.record(w.sp, depth, false);
+        tally(
+            w.counts(),
+            &VELOCITY_COUNTS,
+            &VELOCITY_MAX,
+            &VELOCITY_SAMPLES,
+        );
     } else {
         DISTURBED.fetch_add(1, Ordering::Relaxed);
     }

@@ -6,6 +6,8 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::SYST;
 use firmware::boards::active as board;
 
+use crate::stack;
+
 /// Instructions per SysTick count: 1 instruction = 1 ns (icount shift=0), 25 MHz clock.
 pub(crate) const INSTRUCTIONS_PER_COUNT: u32 = 1_000_000_000 / board::CORE_CLOCK_HZ;
 
@@ -71,6 +73,68 @@ pub(crate) fn longest(max: &AtomicU32, overhead: &AtomicU32, samples: &AtomicU32
     let max = max.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT;
     let mean_overhead = overhead.load(Ordering::Relaxed) * INSTRUCTIONS_PER_COUNT / n;
     max.saturating_sub(mean_overhead)
+}
+
+/// One measured window of a loop's interrupt body.
+pub(crate) struct Window<T, B> {
+    /// What the body returned.
+    pub(crate) out: T,
+    /// What `before` returned (read just before the window).
+    pub(crate) before: B,
+    /// The SysTick readings that bound the window.
+    t0: u32,
+    t1: u32,
+    /// The handler's stack pointer, below which the stack was painted.
+    pub(crate) sp: u32,
+}
+
+impl<T, B> Window<T, B> {
+    /// The window [SysTick counts].
+    #[inline(always)]
+    pub(crate) fn counts(&self) -> u32 {
+        elapsed(self.t0, self.t1)
+    }
+}
+
+/// Time `body` (a loop's interrupt body) of tick `tick` as every window is: an empty window
+/// at a dithered phase added to `overhead`, the stack painted below the handler's stack
+/// pointer, the cycle tracer armed by `arm`, then `before` and the body's window at another
+/// phase.
+#[inline(always)]
+pub(crate) fn timed<T, B>(
+    tick: u32,
+    overhead: &AtomicU32,
+    arm: extern "C" fn(),
+    before: impl FnOnce() -> B,
+    body: impl FnOnce() -> T,
+) -> Window<T, B> {
+    dither(tick % 23);
+    let t0 = SYST::get_current();
+    let t1 = SYST::get_current();
+    overhead.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+    let sp = stack::sp();
+    stack::paint(sp);
+    arm();
+    dither(tick % 17);
+    let before = before();
+    let t0 = SYST::get_current();
+    let out = body();
+    let t1 = SYST::get_current();
+    Window {
+        out,
+        before,
+        t0,
+        t1,
+        sp,
+    }
+}
+
+/// Add an undisturbed window of `counts` to a loop's sums, longest window and samples.
+#[inline(always)]
+pub(crate) fn tally(counts: u32, sum: &AtomicU32, max: &AtomicU32, samples: &AtomicU32) {
+    sum.fetch_add(counts, Ordering::Relaxed);
+    max.fetch_max(counts, Ordering::Relaxed);
+    samples.fetch_add(1, Ordering::Relaxed);
 }
 
 /// What the last window mark armed (1: current tick, 2: velocity tick, 0: preempted).
