@@ -1,7 +1,7 @@
 //! The per-block measurements: the bare controller's blocks, each timed on its own with
 //! its own state, fed the bare controller's signals: where the core's instructions go.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::AtomicU32;
 
 use controller_core::controller::Blocks;
 use controller_core::filter::LowPassState;
@@ -10,11 +10,10 @@ use controller_core::observer::ObserverState;
 use controller_core::per_unit::count_diff;
 use controller_core::pi::PiState;
 use controller_core::Pu;
-use cortex_m::peripheral::SYST;
 use firmware::isr::TaskLocal;
 
 use crate::target::{CURRENT_OVERHEAD, CURRENT_SAMPLES, VELOCITY_OVERHEAD, VELOCITY_SAMPLES};
-use crate::window::{dither, elapsed, per_call};
+use crate::window::{per_call, timed_block};
 
 /// The bare controller's blocks with one state each.
 struct BlockBench {
@@ -71,14 +70,7 @@ pub(crate) fn install(blocks: Blocks, notch: Option<Notch>) {
 /// to `block`'s total.
 #[inline(always)]
 fn timed<R>(block: Block, phase: u32, f: impl FnOnce() -> R) -> R {
-    dither(phase);
-    let t0 = SYST::get_current();
-    let r = core::hint::black_box(f());
-    let t1 = SYST::get_current();
-    if let Some(total) = BLOCK_COUNTS.get(block as usize) {
-        total.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-    }
-    r
+    timed_block(BLOCK_COUNTS.get(block as usize), phase, f)
 }
 
 /// The current-rate blocks (observer, closed-form AFB with its filter, the filter step

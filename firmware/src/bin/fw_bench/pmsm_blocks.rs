@@ -2,16 +2,15 @@
 //! the bare controller's signals of the tick (its coefficients, a copy of its FOC state):
 //! where `Controller::pmsm_tick`'s instructions go.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::AtomicU32;
 
 use controller_core::foc::transforms::{inverse_park, CosSin};
 use controller_core::foc::{FocCoefficients, FocState};
 use controller_core::per_unit::count_diff;
 use controller_core::{PmsmInputs, PmsmOutputs, Pu};
-use cortex_m::peripheral::SYST;
 use firmware::isr::TaskLocal;
 
-use crate::window::{dither, elapsed, per_call};
+use crate::window::{per_call, timed_block};
 
 /// The timed blocks, in table order.
 #[derive(Clone, Copy)]
@@ -63,14 +62,7 @@ pub(crate) fn install(foc: FocCoefficients, raw: u32) {
 /// to `block`'s total.
 #[inline(always)]
 fn timed<R>(block: Block, phase: u32, f: impl FnOnce() -> R) -> R {
-    dither(phase);
-    let t0 = SYST::get_current();
-    let r = core::hint::black_box(f());
-    let t1 = SYST::get_current();
-    if let Some(total) = BLOCK_COUNTS.get(block as usize) {
-        total.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
-    }
-    r
+    timed_block(BLOCK_COUNTS.get(block as usize), phase, f)
 }
 
 /// The current-rate blocks on the tick's inputs and the bare tick's outputs (`speed`: the

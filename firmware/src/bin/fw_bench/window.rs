@@ -137,6 +137,20 @@ pub(crate) fn tally(counts: u32, sum: &AtomicU32, max: &AtomicU32, samples: &Ato
     samples.fetch_add(1, Ordering::Relaxed);
 }
 
+/// Run `f` (one block of a tick) in a measured window at a dithered `phase`, its result
+/// kept, and add the window's SysTick counts to `total`.
+#[inline(always)]
+pub(crate) fn timed_block<R>(total: Option<&AtomicU32>, phase: u32, f: impl FnOnce() -> R) -> R {
+    dither(phase);
+    let t0 = SYST::get_current();
+    let r = core::hint::black_box(f());
+    let t1 = SYST::get_current();
+    if let Some(total) = total {
+        total.fetch_add(elapsed(t0, t1), Ordering::Relaxed);
+    }
+    r
+}
+
 /// What the last window mark armed (1: current tick, 2: velocity tick, 0: preempted).
 static ARMED: AtomicU32 = AtomicU32::new(0);
 
