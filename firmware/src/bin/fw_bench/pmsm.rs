@@ -29,11 +29,12 @@ use firmware::rt::exit;
 use firmware::synthetic::{SyntheticPmsmIo, SyntheticSensors, SyntheticVelocityIo};
 
 use crate::pmsm_blocks::{self as blocks, BLOCKS};
+use crate::report::{print_ticks, Sums};
 use crate::stack::{self, StackMark, SPAN_BYTES};
 use crate::target::{MEASURED_TICKS, MOVE, WARMUP_TICKS};
 use crate::window::{
     cycle_window_arm_current, cycle_window_arm_velocity, cycle_window_next_group,
-    cycle_window_preempt, dither, elapsed, longest, per_call, tally, timed, INSTRUCTIONS_PER_COUNT,
+    cycle_window_preempt, dither, elapsed, per_call, tally, timed,
 };
 
 /// Target of one period at the drive's rates [instructions]: 1.4 × the DC drive's 650.
@@ -274,19 +275,20 @@ fn report(cfg: &DriveConfig, calibration: u32) -> bool {
         cfg.velocity_rate_hz,
         calibration
     );
-    defmt::info!(
-        "measured: {=u32} current ticks, {=u32} velocity ticks ({=u32} disturbed), averaged",
-        CURRENT_SAMPLES.load(Ordering::Relaxed),
-        VELOCITY_SAMPLES.load(Ordering::Relaxed),
-        DISTURBED.load(Ordering::Relaxed)
-    );
-    defmt::info!("current_tick_instructions: {=u32}", current);
-    defmt::info!("velocity_tick_instructions: {=u32}", velocity);
-    defmt::info!(
-        "longest single tick: current {=u32}, velocity {=u32} instructions (one window, ±{=u32})",
-        longest(&CURRENT_MAX, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
-        longest(&VELOCITY_MAX, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
-        INSTRUCTIONS_PER_COUNT
+    let current_sums = Sums {
+        samples: &CURRENT_SAMPLES,
+        overhead: &CURRENT_OVERHEAD,
+        max: &CURRENT_MAX,
+    };
+    let velocity_sums = Sums {
+        samples: &VELOCITY_SAMPLES,
+        overhead: &VELOCITY_OVERHEAD,
+        max: &VELOCITY_MAX,
+    };
+    print_ticks(
+        (current, &current_sums),
+        (velocity, &velocity_sums),
+        &DISTURBED,
     );
     defmt::info!(
         "pmsm_period_instructions: {=u32} (current + velocity/{=u32} at the drive's rates; target {=u32} = 1.4 × the DC drive's 650: {=str}; regression budget {=u32})",

@@ -1,7 +1,7 @@
 //! The bench's log: the figures, the per-block table, the image's memory use, and the
 //! pass/fail verdict.
 
-use core::sync::atomic::Ordering;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use controller_core::Fault;
 use firmware::boards::active as board;
@@ -38,6 +38,35 @@ pub(crate) struct Results {
     pub(crate) stack: u32,
 }
 
+/// One loop's window sums, as the handlers tally them (`window::tally`).
+pub(crate) struct Sums<'a> {
+    /// Undisturbed windows.
+    pub(crate) samples: &'a AtomicU32,
+    /// Their empty windows' counts.
+    pub(crate) overhead: &'a AtomicU32,
+    /// The longest window's counts.
+    pub(crate) max: &'a AtomicU32,
+}
+
+/// Log the windows measured (`disturbed`: the velocity windows a current tick preempted),
+/// each loop's mean interrupt body [instructions] and its longest window.
+pub(crate) fn print_ticks(current: (u32, &Sums), velocity: (u32, &Sums), disturbed: &AtomicU32) {
+    defmt::info!(
+        "measured: {=u32} current ticks, {=u32} velocity ticks ({=u32} disturbed), averaged",
+        current.1.samples.load(Ordering::Relaxed),
+        velocity.1.samples.load(Ordering::Relaxed),
+        disturbed.load(Ordering::Relaxed)
+    );
+    defmt::info!("current_tick_instructions: {=u32}", current.0);
+    defmt::info!("velocity_tick_instructions: {=u32}", velocity.0);
+    defmt::info!(
+        "longest single tick: current {=u32}, velocity {=u32} instructions (one window, ±{=u32})",
+        longest(current.1.max, current.1.overhead, current.1.samples),
+        longest(velocity.1.max, velocity.1.overhead, velocity.1.samples),
+        INSTRUCTIONS_PER_COUNT
+    );
+}
+
 /// Log the figures: method, interrupt bodies, the core's share, the per-block table, and
 /// the image's memory use.
 pub(crate) fn print(r: &Results) {
@@ -46,20 +75,17 @@ pub(crate) fn print(r: &Results) {
         "calibration: a block of 1000 NOPs (+ call/return) measures {=u32} instructions",
         r.calibration
     );
-    defmt::info!(
-        "measured: {=u32} current ticks, {=u32} velocity ticks ({=u32} disturbed), averaged",
-        CURRENT_SAMPLES.load(Ordering::Relaxed),
-        VELOCITY_SAMPLES.load(Ordering::Relaxed),
-        DISTURBED.load(Ordering::Relaxed)
-    );
-    defmt::info!("current_tick_instructions: {=u32}", r.current);
-    defmt::info!("velocity_tick_instructions: {=u32}", r.velocity);
-    defmt::info!(
-        "longest single tick: current {=u32}, velocity {=u32} instructions (one window, ±{=u32})",
-        longest(&CURRENT_MAX, &CURRENT_OVERHEAD, &CURRENT_SAMPLES),
-        longest(&VELOCITY_MAX, &VELOCITY_OVERHEAD, &VELOCITY_SAMPLES),
-        INSTRUCTIONS_PER_COUNT
-    );
+    let current = Sums {
+        samples: &CURRENT_SAMPLES,
+        overhead: &CURRENT_OVERHEAD,
+        max: &CURRENT_MAX,
+    };
+    let velocity = Sums {
+        samples: &VELOCITY_SAMPLES,
+        overhead: &VELOCITY_OVERHEAD,
+        max: &VELOCITY_MAX,
+    };
+    print_ticks((r.current, &current), (r.velocity, &velocity), &DISTURBED);
     defmt::info!(
         "period_instructions: {=u32} (current + velocity/2; budget {=u32})",
         r.period,
