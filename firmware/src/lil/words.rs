@@ -15,7 +15,8 @@
 //! setpoint: the order the aligned timer interrupts give on the target.
 
 use controller_core::{
-    CurrentInputs, DriveConfig, PmsmInputs, Profile, ProfileConfig, ProfileKind, Pu, VelocityInputs,
+    Controller, CurrentInputs, DriveConfig, PmsmInputs, Profile, ProfileConfig, ProfileKind, Pu,
+    Setpoint, VelocityInputs,
 };
 
 /// Bytes per input record: encoder count (u32 LE), current (Q16.16 bits, i32 LE), fault
@@ -80,10 +81,11 @@ fn bytes_to_words<const W: usize>(b: &[u8]) -> [u32; W] {
     words
 }
 
-/// A record type's bytes (`to_bytes`, `from_bytes` with `$bytes` bytes, and [`LilRecord`]):
-/// its words ([`controller_core::words`]), little-endian.
-macro_rules! record_bytes {
-    ($ty:ident, $bytes:ident) => {
+/// A record type's bytes (`to_bytes`, `from_bytes` with `$bytes` bytes: its words
+/// ([`controller_core::words`]), little-endian) and its [`LilRecord`], whose current tick
+/// is `$tick` (record, controller → output words).
+macro_rules! lil_record {
+    ($ty:ident, $bytes:ident, $tick:expr) => {
         impl $ty {
             /// The record as bytes: its words, little-endian.
             #[must_use]
@@ -102,21 +104,51 @@ macro_rules! record_bytes {
             fn from_chunk(chunk: &[u8]) -> Option<Self> {
                 Self::from_bytes(chunk.try_into().ok()?).ok()
             }
+            fn velocity_inputs(&self, setpoint: Setpoint) -> VelocityInputs {
+                VelocityInputs {
+                    encoder_count: self.encoder_count,
+                    setpoint,
+                    fault_input: self.fault_input,
+                }
+            }
+            fn core_current_tick(
+                &self,
+                controller: &mut Controller,
+                emit: &mut impl FnMut(&[u32]),
+            ) {
+                let tick = $tick;
+                emit(&tick(self, controller));
+            }
         }
     };
 }
 
-/// A recorded period's inputs as they are stored: [`LilRecord::BYTES`] bytes.
+/// A recorded period's inputs of one motor kind: stored as [`LilRecord::BYTES`] bytes,
+/// read by the bare core's ticks in [`reference_run`].
 pub trait LilRecord: Sized {
     /// Bytes per record.
     const BYTES: usize;
     /// The record of `chunk`; `None` if it is not [`Self::BYTES`] long or a word names no
     /// input (a fault-input word other than 0 or 1).
     fn from_chunk(chunk: &[u8]) -> Option<Self>;
+    /// The core's velocity-tick inputs: the record's encoder count and fault input, and
+    /// `setpoint`.
+    fn velocity_inputs(&self, setpoint: Setpoint) -> VelocityInputs;
+    /// Run the bare core's current tick of this motor kind on the record; hand its output
+    /// words to `emit`.
+    fn core_current_tick(&self, controller: &mut Controller, emit: &mut impl FnMut(&[u32]));
 }
 
-record_bytes!(LilInput, INPUT_RECORD_BYTES);
-record_bytes!(PmsmLilInput, PMSM_INPUT_RECORD_BYTES);
+lil_record!(
+    LilInput,
+    INPUT_RECORD_BYTES,
+    |r: &LilInput, c: &mut Controller| c.current_tick(current_inputs(r)).to_words()
+);
+lil_record!(
+    PmsmLilInput,
+    PMSM_INPUT_RECORD_BYTES,
+    |r: &PmsmLilInput, c: &mut Controller| c.pmsm_tick(r.pmsm_inputs()).to_words()
+);
 
 impl PmsmLilInput {
     /// The core's inputs for this record's current tick.
@@ -170,51 +202,33 @@ pub fn current_inputs(rec: &LilInput) -> CurrentInputs {
 ///
 /// # Errors
 /// The core's configuration error for the run's settings.
-pub fn reference_run(
+pub fn reference_run<R: LilRecord>(
     cfg: &DriveConfig,
-    inputs: impl IntoIterator<Item = LilInput>,
+    inputs: impl IntoIterator<Item = R>,
     mut emit: impl FnMut(&[u32]),
 ) -> Result<(), controller_core::ConfigError> {
-    let mut controller = controller_core::Controller::new(cfg)?;
+    let mut controller = Controller::new(cfg)?;
     let mut profile = Profile::new(&profile_config(), cfg)?;
     let ratio = tick_ratio(cfg);
     for (k, rec) in (0_u32..).zip(inputs) {
-        emit(&controller.current_tick(current_inputs(&rec)).to_words());
+        rec.core_current_tick(&mut controller, &mut emit);
         if velocity_after(k, ratio) {
-            let out = controller.velocity_tick(VelocityInputs {
-                encoder_count: rec.encoder_count,
-                setpoint: profile.next(),
-                fault_input: rec.fault_input,
-            });
+            let out = controller.velocity_tick(rec.velocity_inputs(profile.next()));
             emit(&out.to_words());
         }
     }
     Ok(())
 }
 
-/// As [`reference_run`], for a PMSM drive: its current ticks are `Controller::pmsm_tick`
-/// (13 words each: [`controller_core::PmsmOutputs`]).
+/// [`reference_run`] of a PMSM drive's records: its current ticks are
+/// `Controller::pmsm_tick` (13 words each: [`controller_core::PmsmOutputs`]).
 ///
 /// # Errors
 /// The core's configuration error for the run's settings.
 pub fn reference_run_pmsm(
     cfg: &DriveConfig,
     inputs: impl IntoIterator<Item = PmsmLilInput>,
-    mut emit: impl FnMut(&[u32]),
+    emit: impl FnMut(&[u32]),
 ) -> Result<(), controller_core::ConfigError> {
-    let mut controller = controller_core::Controller::new(cfg)?;
-    let mut profile = Profile::new(&profile_config(), cfg)?;
-    let ratio = tick_ratio(cfg);
-    for (k, rec) in (0_u32..).zip(inputs) {
-        emit(&controller.pmsm_tick(rec.pmsm_inputs()).to_words());
-        if velocity_after(k, ratio) {
-            let out = controller.velocity_tick(VelocityInputs {
-                encoder_count: rec.encoder_count,
-                setpoint: profile.next(),
-                fault_input: rec.fault_input,
-            });
-            emit(&out.to_words());
-        }
-    }
-    Ok(())
+    reference_run(cfg, inputs, emit)
 }
