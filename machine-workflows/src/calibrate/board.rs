@@ -74,25 +74,6 @@ pub fn save_on_board(client: &mut BoardClient<Stream>, est: &MotorEstimates) -> 
     Ok(())
 }
 
-/// The calibration in one line.
-#[must_use]
-pub fn describe(m: &MotorEstimates) -> String {
-    format!(
-        "R = {:.4} pu, Ld = {:.3e} pu·s, Lq = {:.3e} pu·s, {} pole pairs, encoder offset \
-         {:.2} deg electrical{}",
-        m.winding_resistance_pu.value,
-        m.d_inductance_pu_s.value,
-        m.q_inductance_pu_s.value,
-        m.pole_pairs,
-        m.encoder_offset_elec_deg.value,
-        if m.encoder_reversed {
-            " (reversed)"
-        } else {
-            ""
-        }
-    )
-}
-
 /// `stiffdrive board ... calibrate`: calibrates, sets and saves; the line to print.
 ///
 /// # Errors
@@ -102,6 +83,6 @@ pub fn calibrate_action(client: &mut BoardClient<Stream>) -> Result<String> {
     save_on_board(client, &est)?;
     Ok(format!(
         "motor calibrated on the board: {}; set and saved",
-        describe(&est)
+        est.describe()
     ))
 }

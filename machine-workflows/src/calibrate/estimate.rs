@@ -62,6 +62,27 @@ pub struct MotorEstimates {
     pub sweep_lag_elec_deg: f64,
 }
 
+impl MotorEstimates {
+    /// The calibration in one line (what `identify` and the board's `calibrate` print).
+    #[must_use]
+    pub fn describe(&self) -> String {
+        format!(
+            "R = {:.4} pu, Ld = {:.3e} pu·s, Lq = {:.3e} pu·s, {} pole pairs, encoder offset \
+             {:.2} deg electrical{}",
+            self.winding_resistance_pu.value,
+            self.d_inductance_pu_s.value,
+            self.q_inductance_pu_s.value,
+            self.pole_pairs,
+            self.encoder_offset_elec_deg.value,
+            if self.encoder_reversed {
+                " (reversed)"
+            } else {
+                ""
+            }
+        )
+    }
+}
+
 fn bad(what: impl Into<String>) -> HarnessError {
     HarnessError::Backend(format!("calibration: {}", what.into()))
 }

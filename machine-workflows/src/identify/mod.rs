@@ -191,22 +191,10 @@ pub fn identify(config: &str, sets: &[String], out: &Path) -> Result<String> {
 /// The line `identify` prints.
 fn summary(base: &RunConfig, ident: &Identification, out: &Path) -> String {
     let f = &ident.fit.fit;
-    let motor = ident.motor.as_ref().map_or_else(String::new, |m| {
-        format!(
-            "R = {:.4} pu, Ld = {:.3e} pu·s, Lq = {:.3e} pu·s, {} pole pairs, encoder offset \
-             {:.2} deg electrical{}, ",
-            m.winding_resistance_pu.value,
-            m.d_inductance_pu_s.value,
-            m.q_inductance_pu_s.value,
-            m.pole_pairs,
-            m.encoder_offset_elec_deg.value,
-            if m.encoder_reversed {
-                " (reversed)"
-            } else {
-                ""
-            }
-        )
-    });
+    let motor = ident
+        .motor
+        .as_ref()
+        .map_or_else(String::new, |m| format!("{}, ", m.describe()));
     format!(
         "identify {}: {motor}Jm = {:.4} s, Jl = {:.4} s, anti-resonance {:.2} Hz, resonance {:.2} Hz, \
          damping {:.3}, viscous {:.4} pu, lost motion {:.4} deg (measured on {}) -> {}",
