@@ -20,6 +20,7 @@
 //! `identify --board` lasts about 110 s here (the calibration's 3.9 s of ticks, then
 //! identify's default 65.5 s PRBS and the 1.5 s lost-motion test, in real time on QEMU).
 
+use crate::board_identify::estimate;
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -94,17 +95,6 @@ fn judge(
         ));
     }
     failures
-}
-
-/// The estimate `name` of `identify.json`.
-fn estimate(json: &serde_json::Value, name: &str) -> f64 {
-    json["estimates"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["name"] == name)
-        .and_then(|e| e["value"].as_f64())
-        .unwrap_or_else(|| panic!("no estimate {name} in identify.json"))
 }
 
 pub fn identify_on_the_board_calibrates_a_pmsm_no_config_describes() {

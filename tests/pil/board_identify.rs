@@ -26,7 +26,7 @@ fn truth() -> (MechanicsConfig, u32) {
 }
 
 /// The estimate `name` of `identify.json`.
-fn estimate(json: &serde_json::Value, name: &str) -> f64 {
+pub(crate) fn estimate(json: &serde_json::Value, name: &str) -> f64 {
     json["estimates"]
         .as_array()
         .unwrap()
