@@ -43,10 +43,6 @@ mod words;
 #[allow(dead_code)]
 mod three_phase;
 
-/// TIM1's clock on the three-phase board [Hz] (`boards::stm32f4::CORE_CLOCK_HZ`: APB2
-/// timers at the core clock).
-const THREE_PHASE_TIMER_HZ: u32 = 168_000_000;
-
 /// The reference PMSM drive (from the workspace root).
 const REFERENCE_PMSM_PATH: &str = "configs/machines/table1-pmsm.toml";
 
@@ -257,23 +253,11 @@ fn bake_reference_pmsm(root: &std::path::Path, out: &std::path::Path) -> Result<
 }
 
 /// The three-phase image (`board-stm32f4-3ph`) runs a PMSM drive whose current loop takes a
-/// whole number of PWM periods (`three_phase::periods_per_tick`).
+/// whole number of PWM periods (`three_phase::drive_periods_per_tick`).
 fn check_three_phase(cfg: &DriveConfig) -> Result<(), String> {
-    let Some(p) = cfg.pmsm else {
-        return Err(
-            "board-stm32f4-3ph drives a three-phase motor: STIFFDRIVE_DRIVE must name \
-                    a machine file whose [electrics] motor = \"pmsm\" (e.g. \
-                    configs/machines/table1-pmsm.toml)"
-                .into(),
-        );
-    };
-    three_phase::periods_per_tick(
-        THREE_PHASE_TIMER_HZ,
-        p.pwm_period_counts,
-        cfg.current_rate_hz,
-    )
-    .map(|_| ())
-    .map_err(|e| e.to_string())
+    three_phase::drive_periods_per_tick(cfg)
+        .map(|_| ())
+        .map_err(|e| format!("STIFFDRIVE_DRIVE (board-stm32f4-3ph): {e}"))
 }
 
 /// Parse the recording of the drive's motor (`lil/inputs.csv`, or `lil/inputs-pmsm.csv` for

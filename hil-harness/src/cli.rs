@@ -136,8 +136,9 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Build the STM32F4-Discovery image carrying a machine file's drive (e.g. a
-    /// `drive.toml` from `tune` or `commission`) and run it on the board through probe-rs.
+    /// Build the image of the board for a machine file's motor, carrying its drive (e.g. a
+    /// `drive.toml` from `tune` or `commission`), and run it on the board through probe-rs:
+    /// a DC motor on the STM32F4-Discovery, a PMSM on the NUCLEO-F446RE with X-NUCLEO-IHM08M1.
     Flash {
         /// Machine file (path, or name under configs/) whose `[drive]` the image carries.
         #[arg(long)]

@@ -14,9 +14,17 @@
 
 use fw_runner::provision;
 use sim_engine::error::{HarnessError, Result};
+
+/// The three-phase board's table and arithmetic, the firmware's own source: what its image
+/// checks a drive against, checked here before a build.
+#[path = "../../firmware/src/board/three_phase.rs"]
+#[allow(dead_code)]
+mod three_phase;
+
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+pub use three_phase::{drive_periods_per_tick, DriveError as ThreePhaseDriveError};
 
 /// The workspace root (this crate's parent).
 fn workspace_root() -> PathBuf {
@@ -168,6 +176,38 @@ pub fn build_stm32_image_for(drive: Option<&Path>) -> Result<PathBuf> {
         "board-stm32f4",
     ];
     build_locked(&args, drive, |release| copy_out(release, "firmware", &name))
+}
+
+/// Builds the three-phase board's image (NUCLEO-F446RE with X-NUCLEO-IHM08M1,
+/// `--no-default-features --features board-stm32f4-3ph`) carrying the PMSM drive of the
+/// machine file `drive` (an absolute path) and returns the ELF path,
+/// `images/stm32f4-3ph-<file stem>`. The drive is checked against the board first
+/// ([`drive_periods_per_tick`]), so a drive the board cannot run builds nothing.
+///
+/// # Errors
+/// The drive's key that the board refuses; a failed build.
+pub fn build_three_phase_image(drive: &Path) -> Result<PathBuf> {
+    let machine = machine_file::load(drive)?;
+    drive_periods_per_tick(&machine.drive).map_err(|e| match e {
+        ThreePhaseDriveError::NotPmsm => HarnessError::config("electrics.motor", e.to_string()),
+        ThreePhaseDriveError::TickRatio(_) => {
+            HarnessError::config("drive.current_rate_hz", e.to_string())
+        }
+    })?;
+    let name = drive.file_stem().map_or_else(
+        || "stm32f4-3ph".to_string(),
+        |s| format!("stm32f4-3ph-{}", s.to_string_lossy()),
+    );
+    let args = [
+        "--bin",
+        "firmware",
+        "--no-default-features",
+        "--features",
+        "board-stm32f4-3ph",
+    ];
+    build_locked(&args, Some(drive), |release| {
+        copy_out(release, "firmware", &name)
+    })
 }
 
 /// Builds every firmware binary for the QEMU board (default features) and calls `check`

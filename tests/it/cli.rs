@@ -248,6 +248,58 @@ fn flash_refuses_a_bad_drive_before_building() {
     );
 }
 
+/// `flash` builds the board of the file's motor: a PMSM drive goes to the three-phase board
+/// (NUCLEO-F446RE, chip STM32F446RETx), whose image carries the PMSM current loop. That
+/// board has no console to calibrate through, so a drive without its measured encoder offset
+/// is refused, and so is a current loop that is not a whole number of PWM periods, each
+/// naming its key, with nothing built.
+#[test]
+fn flash_builds_a_pmsm_drive_for_the_three_phase_board() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let pmsm = root.join("configs/machines/table1-pmsm.toml");
+    let o = stiffdrive(&["flash", "--config", pmsm.to_str().unwrap(), "--build-only"]);
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.contains("probe-rs run --chip STM32F446RETx"), "{out}");
+    let elf = out
+        .lines()
+        .find_map(|l| l.strip_prefix("flash it with: probe-rs run --chip STM32F446RETx "))
+        .unwrap();
+    let image = std::fs::read(elf).unwrap();
+    let needle = b"pmsm_image";
+    assert!(
+        image.windows(needle.len()).any(|w| w == needle),
+        "{elf} is the three-phase image"
+    );
+
+    let tmp = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(&pmsm).unwrap();
+    let cases = [
+        (
+            text.replace(
+                "encoder_offset_elec_deg = 23.0\nangle_advance",
+                "angle_advance",
+            ),
+            "drive.pmsm.encoder_offset_elec_deg",
+        ),
+        (
+            text.replace("current_rate_hz = 4000 ", "current_rate_hz = 8000 "),
+            "drive.current_rate_hz",
+        ),
+    ];
+    for (k, (bad, key)) in cases.into_iter().enumerate() {
+        assert_ne!(bad, text, "the edit for {key} applies");
+        let file = tmp.path().join(format!("bad{k}.toml"));
+        std::fs::write(&file, bad).unwrap();
+        let o = stiffdrive(&["flash", "--config", file.to_str().unwrap(), "--build-only"]);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{e}");
+        assert!(e.contains(key), "{key}: {e}");
+        assert!(!e.contains("firmware build"), "nothing was built: {e}");
+        assert!(o.stdout.is_empty(), "{key}");
+    }
+}
+
 /// `summary.json`'s load-step figures are the trace's: the peak shaft torque is the largest
 /// |shaft_torque_pu| from the step on, and the peak droop the largest |e − e₀| there, with
 /// e = command − motor speed and e₀ its mean over the two velocity-bandwidth half periods

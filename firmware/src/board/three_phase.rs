@@ -268,6 +268,43 @@ impl core::fmt::Display for TickRatioError {
     }
 }
 
+/// TIM1's clock on this board \[Hz\]: the APB2 timers run at the core clock, 168 MHz
+/// (`boards::stm32f4::CORE_CLOCK_HZ`, which the board's start-up checks).
+pub const TIM1_CLOCK_HZ: u32 = 168_000_000;
+
+/// Why a drive cannot run on this board.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriveError {
+    /// The drive is not a PMSM's (`[electrics] motor = "pmsm"` gives `[drive.pmsm]`).
+    NotPmsm,
+    /// The current loop is not a whole number of PWM periods.
+    TickRatio(TickRatioError),
+}
+
+impl core::fmt::Display for DriveError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::NotPmsm => f.write_str(
+                "electrics.motor = \"dc\": the three-phase board drives a PMSM (motor = \"pmsm\", \
+                 which gives [drive.pmsm]); a DC motor runs on the STM32F4-Discovery's bridge",
+            ),
+            Self::TickRatio(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// The PWM periods per current tick of the drive `cfg` on this board (TIM1 at
+/// [`TIM1_CLOCK_HZ`]): what the build of the three-phase image and the host's `flash`
+/// check before anything runs.
+///
+/// # Errors
+/// [`DriveError`]: not a PMSM drive, or its current loop is not a whole number of periods.
+pub fn drive_periods_per_tick(cfg: &controller_core::DriveConfig) -> Result<u32, DriveError> {
+    let p = cfg.pmsm.ok_or(DriveError::NotPmsm)?;
+    periods_per_tick(TIM1_CLOCK_HZ, p.pwm_period_counts, cfg.current_rate_hz)
+        .map_err(DriveError::TickRatio)
+}
+
 /// The most PWM periods per current tick: TIM1's 8-bit repetition counter counts both
 /// halves of a centre-aligned period (`RCR = 2k − 1 ≤ 255`).
 pub const MAX_PERIODS_PER_TICK: u32 = 128;

@@ -30,6 +30,10 @@ use crate::board::three_phase::{
 };
 use crate::board::EncoderCounter;
 
+// The clock the host's checks assume for TIM1 (`three_phase::TIM1_CLOCK_HZ`) is the one
+// `init` requires.
+const _: () = assert!(crate::board::three_phase::TIM1_CLOCK_HZ == super::CORE_CLOCK_HZ);
+
 // SAFETY: after `init`, ADC1's SR (JEOC) and JDRs are touched only by the current loop.
 register_block!(adc1: ADC1 => adc1);
 // SAFETY: after `init`, ADC2's SR and JDRs are touched only by the current loop.
