@@ -177,8 +177,9 @@ fn write_pmsm_machine(
             ];
             let mut text = format!(
                 "Some(crate::virtual_pmsm::PmsmMachine {{\n    pole_pairs: {p},\n    \
-                 current_adc_bits: {},\n",
-                e.current_adc_bits
+                 current_adc_bits: {},\n    encoder_reversed: {},\n",
+                e.current_adc_bits,
+                e.encoder_reversed.unwrap_or(false)
             );
             for (name, v) in fields {
                 text.push_str(&format!("    {name}: {:?}_f32,\n", v as f32));

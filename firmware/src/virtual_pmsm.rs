@@ -45,8 +45,11 @@ pub struct PmsmMachine {
     pub flux_linkage_pu: f32,
     /// V_dc \[pu\].
     pub dc_bus_pu: f32,
-    /// The true electrical angle at count 0 \[deg\].
+    /// The true electrical angle at count 0 \[deg\], in the drive's phase order.
     pub encoder_offset_elec_deg: f32,
+    /// The encoder counts while the electrical angle falls: as plant-host, two motor leads
+    /// swapped (the drive's phases b and c are the motor's c and b).
+    pub encoder_reversed: bool,
     /// From the current sample to the new duties \[s\].
     pub computational_delay_s: f32,
     /// Current ADC resolution \[bits\] (clamped to 2..=30, as plant-host does).
@@ -179,7 +182,12 @@ impl Derived {
         Self {
             pw,
             saliency: pw * (m.d_inductance_pu_s - m.q_inductance_pu_s),
-            offset_rad: m.encoder_offset_elec_deg.to_radians(),
+            // In the motor's own phase order (plant-host's `PmsmParams::encoder_offset_rad`).
+            offset_rad: if m.encoder_reversed {
+                -m.encoder_offset_elec_deg.to_radians()
+            } else {
+                m.encoder_offset_elec_deg.to_radians()
+            },
             counts_per_pu_s: c.counts_per_rev as f32 * c.base_speed_rad_s / core::f32::consts::TAU,
             segments: [
                 Segment::new(delay, share(delay)),
@@ -293,6 +301,12 @@ impl VirtualPmsm {
     fn voltage_ab(&self, duties: [u16; 3]) -> [f32; 2] {
         let full = f32::from(self.config.pwm_period_counts.max(1));
         let [a, b, c] = duties.map(|x| (f32::from(x) / full).min(1.0));
+        // The drive's phase order to the motor's.
+        let (b, c) = if self.config.machine.encoder_reversed {
+            (c, b)
+        } else {
+            (b, c)
+        };
         let bus = self.config.machine.dc_bus_pu;
         // Clarke of (d − mean)·V_dc: the mean drops out.
         [
@@ -414,13 +428,18 @@ impl VirtualPmsm {
         self.d.offset_rad + core::f32::consts::TAU * within / cpr
     }
 
-    /// The phase currents a and b \[pu\], true (not sampled).
+    /// The drive's phase currents a and b \[pu\], true (not sampled): its b is the motor's
+    /// c when the leads are swapped (`encoder_reversed`).
     #[must_use]
     pub fn phase_currents_pu(&self) -> [f32; 2] {
         let (sin, cos) = sin_cos(self.electrical_angle_rad());
         let alpha = cos * self.i_d - sin * self.i_q;
         let beta = sin * self.i_d + cos * self.i_q;
-        [alpha, -0.5 * alpha + SQRT3_2 * beta]
+        if self.config.machine.encoder_reversed {
+            [alpha, -0.5 * alpha - SQRT3_2 * beta]
+        } else {
+            [alpha, -0.5 * alpha + SQRT3_2 * beta]
+        }
     }
 
     /// The ADC codes of phases a and b: the current over the LSB, to nearest (ties away

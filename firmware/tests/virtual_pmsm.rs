@@ -39,6 +39,7 @@ fn machine(p: &PlantConfig) -> PmsmMachine {
         flux_linkage_pu: e.flux_linkage_pu.unwrap_or(1.0) as f32,
         dc_bus_pu: e.dc_bus_pu.unwrap() as f32,
         encoder_offset_elec_deg: e.encoder_offset_elec_deg.unwrap() as f32,
+        encoder_reversed: e.encoder_reversed.unwrap_or(false),
         computational_delay_s: e.computational_delay_s as f32,
         current_adc_bits: e.current_adc_bits,
         current_full_scale_pu: e.current_full_scale_pu as f32,

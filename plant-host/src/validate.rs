@@ -43,7 +43,7 @@ impl PlantConfig {
     /// one of them is refused, naming it, rather than silently ignored.
     fn check_motor_keys(&self) -> Result<(), ConfigError> {
         let e = &self.electrics;
-        let keys: [(&'static str, bool, bool); 7] = [
+        let keys: [(&'static str, bool, bool); 8] = [
             ("electrics.pole_pairs", e.pole_pairs.is_some(), true),
             (
                 "electrics.d_inductance_pu_s",
@@ -65,6 +65,11 @@ impl PlantConfig {
                 "electrics.encoder_offset_elec_deg",
                 e.encoder_offset_elec_deg.is_some(),
                 true,
+            ),
+            (
+                "electrics.encoder_reversed",
+                e.encoder_reversed.is_some(),
+                false,
             ),
             ("electrics.dead_time_s", e.dead_time_s.is_some(), false),
         ];

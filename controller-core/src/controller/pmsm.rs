@@ -10,6 +10,12 @@
 //! protection ← |i|² = i_d² + i_q²                    (overcurrent on the current vector)
 //! commutation ← the FOC's check                      (latches `commutation`)
 //! ```
+//! The torque side works in the counts' direction, the FOC in the electrical angle's. With
+//! `encoder_reversed` the two are opposite, so the torque and the speed change sign between
+//! them: the torque reference for i_q, the measured torque back, and the speed of the
+//! feed-forward, the angle's advance and the commutation check. Without that a reversed
+//! encoder would turn the velocity loop's feedback positive: torque one way, counts the other.
+//!
 //! The velocity tick's I²t model takes |i|² too (no square root on either path). A fault turns the
 //! inverter off (`enabled = false`, the duties at half the period): the currents then
 //! decay through the free-wheeling diodes while the back-EMF stays below the bus.
@@ -106,10 +112,17 @@ impl Controller {
         let speed = self.coef.observer.velocity_pu(&self.state.observer);
         // The coefficients by reference (a copy would move their 160 bytes every tick).
         let (out, half) = match self.foc.as_ref() {
-            Some(foc) => (
-                foc.regulate(&mut self.state.foc, phase, current, speed, i_ref),
-                foc.svpwm.period() / 2,
-            ),
+            Some(foc) => {
+                let (speed, i_ref) = if foc.angle.reversed() {
+                    (speed.saturating_neg(), i_ref.saturating_neg())
+                } else {
+                    (speed, i_ref)
+                };
+                (
+                    foc.regulate(&mut self.state.foc, phase, current, speed, i_ref),
+                    foc.svpwm.period() / 2,
+                )
+            }
             None => (crate::foc::FocOutputs::default(), 0),
         };
         // The protections on the current vector's square (no root): overcurrent here, the
@@ -157,7 +170,13 @@ impl Controller {
             return (0, Dq::default(), Pu::ZERO);
         };
         let (phase, current) = foc.measure(&mut self.state.foc, phase_current_pu, delta);
-        (phase, current, foc.mtpa.torque(current))
+        let torque = foc.mtpa.torque(current);
+        let torque = if foc.angle.reversed() {
+            torque.saturating_neg()
+        } else {
+            torque
+        };
+        (phase, current, torque)
     }
 
     /// The counts the rotor moved since the angle's last update, from the raw counter (the

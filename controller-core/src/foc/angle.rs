@@ -139,6 +139,14 @@ impl AngleCoefficients {
         self.phase_at(c as u32)
     }
 
+    /// Whether the counts rise while the electrical angle falls: the drive's positive
+    /// direction (the counts') is then the rotor's negative electrical one.
+    #[inline]
+    #[must_use]
+    pub fn reversed(&self) -> bool {
+        self.reversed
+    }
+
     /// The electrical phase at `count_in_rev` counts from count 0 (within one revolution).
     #[inline]
     #[must_use]

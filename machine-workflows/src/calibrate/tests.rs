@@ -10,9 +10,8 @@ use plant_host::PlantConfig;
 
 /// A light motor on a soft coupling with 1° of lost motion and a 16384-count encoder,
 /// driven by a PMSM of `pole_pairs` whose encoder zero is `offset_deg` electrical, counting
-/// backwards when `reversed` (the encoder mounted the other way round: a negative gear
-/// ratio is not a key, so the plant's direction is the offset's and the count's sign).
-fn machine(pole_pairs: u32, offset_deg: f64) -> PlantConfig {
+/// against the electrical angle when `reversed` (two motor leads swapped at the inverter).
+fn machine(pole_pairs: u32, offset_deg: f64, reversed: bool) -> PlantConfig {
     let text = format!(
         r#"
 [plant]
@@ -35,6 +34,7 @@ q_inductance_pu_s = 4.2e-4
 flux_linkage_pu = 1.0
 dc_bus_pu = 2.0
 encoder_offset_elec_deg = {offset_deg}
+encoder_reversed = {reversed}
 dead_time_s = 1e-6
 computational_delay_s = 180e-6
 current_adc_bits = 12
@@ -56,8 +56,13 @@ model = "dead_zone"
 
 #[test]
 fn calibration_recovers_the_motor_of_a_machine_no_config_describes() {
-    for (pp, offset) in [(7u32, 211.5f64), (5, 33.0), (11, 300.0)] {
-        let cfg = machine(pp, offset);
+    for (pp, offset, reversed) in [
+        (7u32, 211.5f64, false),
+        (5, 33.0, false),
+        (11, 300.0, false),
+        (7, 211.5, true),
+    ] {
+        let cfg = machine(pp, offset, reversed);
         let settings = CalibrationSettings {
             current_rate_hz: 4000.0,
             voltage_limit_pu: 1.0,
@@ -88,7 +93,7 @@ fn calibration_recovers_the_motor_of_a_machine_no_config_describes() {
             est.encoder_reversed,
         );
         assert_eq!(est.pole_pairs, pp);
-        assert!(!est.encoder_reversed);
+        assert_eq!(est.encoder_reversed, reversed);
         assert!(rel(est.winding_resistance_pu.value, 0.08) <= 0.03);
         assert!(rel(est.d_inductance_pu_s.value, 2.5e-4) <= 0.05);
         assert!(rel(est.q_inductance_pu_s.value, 4.2e-4) <= 0.05);

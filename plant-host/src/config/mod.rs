@@ -93,6 +93,13 @@ pub struct ElectricsConfig {
     /// on the phase-a axis is 0). The plant's truth; a drive measures it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub encoder_offset_elec_deg: Option<f64>,
+    /// PMSM: the encoder counts while the electrical angle falls (default false). The plant
+    /// models it as two motor leads swapped at the inverter (the drive's phases b and c are
+    /// the motor's c and b), so the electrical angle the drive sees turns against the counts
+    /// and `encoder_offset_elec_deg` is the angle at count 0 in the drive's phase order. The
+    /// plant's truth; a drive measures it (`[drive.pmsm] encoder_reversed`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoder_reversed: Option<bool>,
     /// PMSM: the inverter's dead time per switching edge, seconds. Default 0 (none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dead_time_s: Option<f64>,
@@ -141,6 +148,7 @@ impl ElectricsConfig {
             flux_linkage_pu: None,
             dc_bus_pu: None,
             encoder_offset_elec_deg: None,
+            encoder_reversed: None,
             dead_time_s: None,
         }
     }

@@ -23,6 +23,8 @@ pub enum Allowed {
     },
     /// One of these words.
     Words(&'static [&'static str]),
+    /// `true` or `false`.
+    Bool,
 }
 
 /// A key's value as [`KeyRange::get`] reads it from a config.
@@ -34,6 +36,8 @@ pub enum Reading {
     Integer(i128),
     /// A word key.
     Word(&'static str),
+    /// A true-or-false key.
+    Bool(bool),
     /// A key of the other motor kind, not set (`electrics.pole_pairs` of a DC motor).
     Unset,
 }
@@ -87,6 +91,7 @@ impl KeyRange {
                 let quoted: Vec<String> = words.iter().map(|w| format!("\"{w}\"")).collect();
                 format!("one of {}", quoted.join(", "))
             }
+            Allowed::Bool => "true or false".to_string(),
         };
         text.trim_end().to_string()
     }
@@ -170,6 +175,7 @@ pub const RANGES: &[KeyRange] = &[
     KeyRange::new("electrics.flux_linkage_pu", real(0.01, 10.0), "pu", |c| c.electrics.flux_linkage_pu.into()).optional(),
     KeyRange::new("electrics.dc_bus_pu", real(0.1, 100.0), "pu", |c| c.electrics.dc_bus_pu.into()).optional(),
     KeyRange::new("electrics.encoder_offset_elec_deg", real(-360.0, 360.0), "deg", |c| c.electrics.encoder_offset_elec_deg.into()).optional(),
+    KeyRange::new("electrics.encoder_reversed", Allowed::Bool, "", |c| c.electrics.encoder_reversed.map_or(Reading::Unset, Reading::Bool)).optional(),
     // Up to 10 µs; with the PWM frequency (PmsmPlant::new) t_d·f_pwm is at most 0.1.
     KeyRange::new("electrics.dead_time_s", real(0.0, 1e-5), "s", |c| c.electrics.dead_time_s.into()).optional(),
     // 1 (a square-wave encoder) up to 4096, a 12-bit interpolator.

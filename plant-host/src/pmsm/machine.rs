@@ -38,7 +38,9 @@ pub struct PmsmParams {
     pub lq_pu_s: f64,
     /// λ, pu (back-EMF at base speed, torque per pu q current).
     pub flux_linkage_pu: f64,
-    /// The true electrical angle at encoder count 0 (θm = 0), rad.
+    /// The true electrical angle at encoder count 0 (θm = 0) in the motor's own phase
+    /// order, rad: `electrics.encoder_offset_elec_deg`, negated with `encoder_reversed`
+    /// (two leads swapped mirror the angle the drive sees).
     pub encoder_offset_rad: f64,
     /// p·ω_b: electrical rad/s per pu of shaft speed.
     pub electrical_rad_s_per_pu: f64,
@@ -78,7 +80,11 @@ impl PmsmParams {
             ld_pu_s: ld,
             lq_pu_s: lq,
             flux_linkage_pu: e.flux_linkage_pu.unwrap_or(1.0),
-            encoder_offset_rad: offset.to_radians(),
+            encoder_offset_rad: if e.encoder_reversed == Some(true) {
+                -offset.to_radians()
+            } else {
+                offset.to_radians()
+            },
             electrical_rad_s_per_pu: f64::from(pole_pairs)
                 * config.mechanics.derived().base_speed_rad_s,
         })

@@ -87,8 +87,11 @@ pub struct PmsmPlant {
     time_s: f64,
     /// The duties [`PmsmPlant::advance_period`] is applying now.
     applied_duties: [f64; 3],
-    /// The duties of the last step (what [`PmsmPlant::phase_voltages_pu`] reports).
+    /// The duties of the last step in the motor's phase order (what
+    /// [`PmsmPlant::phase_voltages_pu`] reports).
     last_duties: [f64; 3],
+    /// `electrics.encoder_reversed`: the drive's phases b and c are the motor's c and b.
+    swapped: bool,
     events: u64,
     sign_changes: u64,
     searches: u64,
@@ -130,6 +133,7 @@ impl PmsmPlant {
             time_s: 0.0,
             applied_duties: [0.5; 3],
             last_duties: [0.5; 3],
+            swapped: e.encoder_reversed.unwrap_or(false),
             events: 0,
             sign_changes: 0,
             searches: 0,
@@ -177,6 +181,9 @@ impl PmsmPlant {
         {
             return Err(PlantError::BadInput { value: *bad });
         }
+        // The drive's phase order to the motor's.
+        let [a, b, c] = duties;
+        let duties = if self.swapped { [a, c, b] } else { duties };
         self.open_phases();
         self.integrate(dt_s, duties, load_torque_pu);
         self.last_duties = duties;
@@ -254,9 +261,11 @@ impl PmsmPlant {
     pub fn load_encoder_count(&self) -> Option<i64> {
         self.sensors.load_count(self.load_pos_rad())
     }
-    /// Phase currents a and b as the ADC reports them (noise, quantization, clamping), pu.
+    /// The drive's phase currents a and b as the ADC reports them (noise, quantization,
+    /// clamping), pu: with `encoder_reversed` its phase b is the motor's c.
     pub fn phase_current_samples(&self) -> [f64; 2] {
-        let [a, b, _] = self.phase_currents_pu();
+        let [a, b, c] = self.phase_currents_pu();
+        let b = if self.swapped { c } else { b };
         self.sensors.phase_currents([a, b], self.time_s)
     }
     /// The true phase currents (a, b, c), pu (peak-value scale, summing to zero).

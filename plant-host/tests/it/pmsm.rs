@@ -135,6 +135,7 @@ fn the_range_table_reads_the_pmsm_keys() {
     let c = pmsm_config(&[
         ("flux_linkage_pu", Value::Float(0.9)),
         ("dead_time_s", Value::Float(1e-6)),
+        ("encoder_reversed", Value::Boolean(true)),
     ]);
     let doc = Value::try_from(c).unwrap();
     let mut n = 0;
@@ -146,6 +147,7 @@ fn the_range_table_reads_the_pmsm_keys() {
                 (Reading::Real(a), Value::Float(b)) => a == *b,
                 (Reading::Integer(a), Value::Integer(b)) => a == i128::from(*b),
                 (Reading::Word(a), Value::String(b)) => a == b,
+                (Reading::Bool(a), Value::Boolean(b)) => a == *b,
                 _ => false,
             };
             assert!(same, "{key}");

@@ -119,7 +119,7 @@ pub fn machine_schema() -> Result<Value> {
             plant_host::Allowed::Integer { min, max } => {
                 vec![("minimum", min as f64), ("maximum", max as f64)]
             }
-            plant_host::Allowed::Words(_) => continue,
+            plant_host::Allowed::Words(_) | plant_host::Allowed::Bool => continue,
         };
         bound(&mut root, "", r.key, &b)?;
     }
