@@ -238,6 +238,13 @@ impl App {
         Ok(self)
     }
 
+    /// A q-axis quantity of a PMSM drive's FOC frame signed by the counts' direction
+    /// (`Controller::q_in_count_direction`).
+    #[must_use]
+    pub fn q_in_count_direction(&self, q: Pu) -> Pu {
+        self.controller.q_in_count_direction(q)
+    }
+
     /// The excitation's latest sample \[pu\] (zero without one).
     #[must_use]
     pub fn excitation_pu(&self) -> Pu {
@@ -443,14 +450,22 @@ impl App {
     /// reference and voltage.
     #[inline]
     fn record_pmsm(&mut self, encoder_count: u32, out: &PmsmOutputs) {
+        // In the counts' direction, as the torque side's signals (`q_in_count_direction`).
+        let (mut current, mut voltage, mut reference) =
+            (out.current.q, out.voltage.q, out.current_ref.q);
+        if self.controller.encoder_reversed() {
+            current = current.saturating_neg();
+            voltage = voltage.saturating_neg();
+            reference = reference.saturating_neg();
+        }
         self.record_trace(
             &CurrentInputs {
                 encoder_count,
-                current_pu: out.current.q,
+                current_pu: current,
             },
             &CurrentOutputs {
-                voltage_cmd_pu: out.voltage.q,
-                current_ref_pu: out.current_ref.q,
+                voltage_cmd_pu: voltage,
+                current_ref_pu: reference,
                 accel_fb_pu: out.accel_fb_pu,
                 fault: out.fault,
             },

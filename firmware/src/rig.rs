@@ -154,11 +154,20 @@ impl PmsmRig {
             });
             let out = PMSM_LOOPS.pmsm_isr();
             if let (Some(counts), Some(out)) = (inputs, out) {
-                let excitation = PMSM_LOOPS.with_app(|app| app.excitation_pu().to_bits());
+                // The q axis in the counts' direction (a reversed encoder's is negated).
+                let (excitation, current, reference) = PMSM_LOOPS
+                    .with_app(|app| {
+                        (
+                            app.excitation_pu().to_bits(),
+                            app.q_in_count_direction(out.current.q),
+                            app.q_in_count_direction(out.current_ref.q),
+                        )
+                    })
+                    .unwrap_or((0, out.current.q, out.current_ref.q));
                 let values = [
-                    excitation.unwrap_or(0),
-                    out.current.q.to_bits(),
-                    out.current_ref.q.to_bits(),
+                    excitation,
+                    current.to_bits(),
+                    reference.to_bits(),
                     counts as i32,
                 ];
                 if RECORD.record(values) {

@@ -199,6 +199,26 @@ impl Controller {
         delta
     }
 
+    /// A q-axis quantity of the FOC's frame (current, reference, voltage) signed by the
+    /// counts' direction, the torque side's: negated with `encoder_reversed`, as is
+    /// for a forward encoder or a DC drive. What a record of the drive's torque-making
+    /// current (a trace, an identification) takes.
+    #[must_use]
+    pub fn q_in_count_direction(&self, q: Pu) -> Pu {
+        if self.encoder_reversed() {
+            q.saturating_neg()
+        } else {
+            q
+        }
+    }
+
+    /// Whether a PMSM drive's encoder counts against its electrical angle
+    /// (`[drive.pmsm] encoder_reversed`); false for a DC drive.
+    #[must_use]
+    pub fn encoder_reversed(&self) -> bool {
+        self.foc.as_ref().is_some_and(|f| f.angle.reversed())
+    }
+
     /// Keeps a PMSM drive's electrical angle on the rotor while no tick runs (the drive
     /// held, the inverter off): call it with the encoder counter every current period in
     /// which [`Controller::pmsm_tick`] is not called, so that the angle is right when the

@@ -24,10 +24,15 @@
 //!    stands (a rotor a few degrees off the α axis would mix L_q into an α-only
 //!    measurement of L_d).
 //! 3. **Sweep** ([`Stage::Forward`], [`Stage::Backward`]): the second level's voltage
-//!    vector turns `turns` electrical turns forwards at `sweep_hz`, then back; the rotor
-//!    follows. Counts against the commanded angle give the direction and the counts per
-//!    electrical turn (so the pole pairs), and the angle at count 0 (the offset): the lag
-//!    behind the vector is opposite on the way back, so the mean of the two cancels it.
+//!    vector turns `turns` electrical turns forwards, then back; the rotor follows. Each
+//!    way its speed rises linearly from 0 to `sweep_hz` over the time of one turn at that
+//!    speed, holds, and falls back to 0 the same way (half a turn in each ramp), so the
+//!    rotor and its load are brought up to speed and stopped, not kicked: a step to
+//!    `sweep_hz` sets the whole inertia swinging on the vector's magnetic spring, and on a
+//!    heavy load (Table 1's) that swing slips poles. Counts against the commanded angle
+//!    give the direction and the counts per electrical turn (so the pole pairs), and the
+//!    angle at count 0 (the offset): the lag behind the vector is opposite on the way
+//!    back, so the mean of the two cancels it.
 
 use super::transforms::{AlphaBeta, CosSin, Dq, inverse_park};
 use crate::error::ConfigError;
@@ -70,10 +75,12 @@ pub struct CalibrationSettings {
     pub square_pu: f32,
     /// Seconds of square wave (both axes at once).
     pub square_s: f32,
-    /// Electrical turns of the sweep each way, ≥ 2 (the first settles the rotor; the
-    /// estimate uses the whole turns after it).
+    /// Electrical turns of the sweep each way, its two half-turn ramps included, ≥ 3 for
+    /// an estimate (which uses the whole turns at full speed after the first turn: two of
+    /// the default four).
     pub turns: u32,
-    /// The sweep's electrical speed \[turns/s\].
+    /// The sweep's top electrical speed \[turns/s\] (reached after a ramp of one turn's
+    /// time at it).
     pub sweep_hz: f32,
     /// The current tick rate \[Hz\].
     pub current_rate_hz: f32,
@@ -83,7 +90,7 @@ pub struct CalibrationSettings {
 
 impl Default for CalibrationSettings {
     /// 0.5 pu test current, 1 pu/s ramp, 0.3 s settling and 0.1 s recording per level,
-    /// 0.1 pu square wave for 0.1 s, three electrical turns each way at 2 turns/s,
+    /// 0.1 pu square wave for 0.1 s, four electrical turns each way at up to 2 turns/s,
     /// at 4 kHz with a 1 pu voltage limit.
     fn default() -> Self {
         Self {
@@ -93,7 +100,7 @@ impl Default for CalibrationSettings {
             record_s: 0.1,
             square_pu: 0.1,
             square_s: 0.1,
-            turns: 3,
+            turns: 4,
             sweep_hz: 2.0,
             current_rate_hz: 4000.0,
             voltage_limit_pu: 1.0,
@@ -111,8 +118,12 @@ pub struct Calibration {
     record_ticks: u32,
     square: Pu,
     square_ticks: u32,
+    /// Ticks of each way: the turns at full speed and one more turn's time for the two
+    /// ramps.
     sweep_ticks: u32,
-    /// Phase step per tick of the sweep (2^32 per turn).
+    /// Ticks of each ramp (one turn's time at full speed), ≥ 1.
+    ramp_ticks: u32,
+    /// Phase step per tick of the sweep at full speed (2^32 per turn).
     sweep_step: u32,
     limit: Pu,
 }
@@ -174,7 +185,8 @@ impl Calibration {
             record_ticks: ticks(s.record_s, rate, "calibration record_s")?,
             square: quantize(s.square_pu, "calibration square_pu")?,
             square_ticks: ticks(s.square_s, rate, "calibration square_s")?,
-            sweep_ticks: turn_ticks.saturating_mul(s.turns.max(1)),
+            sweep_ticks: turn_ticks.saturating_mul(s.turns.max(1).saturating_add(1)),
+            ramp_ticks: turn_ticks.max(1),
             sweep_step: (4_294_967_296.0 / turn_ticks as f64 + 0.5) as u32,
             limit: quantize(s.voltage_limit_pu, "calibration voltage_limit_pu")?,
         })
@@ -216,9 +228,26 @@ impl Calibration {
         }
     }
 
+    /// The phase step of the sweep's tick `k` (0 at the start of either way): full speed
+    /// between a linear ramp up over the first [`Self::ramp_ticks`] ticks and one down
+    /// over the last.
+    fn sweep_step_at(&self, k: u32) -> u32 {
+        let r = self.ramp_ticks.max(1);
+        let m = k
+            .saturating_add(1)
+            .min(self.sweep_ticks.saturating_sub(k))
+            .min(r);
+        (u64::from(self.sweep_step) * u64::from(m) / u64::from(r)) as u32
+    }
+
     /// One tick: `i_alpha` is the α current sampled this tick.
     pub fn tick(&self, st: &mut CalibrationState, i_alpha: Pu) -> CalibrationTick {
         let stage = self.stage(st.tick);
+        // Ticks into the present way of the sweep.
+        let into_sweep = st
+            .tick
+            .wrapping_sub(2 * (self.settle_ticks + self.record_ticks) + self.square_ticks)
+            % self.sweep_ticks.max(1);
         st.tick = st.tick.saturating_add(1);
         let hold = Pu::saturating_from_num(st.level_voltage);
         let [square_a, square_b] = if stage != Stage::Square {
@@ -265,10 +294,11 @@ impl Calibration {
                 0,
             ),
             Stage::Forward | Stage::Backward => {
+                let step = self.sweep_step_at(into_sweep);
                 st.phase = if stage == Stage::Forward {
-                    st.phase.wrapping_add(self.sweep_step)
+                    st.phase.wrapping_add(step)
                 } else {
-                    st.phase.wrapping_sub(self.sweep_step)
+                    st.phase.wrapping_sub(step)
                 };
                 let v = inverse_park(
                     Dq {

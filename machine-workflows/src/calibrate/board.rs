@@ -10,10 +10,11 @@
 //!
 //! The sequence's settings are `identify`'s ([`crate::identify::motor::settings_for`]: its
 //! defaults at the board's current-loop rate, the voltage within its inverter's linear
-//! range), from the drive the board runs, read over the console.
+//! range, the sweep's speed for the nominal motor), from the drive the board runs, read
+//! over the console.
 
 use super::{estimate, MotorEstimates, Record};
-use crate::identify::motor::settings_for;
+use crate::identify::motor::{settings_for, Nominal};
 use pil_host::board_calibrate::run_calibrate;
 use pil_link::board::client::{BoardClient, BoardError};
 use pil_link::board::message::Request;
@@ -36,11 +37,17 @@ fn link(what: &str) -> impl Fn(BoardError) -> HarnessError + '_ {
 /// estimation's own (a record that does not show the motor).
 pub fn calibrate_on_board(client: &mut BoardClient<Stream>) -> Result<MotorEstimates> {
     let mut get = |key: &str| client.get(key).map_err(link(key));
-    let rate = get("drive.current_rate_hz")?;
     let cpr = get("drive.encoder_cpr")?;
     let bits = get("drive.counter_bits")?;
-    let bus = get("drive.pmsm.dc_bus_pu")?;
-    let settings = settings_for(rate, bus);
+    let nominal = Nominal {
+        current_rate_hz: get("drive.current_rate_hz")?,
+        dc_bus_pu: get("drive.pmsm.dc_bus_pu")?,
+        resistance_pu: get("drive.winding_resistance_pu")?,
+        flux_linkage_pu: get("drive.pmsm.flux_linkage_pu")?,
+        pole_pairs: get("drive.pmsm.pole_pairs")?,
+        base_speed_rpm: get("drive.base_speed_rpm")?,
+    };
+    let settings = settings_for(&nominal);
     let board = run_calibrate(client, &settings)?;
     estimate(&Record::from_board(&board, cpr as u32, bits as u8))
 }

@@ -16,7 +16,8 @@
 //!   `g = (1 − e^(−R·Ts/L))/R`, not Ts/L (4 % apart at R·Ts/L = 0.08), so
 //!   `L = R·Ts/(−ln(1 − g·R))` with the R of step 1. Errors: from the regression's
 //!   covariance, bounded by the sum of the two weights' errors.
-//! - **Direction and pole pairs**: on each sweep the encoder count is regressed on the
+//! - **Direction and pole pairs**: on each sweep, over the whole turns at full speed after
+//!   its first turn (the same span of angle both ways), the encoder count is regressed on the
 //!   commanded angle, `count = c₀ + s·φ` (φ in turns). s is the counts per electrical
 //!   turn, signed: its sign is the direction; `encoder_cpr/|s|` must be within 0.1 of a
 //!   whole number, the pole pairs.
@@ -247,13 +248,26 @@ fn inductances(rows: &[Row], rate_hz: f64, r: f64) -> Result<(Estimate, Estimate
 /// The sweep `stage`'s fit: (slope in counts per turn, its se, offset in turns, its se).
 fn sweep(rows: &[Row], stage: Stage) -> Result<(f64, f64, f64, f64)> {
     let s: Vec<&Row> = rows.iter().filter(|r| r.stage == stage).collect();
-    // The rotor settles into the turning vector over the first turn, which is left out; the
-    // rest is whole turns, over which the inverter's dead time, whose distortion repeats
-    // six times a turn, averages out.
+    // Each way ramps up over its first half turn and down over its last (the sequencer's
+    // `sweep_step_at`). The first turn is left out (the ramp, then the rotor settling into
+    // the turning vector at full speed), and the ramp down; of the rest, whole turns, over
+    // which the inverter's dead time, whose distortion repeats six times a turn, averages
+    // out. Both ways then use the same span of angle, at the same speed.
     let start = s.first().map_or(0.0, |r| r.phase_turns);
+    let way = s.last().map_or(0.0, |r| (r.phase_turns - start).abs());
+    let whole = (way - 1.5).floor();
+    if whole < 1.0 {
+        return Err(bad(format!(
+            "the sweep turned {way:.2} electrical turns each way: the estimate needs at least \
+             3 (a whole turn at full speed after the first)"
+        )));
+    }
     let s: Vec<&Row> = s
         .into_iter()
-        .filter(|r| (r.phase_turns - start).abs() > 1.0)
+        .filter(|r| {
+            let d = (r.phase_turns - start).abs();
+            d > 1.0 && d <= 1.0 + whole
+        })
         .collect();
     let x = DMatrix::from_row_iterator(s.len(), 2, s.iter().flat_map(|r| [1.0, r.phase_turns]));
     let y = DVector::from_iterator(s.len(), s.iter().map(|r| r.count as f64));

@@ -15,25 +15,82 @@ use controller_core::DriveConfig;
 use sim_engine::config::RunConfig;
 use sim_engine::error::{HarnessError, Result};
 
-/// The calibration's settings on the drive of `base`: its current rate, the inverter's
-/// linear range as the voltage limit.
-pub fn settings(base: &RunConfig) -> CalibrationSettings {
-    let bus = base
-        .drive
-        .pmsm
-        .map_or(3f64.sqrt(), |p| f64::from(p.dc_bus_pu));
-    settings_for(f64::from(base.drive.current_rate_hz), bus)
+/// The drive's motor before its calibration (its settings, the machine file's nominal
+/// values): what the sweep's speed is chosen for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nominal {
+    /// `[drive] current_rate_hz`.
+    pub current_rate_hz: f64,
+    /// `[drive.pmsm] dc_bus_pu`.
+    pub dc_bus_pu: f64,
+    /// `[drive] winding_resistance_pu`.
+    pub resistance_pu: f64,
+    /// `[drive.pmsm] flux_linkage_pu`.
+    pub flux_linkage_pu: f64,
+    /// `[drive.pmsm] pole_pairs`.
+    pub pole_pairs: f64,
+    /// `[drive] base_speed_rpm`.
+    pub base_speed_rpm: f64,
 }
 
-/// The calibration's settings for a drive whose current loop runs at `current_rate_hz` on
-/// a bus of `dc_bus_pu` (the voltage limit `dc_bus_pu/√3`), [`CalibrationSettings`]'
-/// defaults otherwise: [`settings`], and the board's (`crate::calibrate::board`).
+/// The fastest sweep \[electrical turns/s\].
+const SWEEP_HZ_MAX: f64 = 2.0;
+/// The slowest sweep \[electrical turns/s\] (a nearly resistance-free motor).
+const SWEEP_HZ_MIN: f64 = 0.1;
+
+impl Nominal {
+    /// The nominal motor of the drive `d` (`None` without `[drive.pmsm]`).
+    #[must_use]
+    pub fn of(d: &DriveConfig) -> Option<Self> {
+        let p = d.pmsm?;
+        Some(Self {
+            current_rate_hz: f64::from(d.current_rate_hz),
+            dc_bus_pu: f64::from(p.dc_bus_pu),
+            resistance_pu: f64::from(d.winding_resistance_pu),
+            flux_linkage_pu: f64::from(p.flux_linkage_pu),
+            pole_pairs: f64::from(p.pole_pairs),
+            base_speed_rpm: f64::from(d.base_speed_rpm),
+        })
+    }
+
+    /// The sweep's top electrical speed for a test current `current_pu` \[turns/s\]. The
+    /// sweep sets a voltage, not a current, so the back-EMF of the turning rotor drives a
+    /// q current against the vector: a drag `λ²·ω/R` (pu torque at ω pu of speed) that the
+    /// vector's pull `λ·I·sin δ` must meet with the rotor lagging by δ. At `ω = R·I/(4λ)`
+    /// the drag is a quarter of the pull's largest (δ ≈ 15°); faster, a light winding on a
+    /// strong magnet slips poles (Table 1's PMSM at 2 turns/s: drag 0.6 pu against a pull
+    /// of 0.5). In electrical turns/s that speed is `ω·pole_pairs·base_speed_rpm/60`;
+    /// within `SWEEP_HZ_MIN..=SWEEP_HZ_MAX`.
+    #[must_use]
+    pub fn sweep_hz(&self, current_pu: f64) -> f64 {
+        let w = self.resistance_pu * current_pu / (4.0 * self.flux_linkage_pu);
+        let hz = w * self.pole_pairs * self.base_speed_rpm / 60.0;
+        if hz.is_nan() {
+            SWEEP_HZ_MIN
+        } else {
+            hz.clamp(SWEEP_HZ_MIN, SWEEP_HZ_MAX)
+        }
+    }
+}
+
+/// The calibration's settings on the drive of `base` ([`settings_for`] its nominal motor);
+/// [`CalibrationSettings`]' defaults for a DC drive.
+pub fn settings(base: &RunConfig) -> CalibrationSettings {
+    Nominal::of(&base.drive).map_or_else(CalibrationSettings::default, |n| settings_for(&n))
+}
+
+/// The calibration's settings for the nominal motor `n`: its current rate, the inverter's
+/// linear range `dc_bus_pu/√3` as the voltage limit, the sweep's speed by
+/// [`Nominal::sweep_hz`], [`CalibrationSettings`]' defaults otherwise: [`settings`], and
+/// the board's (`crate::calibrate::board`).
 #[must_use]
-pub fn settings_for(current_rate_hz: f64, dc_bus_pu: f64) -> CalibrationSettings {
+pub fn settings_for(n: &Nominal) -> CalibrationSettings {
+    let d = CalibrationSettings::default();
     CalibrationSettings {
-        current_rate_hz: current_rate_hz as f32,
-        voltage_limit_pu: (dc_bus_pu / 3f64.sqrt()) as f32,
-        ..CalibrationSettings::default()
+        current_rate_hz: n.current_rate_hz as f32,
+        voltage_limit_pu: (n.dc_bus_pu / 3f64.sqrt()) as f32,
+        sweep_hz: n.sweep_hz(f64::from(d.current_pu)) as f32,
+        ..d
     }
 }
 

@@ -5,7 +5,8 @@
 //!
 //! A PMSM drive's motor calibration are keys too ([`PMSM_RANGES`]: `drive.pmsm.pole_pairs`,
 //! the d and q inductances, `drive.pmsm.encoder_offset_elec_deg`,
-//! `drive.pmsm.encoder_reversed` as 0 or 1), and its bus `drive.pmsm.dc_bus_pu`: what the
+//! `drive.pmsm.encoder_reversed` as 0 or 1), its bus `drive.pmsm.dc_bus_pu` and flux
+//! linkage `drive.pmsm.flux_linkage_pu` (what the calibration's sweep speed is chosen for): what the
 //! calibration measures, set on the board and saved with the rest; a DC drive has none of
 //! them, and an uncalibrated drive has no offset to get.
 //!
@@ -26,8 +27,9 @@ pub const PREFIX: &str = "drive.";
 /// The `[drive.pmsm]` keys of the console, with the ranges controller-core's FOC loop
 /// checks them against (`controller_core::foc`); `design` checks them as a whole (the pole
 /// pairs below the encoder's counts, the loop's formats).
-pub static PMSM_RANGES: [Range; 6] = [
+pub static PMSM_RANGES: [Range; 7] = [
     pmsm_range("pmsm.pole_pairs", 1.0, 65_535.0, true),
+    pmsm_range("pmsm.flux_linkage_pu", 0.05, 10.0, false),
     pmsm_range("pmsm.d_inductance_pu_s", 1e-6, 10.0, false),
     pmsm_range("pmsm.q_inductance_pu_s", 1e-6, 10.0, false),
     pmsm_range("pmsm.dc_bus_pu", 0.01, 1000.0, false),
@@ -360,6 +362,7 @@ fn pmsm_field<'a>(cfg: &'a mut DriveConfig, key: &str) -> Option<Field<'a>> {
     let p = cfg.pmsm.as_mut()?;
     Some(match key {
         "pmsm.pole_pairs" => Field::Whole(&mut p.pole_pairs),
+        "pmsm.flux_linkage_pu" => Field::Real(&mut p.flux_linkage_pu),
         "pmsm.d_inductance_pu_s" => Field::Real(&mut p.d_inductance_pu_s),
         "pmsm.q_inductance_pu_s" => Field::Real(&mut p.q_inductance_pu_s),
         "pmsm.dc_bus_pu" => Field::Real(&mut p.dc_bus_pu),

@@ -13,8 +13,8 @@
 //!
 //! The trace has the DC run's columns, so every metric and report reads a PMSM run as it
 //! reads a DC one. For a PMSM:
-//! - `current_pu` is the true q current i_q (the rotor's own frame; with λ = 1 pu it is
-//!   the magnets' torque);
+//! - `current_pu` is the measured q current i_q in the drive's frame, signed by the counts'
+//!   direction (negated with `encoder_reversed`; with λ = 1 pu it is the magnets' torque);
 //! - `voltage_pu` is the q component v_q of the voltage the inverter applies at the
 //!   instant, in the rotor's true frame (0 while the inverter is off);
 //! - `torque_cmd_pu` and `accel_fb_pu` are the tick's torque reference and AFB term, as
@@ -115,6 +115,8 @@ pub(super) struct PmsmMotor {
     plant: PmsmPlant,
     /// The duties' full scale: the drive's PWM period \[timer counts\].
     full_scale: f64,
+    /// The drive's `encoder_reversed`: its q axis turns against the counts.
+    reversed: bool,
 }
 
 impl PmsmMotor {
@@ -126,7 +128,15 @@ impl PmsmMotor {
         let tc_s = 1.0 / f64::from(cfg.drive.current_rate_hz);
         let line = DelayLine::new(cfg.plant.electrics.computational_delay_s, tc_s);
         let full_scale = f64::from(period);
-        Ok((Self { plant, full_scale }, line))
+        let reversed = cfg.drive.pmsm.is_some_and(|p| p.encoder_reversed);
+        Ok((
+            Self {
+                plant,
+                full_scale,
+                reversed,
+            },
+            line,
+        ))
     }
 }
 
@@ -177,7 +187,7 @@ impl Motor for PmsmMotor {
             command: out
                 .enabled
                 .then(|| out.duties.map(|d| f64::from(d) / full_scale)),
-            current_pu: i_q,
+            current_pu: if self.reversed { -i_q } else { i_q },
             watched_pu: i_d.hypot(i_q),
             current_ref_pu: f(out.torque_ref_pu),
             accel_fb_pu: f(out.accel_fb_pu),
