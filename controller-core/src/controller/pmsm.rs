@@ -514,6 +514,40 @@ mod tests {
         assert!(worst < 1e-3, "largest |i_q| {worst}");
     }
 
+    /// With `encoder_reversed` the q axis turns against the counts: a q current at the
+    /// drive's angle is torque against the counts' direction, for the torque side (the
+    /// observer's torque input) and for a record (`q_in_count_direction`); a forward drive
+    /// and a DC drive leave the sign.
+    #[test]
+    fn a_reversed_encoder_turns_the_q_axis_against_the_counts() {
+        let mut cfg = drive(Some(0.0));
+        let mut fwd = Controller::new(&cfg).unwrap();
+        if let Some(p) = cfg.pmsm.as_mut() {
+            p.encoder_reversed = true;
+        }
+        let mut rev = Controller::new(&cfg).unwrap();
+        assert!(!fwd.encoder_reversed() && rev.encoder_reversed());
+        let x = pu(0.3);
+        assert_eq!(
+            (fwd.q_in_count_direction(x), rev.q_in_count_direction(x)),
+            (x, -x)
+        );
+        cfg.pmsm = None;
+        let dc = Controller::new(&cfg).unwrap();
+        assert!(!dc.encoder_reversed());
+        assert_eq!(dc.q_in_count_direction(x), x);
+        // Count 0, offset 0: the q axis is β, so i_a = 0 and i_b = (√3/2)·i_q.
+        let on_q = PmsmInputs {
+            encoder_count: 0,
+            phase_current_pu: [pu(0.0), pu(0.5 * 3f64.sqrt() / 2.0)],
+        };
+        let _ = fwd.pmsm_tick(on_q);
+        let _ = rev.pmsm_tick(on_q);
+        let (tf, tr) = (fwd.state.pmsm_torque, rev.state.pmsm_torque);
+        assert!((tf.to_num::<f64>() - 0.5).abs() < 1e-3, "{tf}");
+        assert_eq!(tr, -tf);
+    }
+
     #[test]
     fn the_magnitude_is_the_rounded_down_root_and_saturates() {
         let pu = |x: f64| Pu::from_num(x);
