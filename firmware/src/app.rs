@@ -59,9 +59,9 @@ pub enum AppError {
     Settings(pil_link::LinkError),
     /// The board's encoder counter width differs from `DriveConfig::counter_bits`.
     CounterBits {
-        /// Width the board delivers [bits].
+        /// Width the board delivers \[bits\].
         board: u8,
-        /// Width the settings declare [bits].
+        /// Width the settings declare \[bits\].
         config: u8,
     },
 }

@@ -26,7 +26,7 @@ use pil_link::board::store::{SaveError, RECORD_LEN};
 pub trait CurrentSense {
     /// The board's error type.
     type Error: core::fmt::Debug;
-    /// The current sampled for this PWM period [pu].
+    /// The current sampled for this PWM period \[pu\].
     ///
     /// # Errors
     /// A conversion that did not complete or overran.
@@ -43,11 +43,11 @@ pub trait EncoderCounter {
 
 /// What a current-loop interrupt needs: sample the current and the encoder, drive the PWM.
 pub trait CurrentLoopIo {
-    /// Raw encoder count [counts].
+    /// Raw encoder count \[counts\].
     fn encoder_count(&mut self) -> u32;
-    /// Measured current [pu]; `None` on a sensor error (treated as a fault).
+    /// Measured current \[pu\]; `None` on a sensor error (treated as a fault).
     fn current_pu(&mut self) -> Option<Pu>;
-    /// Apply the voltage command [pu] to the PWM; returns false if the PWM refused it.
+    /// Apply the voltage command \[pu\] to the PWM; returns false if the PWM refused it.
     fn set_voltage_pu(&mut self, voltage_pu: Pu) -> bool;
     /// Switch the power stage on or off; returns false if the output refused it.
     fn set_enable(&mut self, enabled: bool) -> bool;
@@ -55,7 +55,7 @@ pub trait CurrentLoopIo {
 
 /// What a velocity-loop interrupt needs: the encoder and the external fault input.
 pub trait VelocityLoopIo {
-    /// Raw encoder count [counts].
+    /// Raw encoder count \[counts\].
     fn encoder_count(&mut self) -> u32;
     /// True while the external fault input is active (or unreadable: fail safe).
     fn fault_input(&mut self) -> bool;
@@ -77,7 +77,7 @@ pub trait ConsoleBoard {
     /// # Errors
     /// Why the sector does not hold the record.
     fn write_settings(&mut self, record: &[u8; RECORD_LEN]) -> Result<(), SaveError>;
-    /// Runs the loop timers at new rates [Hz], both restarted together.
+    /// Runs the loop timers at new rates \[Hz\], both restarted together.
     fn set_loop_rates(&mut self, current_hz: u32, velocity_hz: u32);
     /// Called once the board is set up, with the boot's word on the settings it runs
     /// (`note`), before the loops start: a board whose log cannot be read over its serial

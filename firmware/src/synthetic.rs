@@ -110,7 +110,7 @@ impl SyntheticSensors {
         ]
     }
 
-    /// Last voltage command the current loop applied [pu].
+    /// Last voltage command the current loop applied \[pu\].
     #[must_use]
     pub fn applied_voltage_pu() -> Pu {
         Pu::from_bits(APPLIED_BITS.load(Ordering::Relaxed))

@@ -13,22 +13,22 @@ pub const TRACE_CHANNELS: usize = 4;
 
 /// A signal the trend buffer can capture. Values are stored as raw `i32`: encoder counts as
 /// counts, per-unit signals as the raw bits of their fixed-point type (scale named in
-/// [`TraceSignal::frac_bits`]), so a dump is bit-exact.
+/// `TraceSignal::frac_bits`), so a dump is bit-exact.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TraceSignal {
     /// Encoder count sampled by the current loop [counts, wrapping].
     EncoderCounts,
-    /// Measured current [pu].
+    /// Measured current \[pu\].
     CurrentPu,
-    /// Current reference from the velocity loop [pu].
+    /// Current reference from the velocity loop \[pu\].
     CurrentRefPu,
-    /// Voltage command to the PWM [pu].
+    /// Voltage command to the PWM \[pu\].
     VoltageCmdPu,
-    /// Acceleration-feedback torque term [pu].
+    /// Acceleration-feedback torque term \[pu\].
     AccelFbPu,
-    /// Velocity setpoint from the profile [pu].
+    /// Velocity setpoint from the profile \[pu\].
     VelocitySetpointPu,
-    /// Position setpoint from the profile [counts].
+    /// Position setpoint from the profile \[counts\].
     PositionSetpointCounts,
     /// Latched fault code (0 = none).
     FaultCode,
@@ -56,7 +56,7 @@ impl TraceSignal {
 // and a channel a load at its index.
 #[repr(C)]
 pub struct SignalSnapshot {
-    /// Encoder count [counts].
+    /// Encoder count \[counts\].
     pub encoder_counts: u32,
     /// Measured current, raw fixed-point bits.
     pub current_pu: i32,
@@ -68,7 +68,7 @@ pub struct SignalSnapshot {
     pub accel_fb_pu: i32,
     /// Velocity setpoint, raw fixed-point bits.
     pub velocity_setpoint_pu: i32,
-    /// Position setpoint [counts].
+    /// Position setpoint \[counts\].
     pub position_setpoint_counts: i32,
     /// Fault code (0 = none).
     pub fault_code: i32,

@@ -23,15 +23,15 @@
 /// Settings of the virtual motor.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VirtualMotorConfig {
-    /// Winding resistance [pu].
+    /// Winding resistance \[pu\].
     pub resistance_pu: f32,
     /// Winding inductance [pu·s].
     pub inductance_pu_s: f32,
-    /// Total inertia [s].
+    /// Total inertia \[s\].
     pub inertia_s: f32,
     /// Encoder counts per pu·s of position.
     pub counts_per_pu_s: f32,
-    /// Step period [s].
+    /// Step period \[s\].
     pub period_s: f32,
     /// A load behind a shaft (`inertia_s` is then the motor's alone); `None`: rigid.
     pub coupling: Option<Coupling>,
@@ -42,7 +42,7 @@ pub struct VirtualMotorConfig {
 /// file's `[plant]`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Coupling {
-    /// Load inertia, reflected to the motor [s].
+    /// Load inertia, reflected to the motor \[s\].
     pub load_inertia_s: f32,
     /// Shaft stiffness K [pu torque per rad of twist].
     pub stiffness_pu_per_rad: f32,
@@ -130,7 +130,7 @@ impl VirtualMotorConfig {
 /// The load side's state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct LoadState {
-    /// Load speed [pu].
+    /// Load speed \[pu\].
     speed_pu: f32,
     /// Twist θm − θl [rad at the motor].
     twist_rad: f32,
@@ -186,7 +186,7 @@ impl VirtualMotor {
         *self = Self::new(self.config).with_counts(self.counts);
     }
 
-    /// Apply a load torque [pu] from now on.
+    /// Apply a load torque \[pu\] from now on.
     pub fn set_load_torque_pu(&mut self, load_pu: f32) {
         self.load_torque_pu = load_pu;
     }
@@ -222,7 +222,7 @@ impl VirtualMotor {
         self.counts = self.counts.wrapping_add(whole as i32 as u32);
     }
 
-    /// Load speed [pu] (the motor's without a coupling).
+    /// Load speed \[pu\] (the motor's without a coupling).
     #[must_use]
     pub fn load_speed_pu(&self) -> f32 {
         self.load.map_or(self.speed_pu, |l| l.speed_pu)
@@ -234,13 +234,13 @@ impl VirtualMotor {
         self.load.map_or(0.0, |l| l.twist_rad)
     }
 
-    /// Winding current [pu].
+    /// Winding current \[pu\].
     #[must_use]
     pub const fn current_pu(&self) -> f32 {
         self.current_pu
     }
 
-    /// Speed [pu].
+    /// Speed \[pu\].
     #[must_use]
     pub const fn speed_pu(&self) -> f32 {
         self.speed_pu

@@ -24,7 +24,7 @@ mod three_phase;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-pub use three_phase::{drive_periods_per_tick, DriveError as ThreePhaseDriveError};
+pub use three_phase::{drive_periods_per_tick, DriveError as ThreePhaseDriveError, TIM1_CLOCK_HZ};
 
 /// The workspace root (this crate's parent).
 fn workspace_root() -> PathBuf {

@@ -32,7 +32,7 @@ pub static EXPECTED: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/lil_expec
 pub struct ReplayIo {
     /// The record of this period.
     pub record: LilInput,
-    /// Voltage the current tick applied [pu].
+    /// Voltage the current tick applied \[pu\].
     pub applied_voltage_pu: Pu,
     /// Enable output the current tick set.
     pub enabled: bool,

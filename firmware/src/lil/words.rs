@@ -26,9 +26,9 @@ pub const INPUT_RECORD_BYTES: usize = 4 * LilInput::WORDS;
 /// One recorded 4 kHz period of sensor inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LilInput {
-    /// Raw encoder counter [counts].
+    /// Raw encoder counter \[counts\].
     pub encoder_count: u32,
-    /// Measured current [pu].
+    /// Measured current \[pu\].
     pub current_pu: Pu,
     /// External fault input.
     pub fault_input: bool,
@@ -47,9 +47,9 @@ pub const PMSM_INPUT_RECORD_BYTES: usize = 4 * PmsmLilInput::WORDS;
 /// One recorded period of a PMSM drive's sensor inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PmsmLilInput {
-    /// Raw encoder counter [counts].
+    /// Raw encoder counter \[counts\].
     pub encoder_count: u32,
-    /// Measured phase currents a and b [pu].
+    /// Measured phase currents a and b \[pu\].
     pub phase_current_pu: [Pu; 2],
     /// External fault input.
     pub fault_input: bool,

@@ -58,7 +58,7 @@ pub enum Kind {
 /// A decoded instruction.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Insn {
-    /// Its size [bytes]: 2 or 4.
+    /// Its size \[bytes\]: 2 or 4.
     pub size: u8,
     /// How it is priced.
     pub kind: Kind,

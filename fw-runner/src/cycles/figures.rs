@@ -69,14 +69,14 @@ pub struct BenchFigures {
     /// velocity tick.
     pub share: u32,
     /// Mean period: current + velocity / share, with each interrupt's entry and exit
-    /// [cycles].
+    /// \[cycles\].
     pub period_mean: f64,
     /// Worst period: worst current + worst velocity / share (rounded up), with each
-    /// interrupt's entry and exit [cycles].
+    /// interrupt's entry and exit \[cycles\].
     pub period_worst: u32,
-    /// Mean and worst period [instructions], as the cycles.
+    /// Mean and worst period \[instructions\], as the cycles.
     pub period_instructions_mean: f64,
-    /// Worst period [instructions].
+    /// Worst period \[instructions\].
     pub period_instructions_worst: u32,
     /// Windows dropped (an interrupt came into them).
     pub dropped: u32,

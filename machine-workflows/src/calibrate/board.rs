@@ -2,7 +2,7 @@
 //! `stiffdrive board ... calibrate`): the board runs the sequence in its own current-loop
 //! interrupt (`pil_link::board::calibrate`, controller-core's sequencer, the one
 //! [`super::record_on_plant`] drives on the simulated machine) and streams every tick; the
-//! record is estimated here by [`super::estimate`], the host's one estimation. The
+//! record is estimated here by [`super::estimate()`], the host's one estimation. The
 //! calibration is then set on the board's running settings, key by key over the console
 //! (`drive.winding_resistance_pu`, `drive.pmsm.pole_pairs`, `.d_inductance_pu_s`,
 //! `.q_inductance_pu_s`, `.encoder_reversed`, and last `.encoder_offset_elec_deg`, which

@@ -6,7 +6,7 @@
 //! sequence in the stationary frame, the same on the board as here. [`record`] runs it on
 //! the simulated machine of a machine file and keeps, each tick, what a board would report:
 //! the stage, the voltage set, the commanded angle, the two phase currents as the ADC reads
-//! them and the encoder count. [`estimate`] reads only such a record, wherever it came from:
+//! them and the encoder count. [`estimate()`] reads only such a record, wherever it came from:
 //! [`board`] takes it from the board, which runs the same sequence in its own loops
 //! ([`Record::from_board`]), and sets and saves the calibration there.
 

@@ -88,7 +88,7 @@ pub fn record_on_plant(config: &PlantConfig, settings: &CalibrationSettings) -> 
 }
 
 impl Record {
-    /// The board's record (`pil_host::board_calibrate`) as [`super::estimate`] reads it:
+    /// The board's record (`pil_host::board_calibrate`) as [`super::estimate()`] reads it:
     /// per-unit values from their Q16.16 bits, the commanded angle unwrapped into turns, the
     /// encoder counter (`counter_bits` wide) read signed at the first tick, as the drive
     /// primes its position, and unwrapped from there; `encoder_cpr` the drive's.

@@ -58,7 +58,7 @@ pub struct Tried {
     pub machine: OnMachine,
     /// Its objective on the machine, against the file's own drive there.
     pub objective: f64,
-    /// How it qualifies on the machine ([`qualifies`]).
+    /// How it qualifies on the machine (`qualifies`).
     pub qualifies: u8,
     /// It became the design of its kind.
     pub taken: bool,

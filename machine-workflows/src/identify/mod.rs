@@ -18,7 +18,7 @@
 //!    ([`twin`]);
 //! 5. `DIR/plant.toml` (the `[plant]` table), `DIR/identify.json`, `DIR/identify.md` with
 //!    the measured and fitted Bode plot (`DIR/bode.png|svg`), all staged: on an error
-//!    nothing is written ([`write`]).
+//!    nothing is written ([`mod@write`]).
 //!
 //! The machine file is read as `run` reads it (one value tree, `--set` applied to it, one
 //! typed deserialization each for the plant and the drive), and its optional

@@ -21,7 +21,7 @@
 //! Budgets a design must stay within, besides the linear constraints of
 //! [`super::Constraints`]:
 //! - `torque_noise_rms_pu` of the same run (the motor torque above the velocity bandwidth)
-//!   at most [`Budget::max_torque_noise_pu`]: `--max-torque-noise-pu`, or by default
+//!   at most [`super::Constraints::max_torque_noise_pu`]: `--max-torque-noise-pu`, or by default
 //!   the larger of [`NOISE_FACTOR`] × the default drive's own and [`NOISE_FLOOR_PU`];
 //! - stable and not faulted in that run (and in `tune`'s verification runs).
 //!

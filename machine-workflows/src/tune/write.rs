@@ -11,7 +11,7 @@ use sim_engine::engine::runner::regulator_gains;
 use sim_engine::error::{HarnessError, Result};
 use std::path::Path;
 
-/// Writes the design's files into `dir` (module docs, and [`write_files`]).
+/// Writes the design's files into `dir` (module docs, and `write_files`).
 pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
     write_design_with(dir, t, "", &TUNE_FILES, serde_json::to_string_pretty)
 }

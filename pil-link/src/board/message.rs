@@ -12,12 +12,12 @@
 //! | `Faults`      |                          | [`FaultHistory`](super::faults::FaultHistory) |
 //! | `Enable`      |                          |                                             |
 //! | `Disable`     |                          |                                             |
-//! | `ScopeStart`  |                          | [`ScopeInfo`]; then `ScopeData` frames      |
+//! | `ScopeStart`  |                          | [`ScopeInfo`](super::scope::ScopeInfo); then `ScopeData` frames      |
 //! | `ScopeStop`   |                          |                                             |
-//! | `Identify`    | [`IdentifyRun`]          | [`ScopeInfo`]; then the record in `ScopeData` frames |
-//! | `Calibrate`   | [`CalibrationSettings`] ([`super::calibrate::encode`]) | [`ScopeInfo`]; then the record in `ScopeData` frames |
+//! | `Identify`    | [`IdentifyRun`]          | [`ScopeInfo`](super::scope::ScopeInfo); then the record in `ScopeData` frames |
+//! | `Calibrate`   | [`CalibrationSettings`] ([`super::calibrate::encode`]) | [`ScopeInfo`](super::scope::ScopeInfo); then the record in `ScopeData` frames |
 //!
-//! A `ScopeData` frame is a [`ScopeChunk`]. Values travel as raw bits (`f64::to_bits`).
+//! A `ScopeData` frame is a [`ScopeChunk`](super::scope::ScopeChunk). Values travel as raw bits (`f64::to_bits`).
 
 use super::BOARD_VERSION;
 use super::identify::IdentifyRun;

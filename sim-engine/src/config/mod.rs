@@ -6,10 +6,10 @@
 //! * [`files`]: where the files are, reading them;
 //! * [`overrides`]: `section.key=value` on a value tree;
 //! * [`typed`]: a value tree into a type, with the dotted key of any error;
-//! * [`machine`]: a machine file into plant and drive;
+//! * [`mod@machine`]: a machine file into plant and drive;
 //! * [`scenario`]: the scenario file's types and checks;
 //! * [`grids`]: the search grids of `sweep` and `tune` (`configs/grids.toml`);
-//! * [`resolve`]: the run (and the comparison's borrowed gains);
+//! * [`mod@resolve`]: the run (and the comparison's borrowed gains);
 //! * [`schema`]: the JSON Schema of a machine file and of the grids file.
 
 pub mod files;

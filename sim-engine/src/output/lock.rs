@@ -1,6 +1,6 @@
 //! One command per output directory at a time: an advisory lock beside the target.
 //!
-//! [`TargetLock::acquire`] opens (or creates) `<parent>/.<name>.lock` and takes an exclusive
+//! `TargetLock::acquire` opens (or creates) `<parent>/.<name>.lock` and takes an exclusive
 //! `flock` on it without waiting. If another process holds it, the command is refused at
 //! once ([`HarnessError::OutputInTheWay`]), naming the folder and the holder: its pid and
 //! command line, which the holder writes into the file when it takes the lock. The lock is
