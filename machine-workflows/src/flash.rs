@@ -10,6 +10,7 @@
 //! naming its key before anything is built. Without probe-rs, or without a probe, the command
 //! fails with probe-rs's own message and the exact command to run once a probe is there.
 
+use controller_core::DriveConfig;
 use pil_host::image::{build_board_image, build_three_phase_image};
 use sim_engine::config::config_path;
 use sim_engine::error::{HarnessError, Result};
@@ -50,13 +51,12 @@ fn probe_command(board: Board, elf: &Path) -> String {
 /// `flash`: build the image of the board for `config`'s motor (a path or a name under
 /// `configs/`) and, unless `build_only`, run it on the board through probe-rs.
 pub fn flash(config: &str, build_only: bool) -> Result<String> {
-    let path = drive_file(config)?;
-    let drive = machine_file::load(&path)?.drive;
+    let (path, drive) = drive_of(config)?;
     let (board, elf) = if drive.pmsm.is_some() {
         // No console on this board to calibrate through: the image must carry the offset.
         controller_core::Controller::new(&drive)
             .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
-        (THREE_PHASE, build_three_phase_image(&path)?)
+        (THREE_PHASE, build_three_phase_image(&path, &drive)?)
     } else {
         (DISCOVERY, build_board_image(&path)?)
     };
@@ -95,12 +95,17 @@ pub fn flash(config: &str, build_only: bool) -> Result<String> {
 /// # Errors
 /// A missing file, a bad machine file, or a drive `design` refuses (naming the key).
 pub fn drive_file(config: &str) -> Result<PathBuf> {
+    drive_of(config).map(|(path, _)| path)
+}
+
+/// [`drive_file`] with the drive it composes.
+fn drive_of(config: &str) -> Result<(PathBuf, DriveConfig)> {
     let path = config_path(config)?;
     let path = path
         .canonicalize()
         .map_err(|e| HarnessError::io(&path, e))?;
-    let machine = machine_file::load(&path)?;
-    controller_core::design(&machine.drive)
+    let drive = machine_file::load(&path)?.drive;
+    controller_core::design(&drive)
         .map_err(|e| HarnessError::config(format!("drive.{}", e.param()), e.to_string()))?;
-    Ok(path)
+    Ok((path, drive))
 }

@@ -179,16 +179,18 @@ pub fn build_stm32_image_for(drive: Option<&Path>) -> Result<PathBuf> {
 }
 
 /// Builds the three-phase board's image (NUCLEO-F446RE with X-NUCLEO-IHM08M1,
-/// `--no-default-features --features board-stm32f4-3ph`) carrying the PMSM drive of the
-/// machine file `drive` (an absolute path) and returns the ELF path,
+/// `--no-default-features --features board-stm32f4-3ph`) carrying the PMSM drive `cfg` of
+/// the machine file `drive` (an absolute path) and returns the ELF path,
 /// `images/stm32f4-3ph-<file stem>`. The drive is checked against the board first
 /// ([`drive_periods_per_tick`]), so a drive the board cannot run builds nothing.
 ///
 /// # Errors
 /// The drive's key that the board refuses; a failed build.
-pub fn build_three_phase_image(drive: &Path) -> Result<PathBuf> {
-    let machine = machine_file::load(drive)?;
-    drive_periods_per_tick(&machine.drive).map_err(|e| match e {
+pub fn build_three_phase_image(
+    drive: &Path,
+    cfg: &controller_core::DriveConfig,
+) -> Result<PathBuf> {
+    drive_periods_per_tick(cfg).map_err(|e| match e {
         ThreePhaseDriveError::NotPmsm => HarnessError::config("electrics.motor", e.to_string()),
         ThreePhaseDriveError::TickRatio(_) => {
             HarnessError::config("drive.current_rate_hz", e.to_string())
