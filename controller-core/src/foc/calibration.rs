@@ -243,11 +243,7 @@ impl Calibration {
     /// One tick: `i_alpha` is the α current sampled this tick.
     pub fn tick(&self, st: &mut CalibrationState, i_alpha: Pu) -> CalibrationTick {
         let stage = self.stage(st.tick);
-        // Ticks into the present way of the sweep.
-        let into_sweep = st
-            .tick
-            .wrapping_sub(2 * (self.settle_ticks + self.record_ticks) + self.square_ticks)
-            % self.sweep_ticks.max(1);
+        let k = st.tick;
         st.tick = st.tick.saturating_add(1);
         let hold = Pu::saturating_from_num(st.level_voltage);
         let [square_a, square_b] = if stage != Stage::Square {
@@ -294,6 +290,10 @@ impl Calibration {
                 0,
             ),
             Stage::Forward | Stage::Backward => {
+                // Ticks into the present way of the sweep.
+                let into_sweep = k
+                    .wrapping_sub(2 * (self.settle_ticks + self.record_ticks) + self.square_ticks)
+                    % self.sweep_ticks.max(1);
                 let step = self.sweep_step_at(into_sweep);
                 st.phase = if stage == Stage::Forward {
                     st.phase.wrapping_add(step)
