@@ -238,6 +238,13 @@ impl App {
         Ok(self)
     }
 
+    /// The torque of the last PMSM tick's measured currents in the drive's motor model, in
+    /// the counts' direction (`Controller::pmsm_measured_torque`).
+    #[must_use]
+    pub fn measured_torque_pu(&self) -> Pu {
+        self.controller.pmsm_measured_torque()
+    }
+
     /// A q-axis quantity of a PMSM drive's FOC frame signed by the counts' direction
     /// (`Controller::q_in_count_direction`).
     #[must_use]

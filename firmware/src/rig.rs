@@ -154,16 +154,17 @@ impl PmsmRig {
             });
             let out = PMSM_LOOPS.pmsm_isr();
             if let (Some(counts), Some(out)) = (inputs, out) {
-                // The q axis in the counts' direction (a reversed encoder's is negated).
+                // As the host's record: the torque of the measured currents in the drive's
+                // motor model and the torque reference, both in the counts' direction.
                 let (excitation, current, reference) = PMSM_LOOPS
                     .with_app(|app| {
                         (
                             app.excitation_pu().to_bits(),
-                            app.q_in_count_direction(out.current.q),
-                            app.q_in_count_direction(out.current_ref.q),
+                            app.measured_torque_pu(),
+                            out.torque_ref_pu,
                         )
                     })
-                    .unwrap_or((0, out.current.q, out.current_ref.q));
+                    .unwrap_or((0, Pu::ZERO, out.torque_ref_pu));
                 let values = [
                     excitation,
                     current.to_bits(),

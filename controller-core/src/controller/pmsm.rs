@@ -212,6 +212,14 @@ impl Controller {
         }
     }
 
+    /// The torque of the last PMSM tick's measured currents in the drive's motor model,
+    /// `λ·i_q + k·i_d·i_q` \[pu\], in the counts' direction: what the observer took, and what
+    /// a record of the motor's torque (an identification's) takes. Zero on a DC drive.
+    #[must_use]
+    pub fn pmsm_measured_torque(&self) -> Pu {
+        self.state.pmsm_torque
+    }
+
     /// Whether a PMSM drive's encoder counts against its electrical angle
     /// (`[drive.pmsm] encoder_reversed`); false for a DC drive.
     #[must_use]

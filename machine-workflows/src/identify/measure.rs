@@ -5,8 +5,9 @@
 //!   preload torque (gears in contact) while a PRBS from controller-core's excitation
 //!   generator is added to its torque reference
 //!   ([`controller_core::Controller::with_excitation`]). Recorded every current tick: the
-//!   excitation r, the measured current u (the motor torque, k_t = 1) and the encoder
-//!   count y. The response θm/Tm is H1(r → y)/H1(r → u) with Welch averaging
+//!   excitation r, the motor torque u as the drive measures it (a DC winding's current,
+//!   k_t = 1; a PMSM's `λ·i_q + k·i_d·i_q` of its measured currents, not i_q alone) and the
+//!   encoder count y. The response θm/Tm is H1(r → y)/H1(r → u) with Welch averaging
 //!   (`plant_host::analysis::closed_loop_response`), and the two-inertia model is fitted to
 //!   it (`plant_host::analysis::fit_two_inertia`).
 //! - **Lost-motion test.** The drive holds zero speed while the rig reverses its load
@@ -35,7 +36,7 @@ const NAMES: ExcitationParams = ExcitationParams {
 pub struct Record {
     /// Excitation \[pu\].
     pub excitation: Vec<f64>,
-    /// Measured current \[pu\].
+    /// Measured motor torque \[pu\] (the DC current; a PMSM's torque of its measured currents).
     pub current: Vec<f64>,
     /// Torque reference \[pu\].
     pub torque_ref: Vec<f64>,

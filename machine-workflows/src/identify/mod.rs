@@ -197,7 +197,7 @@ fn summary(base: &RunConfig, ident: &Identification, out: &Path) -> String {
         .map_or_else(String::new, |m| format!("{}, ", m.describe()));
     format!(
         "identify {}: {motor}Jm = {:.4} s, Jl = {:.4} s, anti-resonance {:.2} Hz, resonance {:.2} Hz, \
-         damping {:.3}, viscous {:.4} pu, lost motion {:.4} deg (measured on {}) -> {}",
+         damping {:.3}, viscous {:.4} pu, lost motion {:.4} deg (measured on {}){} -> {}",
         base.config_path.display(),
         f.motor_inertia_s,
         f.load_inertia_s,
@@ -207,6 +207,12 @@ fn summary(base: &RunConfig, ident: &Identification, out: &Path) -> String {
         f.viscous_pu,
         ident.lost_motion.backlash_deg,
         ident.measured_on,
+        if ident.twin.is_some() {
+            ""
+        } else {
+            "; the simulated twin gave no fit, so these are the raw fit's, the method's own \
+             bias not taken out and not in the standard errors (identify.md)"
+        },
         out.display()
     )
 }

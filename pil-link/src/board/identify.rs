@@ -28,9 +28,10 @@ use controller_core::excitation::{
 };
 use controller_core::{AfbMode, ConfigError, DriveConfig};
 
-/// The record's channels, per current tick: the excitation, the measured current and the
-/// torque (current) reference, Q16.16 bits of per unit; the encoder counter as the drive
-/// read it (its counter width, wrapping).
+/// The record's channels, per current tick: the excitation, the measured motor torque (a
+/// DC winding's current; a PMSM's torque of its measured currents in the drive's model,
+/// `Controller::pmsm_measured_torque`) and the torque reference, Q16.16 bits of per unit;
+/// the encoder counter as the drive read it (its counter width, wrapping).
 pub const CHANNELS: &str = "excitation_pu,current_pu,current_ref_pu,encoder_counts";
 
 /// Whether `chunk` is the mark of a run cut short: no samples, numbered below the run's

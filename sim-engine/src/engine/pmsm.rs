@@ -117,6 +117,8 @@ pub(super) struct PmsmMotor {
     full_scale: f64,
     /// The drive's `encoder_reversed`: its q axis turns against the counts.
     reversed: bool,
+    /// The drive's motor model: the torque of its measured currents.
+    mtpa: controller_core::foc::mtpa::Mtpa,
 }
 
 impl PmsmMotor {
@@ -129,11 +131,16 @@ impl PmsmMotor {
         let line = DelayLine::new(cfg.plant.electrics.computational_delay_s, tc_s);
         let full_scale = f64::from(period);
         let reversed = cfg.drive.pmsm.is_some_and(|p| p.encoder_reversed);
+        let mtpa = controller(cfg)?
+            .foc()
+            .map(|foc| foc.mtpa)
+            .ok_or_else(|| HarnessError::config("drive.pmsm", "a PMSM run needs [drive.pmsm]"))?;
         Ok((
             Self {
                 plant,
                 full_scale,
                 reversed,
+                mtpa,
             },
             line,
         ))
@@ -187,7 +194,16 @@ impl Motor for PmsmMotor {
             command: out
                 .enabled
                 .then(|| out.duties.map(|d| f64::from(d) / full_scale)),
-            current_pu: if self.reversed { -i_q } else { i_q },
+            // The drive's torque of its measured currents, as `Controller::pmsm_measured_torque`
+            // forms it (here from the outputs, so that every backend gives the same).
+            current_pu: {
+                let t = f(self.mtpa.torque(out.current));
+                if self.reversed {
+                    -t
+                } else {
+                    t
+                }
+            },
             watched_pu: i_d.hypot(i_q),
             current_ref_pu: f(out.torque_ref_pu),
             accel_fb_pu: f(out.accel_fb_pu),

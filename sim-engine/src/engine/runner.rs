@@ -68,8 +68,9 @@ pub struct TickRecord {
     pub encoder_count: i64,
     /// Load encoder count, where one is fitted.
     pub load_encoder_count: Option<i64>,
-    /// Measured current (= torque) sample \[pu\] (ADC, noise); for a PMSM the measured
-    /// q current.
+    /// Measured current (= torque) sample \[pu\] (ADC, noise); for a PMSM the torque of
+    /// the measured currents in the drive's motor model, `λ·i_q + k·i_d·i_q`
+    /// (`Controller::pmsm_measured_torque`), in the counts' direction.
     pub current_pu: f64,
     /// Torque reference the tick formed \[pu\].
     pub current_ref_pu: f64,

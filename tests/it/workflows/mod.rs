@@ -13,6 +13,7 @@ mod linear_model;
 mod notch;
 mod pmsm_commission;
 mod pmsm_identify;
+mod pmsm_ipm;
 mod tune;
 mod tune_objective;
 mod tune_report;
