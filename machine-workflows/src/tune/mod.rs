@@ -345,11 +345,22 @@ pub fn choose(config: &str, judged: Vec<Judged>, k: &Constraints) -> Result<Tune
         }
         refused.push((j, verification));
     }
+    // The best of the refused designs, and what its verification showed.
+    let best = refused.first().map_or_else(String::new, |(j, runs)| {
+        let why: Vec<String> = runs.iter().filter_map(Verification::failure).collect();
+        format!(
+            "; the best of the {} verified, {} at {} rad/s, failed {}",
+            refused.len(),
+            j.candidate.afb.label(),
+            j.candidate.bandwidth_rad_s,
+            why.join("; ")
+        )
+    });
     Err(HarnessError::NoDesign(format!(
         "none of the {total} designs tried meets the constraints on the linear model, stays \
          within the budgets in the loop and passes verification ({feasible} met the \
          constraints on the linear model, {} were run in the loop, {within} of them within \
-         the budgets: torque noise <= {:.4} pu, stable, no fault, a load-step response)",
+         the budgets: torque noise <= {:.4} pu, stable, no fault, a load-step response{best})",
         scored.len(),
         reference.max_torque_noise_pu
     )))

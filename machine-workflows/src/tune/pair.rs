@@ -84,14 +84,24 @@ pub fn design_both_from(
         .partition(|j| j.candidate.afb.mode == AfbMode::Off);
     let with = design_from(config, afb, constraints).map_err(|e| named(config, "with AFB", e))?;
     let without = match design_from(config, off, constraints) {
-        Err(HarnessError::NoDesign(_)) => {
+        Err(HarnessError::NoDesign(first)) => {
             let below: Vec<f64> = no_afb_bandwidths(&grid, &bws)
                 .into_iter()
                 .filter(|w| !bws.contains(w))
                 .collect();
-            let lower = without_afb(&candidates(&grid, &below));
-            let judged = judge_grid(config, &lower, constraints)?;
-            design_from(config, judged, constraints)
+            if below.is_empty() {
+                // No lower bandwidth to try: the search's own account stands.
+                Err(HarnessError::NoDesign(first))
+            } else {
+                let lower = without_afb(&candidates(&grid, &below));
+                let judged = judge_grid(config, &lower, constraints)?;
+                design_from(config, judged, constraints).map_err(|e| match e {
+                    HarnessError::NoDesign(m) => HarnessError::NoDesign(format!(
+                        "at the searched bandwidths, {first}; below them, {m}"
+                    )),
+                    other => other,
+                })
+            }
         }
         other => other,
     }

@@ -30,6 +30,40 @@ pub struct Verification {
     pub passed: bool,
 }
 
+impl Verification {
+    /// Why the run fails (`None` when it passes): the fault, the instability with its
+    /// oscillation, or the probe's chatter against the sweep's quiet threshold.
+    #[must_use]
+    pub fn failure(&self) -> Option<String> {
+        if self.passed {
+            return None;
+        }
+        let mut why = Vec::new();
+        if self.faulted {
+            why.push(match self.oscillation {
+                sim_engine::engine::metrics::OscillationKind::Tripped { fault } => {
+                    format!("latched `{fault}`")
+                }
+                other => format!("faulted ({})", other.word()),
+            });
+        } else if !self.stable {
+            why.push(format!(
+                "unstable ({} at {:.1} Hz)",
+                self.oscillation.word(),
+                self.oscillation_freq_hz
+            ));
+        }
+        if self.scenario == "sweep" && self.limit_cycle_torque_pu >= crate::sweep::QUIET_TORQUE_PU {
+            why.push(format!(
+                "torque chatter {:.3} pu (quiet below {} pu)",
+                self.limit_cycle_torque_pu,
+                crate::sweep::QUIET_TORQUE_PU
+            ));
+        }
+        Some(format!("{}: {}", self.scenario, why.join(", ")))
+    }
+}
+
 /// Scenarios a design must pass: a move with a load step, a 150 % shock, and the sweep's
 /// probe (ramp, load on and off, unloaded at speed), on which it must also be quiet.
 pub const VERIFY: [&str; 3] = ["fig6", "shock", "sweep"];
