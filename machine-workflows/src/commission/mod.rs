@@ -333,13 +333,28 @@ fn run_stages(
     let placed = place_notch(&staging, &id, judged, constraints)?;
     let (base, ident) = (&id.base, &id.ident);
     stage(2);
-    let pair = match tune::pair::design_both_from(
+    let pair = match tune::pair::designs_from(
         &placed.tuned_on,
         placed.judged.clone(),
         target_bandwidth,
         constraints,
     ) {
-        Ok(p) => p,
+        Ok(tune::pair::Designs::Both(p)) => p,
+        Ok(tune::pair::Designs::WithAfbOnly { with, without_afb }) => {
+            // Commission chooses between the two kinds on the machine; with one kind alone
+            // it stops, and names the command that writes the AFB design.
+            let c = &with.result.design.candidate;
+            let reason = format!(
+                "{without_afb}; a design with AFB does meet them ({} at {} rad/s), but \
+                 `commission` chooses between a design with AFB and one without on the machine \
+                 and has only one: `stiffdrive tune --config {} --out DIR` writes it alone, \
+                 verified on the identified model",
+                c.afb.label(),
+                c.bandwidth_rad_s,
+                out.join(placed.name).display()
+            );
+            return no_design_on_model(staging, out, base, &all_judged, constraints, &reason);
+        }
         Err(HarnessError::NoDesign(reason)) => {
             return no_design_on_model(staging, out, base, &all_judged, constraints, &reason)
         }

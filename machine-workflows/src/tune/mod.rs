@@ -458,7 +458,9 @@ pub fn summary_line(t: &Tuned, out: &Path) -> String {
 }
 
 /// `hil-harness tune`: both designs ([`pair::design_both`]), the chosen one's files and
-/// the runner-up's machine file ([`write_pair`]).
+/// the runner-up's machine file ([`write_pair`]). Where no design without AFB meets the
+/// constraints but one with AFB does, that one's files alone, `tune.md` saying why there is
+/// no runner-up.
 pub fn tune(
     config: &str,
     target_bandwidth: Option<f64>,
@@ -468,10 +470,22 @@ pub fn tune(
     objective::check_budget(constraints.max_torque_noise_pu)?;
     // The output directory is checked before the design's runs.
     let staging = Staging::new(out)?;
-    let p = pair::design_both(config, target_bandwidth, constraints)?;
-    write_pair(staging.dir(), &p)?;
+    let line = match pair::designs_from(config, None, target_bandwidth, constraints)? {
+        pair::Designs::Both(p) => {
+            write_pair(staging.dir(), &p)?;
+            pair_line(&p, out)
+        }
+        pair::Designs::WithAfbOnly { with, without_afb } => {
+            write::write_afb_only(staging.dir(), &with, &without_afb)?;
+            format!(
+                "{}; no design without AFB meets the constraints, so this one has no runner-up \
+                 (tune.md)",
+                summary_line(&with, out)
+            )
+        }
+    };
     staging.commit()?;
-    Ok(pair_line(&p, out))
+    Ok(line)
 }
 
 /// The one-line summary of a pair: the chosen design's [`summary_line`] and both

@@ -73,6 +73,35 @@ pub fn design_both_from(
     target_bandwidth: Option<f64>,
     constraints: &Constraints,
 ) -> Result<Pair> {
+    match designs_from(config, judged, target_bandwidth, constraints)? {
+        Designs::Both(p) => Ok(p),
+        Designs::WithAfbOnly { without_afb, .. } => Err(HarnessError::NoDesign(without_afb)),
+    }
+}
+
+/// What the two searches found: both designs, or one with AFB where no design without AFB
+/// meets the constraints (a machine only acceleration feedback makes stiff enough).
+#[derive(Debug, Clone)]
+pub enum Designs {
+    /// Both designs.
+    Both(Pair),
+    /// The design with AFB alone.
+    WithAfbOnly {
+        /// Tuned with AFB.
+        with: Tuned,
+        /// Why no design without AFB: the search's account, naming `config`.
+        without_afb: String,
+    },
+}
+
+/// [`design_both_from`] that keeps the design with AFB when the search without AFB finds
+/// none (any other error, and a search with AFB that finds none, is the error).
+pub fn designs_from(
+    config: &str,
+    judged: Option<Vec<Judged>>,
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+) -> Result<Designs> {
     let grid = sim_engine::config::tune_grid()?;
     let bws = bandwidths(&grid, target_bandwidth)?;
     let judged = match judged {
@@ -105,11 +134,18 @@ pub fn design_both_from(
         }
         other => other,
     }
-    .map_err(|e| named(config, "without AFB", e))?;
-    Ok(Pair {
-        with,
-        without,
-        on_machine_afb: None,
+    .map_err(|e| named(config, "without AFB", e));
+    Ok(match without {
+        Ok(without) => Designs::Both(Pair {
+            with,
+            without,
+            on_machine_afb: None,
+        }),
+        Err(HarnessError::NoDesign(why)) => Designs::WithAfbOnly {
+            with,
+            without_afb: why,
+        },
+        Err(e) => return Err(e),
     })
 }
 

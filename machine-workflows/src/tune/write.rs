@@ -16,6 +16,18 @@ pub fn write_design(dir: &Path, t: &Tuned) -> Result<()> {
     write_design_with(dir, t, "", &TUNE_FILES, serde_json::to_string_pretty)
 }
 
+/// The files of a design with AFB where no design without AFB meets the constraints
+/// (`why`, the search's account): [`write_design`]'s, `tune.md` saying why there is no
+/// runner-up.
+pub fn write_afb_only(dir: &Path, t: &Tuned, why: &str) -> Result<()> {
+    let extra = format!(
+        "\n## No design without AFB\n\nThe search without acceleration feedback found no \
+         design: {why}. On this machine only the design with AFB meets the constraints, so \
+         it is not compared with one without AFB and there is no `runner-up.toml`.\n"
+    );
+    write_design_with(dir, t, &extra, &TUNE_FILES, serde_json::to_string_pretty)
+}
+
 /// [`write_design`], with `extra` appended to `tune.md`, the chosen drive file named and
 /// headed by `names`, and `tune.json` from `json`.
 fn write_design_with(

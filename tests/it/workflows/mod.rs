@@ -4,6 +4,7 @@
 
 mod common;
 
+mod afb_only;
 mod commission;
 mod commission_notch;
 mod commission_spindle;
