@@ -339,7 +339,7 @@ fn run_stages(
         target_bandwidth,
         constraints,
     ) {
-        Ok(tune::pair::Designs::Both(p)) => p,
+        Ok(tune::pair::Designs::Both(p)) => *p,
         Ok(tune::pair::Designs::WithAfbOnly { with, without_afb }) => {
             // Commission chooses between the two kinds on the machine; with one kind alone
             // it stops, and names the command that writes the AFB design.

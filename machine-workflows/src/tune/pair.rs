@@ -74,7 +74,7 @@ pub fn design_both_from(
     constraints: &Constraints,
 ) -> Result<Pair> {
     match designs_from(config, judged, target_bandwidth, constraints)? {
-        Designs::Both(p) => Ok(p),
+        Designs::Both(p) => Ok(*p),
         Designs::WithAfbOnly { without_afb, .. } => Err(HarnessError::NoDesign(without_afb)),
     }
 }
@@ -84,11 +84,11 @@ pub fn design_both_from(
 #[derive(Debug, Clone)]
 pub enum Designs {
     /// Both designs.
-    Both(Pair),
+    Both(Box<Pair>),
     /// The design with AFB alone.
     WithAfbOnly {
         /// Tuned with AFB.
-        with: Tuned,
+        with: Box<Tuned>,
         /// Why no design without AFB: the search's account, naming `config`.
         without_afb: String,
     },
@@ -136,13 +136,13 @@ pub fn designs_from(
     }
     .map_err(|e| named(config, "without AFB", e));
     Ok(match without {
-        Ok(without) => Designs::Both(Pair {
+        Ok(without) => Designs::Both(Box::new(Pair {
             with,
             without,
             on_machine_afb: None,
-        }),
+        })),
         Err(HarnessError::NoDesign(why)) => Designs::WithAfbOnly {
-            with,
+            with: Box::new(with),
             without_afb: why,
         },
         Err(e) => return Err(e),
