@@ -554,6 +554,11 @@ mod tests {
         let (tf, tr) = (fwd.state.pmsm_torque, rev.state.pmsm_torque);
         assert!((tf.to_num::<f64>() - 0.5).abs() < 1e-3, "{tf}");
         assert_eq!(tr, -tf);
+        // What a record of the motor's torque reads: the observer's input.
+        assert_eq!(
+            (fwd.pmsm_measured_torque(), rev.pmsm_measured_torque()),
+            (tf, tr)
+        );
     }
 
     #[test]
