@@ -312,6 +312,37 @@ fn judge_reference(
     Ok(ReferenceDrive { judged, fails })
 }
 
+/// The two designs on the model `placed` holds, or why there are not two
+/// (`HarnessError::NoDesign`): with the design with AFB alone, the account names it and the
+/// command that writes it, since `commission` chooses between the two kinds on the machine.
+fn designs_on_model(
+    placed: &Placed,
+    target_bandwidth: Option<f64>,
+    constraints: &Constraints,
+    out: &Path,
+) -> Result<tune::pair::Pair> {
+    match tune::pair::designs_from(
+        &placed.tuned_on,
+        placed.judged.clone(),
+        target_bandwidth,
+        constraints,
+    )? {
+        tune::pair::Designs::Both(p) => Ok(*p),
+        tune::pair::Designs::WithAfbOnly { with, without_afb } => {
+            let c = &with.result.design.candidate;
+            Err(HarnessError::NoDesign(format!(
+                "{without_afb}; a design with AFB does meet them ({} at {} rad/s), but \
+                 `commission` chooses between a design with AFB and one without on the machine \
+                 and has only one: `stiffdrive tune --config {} --out DIR` writes it alone, \
+                 verified on the identified model",
+                c.afb.label(),
+                c.bandwidth_rad_s,
+                out.join(placed.name).display()
+            )))
+        }
+    }
+}
+
 fn run_stages(
     config: &str,
     sets: &[String],
@@ -333,28 +364,8 @@ fn run_stages(
     let placed = place_notch(&staging, &id, judged, constraints)?;
     let (base, ident) = (&id.base, &id.ident);
     stage(2);
-    let pair = match tune::pair::designs_from(
-        &placed.tuned_on,
-        placed.judged.clone(),
-        target_bandwidth,
-        constraints,
-    ) {
-        Ok(tune::pair::Designs::Both(p)) => *p,
-        Ok(tune::pair::Designs::WithAfbOnly { with, without_afb }) => {
-            // Commission chooses between the two kinds on the machine; with one kind alone
-            // it stops, and names the command that writes the AFB design.
-            let c = &with.result.design.candidate;
-            let reason = format!(
-                "{without_afb}; a design with AFB does meet them ({} at {} rad/s), but \
-                 `commission` chooses between a design with AFB and one without on the machine \
-                 and has only one: `stiffdrive tune --config {} --out DIR` writes it alone, \
-                 verified on the identified model",
-                c.afb.label(),
-                c.bandwidth_rad_s,
-                out.join(placed.name).display()
-            );
-            return no_design_on_model(staging, out, base, &all_judged, constraints, &reason);
-        }
+    let pair = match designs_on_model(&placed, target_bandwidth, constraints, out) {
+        Ok(p) => p,
         Err(HarnessError::NoDesign(reason)) => {
             return no_design_on_model(staging, out, base, &all_judged, constraints, &reason)
         }
