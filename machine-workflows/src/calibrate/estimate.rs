@@ -211,15 +211,7 @@ fn inductances(rows: &[Row], rate_hz: f64, r: f64) -> Result<(Estimate, Estimate
         else {
             continue;
         };
-        feats.push([
-            now.v_alpha,
-            prev.v_alpha,
-            now.v_beta,
-            prev.v_beta,
-            i_alpha(now),
-            i_beta(now),
-            1.0,
-        ]);
+        feats.push(regressors(prev, now, [i_alpha(now), i_beta(now)]));
         ya.push(i_alpha(next) - i_alpha(now));
         yb.push(i_beta(next) - i_beta(now));
     }
@@ -238,9 +230,8 @@ fn inductances(rows: &[Row], rate_hz: f64, r: f64) -> Result<(Estimate, Estimate
     let (b1, _) = ols(&x, &yb)?;
     let decay = (1.0 - r * 0.5 * (pair(&b0, 0) + pair(&b1, 2))).clamp(0.0, 1.0);
     let matrix = |z: Vec<[f64; 7]>| DMatrix::from_row_iterator(z.len(), 7, z.into_iter().flatten());
-    let z = matrix(instruments(rows, &idx, |k| {
-        leaky_sums(rows, decay).get(k).copied()
-    }));
+    let sums = leaky_sums(rows, decay);
+    let z = matrix(instruments(rows, &idx, |k| sums.get(k).copied()));
     let (b0, _) = iv(&x, &z, &ya)?;
     let (b1, _) = iv(&x, &z, &yb)?;
     let z = match model_currents(rows, &b0, &b1) {

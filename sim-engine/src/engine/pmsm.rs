@@ -56,11 +56,12 @@ pub(super) fn is_pmsm(cfg: &RunConfig) -> Result<bool> {
     }
 }
 
-/// The duties' full scale: the drive's PWM period \[timer counts\].
-fn pwm_period(cfg: &RunConfig) -> Result<u16> {
+/// The drive's FOC coefficients: its PWM period (the duties' full scale) and its motor
+/// model.
+fn foc_of(cfg: &RunConfig) -> Result<controller_core::foc::FocCoefficients> {
     controller(cfg)?
         .foc()
-        .map(|foc| foc.svpwm.period())
+        .copied()
         .ok_or_else(|| HarnessError::config("drive.pmsm", "a PMSM run needs [drive.pmsm]"))
 }
 
@@ -125,22 +126,19 @@ impl PmsmMotor {
     /// The scenario's PMSM (its load locked if the scenario says so) and its computational
     /// delay.
     pub(super) fn new(cfg: &RunConfig) -> Result<(Self, DelayLine<Command>)> {
-        let period = pwm_period(cfg)?;
+        let foc = foc_of(cfg)?;
+        let period = foc.svpwm.period();
         let plant = plant_of(cfg, period)?;
         let tc_s = 1.0 / f64::from(cfg.drive.current_rate_hz);
         let line = DelayLine::new(cfg.plant.electrics.computational_delay_s, tc_s);
         let full_scale = f64::from(period);
         let reversed = cfg.drive.pmsm.is_some_and(|p| p.encoder_reversed);
-        let mtpa = controller(cfg)?
-            .foc()
-            .map(|foc| foc.mtpa)
-            .ok_or_else(|| HarnessError::config("drive.pmsm", "a PMSM run needs [drive.pmsm]"))?;
         Ok((
             Self {
                 plant,
                 full_scale,
                 reversed,
-                mtpa,
+                mtpa: foc.mtpa,
             },
             line,
         ))
